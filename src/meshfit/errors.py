@@ -1,0 +1,103 @@
+"""Exceptions raised by meshfit.
+
+Every problem with user input raises a subclass of :class:`MeshfitError` whose message says
+what is wrong and where (which file, which face, vertex or edge). The command line turns it
+into one line on stderr and exit code 2.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "CutError",
+    "DegenerateFaceError",
+    "DuplicateFaceError",
+    "EmptyMeshError",
+    "IndexRangeError",
+    "InputError",
+    "MeshFileError",
+    "MeshValidationError",
+    "MeshfitError",
+    "NonFiniteError",
+    "NonManifoldEdgeError",
+    "NonManifoldVertexError",
+    "OrientationError",
+    "PathError",
+    "UnreferencedVertexError",
+]
+
+
+class MeshfitError(Exception):
+    """Base class of every error meshfit raises on bad input."""
+
+
+class InputError(MeshfitError, ValueError):
+    """An argument has the wrong shape, dtype or value."""
+
+
+class MeshFileError(MeshfitError):
+    """A mesh file is missing, unreadable, truncated or of an unknown format."""
+
+
+class MeshValidationError(MeshfitError):
+    """A mesh violates an invariant the rest of the package relies on.
+
+    Attributes
+    ----------
+    kind : str
+        Short machine-readable name of the problem (``"non_manifold_edge"``, ...).
+    first : tuple of int
+        The first offending element: ``(face,)``, ``(vertex,)`` or ``(v0, v1)`` for an edge.
+    count : int
+        How many elements have the problem.
+    """
+
+    kind = "invalid_mesh"
+
+    def __init__(self, message: str, *, first: tuple[int, ...] = (), count: int = 0):
+        super().__init__(message)
+        self.first = first
+        self.count = count
+
+
+class EmptyMeshError(MeshValidationError):
+    kind = "empty"
+
+
+class NonFiniteError(MeshValidationError):
+    kind = "non_finite"
+
+
+class IndexRangeError(MeshValidationError):
+    kind = "index_range"
+
+
+class DegenerateFaceError(MeshValidationError):
+    kind = "degenerate_face"
+
+
+class DuplicateFaceError(MeshValidationError):
+    kind = "duplicate_face"
+
+
+class NonManifoldEdgeError(MeshValidationError):
+    kind = "non_manifold_edge"
+
+
+class NonManifoldVertexError(MeshValidationError):
+    kind = "non_manifold_vertex"
+
+
+class OrientationError(MeshValidationError):
+    kind = "inconsistent_orientation"
+
+
+class UnreferencedVertexError(MeshValidationError):
+    kind = "unreferenced_vertex"
+
+
+class PathError(MeshfitError):
+    """No graph path exists (different components, vertex outside the allowed subset)."""
+
+
+class CutError(MeshfitError):
+    """A polyline cannot be cut into the mesh (points not on the same or adjacent faces)."""

@@ -1,0 +1,322 @@
+"""The validated, immutable triangle mesh every stage works on."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy import sparse
+
+from meshfit import errors
+from meshfit.mesh import topology
+from meshfit.mesh.validate import RepairReport, find_problems, raise_first, repair_arrays
+from meshfit.types import SurfacePoints
+
+if TYPE_CHECKING:
+    from meshfit.mesh.locate import ClosestPoints, RayHits
+
+__all__ = ["Mesh"]
+
+
+def _frozen(a: NDArray) -> NDArray:
+    a = np.array(a, copy=True, order="C")
+    a.flags.writeable = False
+    return a
+
+
+def _as_vertices(vertices: ArrayLike) -> NDArray[np.float64]:
+    try:
+        v = np.asarray(vertices, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise errors.InputError(f"vertices must be numeric: {exc}") from None
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise errors.InputError(f"vertices must have shape (nv, 3), got {v.shape}")
+    return v
+
+
+def _as_faces(faces: ArrayLike) -> NDArray[np.int64]:
+    f = np.asarray(faces)
+    if f.size == 0:
+        return np.zeros((0, 3), dtype=np.int64)
+    if f.ndim != 2 or f.shape[1] != 3:
+        raise errors.InputError(f"faces must have shape (nf, 3), got {f.shape} "
+                                "(triangulate polygons first, or load the file with load_mesh)")
+    if not np.issubdtype(f.dtype, np.integer):
+        if np.issubdtype(f.dtype, np.floating) and np.isfinite(f).all() and (f == np.round(f)).all():
+            f = f.astype(np.int64)
+        else:
+            raise errors.InputError(f"faces must hold integer vertex indices, got dtype {f.dtype}")
+    return f.astype(np.int64, copy=False)
+
+
+def _as_colors(colors: ArrayLike | None, nv: int) -> NDArray[np.uint8] | None:
+    if colors is None:
+        return None
+    c = np.asarray(colors)
+    if c.ndim != 2 or c.shape[0] != nv or c.shape[1] not in (3, 4):
+        raise errors.InputError(f"vertex_colors must have shape ({nv}, 3 or 4), got {c.shape}")
+    if c.dtype != np.uint8:
+        if np.issubdtype(c.dtype, np.floating) and c.size and c.max() <= 1.0:
+            c = np.round(c * 255.0)
+        c = np.clip(c, 0, 255).astype(np.uint8)
+    return c
+
+
+@dataclass(frozen=True, eq=False)
+class Mesh:
+    """A validated manifold triangle mesh with read-only arrays and cached adjacency.
+
+    Construct with ``Mesh(vertices, faces)`` (raises the first validation problem as a
+    :class:`meshfit.errors.MeshValidationError`) or ``Mesh.from_arrays(..., repair=True)``.
+
+    Parameters
+    ----------
+    vertices : (nv, 3) float64
+        Vertex positions, model units.
+    faces : (nf, 3) int64
+        Counter-clockwise triangles (consistently oriented).
+    vertex_colors : (nv, 3 | 4) uint8, optional
+        Per-vertex RGB(A) colours.
+    name : str
+        A label (the file name when loaded).
+    repairs : RepairReport, optional
+        Set by ``repair=True``: index maps from the input arrays to this mesh.
+
+    Notes
+    -----
+    Edge ``k`` of face ``f`` joins ``faces[f, k]`` and ``faces[f, (k + 1) % 3]``;
+    ``face_neighbors[f, k]`` is the face across it, -1 on the boundary.
+    """
+
+    vertices: NDArray[np.float64]
+    faces: NDArray[np.int64]
+    vertex_colors: NDArray[np.uint8] | None = None
+    name: str = ""
+    repairs: RepairReport | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        v = _as_vertices(self.vertices)
+        f = _as_faces(self.faces)
+        c = _as_colors(self.vertex_colors, v.shape[0])
+        raise_first(find_problems(v, f), where=self.name)
+        object.__setattr__(self, "vertices", _frozen(v))
+        object.__setattr__(self, "faces", _frozen(f))
+        object.__setattr__(self, "vertex_colors", None if c is None else _frozen(c))
+
+    @classmethod
+    def from_arrays(cls, vertices: ArrayLike, faces: ArrayLike,
+                    vertex_colors: ArrayLike | None = None, *, name: str = "",
+                    repair: bool = False) -> Mesh:
+        """Build a mesh, optionally repairing what can be repaired first.
+
+        Parameters
+        ----------
+        vertices : (nv, 3) float64
+        faces : (nf, 3) int64
+        vertex_colors : (nv, 3 | 4) uint8, optional
+        name : str
+        repair : bool
+            Drop degenerate / duplicate / back-to-back faces and unreferenced vertices and
+            make the orientation consistent; the index maps are in ``mesh.repairs``.
+        """
+        v = _as_vertices(vertices)
+        f = _as_faces(faces)
+        c = _as_colors(vertex_colors, v.shape[0])
+        if not repair:
+            return cls(v, f, c, name=name)
+        try:
+            v, f, c, report = repair_arrays(v, f, c)
+        except errors.MeshValidationError as exc:
+            raise type(exc)(f"{name}: {exc}" if name else str(exc), first=exc.first,
+                            count=exc.count) from None
+        return cls(v, f, c, name=name, repairs=report)
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def n_vertices(self) -> int:
+        return int(self.vertices.shape[0])
+
+    @property
+    def n_faces(self) -> int:
+        return int(self.faces.shape[0])
+
+    def __repr__(self) -> str:
+        label = f"{self.name!r}, " if self.name else ""
+        return f"Mesh({label}{self.n_vertices} vertices, {self.n_faces} faces)"
+
+    # ------------------------------------------------------------- connectivity
+    @cached_property
+    def _edge_table(self) -> topology.EdgeTable:
+        return topology.edge_table(self.faces, self.n_vertices)
+
+    @cached_property
+    def edges(self) -> NDArray[np.int64]:
+        """(ne, 2) int64: unique undirected edges, smaller index first."""
+        return _frozen(self._edge_table.edges)
+
+    @cached_property
+    def face_edges(self) -> NDArray[np.int64]:
+        """(nf, 3) int64: edge id of edge k of each face (row of :attr:`edges`)."""
+        return _frozen(self._edge_table.halfedge_edge.reshape(-1, 3))
+
+    @cached_property
+    def edge_face_count(self) -> NDArray[np.int64]:
+        """(ne,) int64: 1 on the boundary, 2 inside."""
+        return _frozen(self._edge_table.edge_count)
+
+    @cached_property
+    def face_neighbors(self) -> NDArray[np.int64]:
+        """(nf, 3) int64: face across edge k = (F[f,k], F[f,(k+1)%3]); -1 on the boundary."""
+        return _frozen(topology.face_neighbors(self.faces, self._edge_table))
+
+    @cached_property
+    def _vertex_adjacency(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        e = self.edges
+        n = self.n_vertices
+        m = sparse.coo_matrix((np.ones(2 * e.shape[0], dtype=np.int8),
+                               (np.concatenate([e[:, 0], e[:, 1]]),
+                                np.concatenate([e[:, 1], e[:, 0]]))), shape=(n, n)).tocsr()
+        m.sort_indices()
+        return _frozen(m.indptr.astype(np.int64)), _frozen(m.indices.astype(np.int64))
+
+    @property
+    def vertex_adjacency(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """CSR ``(indptr (nv+1,), indices (2 ne,))`` int64: neighbours of vertex i are
+        ``indices[indptr[i]:indptr[i+1]]``, sorted."""
+        return self._vertex_adjacency
+
+    def vertex_neighbors(self, vertex: int) -> NDArray[np.int64]:
+        """(k,) int64: the vertices joined to ``vertex`` by an edge."""
+        indptr, indices = self.vertex_adjacency
+        return indices[indptr[vertex]:indptr[vertex + 1]]
+
+    @cached_property
+    def _vertex_faces(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        flat = self.faces.reshape(-1)
+        order = np.argsort(flat, kind="stable")
+        indptr = np.zeros(self.n_vertices + 1, dtype=np.int64)
+        np.cumsum(np.bincount(flat, minlength=self.n_vertices), out=indptr[1:])
+        return _frozen(indptr), _frozen(order // 3)
+
+    @property
+    def vertex_faces(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """CSR ``(indptr (nv+1,), faces (3 nf,))`` int64: faces around each vertex."""
+        return self._vertex_faces
+
+    @cached_property
+    def edge_graph(self) -> sparse.csr_matrix:
+        """(nv, nv) sparse matrix of edge lengths (symmetric), for graph searches."""
+        e = self.edges
+        w = self.edge_lengths
+        n = self.n_vertices
+        return sparse.csr_matrix((np.concatenate([w, w]),
+                                  (np.concatenate([e[:, 0], e[:, 1]]),
+                                   np.concatenate([e[:, 1], e[:, 0]]))), shape=(n, n))
+
+    @cached_property
+    def boundary_loops(self) -> list[NDArray[np.int64]]:
+        """Boundary loops, each a ``(k,) int64`` vertex array in half-edge order."""
+        return [_frozen(loop) for loop in topology.boundary_loops(self.faces, self._edge_table)]
+
+    @cached_property
+    def _components(self) -> tuple[int, NDArray[np.int64]]:
+        n, labels = topology.face_components(self.n_faces, self.face_neighbors)
+        return n, _frozen(labels)
+
+    @property
+    def n_components(self) -> int:
+        """Number of edge-connected components."""
+        return self._components[0]
+
+    @property
+    def face_components(self) -> NDArray[np.int64]:
+        """(nf,) int64: component label of each face, in ``[0, n_components)``."""
+        return self._components[1]
+
+    @cached_property
+    def vertex_components(self) -> NDArray[np.int64]:
+        """(nv,) int64: component label of each vertex."""
+        out = np.empty(self.n_vertices, dtype=np.int64)
+        out[self.faces.reshape(-1)] = np.repeat(self.face_components, 3)
+        return _frozen(out)
+
+    @property
+    def euler_characteristic(self) -> int:
+        """V - E + F."""
+        return self.n_vertices - int(self.edges.shape[0]) + self.n_faces
+
+    @property
+    def genus(self) -> int:
+        """(2 c - chi - b) / 2 over all components (c components, b boundary loops)."""
+        return (2 * self.n_components - self.euler_characteristic - len(self.boundary_loops)) // 2
+
+    @property
+    def is_closed(self) -> bool:
+        """True when no edge is a boundary edge."""
+        return not bool((self.edge_face_count == 1).any())
+
+    # ---------------------------------------------------------------- geometry
+    @cached_property
+    def _face_cross(self) -> NDArray[np.float64]:
+        p = self.vertices[self.faces]
+        return np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+
+    @cached_property
+    def face_areas(self) -> NDArray[np.float64]:
+        """(nf,) float64: triangle areas, model units squared."""
+        return _frozen(0.5 * np.linalg.norm(self._face_cross, axis=1))
+
+    @cached_property
+    def face_normals(self) -> NDArray[np.float64]:
+        """(nf, 3) float64: unit normals (right-handed with the face winding)."""
+        return _frozen(self._face_cross / (2.0 * self.face_areas[:, None]))
+
+    @cached_property
+    def edge_lengths(self) -> NDArray[np.float64]:
+        """(ne,) float64: length of each row of :attr:`edges`."""
+        e = self.edges
+        return _frozen(np.linalg.norm(self.vertices[e[:, 1]] - self.vertices[e[:, 0]], axis=1))
+
+    @cached_property
+    def mean_edge_length(self) -> float:
+        return float(self.edge_lengths.mean())
+
+    @cached_property
+    def bbox(self) -> NDArray[np.float64]:
+        """(2, 3) float64: minimum and maximum corner."""
+        return _frozen(np.stack([self.vertices.min(axis=0), self.vertices.max(axis=0)]))
+
+    @cached_property
+    def bbox_diagonal(self) -> float:
+        return float(np.linalg.norm(self.bbox[1] - self.bbox[0]))
+
+    @property
+    def area(self) -> float:
+        return float(self.face_areas.sum())
+
+    def xyz(self, points: SurfacePoints) -> NDArray[np.float64]:
+        """(n, 3) float64 positions of face points."""
+        return np.einsum("ij,ijk->ik", points.bary, self.vertices[self.faces[points.face]])
+
+    # ------------------------------------------------------------ AABB queries
+    @cached_property
+    def aabb(self):
+        """The ``igl.AABB`` tree over the faces, built on first use and kept."""
+        from meshfit.mesh.locate import build_aabb
+
+        return build_aabb(self)
+
+    def closest_points(self, xyz: ArrayLike) -> ClosestPoints:
+        """Closest surface point to each query; see :func:`meshfit.mesh.locate.closest_points`."""
+        from meshfit.mesh.locate import closest_points
+
+        return closest_points(self, xyz)
+
+    def ray_first_hit(self, origins: ArrayLike, directions: ArrayLike) -> RayHits:
+        """First hit along each ray; see :func:`meshfit.mesh.locate.ray_first_hit`."""
+        from meshfit.mesh.locate import ray_first_hit
+
+        return ray_first_hit(self, origins, directions)

@@ -1,0 +1,160 @@
+"""Closest-point and ray queries on a mesh, answered by one ``igl.AABB`` tree per mesh."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from meshfit._validate import as_points, as_vectors
+from meshfit.types import SurfacePoints
+
+if TYPE_CHECKING:
+    from meshfit.mesh.core import Mesh
+
+__all__ = ["ClosestPoints", "RayHits", "barycentric", "closest_points", "ray_first_hit"]
+
+
+def build_aabb(mesh: Mesh):
+    """Build the ``igl.AABB`` tree of ``mesh`` (called once, through ``mesh.aabb``)."""
+    import igl
+
+    tree = igl.AABB()
+    tree.init(mesh.vertices, mesh.faces)
+    return tree
+
+
+def barycentric(mesh: Mesh, face: NDArray[np.int64], xyz: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Barycentric coordinates of points in the planes of the given faces.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    face : (n,) int64
+    xyz : (n, 3) float64
+        Points, projected orthogonally onto each face's plane.
+
+    Returns
+    -------
+    (n, 3) float64
+        Coordinates summing to 1 (not clipped: negative outside the triangle).
+    """
+    p = mesh.vertices[mesh.faces[face]]
+    e1 = p[:, 1] - p[:, 0]
+    e2 = p[:, 2] - p[:, 0]
+    d = xyz - p[:, 0]
+    a11 = np.einsum("ij,ij->i", e1, e1)
+    a12 = np.einsum("ij,ij->i", e1, e2)
+    a22 = np.einsum("ij,ij->i", e2, e2)
+    b1 = np.einsum("ij,ij->i", d, e1)
+    b2 = np.einsum("ij,ij->i", d, e2)
+    det = a11 * a22 - a12 * a12
+    u = (a22 * b1 - a12 * b2) / det
+    v = (a11 * b2 - a12 * b1) / det
+    return np.stack([1.0 - u - v, u, v], axis=1)
+
+
+def _clip_bary(b: NDArray[np.float64]) -> NDArray[np.float64]:
+    b = np.clip(b, 0.0, None)
+    return b / b.sum(axis=1, keepdims=True)
+
+
+@dataclass(frozen=True)
+class ClosestPoints:
+    """Result of :func:`closest_points`.
+
+    Attributes
+    ----------
+    points : SurfacePoints
+        Closest face point of each query.
+    distance : (n,) float64
+        Euclidean distance, model units.
+    xyz : (n, 3) float64
+        The closest positions.
+    """
+
+    points: SurfacePoints
+    distance: NDArray[np.float64]
+    xyz: NDArray[np.float64]
+
+
+def closest_points(mesh: Mesh, xyz: ArrayLike) -> ClosestPoints:
+    """Closest point on the surface to each query point (global, via the AABB tree).
+
+    Parameters
+    ----------
+    mesh : Mesh
+    xyz : (n, 3) float64
+        Query points, model units.
+
+    Returns
+    -------
+    ClosestPoints
+    """
+    q = as_points(xyz, name="xyz")
+    if q.shape[0] == 0:
+        return ClosestPoints(SurfacePoints(np.zeros(0, np.int64), np.zeros((0, 3))),
+                             np.zeros(0), np.zeros((0, 3)))
+    sqd, face, c = mesh.aabb.squared_distance(mesh.vertices, mesh.faces, q)
+    face = np.asarray(face, dtype=np.int64)
+    bary = _clip_bary(barycentric(mesh, face, np.asarray(c)))
+    pts = SurfacePoints(face, bary)
+    return ClosestPoints(pts, np.sqrt(np.maximum(sqd, 0.0)), mesh.xyz(pts))
+
+
+@dataclass(frozen=True)
+class RayHits:
+    """Result of :func:`ray_first_hit`.
+
+    Attributes
+    ----------
+    hit : (n,) bool
+        Whether each ray met the surface.
+    t : (n,) float64
+        Ray parameter of the hit (distance when directions are unit), ``inf`` on a miss.
+    face : (n,) int64
+        Face hit, -1 on a miss.
+    bary : (n, 3) float64
+        Barycentric coordinates of the hit, zeros on a miss.
+    """
+
+    hit: NDArray[np.bool_]
+    t: NDArray[np.float64]
+    face: NDArray[np.int64]
+    bary: NDArray[np.float64]
+
+    @property
+    def points(self) -> SurfacePoints:
+        """The hits as face points (rows where ``hit`` is True, in order)."""
+        return SurfacePoints(self.face[self.hit], self.bary[self.hit])
+
+
+def ray_first_hit(mesh: Mesh, origins: ArrayLike, directions: ArrayLike) -> RayHits:
+    """First intersection of each ray ``origin + t direction, t >= 0`` with the surface.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    origins : (n, 3) float64
+    directions : (n, 3) float64
+        Need not be unit length; ``t`` is in units of ``|direction|``.
+
+    Returns
+    -------
+    RayHits
+    """
+    o = as_points(origins, name="origins")
+    d = as_vectors(directions, n=o.shape[0], name="directions")
+    if o.shape[0] == 0:
+        return RayHits(np.zeros(0, bool), np.zeros(0), np.zeros(0, np.int64), np.zeros((0, 3)))
+    face, t, uv = mesh.aabb.intersect_ray_first(mesh.vertices, mesh.faces, o, d)
+    face = np.asarray(face, dtype=np.int64)
+    hit = face >= 0
+    uv = np.where(hit[:, None], np.asarray(uv), 0.0)
+    bary = np.stack([1.0 - uv[:, 0] - uv[:, 1], uv[:, 0], uv[:, 1]], axis=1)
+    bary[~hit] = 0.0
+    bary[hit] = _clip_bary(bary[hit]) if hit.any() else bary[hit]
+    t = np.where(hit, np.asarray(t, dtype=np.float64), np.inf)
+    return RayHits(hit, t, np.where(hit, face, -1), bary)

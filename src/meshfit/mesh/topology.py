@@ -1,0 +1,185 @@
+"""Connectivity tables computed from face arrays alone (no geometry, no validation).
+
+All functions take ``faces (nf, 3) int64`` with indices in ``[0, nv)``. Half-edge ``3 f + k``
+of face ``f`` runs from ``faces[f, k]`` to ``faces[f, (k + 1) % 3]``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import sparse
+from scipy.sparse.csgraph import connected_components
+
+__all__ = ["EdgeTable", "corner_fans", "edge_table"]
+
+
+@dataclass(frozen=True)
+class EdgeTable:
+    """Undirected edges and how half-edges map onto them.
+
+    Attributes
+    ----------
+    edges : (ne, 2) int64
+        Unique undirected edges, ``edges[:, 0] < edges[:, 1]``.
+    halfedge_edge : (3 nf,) int64
+        Edge id of each half-edge.
+    edge_count : (ne,) int64
+        Number of faces using each edge (1: boundary, 2: interior, >2: non-manifold).
+    order : (3 nf,) int64
+        Half-edges sorted by edge id (stable), so the half-edges of edge e are
+        ``order[start[e]:start[e] + edge_count[e]]``.
+    start : (ne,) int64
+        Offsets into ``order``.
+    """
+
+    edges: NDArray[np.int64]
+    halfedge_edge: NDArray[np.int64]
+    edge_count: NDArray[np.int64]
+    order: NDArray[np.int64]
+    start: NDArray[np.int64]
+
+    def halfedges_of(self, edge: int) -> NDArray[np.int64]:
+        s = self.start[edge]
+        return self.order[s:s + self.edge_count[edge]]
+
+
+def halfedges(faces: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Tail and head vertex of every half-edge, each ``(3 nf,) int64``."""
+    tail = faces.reshape(-1)
+    head = np.roll(faces, -1, axis=1).reshape(-1)
+    return tail, head
+
+
+def edge_table(faces: NDArray[np.int64], n_vertices: int) -> EdgeTable:
+    """Build the undirected edge table of a triangle list.
+
+    Parameters
+    ----------
+    faces : (nf, 3) int64
+        Triangles with indices in ``[0, n_vertices)``.
+    n_vertices : int
+        Number of vertices.
+    """
+    tail, head = halfedges(faces)
+    lo = np.minimum(tail, head)
+    hi = np.maximum(tail, head)
+    key = lo * np.int64(max(n_vertices, 1)) + hi
+    uniq, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
+    order = np.argsort(inverse, kind="stable")
+    start = np.zeros(uniq.size, dtype=np.int64)
+    np.cumsum(counts[:-1], out=start[1:])
+    edges = np.stack([uniq // max(n_vertices, 1), uniq % max(n_vertices, 1)], axis=1)
+    return EdgeTable(edges.astype(np.int64), inverse.astype(np.int64).reshape(-1),
+                     counts.astype(np.int64), order.astype(np.int64), start)
+
+
+def face_neighbors(faces: NDArray[np.int64], table: EdgeTable) -> NDArray[np.int64]:
+    """Neighbour across each face edge, ``(nf, 3) int64``, -1 where the edge is a boundary or
+    non-manifold edge. Edge k of face f joins ``faces[f, k]`` and ``faces[f, (k + 1) % 3]``."""
+    nf = faces.shape[0]
+    out = np.full(3 * nf, -1, dtype=np.int64)
+    two = np.flatnonzero(table.edge_count == 2)
+    a = table.order[table.start[two]]
+    b = table.order[table.start[two] + 1]
+    out[a] = b // 3
+    out[b] = a // 3
+    return out.reshape(nf, 3)
+
+
+def corner_fans(faces: NDArray[np.int64], n_vertices: int, table: EdgeTable,
+                cut_edges: NDArray[np.bool_] | None = None) -> tuple[NDArray[np.int64], int]:
+    """Group the corners around each vertex into fans of faces joined across shared edges.
+
+    Two corners of the same vertex belong to one fan when their faces share a manifold edge
+    incident to that vertex (and the edge is not marked in ``cut_edges``). A vertex whose
+    corners form more than one fan is non-manifold (a bow-tie), or lies on a cut.
+
+    Parameters
+    ----------
+    faces : (nf, 3) int64
+    n_vertices : int
+    table : EdgeTable
+        From :func:`edge_table` on the same faces.
+    cut_edges : (ne,) bool, optional
+        Edges across which corners are not joined.
+
+    Returns
+    -------
+    fan : (3 nf,) int64
+        Fan label of each corner (``3 f + k`` is the corner of ``faces[f, k]``), labels
+        global over the mesh.
+    n_fans : int
+        Number of distinct fans.
+    """
+    nc = faces.size
+    join = table.edge_count == 2
+    if cut_edges is not None:
+        join = join & ~cut_edges
+    two = np.flatnonzero(join)
+    ha = table.order[table.start[two]]
+    hb = table.order[table.start[two] + 1]
+    # half-edge h = 3f+k has corners (3f+k) at its tail and (3f+(k+1)%3) at its head
+    def tail_corner(h):
+        return h
+
+    def head_corner(h):
+        return 3 * (h // 3) + (h % 3 + 1) % 3
+
+    corner_vertex = faces.reshape(-1)
+    # the two half-edges may run in opposite or (badly oriented) equal directions: match by vertex
+    a_tail, a_head = tail_corner(ha), head_corner(ha)
+    b_tail, b_head = tail_corner(hb), head_corner(hb)
+    same = corner_vertex[a_tail] == corner_vertex[b_tail]
+    r1 = np.concatenate([a_tail, a_head])
+    c1 = np.concatenate([np.where(same, b_tail, b_head), np.where(same, b_head, b_tail)])
+    graph = sparse.coo_matrix((np.ones(r1.size, dtype=np.int8), (r1, c1)), shape=(nc, nc))
+    n, labels = connected_components(graph, directed=False)
+    return labels.astype(np.int64), int(n)
+
+
+def face_components(n_faces: int, neighbors: NDArray[np.int64]) -> tuple[int, NDArray[np.int64]]:
+    """Connected components of faces joined across manifold edges."""
+    f = np.repeat(np.arange(n_faces), 3)
+    g = neighbors.reshape(-1)
+    keep = g >= 0
+    graph = sparse.coo_matrix((np.ones(int(keep.sum()), dtype=np.int8), (f[keep], g[keep])),
+                              shape=(n_faces, n_faces))
+    n, labels = connected_components(graph, directed=False)
+    return int(n), labels.astype(np.int64)
+
+
+def boundary_loops(faces: NDArray[np.int64], table: EdgeTable) -> list[NDArray[np.int64]]:
+    """Boundary loops as vertex index arrays, each in the order of its half-edges.
+
+    A boundary vertex met by more than one loop (a pinch) ends the trace of the loop it
+    closes; every boundary half-edge is used exactly once.
+    """
+    bnd = np.flatnonzero(table.edge_count == 1)
+    if bnd.size == 0:
+        return []
+    he = table.order[table.start[bnd]]
+    tail, head = halfedges(faces)
+    t, h = tail[he], head[he]
+    # successor: the boundary half-edge leaving the head vertex
+    by_tail: dict[int, list[int]] = {}
+    for i, v in enumerate(t.tolist()):
+        by_tail.setdefault(v, []).append(i)
+    used = np.zeros(he.size, dtype=bool)
+    loops = []
+    for s in range(he.size):
+        if used[s]:
+            continue
+        loop = []
+        i = s
+        while not used[i]:
+            used[i] = True
+            loop.append(int(t[i]))
+            nxt = [j for j in by_tail.get(int(h[i]), []) if not used[j]]
+            if not nxt:
+                break
+            i = nxt[0]
+        loops.append(np.asarray(loop, dtype=np.int64))
+    return loops

@@ -1,0 +1,351 @@
+"""Mesh validation and repair.
+
+:func:`find_problems` lists every problem of a vertex/face array pair; :func:`repair_arrays`
+removes what can be removed safely (degenerate, duplicate, back-to-back and non-finite faces,
+unreferenced vertices) and makes face orientation consistent, returning index maps.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from meshfit import errors, tol
+from meshfit.mesh import topology
+
+__all__ = ["Finding", "RepairReport", "find_problems", "raise_first", "repair_arrays"]
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One validation problem.
+
+    Attributes
+    ----------
+    kind : str
+        Machine-readable name, equal to the ``kind`` of the matching error class.
+    message : str
+        Human-readable sentence naming the first offending element.
+    first : tuple of int
+        First offending face ``(f,)``, vertex ``(v,)`` or edge ``(v0, v1)``.
+    count : int
+        Number of offending elements.
+    repairable : bool
+        Whether ``repair=True`` removes the problem.
+    """
+
+    kind: str
+    message: str
+    first: tuple[int, ...]
+    count: int
+    repairable: bool
+
+    @property
+    def error_class(self) -> type[errors.MeshValidationError]:
+        return _ERRORS[self.kind]
+
+    def to_error(self) -> errors.MeshValidationError:
+        hint = " (load with repair=True to fix it)" if self.repairable else ""
+        return self.error_class(self.message + hint, first=self.first, count=self.count)
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind, "message": self.message, "first": list(self.first),
+                "count": self.count, "repairable": self.repairable}
+
+
+_ERRORS: dict[str, type[errors.MeshValidationError]] = {
+    c.kind: c for c in (errors.EmptyMeshError, errors.NonFiniteError, errors.IndexRangeError,
+                        errors.DegenerateFaceError, errors.DuplicateFaceError,
+                        errors.NonManifoldEdgeError, errors.NonManifoldVertexError,
+                        errors.OrientationError, errors.UnreferencedVertexError)
+}
+
+
+def _plural(n: int, word: str) -> str:
+    if n == 1:
+        return f"1 {word}"
+    return f"{n} {word[:-1] + 'ices' if word.endswith('vertex') else word + 's'}"
+
+
+def _degenerate_faces(vertices: NDArray, faces: NDArray) -> NDArray[np.bool_]:
+    """Faces with a repeated index or (near-)zero area, relative to the bbox diagonal."""
+    rep = ((faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2])
+           | (faces[:, 2] == faces[:, 0]))
+    p = vertices[faces]
+    cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    area2 = np.einsum("ij,ij->i", cross, cross)
+    used = vertices[np.unique(faces)] if faces.size else vertices
+    finite = used[np.isfinite(used).all(axis=1)]
+    diag = float(np.linalg.norm(finite.max(axis=0) - finite.min(axis=0))) if finite.size else 0.0
+    limit = (2.0 * tol.DEGENERATE_AREA * diag * diag) ** 2
+    with np.errstate(invalid="ignore"):
+        small = ~(area2 > limit)
+    return rep | small
+
+
+def _duplicate_faces(faces: NDArray) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """Faces repeating an earlier face's vertex set.
+
+    Returns ``(duplicate, back_to_back)``: ``duplicate`` marks every copy after the first
+    of a vertex set; ``back_to_back`` marks *all* faces of a set that occurs with both
+    windings (a zero-volume fin, which no face of it belongs to the surface).
+    """
+    nf = faces.shape[0]
+    srt = np.sort(faces, axis=1)
+    _, first, inverse, counts = np.unique(srt, axis=0, return_index=True, return_inverse=True,
+                                          return_counts=True)
+    inverse = inverse.reshape(-1)
+    dup = np.ones(nf, dtype=bool)
+    dup[first] = False
+    # winding parity: rotate each face so its smallest index comes first; the winding is
+    # then told by whether the other two ascend
+    k = np.argmin(faces, axis=1)
+    rolled = faces[np.arange(nf)[:, None], (k[:, None] + np.arange(3)) % 3]
+    parity = (rolled[:, 1] > rolled[:, 2]).astype(np.int8)  # 0: ascending after the minimum
+    multi = counts[inverse] > 1
+    back = np.zeros(nf, dtype=bool)
+    if multi.any():
+        grp = inverse[multi]
+        par = parity[multi]
+        has0 = np.zeros(counts.size, dtype=bool)
+        has1 = np.zeros(counts.size, dtype=bool)
+        has0[grp[par == 0]] = True
+        has1[grp[par == 1]] = True
+        mixed = has0 & has1
+        back = mixed[inverse]
+    return dup, back
+
+
+def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> list[Finding]:
+    """Every validation problem of a triangle mesh given as arrays.
+
+    Parameters
+    ----------
+    vertices : (nv, 3) float64
+    faces : (nf, 3) int64
+
+    Returns
+    -------
+    list of Finding
+        In a fixed order: empty, non-finite, index range, degenerate, duplicate,
+        unreferenced, non-manifold edges, non-manifold vertices, orientation. Topological
+        checks are skipped while indices are out of range.
+    """
+    out: list[Finding] = []
+    nv, nf = vertices.shape[0], faces.shape[0]
+    if nv == 0 or nf == 0:
+        what = "no vertices" if nv == 0 else "no faces"
+        return [Finding("empty", f"mesh is empty: it has {what}", (), 0, False)]
+    bad_v = ~np.isfinite(vertices).all(axis=1)
+    if bad_v.any():
+        idx = np.flatnonzero(bad_v)
+        out.append(Finding("non_finite",
+                           f"{_plural(idx.size, 'vertex')} with NaN or infinite coordinates "
+                           f"(first: vertex {idx[0]} = {vertices[idx[0]].tolist()})",
+                           (int(idx[0]),), int(idx.size), True))
+    bad_f = ((faces < 0) | (faces >= nv)).any(axis=1)
+    if bad_f.any():
+        idx = np.flatnonzero(bad_f)
+        out.append(Finding("index_range",
+                           f"{_plural(idx.size, 'face')} with vertex indices outside [0, {nv}) "
+                           f"(first: face {idx[0]} = {faces[idx[0]].tolist()})",
+                           (int(idx[0]),), int(idx.size), False))
+        return out
+    deg = _degenerate_faces(vertices, faces) & ~bad_v[faces].any(axis=1)
+    if deg.any():
+        idx = np.flatnonzero(deg)
+        out.append(Finding("degenerate_face",
+                           f"{_plural(idx.size, 'degenerate face')} (zero area or repeated vertex; "
+                           f"first: face {idx[0]} = {faces[idx[0]].tolist()})",
+                           (int(idx[0]),), int(idx.size), True))
+    dup, back = _duplicate_faces(faces)
+    if dup.any():
+        idx = np.flatnonzero(dup)
+        srt = np.sort(faces, axis=1)
+        orig = int(np.flatnonzero((srt == srt[idx[0]]).all(axis=1))[0])
+        nback = int(back.sum()) // 2
+        extra = f", {nback} of them back-to-back (opposite winding)" if nback else ""
+        out.append(Finding("duplicate_face",
+                           f"{_plural(idx.size, 'duplicate face')}{extra} (first: face {idx[0]} "
+                           f"repeats face {orig}, vertices {sorted(faces[orig].tolist())})",
+                           (int(idx[0]),), int(idx.size), True))
+    referenced = np.zeros(nv, dtype=bool)
+    referenced[faces.reshape(-1)] = True
+    if not referenced.all():
+        idx = np.flatnonzero(~referenced)
+        out.append(Finding("unreferenced_vertex",
+                           f"{_plural(idx.size, 'vertex')} not used by any face "
+                           f"(first: vertex {idx[0]})", (int(idx[0]),), int(idx.size), True))
+    table = topology.edge_table(faces, nv)
+    nm = np.flatnonzero(table.edge_count > 2)
+    if nm.size:
+        e = table.edges[nm[0]]
+        fs = sorted((table.halfedges_of(int(nm[0])) // 3).tolist())
+        out.append(Finding("non_manifold_edge",
+                           f"{_plural(nm.size, 'non-manifold edge')} shared by more than two faces "
+                           f"(first: edge ({e[0]}, {e[1]}) in faces {fs})",
+                           (int(e[0]), int(e[1])), int(nm.size), False))
+    fan, _ = topology.corner_fans(faces, nv, table)
+    corner_vertex = faces.reshape(-1)
+    pairs = np.unique(np.stack([corner_vertex, fan], axis=1), axis=0)
+    fans_per_vertex = np.bincount(pairs[:, 0], minlength=nv)
+    nmv = np.flatnonzero(fans_per_vertex > 1)
+    if nm.size:  # vertices of non-manifold edges are reported with the edges
+        nmv = np.setdiff1d(nmv, table.edges[nm].reshape(-1))
+    if nmv.size:
+        out.append(Finding("non_manifold_vertex",
+                           f"{_plural(nmv.size, 'non-manifold vertex')} where separate fans of faces "
+                           f"meet (first: vertex {nmv[0]}, {fans_per_vertex[nmv[0]]} fans)",
+                           (int(nmv[0]),), int(nmv.size), False))
+    tail, _head = topology.halfedges(faces)
+    two = np.flatnonzero(table.edge_count == 2)
+    ha = table.order[table.start[two]]
+    hb = table.order[table.start[two] + 1]
+    same_dir = tail[ha] == tail[hb]
+    if same_dir.any():
+        i = np.flatnonzero(same_dir)
+        e = table.edges[two[i[0]]]
+        out.append(Finding("inconsistent_orientation",
+                           f"{_plural(i.size, 'edge')} where neighbouring faces have opposite "
+                           f"winding (first: edge ({e[0]}, {e[1]}) between faces "
+                           f"{int(ha[i[0]] // 3)} and {int(hb[i[0]] // 3)})",
+                           (int(e[0]), int(e[1])), int(i.size), True))
+    return out
+
+
+def raise_first(findings: list[Finding], *, where: str = "") -> None:
+    """Raise the error of the first finding, prefixed with ``where`` (e.g. a file name)."""
+    if findings:
+        err = findings[0].to_error()
+        if len(findings) > 1:
+            more = "; also: " + "; ".join(f.kind.replace("_", " ") for f in findings[1:])
+        else:
+            more = ""
+        msg = f"{where}: {err}{more}" if where else f"{err}{more}"
+        raise type(err)(msg, first=err.first, count=err.count)
+
+
+@dataclass
+class RepairReport:
+    """What :func:`repair_arrays` changed.
+
+    Attributes
+    ----------
+    vertex_map : (nv_in,) int64
+        New index of every input vertex, -1 where it was dropped.
+    face_map : (nf_in,) int64
+        New index of every input face, -1 where it was dropped.
+    flipped_faces : (k,) int64
+        Input face indices whose winding was reversed for consistent orientation.
+    fixed : list of Finding
+        The problems found before the repair.
+    """
+
+    vertex_map: NDArray[np.int64]
+    face_map: NDArray[np.int64]
+    flipped_faces: NDArray[np.int64]
+    fixed: list[Finding] = field(default_factory=list)
+
+    def summary(self) -> str:
+        parts = [f"{f.count} {f.kind.replace('_', ' ')}" for f in self.fixed]
+        dropped_f = int((self.face_map < 0).sum())
+        dropped_v = int((self.vertex_map < 0).sum())
+        return (f"repaired ({', '.join(parts) or 'nothing to do'}): dropped {dropped_f} faces and "
+                f"{dropped_v} vertices, flipped {self.flipped_faces.size} faces")
+
+
+def _orient(faces: NDArray[np.int64], nv: int) -> NDArray[np.int64]:
+    """Faces to flip so that every manifold edge is used in opposite directions.
+
+    Breadth-first over each component from its lowest face. Raises OrientationError when a
+    component is not orientable.
+    """
+    table = topology.edge_table(faces, nv)
+    tail, _ = topology.halfedges(faces)
+    two = np.flatnonzero(table.edge_count == 2)
+    ha = table.order[table.start[two]]
+    hb = table.order[table.start[two] + 1]
+    fa, fb = ha // 3, hb // 3
+    same = (tail[ha] == tail[hb]).astype(np.int8)  # 1: faces must differ in flip state
+    nf = faces.shape[0]
+    adj: list[list[tuple[int, int]]] = [[] for _ in range(nf)]
+    for a, b, s in zip(fa.tolist(), fb.tolist(), same.tolist(), strict=True):
+        adj[a].append((b, s))
+        adj[b].append((a, s))
+    flip = np.full(nf, -1, dtype=np.int8)
+    for seed in range(nf):
+        if flip[seed] >= 0:
+            continue
+        flip[seed] = 0
+        stack = [seed]
+        while stack:
+            f = stack.pop()
+            for g, s in adj[f]:
+                want = flip[f] ^ s
+                if flip[g] < 0:
+                    flip[g] = want
+                    stack.append(g)
+                elif flip[g] != want:
+                    raise errors.OrientationError(
+                        f"the surface is not orientable: faces {f} and {g} cannot both be "
+                        "made consistent", first=(int(f),), count=1)
+    return np.flatnonzero(flip == 1)
+
+
+def repair_arrays(vertices: NDArray[np.float64], faces: NDArray[np.int64],
+                  vertex_colors: NDArray[np.uint8] | None = None):
+    """Remove the repairable problems of a mesh.
+
+    Drops faces that touch non-finite vertices, degenerate faces, later copies of duplicate
+    faces and both faces of back-to-back pairs, then unreferenced vertices; flips faces to a
+    consistent orientation. Problems that cannot be repaired (indices out of range,
+    non-manifold edges or vertices that remain, an empty result) raise.
+
+    Parameters
+    ----------
+    vertices : (nv, 3) float64
+    faces : (nf, 3) int64
+    vertex_colors : (nv, 3 | 4) uint8, optional
+
+    Returns
+    -------
+    vertices : (nv', 3) float64
+    faces : (nf', 3) int64
+    vertex_colors : (nv', 3 | 4) uint8 or None
+    report : RepairReport
+    """
+    findings = find_problems(vertices, faces)
+    fatal = [f for f in findings if not f.repairable]
+    if fatal and fatal[0].kind in ("empty", "index_range"):
+        raise_first(fatal)
+    nv, nf = vertices.shape[0], faces.shape[0]
+    bad_v = ~np.isfinite(vertices).all(axis=1)
+    drop = bad_v[faces].any(axis=1)
+    drop |= _degenerate_faces(vertices, faces)
+    dup, back = _duplicate_faces(faces)
+    drop |= dup | back
+    keep = np.flatnonzero(~drop)
+    face_map = np.full(nf, -1, dtype=np.int64)
+    face_map[keep] = np.arange(keep.size)
+    kept = faces[keep]
+    used = np.zeros(nv, dtype=bool)
+    used[kept.reshape(-1)] = True
+    vertex_map = np.full(nv, -1, dtype=np.int64)
+    vertex_map[used] = np.arange(int(used.sum()))
+    new_faces = vertex_map[kept]
+    new_vertices = vertices[used]
+    new_colors = vertex_colors[used] if vertex_colors is not None else None
+    after = find_problems(new_vertices, new_faces)
+    remaining = [f for f in after if f.kind != "inconsistent_orientation"]
+    if remaining:
+        raise_first(remaining, where="after repair")
+    flipped_new = (_orient(new_faces, new_vertices.shape[0]) if after
+                   else np.zeros(0, dtype=np.int64))
+    if flipped_new.size:
+        new_faces = new_faces.copy()
+        new_faces[flipped_new] = new_faces[flipped_new][:, ::-1]
+    flipped = keep[flipped_new]
+    report = RepairReport(vertex_map, face_map, flipped.astype(np.int64), findings)
+    return new_vertices, new_faces, new_colors, report

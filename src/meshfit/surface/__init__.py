@@ -1,0 +1,1 @@
+"""Primitives on the surface: sampling face points, walking, graph paths, cutting."""

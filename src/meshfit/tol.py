@@ -1,0 +1,47 @@
+"""Named numerical tolerances.
+
+Every tolerance is *relative*: multiply by the scale named in its comment (the mesh's
+bounding-box diagonal, its mean edge length, or nothing for dimensionless quantities).
+Use :func:`length` to get an absolute length for a given mesh.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from meshfit.mesh import Mesh
+
+#: barycentric coordinates within this of 0 or 1 count as on an edge / at a vertex (dimensionless)
+BARY_EPS = 1e-12
+#: a walk step shorter than this, times the mean edge length, counts as finished
+WALK_EPS = 1e-12
+#: a face whose area is below this, times bbox_diagonal**2, is degenerate
+DEGENERATE_AREA = 1e-14
+#: a point this close to the surface, times bbox_diagonal, is on it
+ON_SURFACE = 1e-9
+#: attraction stops when a step is shorter than this, times the mean edge length
+ATTRACT_EPS = 1e-10
+#: cut points closer than this to a vertex or edge, times the mean edge length, snap onto it
+CUT_SNAP = 1e-7
+#: absolute-position agreement in tests, times bbox_diagonal
+TEST_ATOL = 1e-9
+
+
+def length(mesh: Mesh, rel: float, *, scale: str = "mean_edge_length") -> float:
+    """Absolute length for a relative tolerance on ``mesh``.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        The mesh that sets the scale.
+    rel : float
+        One of the relative tolerances of this module.
+    scale : {"mean_edge_length", "bbox_diagonal"}
+        Which length of the mesh ``rel`` is relative to.
+    """
+    if scale == "mean_edge_length":
+        return rel * mesh.mean_edge_length
+    if scale == "bbox_diagonal":
+        return rel * mesh.bbox_diagonal
+    raise ValueError(f"unknown scale {scale!r}")

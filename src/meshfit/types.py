@@ -1,0 +1,131 @@
+"""Small value types shared by every stage: points on a mesh surface and surface curves."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from meshfit.errors import InputError
+
+__all__ = ["SurfaceCurve", "SurfacePoints"]
+
+
+def _readonly(a: NDArray) -> NDArray:
+    a = np.ascontiguousarray(a)
+    if a.flags.writeable:
+        a = a.copy()
+        a.flags.writeable = False
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class SurfacePoints:
+    """Points on a triangle mesh as (face, barycentric coordinates): a struct of arrays.
+
+    Parameters
+    ----------
+    face : (n,) int64
+        Face index of each point.
+    bary : (n, 3) float64
+        Barycentric coordinates with respect to ``faces[face]``; each row sums to 1.
+
+    Notes
+    -----
+    Face points are the thesis' representation of surface curves and spring meshes: a point
+    constrained to a facet of the polygonal surface (Krishnamurthy 2000, sec. 3.1).
+    Evaluate positions with ``mesh.xyz(points)``.
+    """
+
+    face: NDArray[np.int64]
+    bary: NDArray[np.float64]
+
+    def __post_init__(self) -> None:
+        face = np.asarray(self.face)
+        bary = np.asarray(self.bary, dtype=np.float64)
+        if face.ndim != 1 or not (face.size == 0 or np.issubdtype(face.dtype, np.integer)):
+            raise InputError(f"SurfacePoints.face must be a 1-d integer array, got {face.dtype} "
+                             f"with shape {face.shape}")
+        if bary.shape != (face.shape[0], 3):
+            raise InputError(f"SurfacePoints.bary must have shape ({face.shape[0]}, 3), "
+                             f"got {bary.shape}")
+        if not np.isfinite(bary).all():
+            bad = int(np.flatnonzero(~np.isfinite(bary).all(axis=1))[0])
+            raise InputError(f"SurfacePoints.bary is not finite at point {bad}")
+        object.__setattr__(self, "face", _readonly(face.astype(np.int64, copy=False)))
+        object.__setattr__(self, "bary", _readonly(bary))
+
+    def __len__(self) -> int:
+        return int(self.face.shape[0])
+
+    def __getitem__(self, index) -> SurfacePoints:
+        """Subset of the points (an integer index keeps a length-1 result)."""
+        if isinstance(index, (int, np.integer)):
+            index = slice(int(index), int(index) + 1 if int(index) != -1 else None)
+        return SurfacePoints(self.face[index], self.bary[index])
+
+    @classmethod
+    def at_vertices(cls, faces: ArrayLike, vertices: ArrayLike) -> SurfacePoints:
+        """Face points sitting exactly on mesh vertices.
+
+        Parameters
+        ----------
+        faces : (nf, 3) int64
+            The mesh's faces.
+        vertices : (n,) int64
+            Vertex indices; each must be referenced by some face.
+        """
+        faces = np.asarray(faces)
+        vertices = np.asarray(vertices, dtype=np.int64).reshape(-1)
+        nv = int(faces.max()) + 1 if faces.size else 0
+        corner_face = np.full(max(nv, 1), -1, dtype=np.int64)
+        corner_slot = np.zeros(max(nv, 1), dtype=np.int64)
+        flat = faces.reshape(-1)
+        corner_face[flat[::-1]] = (np.arange(flat.size)[::-1] // 3)
+        corner_slot[flat[::-1]] = (np.arange(flat.size)[::-1] % 3)
+        if vertices.size and (vertices.min() < 0 or vertices.max() >= nv
+                              or (corner_face[vertices] < 0).any()):
+            bad = vertices[(vertices < 0) | (vertices >= nv)]
+            if bad.size == 0:
+                bad = vertices[corner_face[vertices] < 0]
+            raise InputError(f"vertex {int(bad[0])} is not referenced by any face")
+        bary = np.zeros((vertices.size, 3))
+        bary[np.arange(vertices.size), corner_slot[vertices]] = 1.0
+        return cls(corner_face[vertices], bary)
+
+    @classmethod
+    def concatenate(cls, parts: list[SurfacePoints]) -> SurfacePoints:
+        """Join several point sets in order."""
+        if not parts:
+            return cls(np.zeros(0, np.int64), np.zeros((0, 3)))
+        return cls(np.concatenate([p.face for p in parts]),
+                   np.concatenate([p.bary for p in parts]))
+
+
+@dataclass(frozen=True, eq=False)
+class SurfaceCurve:
+    """An ordered sequence of face points: a curve on the surface (thesis sec. 3.1).
+
+    Parameters
+    ----------
+    points : SurfacePoints
+        The curve's samples in order. Consecutive points should lie on the same or on
+        adjacent faces (the thesis' sampling rule).
+    closed : bool
+        Whether the last point connects back to the first.
+    kind : {"boundary", "feature"}
+        Patch boundary or feature curve.
+    """
+
+    points: SurfacePoints
+    closed: bool = False
+    kind: Literal["boundary", "feature"] = "boundary"
+
+    def __post_init__(self) -> None:
+        if self.kind not in ("boundary", "feature"):
+            raise InputError(f"SurfaceCurve.kind must be 'boundary' or 'feature', got {self.kind!r}")
+
+    def __len__(self) -> int:
+        return len(self.points)
