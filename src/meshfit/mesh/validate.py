@@ -66,7 +66,7 @@ _ERRORS: dict[str, type[errors.MeshValidationError]] = {
 def _plural(n: int, word: str) -> str:
     if n == 1:
         return f"1 {word}"
-    return f"{n} {word[:-1] + 'ices' if word.endswith('vertex') else word + 's'}"
+    return f"{n} {word[:-2] + 'ices' if word.endswith('vertex') else word + 's'}"
 
 
 def _degenerate_faces(vertices: NDArray, faces: NDArray) -> NDArray[np.bool_]:
@@ -129,9 +129,9 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
     Returns
     -------
     list of Finding
-        In a fixed order: empty, non-finite, index range, degenerate, duplicate,
-        unreferenced, non-manifold edges, non-manifold vertices, orientation. Topological
-        checks are skipped while indices are out of range.
+        In a fixed order, most serious first: empty, non-finite, index range, non-manifold
+        edges, non-manifold vertices, degenerate, duplicate, unreferenced, orientation.
+        Topological checks are skipped while indices are out of range.
     """
     out: list[Finding] = []
     nv, nf = vertices.shape[0], faces.shape[0]
@@ -153,6 +153,34 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
                            f"(first: face {idx[0]} = {faces[idx[0]].tolist()})",
                            (int(idx[0]),), int(idx.size), False))
         return out
+    table = topology.edge_table(faces, nv)
+    nm = np.flatnonzero(table.edge_count > 2)
+    if nm.size:
+        e = table.edges[nm[0]]
+        fs = sorted((table.halfedges_of(int(nm[0])) // 3).tolist())
+        # repairable when dropping duplicate / back-to-back / degenerate faces fixes every one
+        dup, back = _duplicate_faces(faces)
+        dropped = dup | back | _degenerate_faces(vertices, faces)
+        left = np.bincount(table.halfedge_edge[np.repeat(~dropped, 3)],
+                           minlength=table.edges.shape[0])
+        fixable = bool((left[nm] <= 2).all())
+        cause = " (all caused by duplicate or back-to-back faces)" if fixable else ""
+        out.append(Finding("non_manifold_edge",
+                           f"{_plural(nm.size, 'non-manifold edge')} shared by more than two faces "
+                           f"(first: edge ({e[0]}, {e[1]}) in faces {fs}){cause}",
+                           (int(e[0]), int(e[1])), int(nm.size), fixable))
+    fan, _ = topology.corner_fans(faces, nv, table)
+    corner_vertex = faces.reshape(-1)
+    pairs = np.unique(np.stack([corner_vertex, fan], axis=1), axis=0)
+    fans_per_vertex = np.bincount(pairs[:, 0], minlength=nv)
+    nmv = np.flatnonzero(fans_per_vertex > 1)
+    if nm.size:  # vertices of non-manifold edges are reported with the edges
+        nmv = np.setdiff1d(nmv, table.edges[nm].reshape(-1))
+    if nmv.size:
+        out.append(Finding("non_manifold_vertex",
+                           f"{_plural(nmv.size, 'non-manifold vertex')} where separate fans of faces "
+                           f"meet (first: vertex {nmv[0]}, {fans_per_vertex[nmv[0]]} fans)",
+                           (int(nmv[0]),), int(nmv.size), False))
     deg = _degenerate_faces(vertices, faces) & ~bad_v[faces].any(axis=1)
     if deg.any():
         idx = np.flatnonzero(deg)
@@ -178,27 +206,6 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
         out.append(Finding("unreferenced_vertex",
                            f"{_plural(idx.size, 'vertex')} not used by any face "
                            f"(first: vertex {idx[0]})", (int(idx[0]),), int(idx.size), True))
-    table = topology.edge_table(faces, nv)
-    nm = np.flatnonzero(table.edge_count > 2)
-    if nm.size:
-        e = table.edges[nm[0]]
-        fs = sorted((table.halfedges_of(int(nm[0])) // 3).tolist())
-        out.append(Finding("non_manifold_edge",
-                           f"{_plural(nm.size, 'non-manifold edge')} shared by more than two faces "
-                           f"(first: edge ({e[0]}, {e[1]}) in faces {fs})",
-                           (int(e[0]), int(e[1])), int(nm.size), False))
-    fan, _ = topology.corner_fans(faces, nv, table)
-    corner_vertex = faces.reshape(-1)
-    pairs = np.unique(np.stack([corner_vertex, fan], axis=1), axis=0)
-    fans_per_vertex = np.bincount(pairs[:, 0], minlength=nv)
-    nmv = np.flatnonzero(fans_per_vertex > 1)
-    if nm.size:  # vertices of non-manifold edges are reported with the edges
-        nmv = np.setdiff1d(nmv, table.edges[nm].reshape(-1))
-    if nmv.size:
-        out.append(Finding("non_manifold_vertex",
-                           f"{_plural(nmv.size, 'non-manifold vertex')} where separate fans of faces "
-                           f"meet (first: vertex {nmv[0]}, {fans_per_vertex[nmv[0]]} fans)",
-                           (int(nmv[0]),), int(nmv.size), False))
     tail, _head = topology.halfedges(faces)
     two = np.flatnonzero(table.edge_count == 2)
     ha = table.order[table.start[two]]
@@ -249,7 +256,7 @@ class RepairReport:
     fixed: list[Finding] = field(default_factory=list)
 
     def summary(self) -> str:
-        parts = [f"{f.count} {f.kind.replace('_', ' ')}" for f in self.fixed]
+        parts = [f"{f.kind.replace('_', ' ')}: {f.count}" for f in self.fixed]
         dropped_f = int((self.face_map < 0).sum())
         dropped_v = int((self.vertex_map < 0).sum())
         return (f"repaired ({', '.join(parts) or 'nothing to do'}): dropped {dropped_f} faces and "

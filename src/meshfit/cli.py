@@ -1,0 +1,137 @@
+"""The ``meshfit`` command line: a thin shell over the Python API.
+
+Every :class:`meshfit.errors.MeshfitError` becomes one line on stderr and exit code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+from meshfit import __version__, errors
+
+EXIT_OK = 0
+EXIT_ERROR = 2
+
+
+def _print_json(data: dict) -> None:
+    json.dump(data, sys.stdout, indent=2, sort_keys=False)
+    sys.stdout.write("\n")
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    if isinstance(v, list) and v and isinstance(v[0], float):
+        return "[" + ", ".join(f"{x:.6g}" for x in v) + "]"
+    return str(v)
+
+
+def _print_table(title: str, data: dict) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=title, show_header=False, title_justify="left")
+    table.add_column("quantity", style="bold")
+    table.add_column("value")
+    for k, v in data.items():
+        if k in ("findings", "notes"):
+            continue
+        table.add_row(k.replace("_", " "), _fmt(v))
+    Console().print(table)
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    """Statistics and validation findings of one mesh file."""
+    from meshfit.mesh import Mesh, find_problems, read_mesh_arrays
+    from meshfit.mesh.measures import mesh_statistics, raw_statistics
+
+    t0 = time.perf_counter()
+    raw = read_mesh_arrays(args.mesh)
+    findings = find_problems(raw.vertices, raw.faces)
+    out = raw_statistics(raw, findings)
+    mesh = None
+    if not findings or args.repair:
+        mesh = Mesh.from_arrays(raw.vertices, raw.faces, raw.vertex_colors,
+                                name=Path(args.mesh).name, repair=args.repair)
+        out.update(mesh_statistics(mesh))
+        if mesh.repairs is not None:
+            out["repair"] = mesh.repairs.summary()
+    out["repaired"] = bool(findings) and mesh is not None
+    out = {"file": str(args.mesh), **out, "seconds": round(time.perf_counter() - t0, 3)}
+    if args.json:
+        _print_json(out)
+    else:
+        _print_table(f"{args.mesh}", out)
+        for note in out["notes"]:
+            print(f"note: {note}")
+        for f in findings:
+            tag = "repaired" if mesh is not None else ("repairable" if f.repairable else "error")
+            print(f"{tag}: {f.message}")
+        if not findings:
+            print("valid: no problems found")
+    if mesh is None:
+        first = findings[0]
+        hint = " (run with --repair)" if all(f.repairable for f in findings) else ""
+        sys.stderr.write(f"meshfit: error: {args.mesh}: {first.message}{hint}\n")
+        return EXIT_ERROR
+    return EXIT_OK
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="meshfit",
+        description="Turn dense scanned meshes into smooth surfaces.")
+    parser.add_argument("--version", action="version", version=f"meshfit {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser("info", help="print statistics and every validation finding of a mesh")
+    p.add_argument("mesh", help="mesh file (.ply .obj .stl .off .glb .gltf)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.add_argument("--repair", action="store_true",
+                   help="repair what can be repaired (degenerate, duplicate faces, "
+                        "unreferenced vertices, orientation) and report the result")
+    p.set_defaults(func=cmd_info)
+
+    p = sub.add_parser("demo", help="run on the embedded default input (no files needed)")
+    p.add_argument("--out", default="meshfit-demo", help="output folder (default: %(default)s)")
+    p.add_argument("--faces", type=int, default=200_000,
+                   help="approximate triangle count of the generated scan (default: %(default)s)")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.set_defaults(func=cmd_demo)
+    return parser
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    from meshfit.demo import run_demo
+
+    summary = run_demo(Path(args.out), faces=args.faces, quiet=args.json)
+    if args.json:
+        _print_json(summary)
+    return EXIT_OK
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point; returns the exit code (0 ok, 2 bad input)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args))
+    except errors.MeshfitError as exc:
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        sys.stderr.write(f"meshfit: error: {msg}\n")
+        return EXIT_ERROR
+    except BrokenPipeError:  # output piped into a pager or head that closed early
+        sys.stderr.close()
+        return EXIT_OK
+    except KeyboardInterrupt:
+        sys.stderr.write("meshfit: interrupted\n")
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
