@@ -52,12 +52,18 @@ def cmd_info(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     raw = read_mesh_arrays(args.mesh)
-    findings = find_problems(raw.vertices, raw.faces)
-    out = raw_statistics(raw, findings)
+    name = Path(args.mesh).name
     mesh = None
-    if not findings or args.repair:
-        mesh = Mesh.from_arrays(raw.vertices, raw.faces, raw.vertex_colors,
-                                name=Path(args.mesh).name, repair=args.repair)
+    try:  # a valid mesh is validated once, by its constructor
+        mesh = Mesh(raw.vertices, raw.faces, raw.vertex_colors, name=name)
+        findings = []
+    except errors.MeshValidationError:
+        findings = find_problems(raw.vertices, raw.faces)
+        if args.repair:
+            mesh = Mesh.from_arrays(raw.vertices, raw.faces, raw.vertex_colors, name=name,
+                                    repair=True)
+    out = raw_statistics(raw, findings)
+    if mesh is not None:
         out.update(mesh_statistics(mesh))
         if mesh.repairs is not None:
             out["repair"] = mesh.repairs.summary()

@@ -76,13 +76,23 @@ def _degenerate_faces(vertices: NDArray, faces: NDArray) -> NDArray[np.bool_]:
     p = vertices[faces]
     cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
     area2 = np.einsum("ij,ij->i", cross, cross)
-    used = vertices[np.unique(faces)] if faces.size else vertices
+    mask = np.zeros(vertices.shape[0], dtype=bool)
+    mask[faces.reshape(-1)] = True
+    used = vertices[mask]
     finite = used[np.isfinite(used).all(axis=1)]
     diag = float(np.linalg.norm(finite.max(axis=0) - finite.min(axis=0))) if finite.size else 0.0
     limit = (2.0 * tol.DEGENERATE_AREA * diag * diag) ** 2
     with np.errstate(invalid="ignore"):
         small = ~(area2 > limit)
     return rep | small
+
+
+def _row_keys(rows: NDArray[np.int64]) -> NDArray:
+    """One sortable scalar per row of a (n, 3) non-negative int array (equal rows, equal keys)."""
+    m = int(rows.max()) + 1 if rows.size else 1
+    if m < 2**21:
+        return (rows[:, 0] * m + rows[:, 1]) * m + rows[:, 2]
+    return np.ascontiguousarray(rows).view(np.dtype((np.void, rows.dtype.itemsize * 3))).ravel()
 
 
 def _duplicate_faces(faces: NDArray) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
@@ -94,8 +104,8 @@ def _duplicate_faces(faces: NDArray) -> tuple[NDArray[np.bool_], NDArray[np.bool
     """
     nf = faces.shape[0]
     srt = np.sort(faces, axis=1)
-    _, first, inverse, counts = np.unique(srt, axis=0, return_index=True, return_inverse=True,
-                                          return_counts=True)
+    _, first, inverse, counts = np.unique(_row_keys(srt), return_index=True,
+                                          return_inverse=True, return_counts=True)
     inverse = inverse.reshape(-1)
     dup = np.ones(nf, dtype=bool)
     dup[first] = False
@@ -169,10 +179,10 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
                            f"{_plural(nm.size, 'non-manifold edge')} shared by more than two faces "
                            f"(first: edge ({e[0]}, {e[1]}) in faces {fs}){cause}",
                            (int(e[0]), int(e[1])), int(nm.size), fixable))
-    fan, _ = topology.corner_fans(faces, nv, table)
-    corner_vertex = faces.reshape(-1)
-    pairs = np.unique(np.stack([corner_vertex, fan], axis=1), axis=0)
-    fans_per_vertex = np.bincount(pairs[:, 0], minlength=nv)
+    fan, n_fans = topology.corner_fans(faces, nv, table)
+    fan_vertex = np.empty(n_fans, dtype=np.int64)  # corners of one fan share their vertex
+    fan_vertex[fan] = faces.reshape(-1)
+    fans_per_vertex = np.bincount(fan_vertex, minlength=nv)
     nmv = np.flatnonzero(fans_per_vertex > 1)
     if nm.size:  # vertices of non-manifold edges are reported with the edges
         nmv = np.setdiff1d(nmv, table.edges[nm].reshape(-1))

@@ -1,0 +1,44 @@
+"""Helpers shared by the benchmark scripts: data paths, timing, JSON output."""
+
+from __future__ import annotations
+
+import json
+import os
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "benchmarks" / "results"
+
+
+def mesh_path(name: str) -> Path:
+    """Path of a shared test mesh (MESHFIT_DATA, else ../shared/data beside the repository)."""
+    for base in (os.environ.get("MESHFIT_DATA"), ROOT.parent / "shared" / "data",
+                 "/work/shared/data"):
+        if base and (Path(base) / "meshes" / f"{name}.ply").is_file():
+            return Path(base) / "meshes" / f"{name}.ply"
+    sys.exit(f"benchmark data not found: {name}.ply (set MESHFIT_DATA)")
+
+
+def median_time(fn, repeats: int) -> tuple[float, list[float]]:
+    """Median wall time of ``repeats`` calls of ``fn()`` and all the times."""
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), times
+
+
+def write_result(name: str, data: dict) -> None:
+    """Print ``data`` as JSON and write it atomically to benchmarks/results/<name>.json."""
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    text = json.dumps(data, indent=2)
+    print(text)
+    fd, tmp = tempfile.mkstemp(dir=RESULTS, suffix=".tmp")
+    with os.fdopen(fd, "w") as fh:
+        fh.write(text + "\n")
+    os.replace(tmp, RESULTS / f"{name}.json")
