@@ -1,0 +1,430 @@
+"""Numba kernels: face points sliding over triangles (MovePointOnSurface) and attraction.
+
+No validation here: the public wrappers in :mod:`meshfit.surface.walk` check every input and
+pass contiguous arrays. ``fastmath`` stays off because sign tests pick the exit edge.
+
+Conventions shared by every kernel: ``V (nv, 3) f8`` vertices, ``F (nf, 3) i8`` faces,
+``FN (nf, 3) i8`` face across edge ``k = (F[f, k], F[f, (k + 1) % 3])`` (-1 on the boundary).
+The coordinate ``(k + 2) % 3`` is the one that vanishes on edge ``k``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+#: status codes returned by `_walk_one`
+DONE = 0
+BOUNDARY = 1
+CAPPED = 2
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _bary_rate(V, F, f, u, out):
+    """Barycentric change per unit length along the in-plane vector ``u`` in face ``f``; (3,)."""
+    a = F[f, 0]
+    b = F[f, 1]
+    c = F[f, 2]
+    e1x = V[b, 0] - V[a, 0]
+    e1y = V[b, 1] - V[a, 1]
+    e1z = V[b, 2] - V[a, 2]
+    e2x = V[c, 0] - V[a, 0]
+    e2y = V[c, 1] - V[a, 1]
+    e2z = V[c, 2] - V[a, 2]
+    a11 = e1x * e1x + e1y * e1y + e1z * e1z
+    a12 = e1x * e2x + e1y * e2y + e1z * e2z
+    a22 = e2x * e2x + e2y * e2y + e2z * e2z
+    r1 = u[0] * e1x + u[1] * e1y + u[2] * e1z
+    r2 = u[0] * e2x + u[1] * e2y + u[2] * e2z
+    det = a11 * a22 - a12 * a12
+    d1 = (a22 * r1 - a12 * r2) / det
+    d2 = (a11 * r2 - a12 * r1) / det
+    out[0] = -d1 - d2
+    out[1] = d1
+    out[2] = d2
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _face_normal(V, F, f, out):
+    """Unit normal of face ``f`` into ``out`` (3,)."""
+    a = F[f, 0]
+    b = F[f, 1]
+    c = F[f, 2]
+    e1x = V[b, 0] - V[a, 0]
+    e1y = V[b, 1] - V[a, 1]
+    e1z = V[b, 2] - V[a, 2]
+    e2x = V[c, 0] - V[a, 0]
+    e2y = V[c, 1] - V[a, 1]
+    e2z = V[c, 2] - V[a, 2]
+    nx = e1y * e2z - e1z * e2y
+    ny = e1z * e2x - e1x * e2z
+    nz = e1x * e2y - e1y * e2x
+    s = np.sqrt(nx * nx + ny * ny + nz * nz)
+    out[0] = nx / s
+    out[1] = ny / s
+    out[2] = nz / s
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _clean_bary(b):
+    """Clamp tiny negatives to 0 and renormalise ``b`` (3,) in place to sum to 1."""
+    for j in range(3):
+        if b[j] < 0.0:
+            b[j] = 0.0
+    s = b[0] + b[1] + b[2]
+    b[0] /= s
+    b[1] /= s
+    b[2] /= s
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _walk_one(V, F, FN, f, b, u, length, max_faces, bary_eps):
+    """Slide one face point by ``length`` along the unit in-plane direction ``u`` (3,).
+
+    ``b`` (3,) and ``u`` (3,) are updated in place (``u`` ends in the last face's plane).
+    Returns ``(face, remaining_length, status, faces_crossed)``; status is DONE, BOUNDARY or
+    CAPPED. Kernel of `meshfit.surface.walk.walk_points`.
+    """
+    db = np.empty(3)
+    entered = -1  # coordinate that vanishes on the edge just entered through
+    crossed = 0
+    while True:
+        _bary_rate(V, F, f, u, db)
+        scale = max(abs(db[0]), max(abs(db[1]), abs(db[2])))
+        # exit distance: the first coordinate to reach 0
+        s_exit = np.inf
+        i_exit = -1
+        for j in range(3):
+            if j == entered:
+                continue
+            if db[j] >= 0.0:
+                continue
+            if b[j] <= bary_eps and -db[j] <= bary_eps * scale:
+                continue  # on edge j and running along it: not a crossing
+            s = max(b[j], 0.0) / -db[j]
+            if s < s_exit:
+                s_exit = s
+                i_exit = j
+        if i_exit < 0 or s_exit >= length:
+            for j in range(3):
+                b[j] += length * db[j]
+            _clean_bary(b)
+            return f, 0.0, DONE, crossed
+        for j in range(3):
+            b[j] += s_exit * db[j]
+        b[i_exit] = 0.0
+        _clean_bary(b)
+        length -= s_exit
+        k = (i_exit + 1) % 3  # edge opposite vertex slot i_exit
+        g = FN[f, k]
+        if g < 0:
+            return f, length, BOUNDARY, crossed
+        if crossed >= max_faces:
+            return f, length, CAPPED, crossed
+        va = F[f, k]
+        vc = F[f, (k + 1) % 3]
+        # the shared edge seen from g: slot of vc is kg, slot of va is kg + 1
+        kg = 0
+        for j in range(3):
+            if F[g, j] == vc and F[g, (j + 1) % 3] == va:
+                kg = j
+        vo = F[g, (kg + 2) % 3]
+        # unfold u about the edge: keep the along-edge part, turn the perpendicular part
+        ex = V[vc, 0] - V[va, 0]
+        ey = V[vc, 1] - V[va, 1]
+        ez = V[vc, 2] - V[va, 2]
+        el = np.sqrt(ex * ex + ey * ey + ez * ez)
+        ex /= el
+        ey /= el
+        ez /= el
+        along = u[0] * ex + u[1] * ey + u[2] * ez
+        px = u[0] - along * ex
+        py = u[1] - along * ey
+        pz = u[2] - along * ez
+        perp = np.sqrt(px * px + py * py + pz * pz)
+        wx = V[vo, 0] - V[va, 0]
+        wy = V[vo, 1] - V[va, 1]
+        wz = V[vo, 2] - V[va, 2]
+        t = wx * ex + wy * ey + wz * ez
+        wx -= t * ex
+        wy -= t * ey
+        wz -= t * ez
+        wl = np.sqrt(wx * wx + wy * wy + wz * wz)
+        u[0] = along * ex + perp * wx / wl
+        u[1] = along * ey + perp * wy / wl
+        u[2] = along * ez + perp * wz / wl
+        ul = np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+        u[0] /= ul
+        u[1] /= ul
+        u[2] /= ul
+        # the same point in g: exact copy of the two edge coordinates, the third is 0
+        ba = b[(k + 0) % 3]
+        bc = b[(k + 1) % 3]
+        b[kg] = bc
+        b[(kg + 1) % 3] = ba
+        b[(kg + 2) % 3] = 0.0
+        entered = (kg + 2) % 3
+        f = g
+        crossed += 1
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _start_direction(V, F, f, step, u):
+    """Project ``step`` (3,) onto face ``f``'s plane; unit direction into ``u``, returns length."""
+    n = np.empty(3)
+    _face_normal(V, F, f, n)
+    d = step[0] * n[0] + step[1] * n[1] + step[2] * n[2]
+    u[0] = step[0] - d * n[0]
+    u[1] = step[1] - d * n[1]
+    u[2] = step[2] - d * n[2]
+    length = np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+    if length > 0.0:
+        u[0] /= length
+        u[1] /= length
+        u[2] /= length
+    return length
+
+
+@njit(cache=True, nogil=True, parallel=True, fastmath=False)
+def walk_points(V, F, FN, face, bary, step, max_faces, eps_len, bary_eps):
+    """Kernel of `meshfit.surface.walk.walk_points`.
+
+    V (nv, 3) f8; F, FN (nf, 3) i8; face (n,) i8; bary, step (n, 3) f8 -> out_face (n,) i8,
+    out_bary (n, 3) f8, length (n,) f8, hit_boundary (n,) bool, capped (n,) bool.
+    """
+    n = face.shape[0]
+    out_face = face.copy()
+    out_bary = bary.copy()
+    length = np.zeros(n)
+    hit = np.zeros(n, dtype=np.bool_)
+    capped = np.zeros(n, dtype=np.bool_)
+    for i in prange(n):  # iteration i writes row i only
+        b = out_bary[i]
+        u = np.empty(3)
+        total = _start_direction(V, F, face[i], step[i], u)
+        if total <= eps_len:
+            continue
+        f, rest, status, _ = _walk_one(V, F, FN, face[i], b, u, total, max_faces, bary_eps)
+        out_face[i] = f
+        length[i] = total - rest if status != DONE else total
+        hit[i] = status == BOUNDARY
+        capped[i] = status == CAPPED
+    return out_face, out_bary, length, hit, capped
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _position(V, F, f, b, out):
+    for d in range(3):
+        out[d] = b[0] * V[F[f, 0], d] + b[1] * V[F[f, 1], d] + b[2] * V[F[f, 2], d]
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _clip_at_boundary(V, F, FN, f, b, step, bary_eps):
+    """Remove the outward part of ``step`` at boundary edges the point lies on; True if any."""
+    clipped = False
+    for rounds in range(2):
+        for k in range(3):
+            if FN[f, k] >= 0 or b[(k + 2) % 3] > bary_eps:
+                continue
+            va = F[f, k]
+            vc = F[f, (k + 1) % 3]
+            vo = F[f, (k + 2) % 3]
+            e = V[vc] - V[va]
+            e = e / np.sqrt(np.sum(e * e))
+            w = V[vo] - V[va]
+            w = w - np.sum(w * e) * e
+            w = w / np.sqrt(np.sum(w * w))
+            out = step[0] * w[0] + step[1] * w[1] + step[2] * w[2]
+            if out < 0.0:
+                clipped = True
+                if rounds == 0:
+                    for d in range(3):
+                        step[d] -= out * w[d]
+                else:  # still leaving through a second boundary edge: a corner blocks it
+                    for d in range(3):
+                        step[d] = 0.0
+    return clipped
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _closest_on_face(V, F, f, p, out):
+    """Barycentrics ``out`` (3,) of the point of triangle ``f`` closest to ``p`` (3,).
+
+    Exact zeros on the clamped coordinates (Ericson, Real-Time Collision Detection, 5.1.5).
+    """
+    a = V[F[f, 0]]
+    b = V[F[f, 1]]
+    c = V[F[f, 2]]
+    ab = b - a
+    ac = c - a
+    ap = p - a
+    d1 = np.sum(ab * ap)
+    d2 = np.sum(ac * ap)
+    out[0] = 0.0
+    out[1] = 0.0
+    out[2] = 0.0
+    if d1 <= 0.0 and d2 <= 0.0:
+        out[0] = 1.0
+        return
+    bp = p - b
+    d3 = np.sum(ab * bp)
+    d4 = np.sum(ac * bp)
+    if d3 >= 0.0 and d4 <= d3:
+        out[1] = 1.0
+        return
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        v = d1 / (d1 - d3)
+        out[0] = 1.0 - v
+        out[1] = v
+        return
+    cp = p - c
+    d5 = np.sum(ab * cp)
+    d6 = np.sum(ac * cp)
+    if d6 >= 0.0 and d5 <= d6:
+        out[2] = 1.0
+        return
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        w = d2 / (d2 - d6)
+        out[0] = 1.0 - w
+        out[2] = w
+        return
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and d4 - d3 >= 0.0 and d5 - d6 >= 0.0:
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        out[1] = 1.0 - w
+        out[2] = w
+        return
+    denom = 1.0 / (va + vb + vc)
+    v = vb * denom
+    w = vc * denom
+    out[0] = 1.0 - v - w
+    out[1] = v
+    out[2] = w
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _descend(V, F, FN, VFp, VF, f, b, tgt, dist, tmp, best):
+    """One exact descent move of a face point toward ``tgt`` without leaving the surface.
+
+    Moves to the closest point of the current face if that is closer; otherwise, from that
+    closest point (on an edge or at a vertex), to the closest point of the neighbouring face
+    or of the best face of the vertex's fan if one is closer. ``b`` (3,) is updated in place.
+    Returns ``(face, distance, moved)``; ``moved`` False certifies a local minimum.
+    """
+    x = np.empty(3)
+    _closest_on_face(V, F, f, tgt, best)
+    _position(V, F, f, best, x)
+    dc = np.sqrt(np.sum((tgt - x) ** 2))
+    if dc < dist:
+        b[:] = best
+        return f, dc, True
+    nz = 0
+    for j in range(3):
+        if best[j] == 0.0:
+            nz += 1
+    best_face = -1
+    best_d = dist
+    if nz == 1:
+        for j in range(3):
+            if best[j] == 0.0:
+                g = FN[f, (j + 1) % 3]
+                if g >= 0:
+                    _closest_on_face(V, F, g, tgt, tmp)
+                    _position(V, F, g, tmp, x)
+                    d = np.sqrt(np.sum((tgt - x) ** 2))
+                    if d < best_d:
+                        best_d = d
+                        best_face = g
+                        best[:] = tmp
+    elif nz == 2:
+        v = F[f, 0]
+        for j in range(3):
+            if best[j] != 0.0:
+                v = F[f, j]
+        for r in range(VFp[v], VFp[v + 1]):
+            g = VF[r]
+            if g == f:
+                continue
+            _closest_on_face(V, F, g, tgt, tmp)
+            _position(V, F, g, tmp, x)
+            d = np.sqrt(np.sum((tgt - x) ** 2))
+            if d < best_d:
+                best_d = d
+                best_face = g
+                best[:] = tmp
+    if best_face < 0:
+        return f, dist, False
+    b[:] = best
+    return best_face, best_d, True
+
+
+@njit(cache=True, nogil=True, parallel=True, fastmath=False)
+def attract_points(V, F, FN, VFp, VF, face, bary, targets, max_iter, max_faces, eps_len, bary_eps):
+    """Kernel of `meshfit.surface.walk.attract_points`.
+
+    V (nv, 3) f8; F, FN (nf, 3) i8; VFp (nv + 1,), VF (3 nf,) i8 vertex-face CSR; face (n,) i8;
+    bary, targets (n, 3) f8 -> out_face (n,) i8, out_bary (n, 3) f8, distance (n,) f8,
+    iterations (n,) i8, hit_boundary (n,) bool, converged (n,) bool.
+    """
+    n = face.shape[0]
+    out_face = face.copy()
+    out_bary = bary.copy()
+    distance = np.zeros(n)
+    iterations = np.zeros(n, dtype=np.int64)
+    hit = np.zeros(n, dtype=np.bool_)
+    converged = np.zeros(n, dtype=np.bool_)
+    for i in prange(n):  # iteration i writes row i only
+        b = out_bary[i]
+        f = face[i]
+        x = np.empty(3)
+        nrm = np.empty(3)
+        step = np.empty(3)
+        u = np.empty(3)
+        cb = np.empty(3)
+        tmp = np.empty(3)
+        _position(V, F, f, b, x)
+        tgt = targets[i]
+        dist = np.sqrt(np.sum((tgt - x) ** 2))
+        h = 1.0
+        it = 0
+        while it < max_iter:
+            it += 1
+            # the target projected onto the current face's plane, minus the point
+            _face_normal(V, F, f, nrm)
+            off = np.sum((tgt - x) * nrm)
+            for d in range(3):
+                step[d] = h * (tgt[d] - off * nrm[d] - x[d])
+            _clip_at_boundary(V, F, FN, f, b, step, bary_eps)
+            moved = False
+            if np.sqrt(np.sum(step * step)) >= eps_len:
+                total = _start_direction(V, F, f, step, u)
+                cb[:] = b
+                g, _, _, _ = _walk_one(V, F, FN, f, cb, u, total, max_faces, bary_eps)
+                _position(V, F, g, cb, nrm)  # nrm reused as the candidate position
+                cand = np.sqrt(np.sum((tgt - nrm) ** 2))
+                if cand < dist:
+                    f = g
+                    b[:] = cb
+                    dist = cand
+                    h = min(1.0, 2.0 * h)
+                    moved = True
+                else:
+                    h *= 0.5
+            if not moved:
+                # a short or rejected step: an exact move within the face, across the
+                # edge or around the vertex the point sits on, or a certified local minimum
+                f, dist, moved = _descend(V, F, FN, VFp, VF, f, b, tgt, dist, tmp, cb)
+                if not moved:
+                    converged[i] = True
+                    break
+            _position(V, F, f, b, x)
+        _clean_bary(b)
+        for k in range(3):
+            if FN[f, k] < 0 and b[(k + 2) % 3] <= bary_eps:
+                hit[i] = True
+        out_face[i] = f
+        distance[i] = dist
+        iterations[i] = it
+    return out_face, out_bary, distance, iterations, hit, converged
