@@ -24,6 +24,9 @@ ON_SURFACE = 1e-9
 ATTRACT_EPS = 1e-10
 #: cut points closer than this to a vertex or edge, times the mean edge length, snap onto it
 CUT_SNAP = 1e-7
+#: no triangle a cut creates is smaller than this, times bbox_diagonal**2 (2 x DEGENERATE_AREA);
+#: a split that would make one snaps to the nearer vertex instead
+CUT_MIN_AREA = 2e-14
 #: absolute-position agreement in tests, times bbox_diagonal
 TEST_ATOL = 1e-9
 

@@ -1,5 +1,14 @@
 """Primitives on the surface: sampling face points, walking, graph paths, cutting."""
 
+from meshfit.surface.cut import CutResult, cut_mesh
+from meshfit.surface.paths import (
+    GraphPath,
+    ShortestPaths,
+    astar_path,
+    greedy_path,
+    path_to_surface_points,
+    shortest_path,
+)
 from meshfit.surface.sample import closest_surface_points, random_surface_points
 from meshfit.surface.walk import (
     AttractResult,
@@ -14,11 +23,19 @@ from meshfit.surface.walk import (
 __all__ = [
     "AttractResult",
     "CurveMoveResult",
+    "CutResult",
+    "GraphPath",
+    "ShortestPaths",
     "WalkResult",
+    "astar_path",
     "attract_points",
     "closest_surface_points",
     "curve_arc_lengths",
+    "cut_mesh",
+    "greedy_path",
     "move_along_curve",
+    "path_to_surface_points",
     "random_surface_points",
+    "shortest_path",
     "walk_points",
 ]
