@@ -18,6 +18,7 @@ def _readonly(a: NDArray) -> NDArray:
     if a.flags.writeable:
         a = a.copy()
         a.flags.writeable = False
+        a = a.view()  # a view of a read-only base cannot be made writeable again
     return a
 
 
@@ -63,7 +64,10 @@ class SurfacePoints:
     def __getitem__(self, index) -> SurfacePoints:
         """Subset of the points (an integer index keeps a length-1 result)."""
         if isinstance(index, (int, np.integer)):
-            index = slice(int(index), int(index) + 1 if int(index) != -1 else None)
+            i, n = int(index), len(self)
+            if not -n <= i < n:
+                raise IndexError(f"index {i} is out of range for {n} surface points")
+            index = slice(i % n, i % n + 1)
         return SurfacePoints(self.face[index], self.bary[index])
 
     @classmethod

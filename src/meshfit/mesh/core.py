@@ -24,7 +24,7 @@ __all__ = ["Mesh"]
 def _frozen(a: NDArray) -> NDArray:
     a = np.array(a, copy=True, order="C")
     a.flags.writeable = False
-    return a
+    return a.view()  # a view of a read-only base cannot be made writeable again
 
 
 def _as_vertices(vertices: ArrayLike) -> NDArray[np.float64]:

@@ -1,7 +1,9 @@
-"""Reading and writing mesh files (PLY, OBJ, STL, OFF, GLB/glTF) through trimesh.
+"""Reading and writing mesh files (PLY, OBJ, STL, OFF, GLB/glTF).
 
-Files are read with ``process=False`` so vertices are never merged or reordered; polygons
-are triangulated (fans), vertex colours are kept. Truncated and unreadable files raise
+PLY, STL and GLB/glTF are read through trimesh with ``process=False``; OBJ and OFF by small
+readers here (trimesh drops unreferenced OBJ vertices, splits them along UV seams and
+silently drops truncated OFF faces). Vertices are never merged or reordered; polygons are
+triangulated (fans), vertex colours are kept. Truncated and unreadable files raise
 :class:`meshfit.errors.MeshFileError`.
 """
 
@@ -44,8 +46,26 @@ class RawMesh:
     notes: list[str] = field(default_factory=list)
 
 
-def _ply_header(path: Path) -> tuple[dict[str, int], int, str] | None:
-    """Element counts, header byte length and format of a PLY file (None if not PLY)."""
+_PLY_SIZES = {"char": 1, "int8": 1, "uchar": 1, "uint8": 1, "short": 2, "int16": 2,
+              "ushort": 2, "uint16": 2, "int": 4, "int32": 4, "uint": 4, "uint32": 4,
+              "float": 4, "float32": 4, "double": 8, "float64": 8}
+
+
+@dataclass
+class _PlyHeader:
+    """What a PLY header declares: elements in file order, each ``(name, count, properties)``
+    with a property ``(name, type, list count type or None)``."""
+
+    elements: list[tuple[str, int, list[tuple[str, str, str | None]]]]
+    length: int  # header bytes, including the end_header line
+    fmt: str
+
+    def count(self, name: str) -> int:
+        return next((n for e, n, _ in self.elements if e == name), -1)
+
+
+def _ply_header(path: Path) -> _PlyHeader | None:
+    """Elements, header byte length and format of a PLY file (None if not PLY)."""
     with open(path, "rb") as fh:
         head = fh.read(65536)
     if not head.startswith(b"ply"):
@@ -54,30 +74,303 @@ def _ply_header(path: Path) -> tuple[dict[str, int], int, str] | None:
     if end < 0:
         raise errors.MeshFileError(f"{path}: PLY header has no end_header line")
     nl = head.find(b"\n", end)
-    text = head[:end].decode("ascii", errors="replace")
-    counts = {m.group(1): int(m.group(2)) for m in re.finditer(r"^element\s+(\w+)\s+(\d+)", text, re.M)}
-    fmt = re.search(r"^format\s+(\w+)", text, re.M)
-    return counts, nl + 1, fmt.group(1) if fmt else "?"
+    length = nl + 1 if nl >= 0 else len(head)
+    elements: list[tuple[str, int, list[tuple[str, str, str | None]]]] = []
+    fmt = "?"
+    for line in head[:end].decode("ascii", errors="replace").splitlines():
+        w = line.split()
+        if len(w) >= 2 and w[0] == "format":
+            fmt = w[1]
+        elif len(w) >= 3 and w[0] == "element" and w[2].isdigit():
+            elements.append((w[1], int(w[2]), []))
+        elif len(w) >= 5 and w[0] == "property" and w[1] == "list" and elements:
+            elements[-1][2].append((w[4], w[3], w[2]))
+        elif len(w) >= 3 and w[0] == "property" and elements:
+            elements[-1][2].append((w[2], w[1], None))
+    return _PlyHeader(elements, length, fmt)
 
 
-def _ply_polygon_sizes(path: Path, header_len: int, fmt: str, n_vertices: int) -> int:
-    """How many faces of an ASCII PLY have more than three corners (0 for binary files)."""
-    if fmt != "ascii":
-        return 0
-    with open(path, encoding="ascii", errors="replace") as fh:
-        fh.seek(header_len)
-        lines = fh.read().split("\n")
-    faces = lines[n_vertices:]
-    return sum(1 for ln in faces if ln.strip() and int(ln.split()[0]) > 3)
+def _ply_ascii_scan(path: Path, header: _PlyHeader) -> int:
+    """Check the data lines of an ASCII PLY against its header; return how many faces have
+    more than three corners.
+
+    Raises MeshFileError naming the element where a truncated file ends, or the first face
+    with fewer than three corners.
+    """
+    with open(path, "rb") as fh:
+        fh.seek(header.length)
+        lines = [ln for ln in fh.read().decode("ascii", errors="replace").splitlines()
+                 if ln.strip()]
+    row = 0
+    polygons = 0
+    for name, count, props in header.elements:
+        rows = lines[row:row + count]
+        # tokens a complete row needs: one per scalar property, 1 + n per list property
+        lists = [i for i, (_, _, ct) in enumerate(props) if ct is not None]
+        first_list = lists[0] if lists else -1
+
+        def complete(tokens: list[str], props=props, first_list=first_list) -> bool:
+            if first_list < 0:
+                return len(tokens) >= len(props)
+            try:
+                n = int(tokens[first_list])
+            except (IndexError, ValueError):
+                return False
+            return len(tokens) >= len(props) + n
+
+        if len(rows) < count or (rows and row + count >= len(lines)
+                                 and not complete(rows[-1].split())):
+            done = len(rows) if not rows or complete(rows[-1].split()) else len(rows) - 1
+            raise errors.MeshFileError(
+                f"{path}: truncated PLY: header declares {count} {name} elements, the file "
+                f"ends in {name} {done} (after {done} complete {name} lines)")
+        if name == "face" and first_list >= 0:
+            try:
+                sizes = np.array([ln.split()[first_list] for ln in rows], dtype=np.int64)
+            except (IndexError, ValueError):
+                sizes = np.zeros(0, dtype=np.int64)  # malformed: left to the reader
+            short = np.flatnonzero(sizes < 3)
+            if short.size:
+                k = int(short[0])
+                raise errors.MeshFileError(
+                    f"{path}: face {k} has {sizes[k]} corners, a face needs at least 3 "
+                    f"({_count(short.size, 'such face')})")
+            polygons = int((sizes > 3).sum())
+        row += count
+    return polygons
 
 
-def _obj_polygons(path: Path) -> int:
-    n = 0
-    with open(path, encoding="utf-8", errors="replace") as fh:
-        for ln in fh:
-            if ln.startswith("f ") and len(ln.split()) > 4:
-                n += 1
-    return n
+def _ply_binary_min_size(header: _PlyHeader) -> int:
+    """Fewest data bytes a binary PLY with this header can hold (faces as triangles)."""
+    total = 0
+    for name, count, props in header.elements:
+        per = 0
+        for _, typ, ct in props:
+            if ct is None:
+                per += _PLY_SIZES.get(typ, 0)
+            else:
+                per += _PLY_SIZES.get(ct, 0) + (3 * _PLY_SIZES.get(typ, 0) if name == "face" else 0)
+        total += count * per
+    return total
+
+
+def _text(path: Path, kind: str) -> list[str]:
+    """Lines of a text mesh file (MeshFileError when it is not text)."""
+    data = path.read_bytes()
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise errors.MeshFileError(f"{path}: cannot read {kind} file: not text "
+                                   f"(undecodable byte at offset {exc.start})") from None
+    if "\0" in text:
+        raise errors.MeshFileError(f"{path}: cannot read {kind} file: not text (NUL bytes)")
+    return text.splitlines()
+
+
+def _triangulate(flat: NDArray[np.int64], sizes: NDArray[np.int64],
+                 notes: list[str]) -> NDArray[np.int64]:
+    """Fan-triangulate polygons given as concatenated corner lists (each size >= 3)."""
+    ntri = sizes - 2
+    start = np.cumsum(sizes) - sizes
+    owner = np.repeat(np.arange(sizes.size), ntri)
+    j = np.arange(int(ntri.sum())) - np.repeat(np.cumsum(ntri) - ntri, ntri) + 1
+    o = start[owner]
+    faces = np.stack([flat[o], flat[o + j], flat[o + j + 1]], axis=1).astype(np.int64)
+    polys = int((sizes > 3).sum())
+    if polys:
+        notes.append(f"triangulated {polys} polygon faces into {faces.shape[0]} triangles")
+    return faces
+
+
+_OBJ_V = re.compile(r"^[ \t]*v[ \t]+([^\n#]*)", re.M)
+_OBJ_F = re.compile(r"^[ \t]*f[ \t]+([^\n#]*)", re.M)
+_OBJ_VF = re.compile(r"^[ \t]*([vf])[ \t]", re.M)
+
+
+def _obj_line(text: str, pattern: re.Pattern, k: int) -> int:
+    """Line number of the k-th match of ``pattern`` (error messages only)."""
+    for i, m in enumerate(pattern.finditer(text)):
+        if i == k:
+            return text.count("\n", 0, m.start()) + 1
+    return -1
+
+
+def _read_obj(path: Path) -> RawMesh:
+    """Read the vertices and faces of a Wavefront OBJ, keeping the file's vertex order.
+
+    Texture / normal indices (``f v/vt/vn``) are ignored, so vertices are never split along
+    UV seams and unreferenced vertices are kept (trimesh drops the latter and splits the
+    former). Indices are checked: 0 and indices past the vertices raise IndexRangeError.
+    """
+    text = "\n".join(_text(path, "OBJ"))
+    vrows = [ln.split() for ln in _OBJ_V.findall(text)]
+    nv = len(vrows)
+    short = next((k for k, r in enumerate(vrows) if len(r) < 3), None)
+    if short is not None:
+        raise errors.MeshFileError(f"{path}: line {_obj_line(text, _OBJ_V, short)}: vertex "
+                                   f"{short} has fewer than 3 coordinates")
+    try:
+        vertices = np.array([r[:3] for r in vrows], dtype=np.float64).reshape(nv, 3)
+    except ValueError:
+        k = next(k for k, r in enumerate(vrows) if not _floats(r[:3]))
+        raise errors.MeshFileError(f"{path}: line {_obj_line(text, _OBJ_V, k)}: vertex {k} has "
+                                   f"a non-numeric coordinate {' '.join(vrows[k][:3])!r}") from None
+    colors = None
+    if nv and all(len(r) == 6 for r in vrows) and _floats(vrows[0][3:]):
+        try:
+            c = np.array([r[3:6] for r in vrows], dtype=np.float64)
+        except ValueError:
+            c = None
+        if c is not None and np.isfinite(c).all():
+            colors = np.clip(np.round(c * 255.0 if c.max() <= 1.0 else c), 0, 255).astype(np.uint8)
+    del vrows
+    notes: list[str] = []
+    flines = _OBJ_F.findall(text)
+    if any("/" in ln for ln in flines):  # drop texture / normal indices: v/vt/vn -> v
+        flines = [re.sub(r"/\S*", "", ln) for ln in flines]
+    frows = [ln.split() for ln in flines]
+    sizes = np.array([len(r) for r in frows], dtype=np.int64)
+    bad = np.flatnonzero(sizes < 3)
+    if bad.size:
+        k = int(bad[0])
+        raise errors.MeshFileError(f"{path}: line {_obj_line(text, _OBJ_F, k)}: face {k} has "
+                                   f"{sizes[k]} vertex indices, a face needs at least 3")
+    try:
+        idx = np.array([t for r in frows for t in r], dtype=np.int64)
+    except ValueError:
+        k = next(k for k, r in enumerate(frows) if not _ints(r))
+        raise errors.MeshFileError(f"{path}: line {_obj_line(text, _OBJ_F, k)}: face {k} has a "
+                                   f"non-integer vertex index in {' '.join(frows[k])!r}") from None
+    flat = idx - 1  # OBJ indices are 1-based
+    if (idx < 0).any():  # negative indices count back from the last vertex defined so far
+        is_v = np.array(_OBJ_VF.findall(text)) == "v"
+        base = np.cumsum(is_v)[~is_v]  # vertices before each face
+        flat = np.where(idx < 0, np.repeat(base, sizes) + idx, flat)
+    wrong = (idx == 0) | (flat < 0) | (flat >= nv)
+    if wrong.any():
+        owner = np.repeat(np.arange(sizes.size), sizes)
+        w = int(np.flatnonzero(wrong)[0])
+        k = int(owner[w])
+        n_bad = int(np.unique(owner[wrong]).size)
+        raise errors.IndexRangeError(
+            f"{path}: line {_obj_line(text, _OBJ_F, k)}: face {k} refers to vertex {int(idx[w])}, "
+            f"which does not exist (the file has {nv} vertices; OBJ indices run from 1, negative "
+            f"ones count back from the last vertex defined; {_count(n_bad, 'such face')})",
+            first=(k,), count=n_bad)
+    faces = _triangulate(flat, sizes, notes) if sizes.size else np.zeros((0, 3), np.int64)
+    return RawMesh(vertices, faces, colors, notes)
+
+
+def _floats(tokens: list[str]) -> bool:
+    try:
+        [float(t) for t in tokens]
+    except ValueError:
+        return False
+    return True
+
+
+def _ints(tokens: list[str]) -> bool:
+    try:
+        [int(t.split("/", 1)[0]) for t in tokens]
+    except ValueError:
+        return False
+    return True
+
+
+def _count(n: int, what: str) -> str:
+    return f"1 {what}" if n == 1 else f"{n} {what.replace('face', 'faces')}"
+
+
+def _read_off(path: Path) -> RawMesh:
+    """Read an (ASCII) OFF file: header, counts, vertices, polygon faces; checks truncation and
+    face indices (trimesh silently drops missing faces)."""
+    lines = _text(path, "OFF")
+    rows: list[tuple[int, list[str]]] = []
+    for i, ln in enumerate(lines):
+        w = ln.split("#", 1)[0].split()
+        if w:
+            rows.append((i + 1, w))
+    if not rows or not rows[0][1][0].upper().endswith("OFF"):
+        raise errors.MeshFileError(f"{path}: cannot read OFF file: it does not start with OFF")
+    head = rows[0][1][1:]  # counts may follow the keyword on the same line
+    body = rows[1:]
+    if not head:
+        if not body:
+            raise errors.MeshFileError(f"{path}: truncated OFF: no vertex / face count line")
+        head = body[0][1]
+        body = body[1:]
+    try:
+        nv, nf = int(head[0]), int(head[1])
+    except (IndexError, ValueError):
+        raise errors.MeshFileError(f"{path}: cannot read OFF file: malformed count line "
+                                   f"{' '.join(head)!r}") from None
+    vrows = body[:nv]
+    frows = body[nv:nv + nf]
+    if len(vrows) < nv or (vrows and len(vrows[-1][1]) < 3):
+        done = len(vrows) if not vrows or len(vrows[-1][1]) >= 3 else len(vrows) - 1
+        raise errors.MeshFileError(f"{path}: truncated OFF: header declares {nv} vertices, the "
+                                   f"file ends in vertex {done} ({done} complete)")
+    try:
+        vertices = np.array([w[:3] for _, w in vrows], dtype=np.float64).reshape(nv, 3)
+    except ValueError:
+        k = next(k for k, (_, w) in enumerate(vrows) if not _floats(w[:3]))
+        raise errors.MeshFileError(f"{path}: line {vrows[k][0]}: vertex {k} has a non-numeric "
+                                   "coordinate") from None
+    try:
+        sizes = np.array([w[0] for _, w in frows], dtype=np.int64)
+    except ValueError:
+        k = next(k for k, (_, w) in enumerate(frows) if not _ints(w[:1]))
+        raise errors.MeshFileError(f"{path}: line {frows[k][0]}: face {k} does not start with "
+                                   "its corner count") from None
+    complete = [len(w) >= 1 + n for (_, w), n in zip(frows, sizes.tolist(), strict=True)]
+    if len(frows) < nf or (frows and not complete[-1]):
+        done = len(frows) if not frows or complete[-1] else len(frows) - 1
+        raise errors.MeshFileError(f"{path}: truncated OFF: header declares {nf} faces, the file "
+                                   f"ends in face {done} ({done} complete)")
+    bad = np.flatnonzero(sizes < 3)
+    if bad.size:
+        k = int(bad[0])
+        raise errors.MeshFileError(f"{path}: line {frows[k][0]}: face {k} has {sizes[k]} "
+                                   "corners, a face needs at least 3")
+    try:
+        flat = np.array([t for (_, w), n in zip(frows, sizes.tolist(), strict=True)
+                         for t in w[1:1 + n]], dtype=np.int64)
+    except ValueError:
+        k = next(k for k, (_, w) in enumerate(frows) if not _ints(w[1:1 + int(sizes[k])]))
+        raise errors.MeshFileError(f"{path}: line {frows[k][0]}: face {k} has a non-integer "
+                                   "vertex index") from None
+    wrong = (flat < 0) | (flat >= nv)
+    if wrong.any():
+        owner = np.repeat(np.arange(sizes.size), sizes)
+        w = int(np.flatnonzero(wrong)[0])
+        k = int(owner[w])
+        n_bad = int(np.unique(owner[wrong]).size)
+        raise errors.IndexRangeError(
+            f"{path}: line {frows[k][0]}: face {k} refers to vertex {int(flat[w])}, outside "
+            f"[0, {nv}) ({_count(n_bad, 'such face')})", first=(k,), count=n_bad)
+    notes: list[str] = []
+    faces = _triangulate(flat, sizes, notes) if nf else np.zeros((0, 3), np.int64)
+    return RawMesh(vertices, faces, None, notes)
+
+
+def _stl_check(path: Path) -> RawMesh | None:
+    """Binary STL sanity: an empty mesh for 0 triangles, MeshFileError when the size does not
+    match the triangle count (trimesh reports a truncated file as holding no mesh)."""
+    size = path.stat().st_size
+    with open(path, "rb") as fh:
+        head = fh.read(84)
+    n = int(np.frombuffer(head[80:84], dtype="<u4")[0]) if size >= 84 else -1
+    if n >= 0 and size == 84 + 50 * n:  # a consistent binary STL
+        return RawMesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), None, []) if n == 0 else None
+    if head[:5].lower() == b"solid":  # ASCII STL
+        if b"facet" not in path.read_bytes():
+            return RawMesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), None, [])
+        return None
+    if n < 0:
+        raise errors.MeshFileError(f"{path}: not an STL file: {size} bytes, shorter than a binary "
+                                   "STL header, and no 'solid' line")
+    raise errors.MeshFileError(f"{path}: truncated or corrupt binary STL: the header declares "
+                               f"{n} triangles ({84 + 50 * n} bytes), the file holds {size}")
 
 
 def _to_single(loaded, path: Path, notes: list[str]):
@@ -115,6 +408,14 @@ def read_mesh_arrays(path: str | os.PathLike) -> RawMesh:
     ------
     MeshFileError
         Missing, unreadable, truncated or unsupported file.
+    IndexRangeError
+        An OBJ or OFF face refers to a vertex the file does not define (named by face number
+        and line).
+
+    Notes
+    -----
+    OBJ and OFF are read by meshfit itself, keeping the file's vertex order and unreferenced
+    vertices, ignoring texture and normal indices; PLY, STL, GLB and glTF through trimesh.
     """
     import trimesh
 
@@ -129,31 +430,56 @@ def read_mesh_arrays(path: str | os.PathLike) -> RawMesh:
                                    f"meshfit reads {', '.join(FORMATS)}")
     if p.stat().st_size == 0:
         raise errors.MeshFileError(f"{p}: the file is empty")
+    if suffix == ".obj":
+        return _read_obj(p)
+    if suffix == ".off":
+        return _read_off(p)
+    if suffix == ".stl":
+        empty = _stl_check(p)
+        if empty is not None:
+            return empty
     notes: list[str] = []
     header = _ply_header(p) if suffix == ".ply" else None
+    polys = 0
+    if header is not None:
+        if header.count("vertex") == 0:  # trimesh reads no geometry at all
+            return RawMesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), None, notes)
+        if header.fmt == "ascii":
+            polys = _ply_ascii_scan(p, header)
     try:
         loaded = trimesh.load(str(p), process=False, force=None)
     except Exception as exc:  # trimesh raises many types on corrupt input
+        if header is not None and header.fmt.startswith("binary"):
+            need = header.length + _ply_binary_min_size(header)
+            have = p.stat().st_size
+            if have < need:
+                raise errors.MeshFileError(
+                    f"{p}: truncated binary PLY: the header's {header.count('vertex')} vertices "
+                    f"and {header.count('face')} faces need at least {need} bytes, the file holds "
+                    f"{have}") from None
+            raise errors.MeshFileError(
+                f"{p}: cannot read binary PLY: the data does not match the header (a corrupt "
+                "file, or faces with different corner counts, which trimesh cannot read from "
+                f"binary PLY) ({type(exc).__name__}: {exc})") from None
         raise errors.MeshFileError(f"{p}: cannot read {suffix[1:].upper()} file "
                                    f"({type(exc).__name__}: {exc})") from None
+    if isinstance(loaded, trimesh.PointCloud):  # vertices but no faces
+        vertices = np.asarray(loaded.vertices, dtype=np.float64).reshape(-1, 3)
+        return RawMesh(vertices, np.zeros((0, 3), np.int64), None, notes)
     tm = _to_single(loaded, p, notes)
     vertices = np.asarray(tm.vertices, dtype=np.float64)
     faces = np.asarray(tm.faces, dtype=np.int64).reshape(-1, 3)
     if header is not None:
-        counts, header_len, fmt = header
-        want_v = counts.get("vertex", -1)
+        want_v = header.count("vertex")
         if want_v >= 0 and vertices.shape[0] != want_v:
             raise errors.MeshFileError(f"{p}: truncated PLY: header declares {want_v} vertices, "
                                        f"file holds {vertices.shape[0]}")
-        polys = _ply_polygon_sizes(p, header_len, fmt, want_v)
-        want_f = counts.get("face", -1)
+        want_f = header.count("face")
         if want_f >= 0 and faces.shape[0] < want_f:
             raise errors.MeshFileError(f"{p}: truncated PLY: header declares {want_f} faces, "
                                        f"file holds {faces.shape[0]} triangles")
-        if polys:
-            notes.append(f"triangulated {polys} polygon faces into {faces.shape[0]} triangles")
-    elif suffix == ".obj":
-        polys = _obj_polygons(p)
+        if header.fmt != "ascii" and faces.shape[0] > want_f >= 0:
+            polys = want_f  # binary PLY: trimesh reads only faces of one corner count
         if polys:
             notes.append(f"triangulated {polys} polygon faces into {faces.shape[0]} triangles")
     colors = None

@@ -152,9 +152,31 @@ def ray_first_hit(mesh: Mesh, origins: ArrayLike, directions: ArrayLike) -> RayH
     face, t, uv = mesh.aabb.intersect_ray_first(mesh.vertices, mesh.faces, o, d)
     face = np.asarray(face, dtype=np.int64)
     hit = face >= 0
-    uv = np.where(hit[:, None], np.asarray(uv), 0.0)
+    t = np.asarray(t, dtype=np.float64)
+    uv = np.where(hit[:, None], np.asarray(uv, dtype=np.float64), 0.0)
+    if hit.any():  # libigl returns t and uv rounded to float32: recompute them in float64
+        t[hit], uv[hit] = _ray_face(mesh, face[hit], o[hit], d[hit], t[hit], uv[hit])
     bary = np.stack([1.0 - uv[:, 0] - uv[:, 1], uv[:, 0], uv[:, 1]], axis=1)
     bary[~hit] = 0.0
     bary[hit] = _clip_bary(bary[hit]) if hit.any() else bary[hit]
-    t = np.where(hit, np.asarray(t, dtype=np.float64), np.inf)
+    t = np.where(hit, t, np.inf)
     return RayHits(hit, t, np.where(hit, face, -1), bary)
+
+
+def _ray_face(mesh: Mesh, face: NDArray[np.int64], o: NDArray[np.float64], d: NDArray[np.float64],
+              t: NDArray[np.float64], uv: NDArray[np.float64]):
+    """Ray parameter and (u, v) of each ray's intersection with the plane of its hit face,
+    in float64 (Moeller & Trumbore 1997); rays nearly parallel to the face keep ``t, uv``."""
+    p = mesh.vertices[mesh.faces[face]]
+    e1 = p[:, 1] - p[:, 0]
+    e2 = p[:, 2] - p[:, 0]
+    h = np.cross(d, e2)
+    det = np.einsum("ij,ij->i", e1, h)
+    s = o - p[:, 0]
+    q = np.cross(s, e1)
+    ok = np.abs(det) > 1e-12 * np.linalg.norm(e1, axis=1) * np.linalg.norm(h, axis=1)
+    inv = 1.0 / np.where(ok, det, 1.0)
+    u = np.einsum("ij,ij->i", s, h) * inv
+    v = np.einsum("ij,ij->i", d, q) * inv
+    t_new = np.einsum("ij,ij->i", e2, q) * inv
+    return (np.where(ok, t_new, t), np.where(ok[:, None], np.stack([u, v], axis=1), uv))

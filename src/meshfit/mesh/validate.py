@@ -74,8 +74,9 @@ def _degenerate_faces(vertices: NDArray, faces: NDArray) -> NDArray[np.bool_]:
     rep = ((faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2])
            | (faces[:, 2] == faces[:, 0]))
     p = vertices[faces]
-    cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-    area2 = np.einsum("ij,ij->i", cross, cross)
+    with np.errstate(invalid="ignore", over="ignore"):  # inf coordinates give inf / nan areas
+        cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+        area2 = np.einsum("ij,ij->i", cross, cross)
     mask = np.zeros(vertices.shape[0], dtype=bool)
     mask[faces.reshape(-1)] = True
     used = vertices[mask]
@@ -163,14 +164,20 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
                            f"(first: face {idx[0]} = {faces[idx[0]].tolist()})",
                            (int(idx[0]),), int(idx.size), False))
         return out
-    table = topology.edge_table(faces, nv)
+    # faces with a repeated index have no proper edges (a self-loop, an edge used twice): they
+    # are reported as degenerate and left out of the topological checks
+    rep = ((faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2])
+           | (faces[:, 2] == faces[:, 0]))
+    tidx = np.flatnonzero(~rep)  # face id of each row of tf
+    tf = faces[tidx]
+    table = topology.edge_table(tf, nv)
     nm = np.flatnonzero(table.edge_count > 2)
     if nm.size:
         e = table.edges[nm[0]]
-        fs = sorted((table.halfedges_of(int(nm[0])) // 3).tolist())
+        fs = sorted(tidx[table.halfedges_of(int(nm[0])) // 3].tolist())
         # repairable when dropping duplicate / back-to-back / degenerate faces fixes every one
         dup, back = _duplicate_faces(faces)
-        dropped = dup | back | _degenerate_faces(vertices, faces)
+        dropped = (dup | back | _degenerate_faces(vertices, faces))[tidx]
         left = np.bincount(table.halfedge_edge[np.repeat(~dropped, 3)],
                            minlength=table.edges.shape[0])
         fixable = bool((left[nm] <= 2).all())
@@ -179,10 +186,13 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
                            f"{_plural(nm.size, 'non-manifold edge')} shared by more than two faces "
                            f"(first: edge ({e[0]}, {e[1]}) in faces {fs}){cause}",
                            (int(e[0]), int(e[1])), int(nm.size), fixable))
-    fan, n_fans = topology.corner_fans(faces, nv, table)
-    fan_vertex = np.empty(n_fans, dtype=np.int64)  # corners of one fan share their vertex
-    fan_vertex[fan] = faces.reshape(-1)
-    fans_per_vertex = np.bincount(fan_vertex, minlength=nv)
+    if tf.size:
+        fan, n_fans = topology.corner_fans(tf, nv, table)
+        fan_vertex = np.empty(n_fans, dtype=np.int64)  # corners of one fan share their vertex
+        fan_vertex[fan] = tf.reshape(-1)
+        fans_per_vertex = np.bincount(fan_vertex, minlength=nv)
+    else:
+        fans_per_vertex = np.zeros(nv, dtype=np.int64)
     nmv = np.flatnonzero(fans_per_vertex > 1)
     if nm.size:  # vertices of non-manifold edges are reported with the edges
         nmv = np.setdiff1d(nmv, table.edges[nm].reshape(-1))
@@ -216,7 +226,7 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
         out.append(Finding("unreferenced_vertex",
                            f"{_plural(idx.size, 'vertex')} not used by any face "
                            f"(first: vertex {idx[0]})", (int(idx[0]),), int(idx.size), True))
-    tail, _head = topology.halfedges(faces)
+    tail, _head = topology.halfedges(tf)
     two = np.flatnonzero(table.edge_count == 2)
     ha = table.order[table.start[two]]
     hb = table.order[table.start[two] + 1]
@@ -224,11 +234,70 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
     if same_dir.any():
         i = np.flatnonzero(same_dir)
         e = table.edges[two[i[0]]]
+        # repairable unless the faces a repair keeps form a non-orientable surface
+        keep = ~(bad_v[faces].any(axis=1) | deg | dup | back)
+        try:
+            _orient(faces[keep], nv)
+            orientable, why = True, ""
+        except errors.OrientationError:
+            orientable, why = False, "; the surface is not orientable (a Moebius-like twist)"
         out.append(Finding("inconsistent_orientation",
                            f"{_plural(i.size, 'edge')} where neighbouring faces have opposite "
                            f"winding (first: edge ({e[0]}, {e[1]}) between faces "
-                           f"{int(ha[i[0]] // 3)} and {int(hb[i[0]] // 3)})",
-                           (int(e[0]), int(e[1])), int(i.size), True))
+                           f"{int(tidx[ha[i[0]] // 3])} and {int(tidx[hb[i[0]] // 3])}){why}",
+                           (int(e[0]), int(e[1])), int(i.size), orientable))
+    if all(x.repairable for x in out if x.kind != "non_manifold_vertex"):
+        drop = bad_v[faces].any(axis=1) | deg | dup | back
+        if drop.any() or nmv.size:
+            out = _simulate_repair(vertices, faces, drop, nmv, out)
+    return out
+
+
+_DROPPING = ("non_finite", "non_manifold_edge", "degenerate_face", "duplicate_face")
+
+
+def _simulate_repair(vertices: NDArray, faces: NDArray, drop: NDArray[np.bool_],
+                     nmv_before: NDArray[np.int64], findings: list[Finding]) -> list[Finding]:
+    """Set the ``repairable`` flags from the faces :func:`repair_arrays` would keep.
+
+    A non-manifold vertex is repairable when dropping faces removes it. The face-dropping
+    findings are not when the drop would leave no face, a new non-manifold vertex (two
+    holes meeting at a vertex where back-to-back faces leave a surface) or a non-orientable
+    surface.
+    """
+    nv = vertices.shape[0]
+    kept = faces[~drop]
+    why = ""
+    nmv_left = nmv_before
+    if kept.size == 0:
+        why = "no face"
+    else:
+        table = topology.edge_table(kept, nv)
+        fan, n_fans = topology.corner_fans(kept, nv, table)
+        fan_vertex = np.empty(n_fans, dtype=np.int64)
+        fan_vertex[fan] = kept.reshape(-1)
+        after = np.flatnonzero(np.bincount(fan_vertex, minlength=nv) > 1)
+        nmv_left = np.intersect1d(after, nmv_before)
+        new = np.setdiff1d(after, nmv_before)
+        if new.size:
+            why = f"a non-manifold vertex (first: vertex {new[0]})"
+        else:
+            tail, _ = topology.halfedges(kept)
+            two = table.start[table.edge_count == 2]
+            if (tail[table.order[two]] == tail[table.order[two + 1]]).any():
+                try:
+                    _orient(kept, nv)
+                except errors.OrientationError:
+                    why = "a non-orientable surface"
+    note = f"; repair cannot fix it: dropping the faces would leave {why}" if why else ""
+    out = []
+    for x in findings:
+        if x.kind == "non_manifold_vertex" and nmv_left.size == 0 and not why:
+            x = Finding(x.kind, x.message + " (removed by dropping the faces repair drops)",
+                        x.first, x.count, True)
+        elif x.kind in _DROPPING and why:
+            x = Finding(x.kind, x.message + note, x.first, x.count, False)
+        out.append(x)
     return out
 
 
@@ -276,7 +345,8 @@ class RepairReport:
 def _orient(faces: NDArray[np.int64], nv: int) -> NDArray[np.int64]:
     """Faces to flip so that every manifold edge is used in opposite directions.
 
-    Breadth-first over each component from its lowest face. Raises OrientationError when a
+    Breadth-first over each component from its lowest face; the winding of the majority of
+    a component's faces is kept (the minority is flipped). Raises OrientationError when a
     component is not orientable.
     """
     table = topology.edge_table(faces, nv)
@@ -292,10 +362,12 @@ def _orient(faces: NDArray[np.int64], nv: int) -> NDArray[np.int64]:
         adj[a].append((b, s))
         adj[b].append((a, s))
     flip = np.full(nf, -1, dtype=np.int8)
+    comp = np.full(nf, -1, dtype=np.int64)
     for seed in range(nf):
         if flip[seed] >= 0:
             continue
         flip[seed] = 0
+        comp[seed] = seed
         stack = [seed]
         while stack:
             f = stack.pop()
@@ -303,11 +375,16 @@ def _orient(faces: NDArray[np.int64], nv: int) -> NDArray[np.int64]:
                 want = flip[f] ^ s
                 if flip[g] < 0:
                     flip[g] = want
+                    comp[g] = seed
                     stack.append(g)
                 elif flip[g] != want:
                     raise errors.OrientationError(
                         f"the surface is not orientable: faces {f} and {g} cannot both be "
                         "made consistent", first=(int(f),), count=1)
+    size = np.bincount(comp, minlength=nf)
+    flipped = np.bincount(comp, weights=flip, minlength=nf)
+    invert = 2 * flipped > size  # flip the minority of each component, not the majority
+    flip[invert[comp]] ^= 1
     return np.flatnonzero(flip == 1)
 
 
