@@ -27,9 +27,11 @@ from meshfit.mesh.validate import raise_first
 from .. import shapes
 from ..conftest import mesh_path, real_mesh
 
-# When a hypothesis test fails, its pytest plugin imports libcst, whose import raises a
-# DeprecationWarning (mypy_extensions.TypedDict); under filterwarnings = error that turns a
-# test failure into an INTERNALERROR that stops the whole run. Import it once, quietly.
+# When a hypothesis test fails, its pytest plugin imports libcst, whose import warns
+# "mypy_extensions.TypedDict is deprecated" with stacklevel=2, so the warning is attributed to
+# libcst and pyproject's "ignore::DeprecationWarning:mypy_extensions" does not match it; under
+# filterwarnings = error a failing example then ends the run with an INTERNALERROR instead
+# of a report. Import it once here, quietly.
 with warnings.catch_warnings(), contextlib.suppress(ImportError):
     warnings.simplefilter("ignore", DeprecationWarning)
     import hypothesis.extra._patching  # noqa: F401
