@@ -16,8 +16,11 @@ RESULTS = ROOT / "benchmarks" / "results"
 
 def mesh_path(name: str) -> Path:
     """Path of a shared test mesh (MESHFIT_DATA, else ../shared/data beside the repository)."""
-    for base in (os.environ.get("MESHFIT_DATA"), ROOT.parent / "shared" / "data",
-                 "/work/shared/data"):
+    for base in (
+        os.environ.get("MESHFIT_DATA"),
+        ROOT.parent / "shared" / "data",
+        "/work/shared/data",
+    ):
         if base and (Path(base) / "meshes" / f"{name}.ply").is_file():
             return Path(base) / "meshes" / f"{name}.ply"
     sys.exit(f"benchmark data not found: {name}.ply (set MESHFIT_DATA)")

@@ -50,9 +50,11 @@ def measure(cmd: list[str], repeats: int) -> dict:
         wall, peak = run(cmd)
         walls.append(wall)
         peaks.append(peak)
-    return {"wall_s_median": round(statistics.median(walls), 3),
-            "wall_s_all": [round(w, 3) for w in walls],
-            "peak_rss_mib_median": round(statistics.median(peaks), 1)}
+    return {
+        "wall_s_median": round(statistics.median(walls), 3),
+        "wall_s_all": [round(w, 3) for w in walls],
+        "peak_rss_mib_median": round(statistics.median(peaks), 1),
+    }
 
 
 def main() -> None:
@@ -63,16 +65,20 @@ def main() -> None:
     path = str(mesh_path(args.mesh))
     peer = measure([sys.executable, "-c", PEER, path], args.repeats)
     ours = measure([sys.executable, "-m", "meshfit.cli", "info", path, "--json"], args.repeats)
-    write_result("info", {
-        "benchmark": "meshfit info",
-        "mesh": args.mesh,
-        "repeats": args.repeats,
-        "meshfit_info": ours,
-        "peer_trimesh_stats": peer,
-        "wall_ratio_vs_peer": round(ours["wall_s_median"] / peer["wall_s_median"], 3),
-        "peak_rss_ratio_vs_peer": round(ours["peak_rss_mib_median"]
-                                        / peer["peak_rss_mib_median"], 3),
-    })
+    write_result(
+        "info",
+        {
+            "benchmark": "meshfit info",
+            "mesh": args.mesh,
+            "repeats": args.repeats,
+            "meshfit_info": ours,
+            "peer_trimesh_stats": peer,
+            "wall_ratio_vs_peer": round(ours["wall_s_median"] / peer["wall_s_median"], 3),
+            "peak_rss_ratio_vs_peer": round(
+                ours["peak_rss_mib_median"] / peer["peak_rss_mib_median"], 3
+            ),
+        },
+    )
 
 
 if __name__ == "__main__":

@@ -21,8 +21,11 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def data_dir() -> Path:
-    candidates = [os.environ.get("MESHFIT_DATA"), ROOT.parent / "shared" / "data",
-                  Path("/work/shared/data")]
+    candidates = [
+        os.environ.get("MESHFIT_DATA"),
+        ROOT.parent / "shared" / "data",
+        Path("/work/shared/data"),
+    ]
     for c in candidates:
         if c and (Path(c) / "meshes").is_dir():
             return Path(c)
@@ -48,8 +51,12 @@ def real_mesh(name: str) -> Mesh:
 
 @cache
 def analytic_mesh(name: str) -> Mesh:
-    return {"icosphere": lambda: shapes.icosphere(3), "plane": lambda: shapes.plane(20),
-            "cylinder": shapes.cylinder, "torus": shapes.torus}[name]()
+    return {
+        "icosphere": lambda: shapes.icosphere(3),
+        "plane": lambda: shapes.plane(20),
+        "cylinder": shapes.cylinder,
+        "torus": shapes.torus,
+    }[name]()
 
 
 def any_mesh(name: str) -> Mesh:

@@ -24,7 +24,12 @@ def plane(n: int = 20, size: float = 1.0, *, jitter: float = 0.3, seed: int = 0)
     inner = ((u > 0) & (u < size - 1e-12) & (v > 0) & (v < size - 1e-12)).ravel()
     xy[inner] += rng.uniform(-jitter * h, jitter * h, size=(int(inner.sum()), 2))
     idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
-    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    a, b, c, d = (
+        idx[:-1, :-1].ravel(),
+        idx[1:, :-1].ravel(),
+        idx[1:, 1:].ravel(),
+        idx[:-1, 1:].ravel(),
+    )
     flip = rng.random(a.size) < 0.5
     f1 = np.where(flip[:, None], np.stack([a, b, c], 1), np.stack([a, b, d], 1))
     f2 = np.where(flip[:, None], np.stack([a, c, d], 1), np.stack([b, c, d], 1))
@@ -33,8 +38,9 @@ def plane(n: int = 20, size: float = 1.0, *, jitter: float = 0.3, seed: int = 0)
     return Mesh(verts, faces, name=f"plane{n}")
 
 
-def cylinder(n_around: int = 32, n_along: int = 16, radius: float = 1.0,
-             height: float = 2.0) -> Mesh:
+def cylinder(
+    n_around: int = 32, n_along: int = 16, radius: float = 1.0, height: float = 2.0
+) -> Mesh:
     """Open tube (two boundary loops), axis z, outward normals."""
     t = np.linspace(0, 2 * np.pi, n_around, endpoint=False)
     z = np.linspace(0, height, n_along + 1)
@@ -53,11 +59,17 @@ def torus(n_major: int = 48, n_minor: int = 24, major: float = 1.0, minor: float
     v = np.linspace(0, 2 * np.pi, n_minor, endpoint=False)
     U, V = np.meshgrid(u, v, indexing="ij")
     r = major + minor * np.cos(V)
-    verts = np.stack([(r * np.cos(U)).ravel(), (r * np.sin(U)).ravel(), (minor * np.sin(V)).ravel()], 1)
+    verts = np.stack(
+        [(r * np.cos(U)).ravel(), (r * np.sin(U)).ravel(), (minor * np.sin(V)).ravel()], 1
+    )
     idx = np.arange(n_major * n_minor).reshape(n_major, n_minor)
     nu = np.roll(idx, -1, axis=0)
     nv = np.roll(idx, -1, axis=1)
     nuv = np.roll(nu, -1, axis=1)
-    faces = np.concatenate([np.stack([idx.ravel(), nu.ravel(), nuv.ravel()], 1),
-                            np.stack([idx.ravel(), nuv.ravel(), nv.ravel()], 1)])
+    faces = np.concatenate(
+        [
+            np.stack([idx.ravel(), nu.ravel(), nuv.ravel()], 1),
+            np.stack([idx.ravel(), nuv.ravel(), nv.ravel()], 1),
+        ]
+    )
     return Mesh(verts, faces, name="torus")

@@ -51,17 +51,22 @@ def as_surface_points(mesh: Mesh, points: SurfacePoints, *, name: str = "points"
     if len(points):
         bad = np.flatnonzero((points.face < 0) | (points.face >= mesh.n_faces))
         if bad.size:
-            raise InputError(f"{name}[{bad[0]}] is on face {points.face[bad[0]]}, outside the "
-                             f"mesh's {mesh.n_faces} faces")
+            raise InputError(
+                f"{name}[{bad[0]}] is on face {points.face[bad[0]]}, outside the "
+                f"mesh's {mesh.n_faces} faces"
+            )
         s = points.bary.sum(axis=1)
         bad = np.flatnonzero(np.abs(s - 1.0) > 1e-9)
         if bad.size:
-            raise InputError(f"{name}[{bad[0]}] has barycentric coordinates summing to {s[bad[0]]}"
-                             ", not 1")
+            raise InputError(
+                f"{name}[{bad[0]}] has barycentric coordinates summing to {s[bad[0]]}, not 1"
+            )
         bad = np.flatnonzero((points.bary < -1e-9).any(axis=1))
         if bad.size:
-            raise InputError(f"{name}[{bad[0]}] has a negative barycentric coordinate "
-                             f"{points.bary[bad[0]].tolist()}: it lies outside its face")
+            raise InputError(
+                f"{name}[{bad[0]}] has a negative barycentric coordinate "
+                f"{points.bary[bad[0]].tolist()}: it lies outside its face"
+            )
     return points
 
 

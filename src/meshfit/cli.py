@@ -60,8 +60,9 @@ def cmd_info(args: argparse.Namespace) -> int:
     except errors.MeshValidationError:
         findings = find_problems(raw.vertices, raw.faces)
         if args.repair:
-            mesh = Mesh.from_arrays(raw.vertices, raw.faces, raw.vertex_colors, name=name,
-                                    repair=True)
+            mesh = Mesh.from_arrays(
+                raw.vertices, raw.faces, raw.vertex_colors, name=name, repair=True
+            )
     out = raw_statistics(raw, findings)
     if mesh is not None:
         out.update(mesh_statistics(mesh))
@@ -90,23 +91,30 @@ def cmd_info(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="meshfit",
-        description="Turn dense scanned meshes into smooth surfaces.")
+        prog="meshfit", description="Turn dense scanned meshes into smooth surfaces."
+    )
     parser.add_argument("--version", action="version", version=f"meshfit {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("info", help="print statistics and every validation finding of a mesh")
     p.add_argument("mesh", help="mesh file (.ply .obj .stl .off .glb .gltf)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
-    p.add_argument("--repair", action="store_true",
-                   help="repair what can be repaired (degenerate, duplicate faces, "
-                        "unreferenced vertices, orientation) and report the result")
+    p.add_argument(
+        "--repair",
+        action="store_true",
+        help="repair what can be repaired (degenerate, duplicate faces, "
+        "unreferenced vertices, orientation) and report the result",
+    )
     p.set_defaults(func=cmd_info)
 
     p = sub.add_parser("demo", help="run on the embedded default input (no files needed)")
     p.add_argument("--out", default="meshfit-demo", help="output folder (default: %(default)s)")
-    p.add_argument("--faces", type=int, default=200_000,
-                   help="approximate triangle count of the generated scan (default: %(default)s)")
+    p.add_argument(
+        "--faces",
+        type=int,
+        default=200_000,
+        help="approximate triangle count of the generated scan (default: %(default)s)",
+    )
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=cmd_demo)
     return parser

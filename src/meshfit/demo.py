@@ -42,8 +42,11 @@ def _radius(d: NDArray[np.float64]) -> NDArray[np.float64]:
     x, y, z = d[:, 0], d[:, 1], d[:, 2]
     r = 1.0 + 0.18 * z - 0.10 * (x * x - y * y) + 0.06 * x * y * z * 4.0
     # two lobes ("ears") and a ridge ("nose")
-    for c, a, w in (((0.6, 0.0, 0.8), 0.22, 0.10), ((-0.6, 0.0, 0.8), 0.22, 0.10),
-                    ((0.0, 0.95, 0.3), 0.12, 0.04)):
+    for c, a, w in (
+        ((0.6, 0.0, 0.8), 0.22, 0.10),
+        ((-0.6, 0.0, 0.8), 0.22, 0.10),
+        ((0.0, 0.95, 0.3), 0.12, 0.04),
+    ):
         cd = d @ np.asarray(c) / np.linalg.norm(c)
         r += a * np.exp(-(1.0 - cd) / w)
     # fine detail: engraved rings and bumpy texture (scan-like high frequencies)
@@ -84,7 +87,7 @@ def demo_mesh(faces: int = 200_000, *, seed: int = 20001121) -> Mesh:
     flip = np.einsum("ij,ij->i", nrm, p.mean(axis=1)) < 0
     tri[flip] = tri[flip][:, ::-1]
     verts = d * _radius(d)[:, None]
-    band = (np.sin(9.0 * np.arctan2(d[:, 1], d[:, 0]) + 4.0 * d[:, 2]) > 0.6)
+    band = np.sin(9.0 * np.arctan2(d[:, 1], d[:, 0]) + 4.0 * d[:, 2]) > 0.6
     spot = d @ np.array([0.0, -0.8, 0.6]) / 1.0 > 0.85
     colors = np.empty((n, 4), dtype=np.uint8)
     colors[:] = (214, 196, 170, 255)
@@ -137,9 +140,11 @@ def run_demo(out: Path, *, faces: int = 200_000, quiet: bool = False) -> dict[st
     mesh_path = save_mesh(mesh, out / "demo_scan.ply")
     stats = mesh_statistics(mesh)
     _write_json(out / "info.json", {"file": str(mesh_path), **stats})
-    console.print(f"[bold]mesh[/] {mesh_path}: {stats['vertices']:,} vertices, "
-                  f"{stats['faces']:,} faces, genus {stats['genus']}, "
-                  f"{'closed' if stats['closed'] else 'open'}")
+    console.print(
+        f"[bold]mesh[/] {mesh_path}: {stats['vertices']:,} vertices, "
+        f"{stats['faces']:,} faces, genus {stats['genus']}, "
+        f"{'closed' if stats['closed'] else 'open'}"
+    )
 
     with console.status("walking 100,000 face points 5 edge lengths across the surface"):
         rng = np.random.default_rng(1)
@@ -155,24 +160,30 @@ def run_demo(out: Path, *, faces: int = 200_000, quiet: bool = False) -> dict[st
         result = walk_points(mesh, start, step)
         seconds = time.perf_counter() - t0
     off = mesh.closest_points(mesh.xyz(result.end)).distance
-    summary.update({
-        "mesh": str(mesh_path),
-        "statistics": stats,
-        "walk": {
-            "points": n,
-            "step_mean_edge_lengths": 5.0,
-            "seconds": round(seconds, 4),
-            "steps_per_second": round(n / seconds),
-            "max_length_error": float(np.abs(result.length - 5.0 * mesh.mean_edge_length).max()),
-            "max_distance_off_surface": float(off.max()),
-            "hit_boundary": int(result.hit_boundary.sum()),
-        },
-    })
+    summary.update(
+        {
+            "mesh": str(mesh_path),
+            "statistics": stats,
+            "walk": {
+                "points": n,
+                "step_mean_edge_lengths": 5.0,
+                "seconds": round(seconds, 4),
+                "steps_per_second": round(n / seconds),
+                "max_length_error": float(
+                    np.abs(result.length - 5.0 * mesh.mean_edge_length).max()
+                ),
+                "max_distance_off_surface": float(off.max()),
+                "hit_boundary": int(result.hit_boundary.sum()),
+            },
+        }
+    )
     _write_json(out / "demo.json", summary)
     w = summary["walk"]
-    console.print(f"[bold]walk[/] {n:,} points x 5 mean edge lengths in {w['seconds']:.3f} s "
-                  f"({w['steps_per_second']:,} points/s); largest length error "
-                  f"{w['max_length_error']:.2e}, largest distance off the surface "
-                  f"{w['max_distance_off_surface']:.2e}")
+    console.print(
+        f"[bold]walk[/] {n:,} points x 5 mean edge lengths in {w['seconds']:.3f} s "
+        f"({w['steps_per_second']:,} points/s); largest length error "
+        f"{w['max_length_error']:.2e}, largest distance off the surface "
+        f"{w['max_distance_off_surface']:.2e}"
+    )
     console.print(f"[bold]summary[/] {out / 'demo.json'}")
     return summary

@@ -47,11 +47,14 @@ class SurfacePoints:
         face = np.asarray(self.face)
         bary = np.asarray(self.bary, dtype=np.float64)
         if face.ndim != 1 or not (face.size == 0 or np.issubdtype(face.dtype, np.integer)):
-            raise InputError(f"SurfacePoints.face must be a 1-d integer array, got {face.dtype} "
-                             f"with shape {face.shape}")
+            raise InputError(
+                f"SurfacePoints.face must be a 1-d integer array, got {face.dtype} "
+                f"with shape {face.shape}"
+            )
         if bary.shape != (face.shape[0], 3):
-            raise InputError(f"SurfacePoints.bary must have shape ({face.shape[0]}, 3), "
-                             f"got {bary.shape}")
+            raise InputError(
+                f"SurfacePoints.bary must have shape ({face.shape[0]}, 3), got {bary.shape}"
+            )
         if not np.isfinite(bary).all():
             bad = int(np.flatnonzero(~np.isfinite(bary).all(axis=1))[0])
             raise InputError(f"SurfacePoints.bary is not finite at point {bad}")
@@ -87,10 +90,11 @@ class SurfacePoints:
         corner_face = np.full(max(nv, 1), -1, dtype=np.int64)
         corner_slot = np.zeros(max(nv, 1), dtype=np.int64)
         flat = faces.reshape(-1)
-        corner_face[flat[::-1]] = (np.arange(flat.size)[::-1] // 3)
-        corner_slot[flat[::-1]] = (np.arange(flat.size)[::-1] % 3)
-        if vertices.size and (vertices.min() < 0 or vertices.max() >= nv
-                              or (corner_face[vertices] < 0).any()):
+        corner_face[flat[::-1]] = np.arange(flat.size)[::-1] // 3
+        corner_slot[flat[::-1]] = np.arange(flat.size)[::-1] % 3
+        if vertices.size and (
+            vertices.min() < 0 or vertices.max() >= nv or (corner_face[vertices] < 0).any()
+        ):
             bad = vertices[(vertices < 0) | (vertices >= nv)]
             if bad.size == 0:
                 bad = vertices[corner_face[vertices] < 0]
@@ -104,8 +108,7 @@ class SurfacePoints:
         """Join several point sets in order."""
         if not parts:
             return cls(np.zeros(0, np.int64), np.zeros((0, 3)))
-        return cls(np.concatenate([p.face for p in parts]),
-                   np.concatenate([p.bary for p in parts]))
+        return cls(np.concatenate([p.face for p in parts]), np.concatenate([p.bary for p in parts]))
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,7 +132,9 @@ class SurfaceCurve:
 
     def __post_init__(self) -> None:
         if self.kind not in ("boundary", "feature"):
-            raise InputError(f"SurfaceCurve.kind must be 'boundary' or 'feature', got {self.kind!r}")
+            raise InputError(
+                f"SurfaceCurve.kind must be 'boundary' or 'feature', got {self.kind!r}"
+            )
 
     def __len__(self) -> int:
         return len(self.points)

@@ -3,9 +3,6 @@ a non-orientable surface, the real scans' defects, and a hypothesis property."""
 
 from __future__ import annotations
 
-import contextlib
-import warnings
-
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -26,15 +23,6 @@ from meshfit.mesh.validate import raise_first
 
 from .. import shapes
 from ..conftest import mesh_path, real_mesh
-
-# When a hypothesis test fails, its pytest plugin imports libcst, whose import warns
-# "mypy_extensions.TypedDict is deprecated" with stacklevel=2, so the warning is attributed to
-# libcst and pyproject's "ignore::DeprecationWarning:mypy_extensions" does not match it; under
-# filterwarnings = error a failing example then ends the run with an INTERNALERROR instead
-# of a report. Import it once here, quietly.
-with warnings.catch_warnings(), contextlib.suppress(ImportError):
-    warnings.simplefilter("ignore", DeprecationWarning)
-    import hypothesis.extra._patching  # noqa: F401
 
 SQUARE_V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], dtype=np.float64)
 SQUARE_F = np.array([[0, 1, 2], [0, 2, 3]])

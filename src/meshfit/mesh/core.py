@@ -42,10 +42,16 @@ def _as_faces(faces: ArrayLike) -> NDArray[np.int64]:
     if f.size == 0:
         return np.zeros((0, 3), dtype=np.int64)
     if f.ndim != 2 or f.shape[1] != 3:
-        raise errors.InputError(f"faces must have shape (nf, 3), got {f.shape} "
-                                "(triangulate polygons first, or load the file with load_mesh)")
+        raise errors.InputError(
+            f"faces must have shape (nf, 3), got {f.shape} "
+            "(triangulate polygons first, or load the file with load_mesh)"
+        )
     if not np.issubdtype(f.dtype, np.integer):
-        if np.issubdtype(f.dtype, np.floating) and np.isfinite(f).all() and (f == np.round(f)).all():
+        if (
+            np.issubdtype(f.dtype, np.floating)
+            and np.isfinite(f).all()
+            and (f == np.round(f)).all()
+        ):
             f = f.astype(np.int64)
         else:
             raise errors.InputError(f"faces must hold integer vertex indices, got dtype {f.dtype}")
@@ -107,9 +113,15 @@ class Mesh:
         object.__setattr__(self, "vertex_colors", None if c is None else _frozen(c))
 
     @classmethod
-    def from_arrays(cls, vertices: ArrayLike, faces: ArrayLike,
-                    vertex_colors: ArrayLike | None = None, *, name: str = "",
-                    repair: bool = False) -> Mesh:
+    def from_arrays(
+        cls,
+        vertices: ArrayLike,
+        faces: ArrayLike,
+        vertex_colors: ArrayLike | None = None,
+        *,
+        name: str = "",
+        repair: bool = False,
+    ) -> Mesh:
         """Build a mesh, optionally repairing what can be repaired first.
 
         Parameters
@@ -130,8 +142,9 @@ class Mesh:
         try:
             v, f, c, report = repair_arrays(v, f, c)
         except errors.MeshValidationError as exc:
-            raise type(exc)(f"{name}: {exc}" if name else str(exc), first=exc.first,
-                            count=exc.count) from None
+            raise type(exc)(
+                f"{name}: {exc}" if name else str(exc), first=exc.first, count=exc.count
+            ) from None
         return cls(v, f, c, name=name, repairs=report)
 
     # ------------------------------------------------------------------ sizes
@@ -176,9 +189,13 @@ class Mesh:
     def _vertex_adjacency(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
         e = self.edges
         n = self.n_vertices
-        m = sparse.coo_matrix((np.ones(2 * e.shape[0], dtype=np.int8),
-                               (np.concatenate([e[:, 0], e[:, 1]]),
-                                np.concatenate([e[:, 1], e[:, 0]]))), shape=(n, n)).tocsr()
+        m = sparse.coo_matrix(
+            (
+                np.ones(2 * e.shape[0], dtype=np.int8),
+                (np.concatenate([e[:, 0], e[:, 1]]), np.concatenate([e[:, 1], e[:, 0]])),
+            ),
+            shape=(n, n),
+        ).tocsr()
         m.sort_indices()
         return _frozen(m.indptr.astype(np.int64)), _frozen(m.indices.astype(np.int64))
 
@@ -191,7 +208,7 @@ class Mesh:
     def vertex_neighbors(self, vertex: int) -> NDArray[np.int64]:
         """(k,) int64: the vertices joined to ``vertex`` by an edge."""
         indptr, indices = self.vertex_adjacency
-        return indices[indptr[vertex]:indptr[vertex + 1]]
+        return indices[indptr[vertex] : indptr[vertex + 1]]
 
     @cached_property
     def _vertex_faces(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -212,9 +229,13 @@ class Mesh:
         e = self.edges
         w = self.edge_lengths
         n = self.n_vertices
-        return sparse.csr_matrix((np.concatenate([w, w]),
-                                  (np.concatenate([e[:, 0], e[:, 1]]),
-                                   np.concatenate([e[:, 1], e[:, 0]]))), shape=(n, n))
+        return sparse.csr_matrix(
+            (
+                np.concatenate([w, w]),
+                (np.concatenate([e[:, 0], e[:, 1]]), np.concatenate([e[:, 1], e[:, 0]])),
+            ),
+            shape=(n, n),
+        )
 
     @cached_property
     def boundary_loops(self) -> list[NDArray[np.int64]]:

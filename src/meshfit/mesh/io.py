@@ -46,9 +46,24 @@ class RawMesh:
     notes: list[str] = field(default_factory=list)
 
 
-_PLY_SIZES = {"char": 1, "int8": 1, "uchar": 1, "uint8": 1, "short": 2, "int16": 2,
-              "ushort": 2, "uint16": 2, "int": 4, "int32": 4, "uint": 4, "uint32": 4,
-              "float": 4, "float32": 4, "double": 8, "float64": 8}
+_PLY_SIZES = {
+    "char": 1,
+    "int8": 1,
+    "uchar": 1,
+    "uint8": 1,
+    "short": 2,
+    "int16": 2,
+    "ushort": 2,
+    "uint16": 2,
+    "int": 4,
+    "int32": 4,
+    "uint": 4,
+    "uint32": 4,
+    "float": 4,
+    "float32": 4,
+    "double": 8,
+    "float64": 8,
+}
 
 
 @dataclass
@@ -99,12 +114,13 @@ def _ply_ascii_scan(path: Path, header: _PlyHeader) -> int:
     """
     with open(path, "rb") as fh:
         fh.seek(header.length)
-        lines = [ln for ln in fh.read().decode("ascii", errors="replace").splitlines()
-                 if ln.strip()]
+        lines = [
+            ln for ln in fh.read().decode("ascii", errors="replace").splitlines() if ln.strip()
+        ]
     row = 0
     polygons = 0
     for name, count, props in header.elements:
-        rows = lines[row:row + count]
+        rows = lines[row : row + count]
         # tokens a complete row needs: one per scalar property, 1 + n per list property
         lists = [i for i, (_, _, ct) in enumerate(props) if ct is not None]
         first_list = lists[0] if lists else -1
@@ -118,12 +134,14 @@ def _ply_ascii_scan(path: Path, header: _PlyHeader) -> int:
                 return False
             return len(tokens) >= len(props) + n
 
-        if len(rows) < count or (rows and row + count >= len(lines)
-                                 and not complete(rows[-1].split())):
+        if len(rows) < count or (
+            rows and row + count >= len(lines) and not complete(rows[-1].split())
+        ):
             done = len(rows) if not rows or complete(rows[-1].split()) else len(rows) - 1
             raise errors.MeshFileError(
                 f"{path}: truncated PLY: header declares {count} {name} elements, the file "
-                f"ends in {name} {done} (after {done} complete {name} lines)")
+                f"ends in {name} {done} (after {done} complete {name} lines)"
+            )
         if name == "face" and first_list >= 0:
             try:
                 sizes = np.array([ln.split()[first_list] for ln in rows], dtype=np.int64)
@@ -134,7 +152,8 @@ def _ply_ascii_scan(path: Path, header: _PlyHeader) -> int:
                 k = int(short[0])
                 raise errors.MeshFileError(
                     f"{path}: face {k} has {sizes[k]} corners, a face needs at least 3 "
-                    f"({_count(short.size, 'such face')})")
+                    f"({_count(short.size, 'such face')})"
+                )
             polygons = int((sizes > 3).sum())
         row += count
     return polygons
@@ -160,15 +179,17 @@ def _text(path: Path, kind: str) -> list[str]:
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise errors.MeshFileError(f"{path}: cannot read {kind} file: not text "
-                                   f"(undecodable byte at offset {exc.start})") from None
+        raise errors.MeshFileError(
+            f"{path}: cannot read {kind} file: not text (undecodable byte at offset {exc.start})"
+        ) from None
     if "\0" in text:
         raise errors.MeshFileError(f"{path}: cannot read {kind} file: not text (NUL bytes)")
     return text.splitlines()
 
 
-def _triangulate(flat: NDArray[np.int64], sizes: NDArray[np.int64],
-                 notes: list[str]) -> NDArray[np.int64]:
+def _triangulate(
+    flat: NDArray[np.int64], sizes: NDArray[np.int64], notes: list[str]
+) -> NDArray[np.int64]:
     """Fan-triangulate polygons given as concatenated corner lists (each size >= 3)."""
     ntri = sizes - 2
     start = np.cumsum(sizes) - sizes
@@ -207,14 +228,18 @@ def _read_obj(path: Path) -> RawMesh:
     nv = len(vrows)
     short = next((k for k, r in enumerate(vrows) if len(r) < 3), None)
     if short is not None:
-        raise errors.MeshFileError(f"{path}: line {_obj_line(text, _OBJ_V, short)}: vertex "
-                                   f"{short} has fewer than 3 coordinates")
+        raise errors.MeshFileError(
+            f"{path}: line {_obj_line(text, _OBJ_V, short)}: vertex "
+            f"{short} has fewer than 3 coordinates"
+        )
     try:
         vertices = np.array([r[:3] for r in vrows], dtype=np.float64).reshape(nv, 3)
     except ValueError:
         k = next(k for k, r in enumerate(vrows) if not _floats(r[:3]))
-        raise errors.MeshFileError(f"{path}: line {_obj_line(text, _OBJ_V, k)}: vertex {k} has "
-                                   f"a non-numeric coordinate {' '.join(vrows[k][:3])!r}") from None
+        raise errors.MeshFileError(
+            f"{path}: line {_obj_line(text, _OBJ_V, k)}: vertex {k} has "
+            f"a non-numeric coordinate {' '.join(vrows[k][:3])!r}"
+        ) from None
     colors = None
     if nv and all(len(r) == 6 for r in vrows) and _floats(vrows[0][3:]):
         try:
@@ -233,14 +258,18 @@ def _read_obj(path: Path) -> RawMesh:
     bad = np.flatnonzero(sizes < 3)
     if bad.size:
         k = int(bad[0])
-        raise errors.MeshFileError(f"{path}: line {_obj_line(text, _OBJ_F, k)}: face {k} has "
-                                   f"{sizes[k]} vertex indices, a face needs at least 3")
+        raise errors.MeshFileError(
+            f"{path}: line {_obj_line(text, _OBJ_F, k)}: face {k} has "
+            f"{sizes[k]} vertex indices, a face needs at least 3"
+        )
     try:
         idx = np.array([t for r in frows for t in r], dtype=np.int64)
     except ValueError:
         k = next(k for k, r in enumerate(frows) if not _ints(r))
-        raise errors.MeshFileError(f"{path}: line {_obj_line(text, _OBJ_F, k)}: face {k} has a "
-                                   f"non-integer vertex index in {' '.join(frows[k])!r}") from None
+        raise errors.MeshFileError(
+            f"{path}: line {_obj_line(text, _OBJ_F, k)}: face {k} has a "
+            f"non-integer vertex index in {' '.join(frows[k])!r}"
+        ) from None
     flat = idx - 1  # OBJ indices are 1-based
     if (idx < 0).any():  # negative indices count back from the last vertex defined so far
         is_v = np.array(_OBJ_VF.findall(text)) == "v"
@@ -256,7 +285,9 @@ def _read_obj(path: Path) -> RawMesh:
             f"{path}: line {_obj_line(text, _OBJ_F, k)}: face {k} refers to vertex {int(idx[w])}, "
             f"which does not exist (the file has {nv} vertices; OBJ indices run from 1, negative "
             f"ones count back from the last vertex defined; {_count(n_bad, 'such face')})",
-            first=(k,), count=n_bad)
+            first=(k,),
+            count=n_bad,
+        )
     faces = _triangulate(flat, sizes, notes) if sizes.size else np.zeros((0, 3), np.int64)
     return RawMesh(vertices, faces, colors, notes)
 
@@ -302,43 +333,54 @@ def _read_off(path: Path) -> RawMesh:
     try:
         nv, nf = int(head[0]), int(head[1])
     except (IndexError, ValueError):
-        raise errors.MeshFileError(f"{path}: cannot read OFF file: malformed count line "
-                                   f"{' '.join(head)!r}") from None
+        raise errors.MeshFileError(
+            f"{path}: cannot read OFF file: malformed count line {' '.join(head)!r}"
+        ) from None
     vrows = body[:nv]
-    frows = body[nv:nv + nf]
+    frows = body[nv : nv + nf]
     if len(vrows) < nv or (vrows and len(vrows[-1][1]) < 3):
         done = len(vrows) if not vrows or len(vrows[-1][1]) >= 3 else len(vrows) - 1
-        raise errors.MeshFileError(f"{path}: truncated OFF: header declares {nv} vertices, the "
-                                   f"file ends in vertex {done} ({done} complete)")
+        raise errors.MeshFileError(
+            f"{path}: truncated OFF: header declares {nv} vertices, the "
+            f"file ends in vertex {done} ({done} complete)"
+        )
     try:
         vertices = np.array([w[:3] for _, w in vrows], dtype=np.float64).reshape(nv, 3)
     except ValueError:
         k = next(k for k, (_, w) in enumerate(vrows) if not _floats(w[:3]))
-        raise errors.MeshFileError(f"{path}: line {vrows[k][0]}: vertex {k} has a non-numeric "
-                                   "coordinate") from None
+        raise errors.MeshFileError(
+            f"{path}: line {vrows[k][0]}: vertex {k} has a non-numeric coordinate"
+        ) from None
     try:
         sizes = np.array([w[0] for _, w in frows], dtype=np.int64)
     except ValueError:
         k = next(k for k, (_, w) in enumerate(frows) if not _ints(w[:1]))
-        raise errors.MeshFileError(f"{path}: line {frows[k][0]}: face {k} does not start with "
-                                   "its corner count") from None
+        raise errors.MeshFileError(
+            f"{path}: line {frows[k][0]}: face {k} does not start with its corner count"
+        ) from None
     complete = [len(w) >= 1 + n for (_, w), n in zip(frows, sizes.tolist(), strict=True)]
     if len(frows) < nf or (frows and not complete[-1]):
         done = len(frows) if not frows or complete[-1] else len(frows) - 1
-        raise errors.MeshFileError(f"{path}: truncated OFF: header declares {nf} faces, the file "
-                                   f"ends in face {done} ({done} complete)")
+        raise errors.MeshFileError(
+            f"{path}: truncated OFF: header declares {nf} faces, the file "
+            f"ends in face {done} ({done} complete)"
+        )
     bad = np.flatnonzero(sizes < 3)
     if bad.size:
         k = int(bad[0])
-        raise errors.MeshFileError(f"{path}: line {frows[k][0]}: face {k} has {sizes[k]} "
-                                   "corners, a face needs at least 3")
+        raise errors.MeshFileError(
+            f"{path}: line {frows[k][0]}: face {k} has {sizes[k]} corners, a face needs at least 3"
+        )
     try:
-        flat = np.array([t for (_, w), n in zip(frows, sizes.tolist(), strict=True)
-                         for t in w[1:1 + n]], dtype=np.int64)
+        flat = np.array(
+            [t for (_, w), n in zip(frows, sizes.tolist(), strict=True) for t in w[1 : 1 + n]],
+            dtype=np.int64,
+        )
     except ValueError:
-        k = next(k for k, (_, w) in enumerate(frows) if not _ints(w[1:1 + int(sizes[k])]))
-        raise errors.MeshFileError(f"{path}: line {frows[k][0]}: face {k} has a non-integer "
-                                   "vertex index") from None
+        k = next(k for k, (_, w) in enumerate(frows) if not _ints(w[1 : 1 + int(sizes[k])]))
+        raise errors.MeshFileError(
+            f"{path}: line {frows[k][0]}: face {k} has a non-integer vertex index"
+        ) from None
     wrong = (flat < 0) | (flat >= nv)
     if wrong.any():
         owner = np.repeat(np.arange(sizes.size), sizes)
@@ -347,7 +389,10 @@ def _read_off(path: Path) -> RawMesh:
         n_bad = int(np.unique(owner[wrong]).size)
         raise errors.IndexRangeError(
             f"{path}: line {frows[k][0]}: face {k} refers to vertex {int(flat[w])}, outside "
-            f"[0, {nv}) ({_count(n_bad, 'such face')})", first=(k,), count=n_bad)
+            f"[0, {nv}) ({_count(n_bad, 'such face')})",
+            first=(k,),
+            count=n_bad,
+        )
     notes: list[str] = []
     faces = _triangulate(flat, sizes, notes) if nf else np.zeros((0, 3), np.int64)
     return RawMesh(vertices, faces, None, notes)
@@ -367,18 +412,25 @@ def _stl_check(path: Path) -> RawMesh | None:
             return RawMesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), None, [])
         return None
     if n < 0:
-        raise errors.MeshFileError(f"{path}: not an STL file: {size} bytes, shorter than a binary "
-                                   "STL header, and no 'solid' line")
-    raise errors.MeshFileError(f"{path}: truncated or corrupt binary STL: the header declares "
-                               f"{n} triangles ({84 + 50 * n} bytes), the file holds {size}")
+        raise errors.MeshFileError(
+            f"{path}: not an STL file: {size} bytes, shorter than a binary "
+            "STL header, and no 'solid' line"
+        )
+    raise errors.MeshFileError(
+        f"{path}: truncated or corrupt binary STL: the header declares "
+        f"{n} triangles ({84 + 50 * n} bytes), the file holds {size}"
+    )
 
 
 def _to_single(loaded, path: Path, notes: list[str]):
     import trimesh
 
     if isinstance(loaded, trimesh.Scene):
-        geoms = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)] \
-            if hasattr(loaded, "dump") else list(loaded.geometry.values())
+        geoms = (
+            [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)]
+            if hasattr(loaded, "dump")
+            else list(loaded.geometry.values())
+        )
         geoms = [g for g in geoms if isinstance(g, trimesh.Trimesh)]
         if not geoms:
             raise errors.MeshFileError(f"{path}: the file holds no triangle mesh")
@@ -387,8 +439,9 @@ def _to_single(loaded, path: Path, notes: list[str]):
             return trimesh.util.concatenate(geoms)
         return geoms[0]
     if not isinstance(loaded, trimesh.Trimesh):
-        raise errors.MeshFileError(f"{path}: the file holds a {type(loaded).__name__}, "
-                                   "not a triangle mesh")
+        raise errors.MeshFileError(
+            f"{path}: the file holds a {type(loaded).__name__}, not a triangle mesh"
+        )
     return loaded
 
 
@@ -426,8 +479,10 @@ def read_mesh_arrays(path: str | os.PathLike) -> RawMesh:
         raise errors.MeshFileError(f"{p}: not a file")
     suffix = p.suffix.lower()
     if suffix not in FORMATS:
-        raise errors.MeshFileError(f"{p}: unsupported format {suffix or '(no suffix)'!r}; "
-                                   f"meshfit reads {', '.join(FORMATS)}")
+        raise errors.MeshFileError(
+            f"{p}: unsupported format {suffix or '(no suffix)'!r}; "
+            f"meshfit reads {', '.join(FORMATS)}"
+        )
     if p.stat().st_size == 0:
         raise errors.MeshFileError(f"{p}: the file is empty")
     if suffix == ".obj":
@@ -456,13 +511,16 @@ def read_mesh_arrays(path: str | os.PathLike) -> RawMesh:
                 raise errors.MeshFileError(
                     f"{p}: truncated binary PLY: the header's {header.count('vertex')} vertices "
                     f"and {header.count('face')} faces need at least {need} bytes, the file holds "
-                    f"{have}") from None
+                    f"{have}"
+                ) from None
             raise errors.MeshFileError(
                 f"{p}: cannot read binary PLY: the data does not match the header (a corrupt "
                 "file, or faces with different corner counts, which trimesh cannot read from "
-                f"binary PLY) ({type(exc).__name__}: {exc})") from None
-        raise errors.MeshFileError(f"{p}: cannot read {suffix[1:].upper()} file "
-                                   f"({type(exc).__name__}: {exc})") from None
+                f"binary PLY) ({type(exc).__name__}: {exc})"
+            ) from None
+        raise errors.MeshFileError(
+            f"{p}: cannot read {suffix[1:].upper()} file ({type(exc).__name__}: {exc})"
+        ) from None
     if isinstance(loaded, trimesh.PointCloud):  # vertices but no faces
         vertices = np.asarray(loaded.vertices, dtype=np.float64).reshape(-1, 3)
         return RawMesh(vertices, np.zeros((0, 3), np.int64), None, notes)
@@ -472,12 +530,16 @@ def read_mesh_arrays(path: str | os.PathLike) -> RawMesh:
     if header is not None:
         want_v = header.count("vertex")
         if want_v >= 0 and vertices.shape[0] != want_v:
-            raise errors.MeshFileError(f"{p}: truncated PLY: header declares {want_v} vertices, "
-                                       f"file holds {vertices.shape[0]}")
+            raise errors.MeshFileError(
+                f"{p}: truncated PLY: header declares {want_v} vertices, "
+                f"file holds {vertices.shape[0]}"
+            )
         want_f = header.count("face")
         if want_f >= 0 and faces.shape[0] < want_f:
-            raise errors.MeshFileError(f"{p}: truncated PLY: header declares {want_f} faces, "
-                                       f"file holds {faces.shape[0]} triangles")
+            raise errors.MeshFileError(
+                f"{p}: truncated PLY: header declares {want_f} faces, "
+                f"file holds {faces.shape[0]} triangles"
+            )
         if header.fmt != "ascii" and faces.shape[0] > want_f >= 0:
             polys = want_f  # binary PLY: trimesh reads only faces of one corner count
         if polys:
@@ -518,8 +580,9 @@ def load_mesh(path: str | os.PathLike, *, repair: bool = False) -> Mesh:
     >>> mesh = load_mesh("bunny.ply", repair=True)  # doctest: +SKIP
     """
     raw = read_mesh_arrays(path)
-    return Mesh.from_arrays(raw.vertices, raw.faces, raw.vertex_colors, name=Path(path).name,
-                            repair=repair)
+    return Mesh.from_arrays(
+        raw.vertices, raw.faces, raw.vertex_colors, name=Path(path).name, repair=repair
+    )
 
 
 def save_mesh(mesh: Mesh, path: str | os.PathLike) -> Path:
@@ -536,7 +599,9 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike) -> Path:
     p = Path(path)
     suffix = p.suffix.lower()
     if suffix not in FORMATS:
-        raise errors.InputError(f"{p}: unsupported format {suffix!r}; use one of {', '.join(FORMATS)}")
+        raise errors.InputError(
+            f"{p}: unsupported format {suffix!r}; use one of {', '.join(FORMATS)}"
+        )
     tm = trimesh.Trimesh(mesh.vertices, mesh.faces, vertex_colors=mesh.vertex_colors, process=False)
     data = tm.export(file_type=suffix[1:])
     fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent or ".")

@@ -26,7 +26,9 @@ def build_aabb(mesh: Mesh):
     return tree
 
 
-def barycentric(mesh: Mesh, face: NDArray[np.int64], xyz: NDArray[np.float64]) -> NDArray[np.float64]:
+def barycentric(
+    mesh: Mesh, face: NDArray[np.int64], xyz: NDArray[np.float64]
+) -> NDArray[np.float64]:
     """Barycentric coordinates of points in the planes of the given faces.
 
     Parameters
@@ -95,8 +97,9 @@ def closest_points(mesh: Mesh, xyz: ArrayLike) -> ClosestPoints:
     """
     q = as_points(xyz, name="xyz")
     if q.shape[0] == 0:
-        return ClosestPoints(SurfacePoints(np.zeros(0, np.int64), np.zeros((0, 3))),
-                             np.zeros(0), np.zeros((0, 3)))
+        return ClosestPoints(
+            SurfacePoints(np.zeros(0, np.int64), np.zeros((0, 3))), np.zeros(0), np.zeros((0, 3))
+        )
     sqd, face, c = mesh.aabb.squared_distance(mesh.vertices, mesh.faces, q)
     face = np.asarray(face, dtype=np.int64)
     bary = _clip_bary(barycentric(mesh, face, np.asarray(c)))
@@ -163,8 +166,14 @@ def ray_first_hit(mesh: Mesh, origins: ArrayLike, directions: ArrayLike) -> RayH
     return RayHits(hit, t, np.where(hit, face, -1), bary)
 
 
-def _ray_face(mesh: Mesh, face: NDArray[np.int64], o: NDArray[np.float64], d: NDArray[np.float64],
-              t: NDArray[np.float64], uv: NDArray[np.float64]):
+def _ray_face(
+    mesh: Mesh,
+    face: NDArray[np.int64],
+    o: NDArray[np.float64],
+    d: NDArray[np.float64],
+    t: NDArray[np.float64],
+    uv: NDArray[np.float64],
+):
     """Ray parameter and (u, v) of each ray's intersection with the plane of its hit face,
     in float64 (Moeller & Trumbore 1997); rays nearly parallel to the face keep ``t, uv``."""
     p = mesh.vertices[mesh.faces[face]]

@@ -43,7 +43,7 @@ class EdgeTable:
 
     def halfedges_of(self, edge: int) -> NDArray[np.int64]:
         s = self.start[edge]
-        return self.order[s:s + self.edge_count[edge]]
+        return self.order[s : s + self.edge_count[edge]]
 
 
 def halfedges(faces: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -72,8 +72,13 @@ def edge_table(faces: NDArray[np.int64], n_vertices: int) -> EdgeTable:
     start = np.zeros(uniq.size, dtype=np.int64)
     np.cumsum(counts[:-1], out=start[1:])
     edges = np.stack([uniq // max(n_vertices, 1), uniq % max(n_vertices, 1)], axis=1)
-    return EdgeTable(edges.astype(np.int64), inverse.astype(np.int64).reshape(-1),
-                     counts.astype(np.int64), order.astype(np.int64), start)
+    return EdgeTable(
+        edges.astype(np.int64),
+        inverse.astype(np.int64).reshape(-1),
+        counts.astype(np.int64),
+        order.astype(np.int64),
+        start,
+    )
 
 
 def face_neighbors(faces: NDArray[np.int64], table: EdgeTable) -> NDArray[np.int64]:
@@ -89,8 +94,12 @@ def face_neighbors(faces: NDArray[np.int64], table: EdgeTable) -> NDArray[np.int
     return out.reshape(nf, 3)
 
 
-def corner_fans(faces: NDArray[np.int64], n_vertices: int, table: EdgeTable,
-                cut_edges: NDArray[np.bool_] | None = None) -> tuple[NDArray[np.int64], int]:
+def corner_fans(
+    faces: NDArray[np.int64],
+    n_vertices: int,
+    table: EdgeTable,
+    cut_edges: NDArray[np.bool_] | None = None,
+) -> tuple[NDArray[np.int64], int]:
     """Group the corners around each vertex into fans of faces joined across shared edges.
 
     Two corners of the same vertex belong to one fan when their faces share a manifold edge
@@ -121,6 +130,7 @@ def corner_fans(faces: NDArray[np.int64], n_vertices: int, table: EdgeTable,
     two = np.flatnonzero(join)
     ha = table.order[table.start[two]]
     hb = table.order[table.start[two] + 1]
+
     # half-edge h = 3f+k has corners (3f+k) at its tail and (3f+(k+1)%3) at its head
     def tail_corner(h):
         return h
@@ -145,8 +155,9 @@ def face_components(n_faces: int, neighbors: NDArray[np.int64]) -> tuple[int, ND
     f = np.repeat(np.arange(n_faces), 3)
     g = neighbors.reshape(-1)
     keep = g >= 0
-    graph = sparse.coo_matrix((np.ones(int(keep.sum()), dtype=np.int8), (f[keep], g[keep])),
-                              shape=(n_faces, n_faces))
+    graph = sparse.coo_matrix(
+        (np.ones(int(keep.sum()), dtype=np.int8), (f[keep], g[keep])), shape=(n_faces, n_faces)
+    )
     n, labels = connected_components(graph, directed=False)
     return int(n), labels.astype(np.int64)
 

@@ -51,15 +51,28 @@ class Finding:
         return self.error_class(self.message + hint, first=self.first, count=self.count)
 
     def to_dict(self) -> dict:
-        return {"kind": self.kind, "message": self.message, "first": list(self.first),
-                "count": self.count, "repairable": self.repairable}
+        return {
+            "kind": self.kind,
+            "message": self.message,
+            "first": list(self.first),
+            "count": self.count,
+            "repairable": self.repairable,
+        }
 
 
 _ERRORS: dict[str, type[errors.MeshValidationError]] = {
-    c.kind: c for c in (errors.EmptyMeshError, errors.NonFiniteError, errors.IndexRangeError,
-                        errors.DegenerateFaceError, errors.DuplicateFaceError,
-                        errors.NonManifoldEdgeError, errors.NonManifoldVertexError,
-                        errors.OrientationError, errors.UnreferencedVertexError)
+    c.kind: c
+    for c in (
+        errors.EmptyMeshError,
+        errors.NonFiniteError,
+        errors.IndexRangeError,
+        errors.DegenerateFaceError,
+        errors.DuplicateFaceError,
+        errors.NonManifoldEdgeError,
+        errors.NonManifoldVertexError,
+        errors.OrientationError,
+        errors.UnreferencedVertexError,
+    )
 }
 
 
@@ -71,8 +84,7 @@ def _plural(n: int, word: str) -> str:
 
 def _degenerate_faces(vertices: NDArray, faces: NDArray) -> NDArray[np.bool_]:
     """Faces with a repeated index or (near-)zero area, relative to the bbox diagonal."""
-    rep = ((faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2])
-           | (faces[:, 2] == faces[:, 0]))
+    rep = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
     p = vertices[faces]
     with np.errstate(invalid="ignore", over="ignore"):  # inf coordinates give inf / nan areas
         cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
@@ -105,8 +117,9 @@ def _duplicate_faces(faces: NDArray) -> tuple[NDArray[np.bool_], NDArray[np.bool
     """
     nf = faces.shape[0]
     srt = np.sort(faces, axis=1)
-    _, first, inverse, counts = np.unique(_row_keys(srt), return_index=True,
-                                          return_inverse=True, return_counts=True)
+    _, first, inverse, counts = np.unique(
+        _row_keys(srt), return_index=True, return_inverse=True, return_counts=True
+    )
     inverse = inverse.reshape(-1)
     dup = np.ones(nf, dtype=bool)
     dup[first] = False
@@ -152,22 +165,33 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
     bad_v = ~np.isfinite(vertices).all(axis=1)
     if bad_v.any():
         idx = np.flatnonzero(bad_v)
-        out.append(Finding("non_finite",
-                           f"{_plural(idx.size, 'vertex')} with NaN or infinite coordinates "
-                           f"(first: vertex {idx[0]} = {vertices[idx[0]].tolist()})",
-                           (int(idx[0]),), int(idx.size), True))
+        out.append(
+            Finding(
+                "non_finite",
+                f"{_plural(idx.size, 'vertex')} with NaN or infinite coordinates "
+                f"(first: vertex {idx[0]} = {vertices[idx[0]].tolist()})",
+                (int(idx[0]),),
+                int(idx.size),
+                True,
+            )
+        )
     bad_f = ((faces < 0) | (faces >= nv)).any(axis=1)
     if bad_f.any():
         idx = np.flatnonzero(bad_f)
-        out.append(Finding("index_range",
-                           f"{_plural(idx.size, 'face')} with vertex indices outside [0, {nv}) "
-                           f"(first: face {idx[0]} = {faces[idx[0]].tolist()})",
-                           (int(idx[0]),), int(idx.size), False))
+        out.append(
+            Finding(
+                "index_range",
+                f"{_plural(idx.size, 'face')} with vertex indices outside [0, {nv}) "
+                f"(first: face {idx[0]} = {faces[idx[0]].tolist()})",
+                (int(idx[0]),),
+                int(idx.size),
+                False,
+            )
+        )
         return out
     # faces with a repeated index have no proper edges (a self-loop, an edge used twice): they
     # are reported as degenerate and left out of the topological checks
-    rep = ((faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2])
-           | (faces[:, 2] == faces[:, 0]))
+    rep = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
     tidx = np.flatnonzero(~rep)  # face id of each row of tf
     tf = faces[tidx]
     table = topology.edge_table(tf, nv)
@@ -178,14 +202,21 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
         # repairable when dropping duplicate / back-to-back / degenerate faces fixes every one
         dup, back = _duplicate_faces(faces)
         dropped = (dup | back | _degenerate_faces(vertices, faces))[tidx]
-        left = np.bincount(table.halfedge_edge[np.repeat(~dropped, 3)],
-                           minlength=table.edges.shape[0])
+        left = np.bincount(
+            table.halfedge_edge[np.repeat(~dropped, 3)], minlength=table.edges.shape[0]
+        )
         fixable = bool((left[nm] <= 2).all())
         cause = " (all caused by duplicate or back-to-back faces)" if fixable else ""
-        out.append(Finding("non_manifold_edge",
-                           f"{_plural(nm.size, 'non-manifold edge')} shared by more than two faces "
-                           f"(first: edge ({e[0]}, {e[1]}) in faces {fs}){cause}",
-                           (int(e[0]), int(e[1])), int(nm.size), fixable))
+        out.append(
+            Finding(
+                "non_manifold_edge",
+                f"{_plural(nm.size, 'non-manifold edge')} shared by more than two faces "
+                f"(first: edge ({e[0]}, {e[1]}) in faces {fs}){cause}",
+                (int(e[0]), int(e[1])),
+                int(nm.size),
+                fixable,
+            )
+        )
     if tf.size:
         fan, n_fans = topology.corner_fans(tf, nv, table)
         fan_vertex = np.empty(n_fans, dtype=np.int64)  # corners of one fan share their vertex
@@ -197,17 +228,29 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
     if nm.size:  # vertices of non-manifold edges are reported with the edges
         nmv = np.setdiff1d(nmv, table.edges[nm].reshape(-1))
     if nmv.size:
-        out.append(Finding("non_manifold_vertex",
-                           f"{_plural(nmv.size, 'non-manifold vertex')} where separate fans of faces "
-                           f"meet (first: vertex {nmv[0]}, {fans_per_vertex[nmv[0]]} fans)",
-                           (int(nmv[0]),), int(nmv.size), False))
+        out.append(
+            Finding(
+                "non_manifold_vertex",
+                f"{_plural(nmv.size, 'non-manifold vertex')} where separate fans of faces "
+                f"meet (first: vertex {nmv[0]}, {fans_per_vertex[nmv[0]]} fans)",
+                (int(nmv[0]),),
+                int(nmv.size),
+                False,
+            )
+        )
     deg = _degenerate_faces(vertices, faces) & ~bad_v[faces].any(axis=1)
     if deg.any():
         idx = np.flatnonzero(deg)
-        out.append(Finding("degenerate_face",
-                           f"{_plural(idx.size, 'degenerate face')} (zero area or repeated vertex; "
-                           f"first: face {idx[0]} = {faces[idx[0]].tolist()})",
-                           (int(idx[0]),), int(idx.size), True))
+        out.append(
+            Finding(
+                "degenerate_face",
+                f"{_plural(idx.size, 'degenerate face')} (zero area or repeated vertex; "
+                f"first: face {idx[0]} = {faces[idx[0]].tolist()})",
+                (int(idx[0]),),
+                int(idx.size),
+                True,
+            )
+        )
     dup, back = _duplicate_faces(faces)
     if dup.any():
         idx = np.flatnonzero(dup)
@@ -215,17 +258,29 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
         orig = int(np.flatnonzero((srt == srt[idx[0]]).all(axis=1))[0])
         nback = int(back.sum()) // 2
         extra = f", {nback} of them back-to-back (opposite winding)" if nback else ""
-        out.append(Finding("duplicate_face",
-                           f"{_plural(idx.size, 'duplicate face')}{extra} (first: face {idx[0]} "
-                           f"repeats face {orig}, vertices {sorted(faces[orig].tolist())})",
-                           (int(idx[0]),), int(idx.size), True))
+        out.append(
+            Finding(
+                "duplicate_face",
+                f"{_plural(idx.size, 'duplicate face')}{extra} (first: face {idx[0]} "
+                f"repeats face {orig}, vertices {sorted(faces[orig].tolist())})",
+                (int(idx[0]),),
+                int(idx.size),
+                True,
+            )
+        )
     referenced = np.zeros(nv, dtype=bool)
     referenced[faces.reshape(-1)] = True
     if not referenced.all():
         idx = np.flatnonzero(~referenced)
-        out.append(Finding("unreferenced_vertex",
-                           f"{_plural(idx.size, 'vertex')} not used by any face "
-                           f"(first: vertex {idx[0]})", (int(idx[0]),), int(idx.size), True))
+        out.append(
+            Finding(
+                "unreferenced_vertex",
+                f"{_plural(idx.size, 'vertex')} not used by any face (first: vertex {idx[0]})",
+                (int(idx[0]),),
+                int(idx.size),
+                True,
+            )
+        )
     tail, _head = topology.halfedges(tf)
     two = np.flatnonzero(table.edge_count == 2)
     ha = table.order[table.start[two]]
@@ -241,11 +296,17 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
             orientable, why = True, ""
         except errors.OrientationError:
             orientable, why = False, "; the surface is not orientable (a Moebius-like twist)"
-        out.append(Finding("inconsistent_orientation",
-                           f"{_plural(i.size, 'edge')} where neighbouring faces have opposite "
-                           f"winding (first: edge ({e[0]}, {e[1]}) between faces "
-                           f"{int(tidx[ha[i[0]] // 3])} and {int(tidx[hb[i[0]] // 3])}){why}",
-                           (int(e[0]), int(e[1])), int(i.size), orientable))
+        out.append(
+            Finding(
+                "inconsistent_orientation",
+                f"{_plural(i.size, 'edge')} where neighbouring faces have opposite "
+                f"winding (first: edge ({e[0]}, {e[1]}) between faces "
+                f"{int(tidx[ha[i[0]] // 3])} and {int(tidx[hb[i[0]] // 3])}){why}",
+                (int(e[0]), int(e[1])),
+                int(i.size),
+                orientable,
+            )
+        )
     if all(x.repairable for x in out if x.kind != "non_manifold_vertex"):
         drop = bad_v[faces].any(axis=1) | deg | dup | back
         if drop.any() or nmv.size:
@@ -256,8 +317,13 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
 _DROPPING = ("non_finite", "non_manifold_edge", "degenerate_face", "duplicate_face")
 
 
-def _simulate_repair(vertices: NDArray, faces: NDArray, drop: NDArray[np.bool_],
-                     nmv_before: NDArray[np.int64], findings: list[Finding]) -> list[Finding]:
+def _simulate_repair(
+    vertices: NDArray,
+    faces: NDArray,
+    drop: NDArray[np.bool_],
+    nmv_before: NDArray[np.int64],
+    findings: list[Finding],
+) -> list[Finding]:
     """Set the ``repairable`` flags from the faces :func:`repair_arrays` would keep.
 
     A non-manifold vertex is repairable when dropping faces removes it. The face-dropping
@@ -293,8 +359,13 @@ def _simulate_repair(vertices: NDArray, faces: NDArray, drop: NDArray[np.bool_],
     out = []
     for x in findings:
         if x.kind == "non_manifold_vertex" and nmv_left.size == 0 and not why:
-            x = Finding(x.kind, x.message + " (removed by dropping the faces repair drops)",
-                        x.first, x.count, True)
+            x = Finding(
+                x.kind,
+                x.message + " (removed by dropping the faces repair drops)",
+                x.first,
+                x.count,
+                True,
+            )
         elif x.kind in _DROPPING and why:
             x = Finding(x.kind, x.message + note, x.first, x.count, False)
         out.append(x)
@@ -338,8 +409,10 @@ class RepairReport:
         parts = [f"{f.kind.replace('_', ' ')}: {f.count}" for f in self.fixed]
         dropped_f = int((self.face_map < 0).sum())
         dropped_v = int((self.vertex_map < 0).sum())
-        return (f"repaired ({', '.join(parts) or 'nothing to do'}): dropped {dropped_f} faces and "
-                f"{dropped_v} vertices, flipped {self.flipped_faces.size} faces")
+        return (
+            f"repaired ({', '.join(parts) or 'nothing to do'}): dropped {dropped_f} faces and "
+            f"{dropped_v} vertices, flipped {self.flipped_faces.size} faces"
+        )
 
 
 def _orient(faces: NDArray[np.int64], nv: int) -> NDArray[np.int64]:
@@ -380,7 +453,10 @@ def _orient(faces: NDArray[np.int64], nv: int) -> NDArray[np.int64]:
                 elif flip[g] != want:
                     raise errors.OrientationError(
                         f"the surface is not orientable: faces {f} and {g} cannot both be "
-                        "made consistent", first=(int(f),), count=1)
+                        "made consistent",
+                        first=(int(f),),
+                        count=1,
+                    )
     size = np.bincount(comp, minlength=nf)
     flipped = np.bincount(comp, weights=flip, minlength=nf)
     invert = 2 * flipped > size  # flip the minority of each component, not the majority
@@ -388,8 +464,11 @@ def _orient(faces: NDArray[np.int64], nv: int) -> NDArray[np.int64]:
     return np.flatnonzero(flip == 1)
 
 
-def repair_arrays(vertices: NDArray[np.float64], faces: NDArray[np.int64],
-                  vertex_colors: NDArray[np.uint8] | None = None):
+def repair_arrays(
+    vertices: NDArray[np.float64],
+    faces: NDArray[np.int64],
+    vertex_colors: NDArray[np.uint8] | None = None,
+):
     """Remove the repairable problems of a mesh.
 
     Drops faces that touch non-finite vertices, degenerate faces, later copies of duplicate
@@ -435,8 +514,9 @@ def repair_arrays(vertices: NDArray[np.float64], faces: NDArray[np.int64],
     remaining = [f for f in after if f.kind != "inconsistent_orientation"]
     if remaining:
         raise_first(remaining, where="after repair")
-    flipped_new = (_orient(new_faces, new_vertices.shape[0]) if after
-                   else np.zeros(0, dtype=np.int64))
+    flipped_new = (
+        _orient(new_faces, new_vertices.shape[0]) if after else np.zeros(0, dtype=np.int64)
+    )
     if flipped_new.size:
         new_faces = new_faces.copy()
         new_faces[flipped_new] = new_faces[flipped_new][:, ::-1]

@@ -12,8 +12,13 @@ from meshfit.types import SurfacePoints
 __all__ = ["closest_surface_points", "random_surface_points"]
 
 
-def random_surface_points(mesh: Mesh, n: int, rng: np.random.Generator | int | None = None,
-                          *, faces: ArrayLike | None = None) -> SurfacePoints:
+def random_surface_points(
+    mesh: Mesh,
+    n: int,
+    rng: np.random.Generator | int | None = None,
+    *,
+    faces: ArrayLike | None = None,
+) -> SurfacePoints:
     """Points distributed uniformly by area over the surface.
 
     Parameters
@@ -40,8 +45,9 @@ def random_surface_points(mesh: Mesh, n: int, rng: np.random.Generator | int | N
         raise InputError("faces must be a non-empty list of face indices of the mesh")
     w = mesh.face_areas[pool]
     cdf = np.cumsum(w)
-    face = pool[np.minimum(np.searchsorted(cdf, rng.random(n) * cdf[-1], side="right"),
-                           pool.size - 1)]
+    face = pool[
+        np.minimum(np.searchsorted(cdf, rng.random(n) * cdf[-1], side="right"), pool.size - 1)
+    ]
     r1 = np.sqrt(rng.random(n))
     r2 = rng.random(n)
     bary = np.stack([1.0 - r1, r1 * (1.0 - r2), r1 * r2], axis=1)
