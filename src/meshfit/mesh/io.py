@@ -550,7 +550,23 @@ def read_mesh_arrays(path: str | os.PathLike) -> RawMesh:
         c = np.asarray(visual.vertex_colors)
         if c.shape[0] == vertices.shape[0]:
             colors = c.astype(np.uint8)
+    if suffix == ".stl" and faces.size:
+        vertices, faces = _weld_stl(vertices, faces, notes)
+        colors = None
     return RawMesh(vertices, faces, colors, notes)
+
+
+def _weld_stl(vertices: NDArray[np.float64], faces: NDArray[np.int64], notes: list[str]):
+    """Join STL corners with exactly equal coordinates: STL stores every triangle's corners
+    separately, so exact equality is the format's only record of connectivity."""
+    uniq, first, inverse = np.unique(vertices, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)  # keep first-appearance order
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    notes.append(
+        f"joined {vertices.shape[0]} STL triangle corners at {uniq.shape[0]} distinct positions"
+    )
+    return uniq[order], rank[inverse.reshape(-1)][faces]
 
 
 def load_mesh(path: str | os.PathLike, *, repair: bool = False) -> Mesh:
