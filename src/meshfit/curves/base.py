@@ -1,0 +1,374 @@
+"""Face-point curves: length, the sampling rule, densifying and uniform resampling.
+
+A surface curve is an ordered sequence of face points (Krishnamurthy 2000, sec. 3.1). The
+thesis samples curves densely enough that consecutive face points lie on the same face or on
+edge-adjacent faces; :func:`check_sampling` finds the pairs that break this rule,
+:func:`densify_curve` repairs them by walking on the surface, and :func:`resample_curve`
+spaces the points evenly by arc length along the surface polyline (sec. 3.6.3).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from meshfit._validate import as_surface_points
+from meshfit.errors import InputError
+from meshfit.mesh import Mesh
+from meshfit.surface.paths import greedy_path, path_to_surface_points
+from meshfit.surface.walk import (
+    _representations,
+    attract_points,
+    curve_arc_lengths,
+    move_along_curve,
+    walk_points,
+)
+from meshfit.types import SurfaceCurve, SurfacePoints
+
+__all__ = ["check_sampling", "curve_length", "densify_curve", "resample_curve"]
+
+#: bisection depth before a pair that will not come together is joined by a graph path
+_MAX_BISECT = 12
+#: extra resampling passes that even out the spacing of a jagged input
+_MAX_PASSES = 3
+
+
+def _as_curve(mesh: Mesh, curve: SurfaceCurve, name: str = "curve") -> SurfaceCurve:
+    if not isinstance(curve, SurfaceCurve):
+        raise InputError(f"{name} must be a SurfaceCurve, got {type(curve).__name__}")
+    as_surface_points(mesh, curve.points, name=f"{name}.points")
+    if len(curve) == 0:
+        raise InputError(f"{name} has no points")
+    return curve
+
+
+def _pairs_ok(
+    mesh: Mesh, fa: NDArray[np.int64], ba: NDArray, fb: NDArray[np.int64], bb: NDArray
+) -> NDArray[np.bool_]:
+    """Whether each pair of face points lies on the same or on edge-adjacent faces.
+
+    An edge point counts as lying on both faces of its edge, a vertex point on every face
+    around the vertex.
+    """
+    fn = mesh.face_neighbors
+    ok = (fa == fb) | (fn[fa] == fb[:, None]).any(axis=1)
+    for i in np.flatnonzero(~ok):
+        ra = _representations(mesh, int(fa[i]), ba[i])
+        rb = _representations(mesh, int(fb[i]), bb[i])
+        ok[i] = any(a[0] == b[0] or b[0] in fn[a[0]] for a in ra for b in rb)
+    return ok
+
+
+def check_sampling(mesh: Mesh, curve: SurfaceCurve) -> NDArray[np.int64]:
+    """Consecutive pairs of a curve that break the sampling rule.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    curve : SurfaceCurve
+        m face points.
+
+    Returns
+    -------
+    (k,) int64
+        Indices ``i`` such that points ``i`` and ``i + 1`` (``0`` after ``m - 1`` for a
+        closed curve) lie on faces that are neither the same nor edge-adjacent. An edge point
+        counts as lying on both faces of its edge, a vertex point on every face around it.
+        Empty when the curve is well sampled.
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        ``curve`` is not a SurfaceCurve on ``mesh``.
+
+    References
+    ----------
+    .. [1] Krishnamurthy, "Fitting Smooth Surfaces to Dense Polygon Meshes", PhD
+       thesis, Stanford 2000, sec. 3.1 (successive face points on the same or adjacent
+       faces).
+    """
+    curve = _as_curve(mesh, curve)
+    p = curve.points
+    m = len(p)
+    i = np.arange(m if curve.closed and m > 1 else m - 1)
+    j = (i + 1) % m
+    ok = _pairs_ok(mesh, p.face[i], p.bary[i], p.face[j], p.bary[j])
+    return i[~ok].astype(np.int64)
+
+
+def curve_length(mesh: Mesh, curve: SurfaceCurve) -> float:
+    """Length of a face-point curve measured along the surface.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    curve : SurfaceCurve
+        Well-sampled curve (see :func:`check_sampling`); a closed curve includes its closing
+        segment.
+
+    Returns
+    -------
+    float
+        Length in model units: each segment is the shortest path inside its one or two faces.
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        A pair of consecutive points breaks the sampling rule (use :func:`densify_curve`).
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 3.3.2 (chord length of face-point curves).
+    """
+    curve = _as_curve(mesh, curve)
+    return float(curve_arc_lengths(mesh, curve)[-1])
+
+
+def _graph_bridge(mesh: Mesh, fa: int, ba: NDArray, fb: int, bb: NDArray) -> SurfacePoints:
+    """Face points strictly between two face points, along a greedy graph path.
+
+    The path runs from the corner of a's face nearest to b to the corner of b's face
+    nearest to a; its vertex points lie on every face around them, so every consecutive
+    pair including a and b shares a face.
+    """
+    V, F = mesh.vertices, mesh.faces
+    xa = ba @ V[F[fa]]
+    xb = bb @ V[F[fb]]
+    va = int(F[fa][np.argmin(np.linalg.norm(V[F[fa]] - xb, axis=1))])
+    vb = int(F[fb][np.argmin(np.linalg.norm(V[F[fb]] - xa, axis=1))])
+    path = greedy_path(mesh, va, vb).vertices
+    return path_to_surface_points(mesh, path, per_edge=1)
+
+
+def _bridge(mesh: Mesh, fa: int, ba: NDArray, fb: int, bb: NDArray, depth: int) -> list:
+    """Points to insert between a and b so that every consecutive pair shares or borders a face."""
+    if _pairs_ok(mesh, np.array([fa]), ba[None], np.array([fb]), bb[None])[0]:
+        return []
+    V, F = mesh.vertices, mesh.faces
+    xa = ba @ V[F[fa]]
+    xb = bb @ V[F[fb]]
+    gap = np.linalg.norm(xb - xa)
+    if depth < _MAX_BISECT:
+        a = SurfacePoints(np.array([fa]), ba[None])
+        # walk halfway towards b on the surface, then settle at the surface point closest to
+        # the 3-D midpoint: never leaves the surface, so it cannot jump across a thin part
+        half = walk_points(mesh, a, 0.5 * (xb - xa)).end
+        mid = attract_points(mesh, half, 0.5 * (xa + xb), max_iter=50).end
+        fm, bm = int(mid.face[0]), mid.bary[0]
+        xm = bm @ V[F[fm]]
+        if max(np.linalg.norm(xm - xa), np.linalg.norm(xb - xm)) < 0.8 * gap:
+            return [
+                *_bridge(mesh, fa, ba, fm, bm, depth + 1),
+                (fm, bm),
+                *_bridge(mesh, fm, bm, fb, bb, depth + 1),
+            ]
+    g = _graph_bridge(mesh, fa, ba, fb, bb)
+    return list(zip(g.face.tolist(), g.bary, strict=True))
+
+
+def densify_curve(mesh: Mesh, curve: SurfaceCurve) -> SurfaceCurve:
+    """Insert face points so that every consecutive pair lies on the same or adjacent faces.
+
+    Between two points that break the rule the curve is bisected on the surface: a point
+    walks halfway towards the other (MovePointOnSurface) and is attracted to the 3-D
+    midpoint of the pair, recursively. A pair that does not come closer, or is still apart
+    after a dozen bisections, is joined by a greedy graph path instead. Points never leave
+    the surface, so no segment jumps across a thin part of the model.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    curve : SurfaceCurve
+        Any face-point sequence on ``mesh``, all points on one component.
+
+    Returns
+    -------
+    SurfaceCurve
+        The original points, in order and unchanged, with points inserted where needed;
+        same ``closed`` and ``kind``. ``check_sampling`` of the result is empty.
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        ``curve`` is not a SurfaceCurve on ``mesh``.
+    meshfit.errors.PathError
+        Two consecutive points lie on different components of the mesh.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 3.1 (sampling rule), sec. 3.2 (graph paths) and
+       appendix A (MovePointOnSurface).
+    """
+    curve = _as_curve(mesh, curve)
+    bad = check_sampling(mesh, curve)
+    if bad.size == 0:
+        return curve
+    p = curve.points
+    m = len(p)
+    faces: list[int] = []
+    barys: list[NDArray] = []
+    bad_set = set(bad.tolist())
+    for i in range(m):
+        faces.append(int(p.face[i]))
+        barys.append(p.bary[i])
+        if i in bad_set:
+            j = (i + 1) % m
+            for f, b in _bridge(mesh, int(p.face[i]), p.bary[i], int(p.face[j]), p.bary[j], 0):
+                faces.append(int(f))
+                barys.append(np.asarray(b, dtype=np.float64))
+    pts = SurfacePoints(np.asarray(faces, dtype=np.int64), np.asarray(barys))
+    return SurfaceCurve(pts, closed=curve.closed, kind=curve.kind)
+
+
+def _positions(total: float, closed: bool, spacing: float | None, n: int | None) -> NDArray:
+    if n is None:
+        count = int(np.ceil(total / spacing - 1e-9)) if spacing > 0 else 0
+        n = max(count, 3) if closed else max(count, 1) + 1
+    if closed:
+        return np.arange(n) * (total / n)
+    pos = np.linspace(0.0, total, n)
+    pos[-1] = total
+    return pos
+
+
+def resample_curve(
+    mesh: Mesh, curve: SurfaceCurve, *, spacing: float | None = None, n: int | None = None
+) -> SurfaceCurve:
+    """Uniformly resample a face-point curve by arc length along the surface.
+
+    The curve is first densified (:func:`densify_curve`), then new points are placed at
+    equal arc-length steps along its surface polyline (MovePointOnCurve). An open curve
+    keeps its two end points exactly; a closed curve keeps its first point. Because the new
+    polyline cuts the corners of a jagged input, the resampling is repeated on its own
+    result (same count, at most three more passes) until its steps agree to 1 %.
+
+    The sampling rule takes precedence over even spacing: where a step would join points on
+    faces that are neither the same nor adjacent (a curve passing close to a vertex crosses a
+    fan of faces in a short distance, or ``spacing`` is wider than the faces), that step
+    alone is subdivided evenly into the fewest parts that keep the rule. The evenly spaced
+    points are all present; the inserted ones lie between them on the same polyline.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    curve : SurfaceCurve
+        m >= 1 face points (m >= 2 for an open curve to have a length).
+    spacing : float, keyword-only, optional
+        Target arc length between consecutive points, model units; the actual step is
+        ``length / ceil(length / spacing)``. Default: half the mean edge length.
+    n : int, keyword-only, optional
+        Number of points instead of a spacing (>= 2 open, >= 3 closed). Give at most one of
+        ``spacing`` and ``n``.
+
+    Returns
+    -------
+    SurfaceCurve
+        Evenly spaced face points, same ``closed`` and ``kind``.
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        Bad ``curve``, both or invalid ``spacing`` / ``n``.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 3.1 (sampling density) and sec. 3.6.3 (uniformly
+       sampled curves); sec. 5.11.1 (MovePointOnCurve).
+    """
+    return _resample(mesh, curve, spacing=spacing, n=n)[0]
+
+
+def _resample(
+    mesh: Mesh, curve: SurfaceCurve, *, spacing: float | None, n: int | None
+) -> tuple[SurfaceCurve, NDArray[np.bool_]]:
+    """:func:`resample_curve` plus a mask of the evenly spaced points (False: inserted)."""
+    curve = _as_curve(mesh, curve)
+    if spacing is not None and n is not None:
+        raise InputError("give spacing or n, not both")
+    need = 3 if curve.closed else 2
+    if n is not None:
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < need:
+            raise InputError(f"n must be an integer >= {need} for this curve, got {n!r}")
+        n = int(n)
+    if spacing is None:
+        spacing = 0.5 * mesh.mean_edge_length
+    try:
+        spacing = float(spacing)
+    except (TypeError, ValueError):
+        raise InputError(f"spacing must be a positive length, got {spacing!r}") from None
+    if not np.isfinite(spacing) or spacing <= 0:
+        raise InputError(f"spacing must be a positive length, got {spacing!r}")
+    out, regular = _resample_once(mesh, curve, spacing, n)
+    # the new polyline cuts the corners of a jagged input, so its own spacing is less even
+    # than the arc-length steps taken on the input: repeat on the result (same count) until
+    # its steps agree to 1 %
+    for _ in range(_MAX_PASSES):
+        if _spacing_cv(mesh, out, regular) <= 0.01:
+            break
+        out, regular = _resample_once(mesh, out, spacing, int(regular.sum()))
+    return out, regular
+
+
+def _spacing_cv(mesh: Mesh, curve: SurfaceCurve, regular: NDArray[np.bool_]) -> float:
+    """Coefficient of variation of the arc length between consecutive regular points."""
+    arc = curve_arc_lengths(mesh, curve)
+    idx = np.flatnonzero(regular)
+    if curve.closed:
+        idx = np.append(idx, len(curve))
+    d = np.diff(arc[idx])
+    return float(d.std() / d.mean()) if d.size and d.mean() > 0 else 0.0
+
+
+def _resample_once(
+    mesh: Mesh, curve: SurfaceCurve, spacing: float, n: int | None
+) -> tuple[SurfaceCurve, NDArray[np.bool_]]:
+    curve = densify_curve(mesh, curve)
+    arc = curve_arc_lengths(mesh, curve)
+    total = float(arc[-1])
+    if total == 0.0:
+        return curve, np.ones(len(curve), dtype=bool)
+    pos = _positions(total, curve.closed, spacing, n)
+    res = move_along_curve(mesh, curve, pos, 0.0).points
+    out = SurfaceCurve(res, closed=curve.closed, kind=curve.kind)
+    bad = check_sampling(mesh, out)
+    if bad.size == 0:
+        return out, np.ones(pos.size, dtype=bool)
+    # a step still breaking the rule (it passes a vertex through a fan of small faces) is
+    # subdivided evenly into the fewest parts that keep the rule, that step alone; all
+    # candidate subdivisions of all such steps are evaluated in one batch
+    ends = np.append(pos, total)
+    ks = np.arange(2, 33)
+    cand_pos, owner, kk = [], [], []
+    for i in bad:
+        a, b = pos[i], ends[i + 1]
+        for k in ks:
+            cand_pos.append(a + (b - a) * np.arange(k + 1) / k)
+            owner.append(i)
+            kk.append(k)
+    flat = np.concatenate(cand_pos)
+    if curve.closed:
+        flat = np.where(flat >= total, flat - total, flat)
+    cp = move_along_curve(mesh, curve, np.clip(flat, 0.0, total), 0.0).points
+    ok = _pairs_ok(mesh, cp.face[:-1], cp.bary[:-1], cp.face[1:], cp.bary[1:])
+    starts = np.concatenate([[0], np.cumsum([k + 1 for k in kk])])
+    inserted: dict[int, NDArray] = {}
+    for c, i in enumerate(owner):
+        if i in inserted:
+            continue
+        if ok[starts[c] : starts[c + 1] - 1].all():
+            inserted[i] = cand_pos[c][1:-1]
+    inside = arc[:-1] if curve.closed else arc
+    for i in bad:  # no subdivision works: the curve's own points in this step always do
+        if i not in inserted:
+            a, b = pos[i], ends[i + 1]
+            inserted[i] = inside[(inside > a) & (inside < b)]
+    pieces, regular = [], []
+    for i in range(pos.size):
+        pieces.append(pos[i : i + 1])
+        regular.append(np.ones(1, dtype=bool))
+        if i in inserted:
+            pieces.append(inserted[i])
+            regular.append(np.zeros(inserted[i].size, dtype=bool))
+    pos2 = np.concatenate(pieces)
+    res = move_along_curve(mesh, curve, pos2, 0.0).points
+    return SurfaceCurve(res, closed=curve.closed, kind=curve.kind), np.concatenate(regular)
