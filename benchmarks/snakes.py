@@ -1,0 +1,121 @@
+"""Benchmark: surface-snake relaxation on igea, coarse-to-fine (eq. 3.16) vs single resolution.
+
+- A ~2,000-point snake along a shortest edge path across igea is relaxed to equilibrium; then
+  its end point is walked sideways (``--pull`` mean edge lengths) and the snake is relaxed
+  again (ends fixed) with coarse-to-fine forces (``levels=None``) and with single-resolution
+  forces (``levels=1``): iterations and wall time to converge (``tol_move`` default), ratio.
+  Single-resolution runs are capped at ``--max-iter`` iterations (reported as not converged).
+- Time of one relaxation iteration for a 1,000-point snake (target <= 5 ms), median of runs.
+
+Run: ``python benchmarks/snakes.py [--repeats 3]``. Prints JSON and writes
+``benchmarks/results/snakes.json`` atomically.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import time
+
+import numpy as np
+from _common import median_time, mesh_path, write_result
+
+from meshfit.curves.snake import relax_snake
+from meshfit.mesh import load_mesh
+from meshfit.surface import path_to_surface_points, shortest_path, walk_points
+from meshfit.types import SurfaceCurve, SurfacePoints
+
+
+def make_snake(mesh, n_target: int) -> SurfaceCurve:
+    """A snake of about ``n_target`` points along a shortest edge path between far vertices."""
+    v = mesh.vertices
+    a = int(np.argmin(v[:, 1]))
+    b = int(np.argmax(v[:, 1]))
+    path = np.asarray(shortest_path(mesh, a, b).paths[0])
+    per_edge = max(0, round((n_target - path.size) / max(path.size - 1, 1)))
+    pts = path_to_surface_points(mesh, path, per_edge=per_edge)
+    idx = np.linspace(0, len(pts) - 1, min(n_target, len(pts))).round().astype(int)
+    return SurfaceCurve(pts[np.unique(idx)])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=2000, help="snake points for the convergence runs")
+    ap.add_argument("--repeats", type=int, default=3, help="timed runs (median reported)")
+    ap.add_argument("--pull", type=float, default=10.0, help="end move, mean edge lengths")
+    ap.add_argument("--max-iter", type=int, default=20_000, help="iteration cap per relaxation")
+    args = ap.parse_args()
+
+    t0 = time.perf_counter()
+    mesh = load_mesh(mesh_path("igea"))
+    load_s = time.perf_counter() - t0
+    h = mesh.mean_edge_length
+
+    snake = make_snake(mesh, args.n)
+    base = relax_snake(mesh, snake, max_iter=args.max_iter)  # equilibrium (also compiles)
+    curve = base.curve
+    # pull the end sideways: perpendicular to the end segment, in the end face's plane
+    x = mesh.xyz(curve.points)
+    f = int(curve.points.face[-1])
+    nrm = mesh.face_normals[f]
+    side = np.cross(nrm, x[-1] - x[-2])
+    side *= args.pull * h / np.linalg.norm(side)
+    end = walk_points(mesh, curve.points[len(curve) - 1], side).end
+    face = np.array(curve.points.face)
+    bary = np.array(curve.points.bary)
+    face[-1], bary[-1] = end.face[0], end.bary[0]
+    pulled = SurfaceCurve(SurfacePoints(face, bary))
+
+    runs = {}
+    for name, levels in (("coarse_to_fine", None), ("single_resolution", 1)):
+        reps = args.repeats if name == "coarse_to_fine" else 1
+        res = {}
+
+        def run(levels=levels, res=res):
+            res["r"] = relax_snake(mesh, pulled, levels=levels, max_iter=args.max_iter)
+
+        t, times = median_time(run, reps)
+        r = res["r"]
+        runs[name] = {
+            "iterations": r.iterations,
+            "converged": r.converged,
+            "seconds_median": t,
+            "seconds": times,
+            "ms_per_iteration": 1e3 * t / max(r.iterations, 1),
+        }
+
+    small = make_snake(mesh, 1000)
+    n_iter = 200
+    relax_snake(mesh, small, max_iter=2, tol_move=0.0)
+    t_it, times_it = median_time(
+        lambda: relax_snake(mesh, small, max_iter=n_iter, tol_move=0.0), args.repeats
+    )
+
+    import numba
+
+    c2f, single = runs["coarse_to_fine"], runs["single_resolution"]
+    write_result(
+        "snakes",
+        {
+            "mesh": "igea",
+            "n_faces": int(mesh.n_faces),
+            "load_seconds": load_s,
+            "snake_points": len(pulled),
+            "end_pull_edges": args.pull,
+            "initial_relaxation": {"iterations": base.iterations, "converged": base.converged},
+            **runs,
+            "iteration_ratio_single_over_c2f": single["iterations"] / max(c2f["iterations"], 1),
+            "time_ratio_single_over_c2f": single["seconds_median"] / c2f["seconds_median"],
+            "one_iteration_1000_points_ms": 1e3 * t_it / n_iter,
+            "one_iteration_target_ms": 5.0,
+            "one_iteration_runs_ms": [1e3 * t / n_iter for t in times_it],
+            "numba_threads": numba.get_num_threads(),
+            "cpu_count": os.cpu_count(),
+            "python": platform.python_version(),
+        },
+    )
+
+
+if __name__ == "__main__":
+    main()
