@@ -12,16 +12,20 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from meshfit import tol
+from meshfit._kernels import curves as _curves
 from meshfit._validate import as_surface_points
 from meshfit.errors import InputError
 from meshfit.mesh import Mesh
 from meshfit.surface.paths import greedy_path, path_to_surface_points
 from meshfit.surface.walk import (
-    _representations,
-    attract_points,
+    _clean_bary,
+    _curve_pieces,
+    _curve_positions,
+    _i8,
+    _Pieces,
+    _place_on_pieces,
     curve_arc_lengths,
-    move_along_curve,
-    walk_points,
 )
 from meshfit.types import SurfaceCurve, SurfacePoints
 
@@ -31,6 +35,8 @@ __all__ = ["check_sampling", "curve_length", "densify_curve", "resample_curve"]
 _MAX_BISECT = 12
 #: extra resampling passes that even out the spacing of a jagged input
 _MAX_PASSES = 3
+#: a step breaking the sampling rule is split evenly into the fewest k in this range that works
+_K_MIN, _K_MAX = 2, 32
 
 
 def _as_curve(mesh: Mesh, curve: SurfaceCurve, name: str = "curve") -> SurfaceCurve:
@@ -50,13 +56,60 @@ def _pairs_ok(
     An edge point counts as lying on both faces of its edge, a vertex point on every face
     around the vertex.
     """
-    fn = mesh.face_neighbors
-    ok = (fa == fb) | (fn[fa] == fb[:, None]).any(axis=1)
-    for i in np.flatnonzero(~ok):
-        ra = _representations(mesh, int(fa[i]), ba[i])
-        rb = _representations(mesh, int(fb[i]), bb[i])
-        ok[i] = any(a[0] == b[0] or b[0] in fn[a[0]] for a in ra for b in rb)
-    return ok
+    indptr, vf = mesh.vertex_faces
+    return _curves.pairs_ok(
+        _i8(mesh.faces),
+        _i8(mesh.face_neighbors),
+        _i8(indptr),
+        _i8(vf),
+        _i8(fa),
+        np.ascontiguousarray(ba, dtype=np.float64),
+        _i8(fb),
+        np.ascontiguousarray(bb, dtype=np.float64),
+        tol.BARY_EPS,
+    )
+
+
+def _walk_few(mesh: Mesh, face: NDArray, bary: NDArray, step: NDArray) -> SurfacePoints:
+    """:func:`meshfit.surface.walk_points` (default cap) for trusted inputs, run serially."""
+    f, b, _, _, _ = _curves.walk_points_serial(
+        mesh.vertices,
+        _i8(mesh.faces),
+        _i8(mesh.face_neighbors),
+        _i8(face),
+        _clean_bary(bary),
+        np.ascontiguousarray(step, dtype=np.float64),
+        10_000,
+        tol.length(mesh, tol.WALK_EPS),
+        tol.BARY_EPS,
+    )
+    return SurfacePoints(f, b)
+
+
+def _attract_few(
+    mesh: Mesh, face: NDArray, bary: NDArray, targets: NDArray, *, max_iter: int = 200
+) -> SurfacePoints:
+    """:func:`meshfit.surface.attract_points` (default face cap) for trusted inputs, serially.
+
+    Same per-point loop as the parallel kernel, without the cost of starting threads, which
+    dominates for the few hundred or thousand points of one painted segment.
+    """
+    indptr, vf = mesh.vertex_faces
+    f, b, _, _, _, _ = _curves.attract_points_serial(
+        mesh.vertices,
+        _i8(mesh.faces),
+        _i8(mesh.face_neighbors),
+        _i8(indptr),
+        _i8(vf),
+        _i8(face),
+        _clean_bary(bary),
+        np.ascontiguousarray(targets, dtype=np.float64),
+        int(max_iter),
+        10_000,
+        tol.length(mesh, tol.ATTRACT_EPS),
+        tol.BARY_EPS,
+    )
+    return SurfacePoints(f, b)
 
 
 def check_sampling(mesh: Mesh, curve: SurfaceCurve) -> NDArray[np.int64]:
@@ -149,11 +202,10 @@ def _bridge(mesh: Mesh, fa: int, ba: NDArray, fb: int, bb: NDArray, depth: int) 
     xb = bb @ V[F[fb]]
     gap = np.linalg.norm(xb - xa)
     if depth < _MAX_BISECT:
-        a = SurfacePoints(np.array([fa]), ba[None])
         # walk halfway towards b on the surface, then settle at the surface point closest to
         # the 3-D midpoint: never leaves the surface, so it cannot jump across a thin part
-        half = walk_points(mesh, a, 0.5 * (xb - xa)).end
-        mid = attract_points(mesh, half, 0.5 * (xa + xb), max_iter=50).end
+        half = _walk_few(mesh, np.array([fa]), ba[None], (0.5 * (xb - xa))[None])
+        mid = _attract_few(mesh, half.face, half.bary, (0.5 * (xa + xb))[None], max_iter=50)
         fm, bm = int(mid.face[0]), mid.bary[0]
         xm = bm @ V[F[fm]]
         if max(np.linalg.norm(xm - xa), np.linalg.norm(xb - xm)) < 0.8 * gap:
@@ -319,56 +371,74 @@ def _spacing_cv(mesh: Mesh, curve: SurfaceCurve, regular: NDArray[np.bool_]) -> 
     return float(d.std() / d.mean()) if d.size and d.mean() > 0 else 0.0
 
 
+def _points_at(curve: SurfaceCurve, pieces: _Pieces, pos: NDArray) -> SurfacePoints:
+    """``move_along_curve(mesh, curve, pos, 0.0).points`` on the curve's precomputed pieces."""
+    s = _curve_positions(pieces, curve.closed, np.ascontiguousarray(pos, dtype=np.float64))
+    face, bary, _ = _place_on_pieces(curve.points, curve.closed, pieces, s)
+    return SurfacePoints(face, bary)
+
+
 def _resample_once(
     mesh: Mesh, curve: SurfaceCurve, spacing: float, n: int | None
 ) -> tuple[SurfaceCurve, NDArray[np.bool_]]:
     curve = densify_curve(mesh, curve)
-    arc = curve_arc_lengths(mesh, curve)
+    # the curve's pieces once, for its arc lengths and every placement below
+    pieces = _curve_pieces(mesh, curve.points, curve.closed, "curve")
+    arc = np.append(pieces.start[0::2], pieces.total)
     total = float(arc[-1])
     if total == 0.0:
         return curve, np.ones(len(curve), dtype=bool)
     pos = _positions(total, curve.closed, spacing, n)
-    res = move_along_curve(mesh, curve, pos, 0.0).points
+    res = _points_at(curve, pieces, pos)
     out = SurfaceCurve(res, closed=curve.closed, kind=curve.kind)
     bad = check_sampling(mesh, out)
     if bad.size == 0:
         return out, np.ones(pos.size, dtype=bool)
     # a step still breaking the rule (it passes a vertex through a fan of small faces) is
-    # subdivided evenly into the fewest parts that keep the rule, that step alone; all
-    # candidate subdivisions of all such steps are evaluated in one batch
+    # subdivided evenly into the fewest parts that keep the rule, that step alone (searched
+    # in a numba kernel)
     ends = np.append(pos, total)
-    ks = np.arange(2, 33)
-    cand_pos, owner, kk = [], [], []
-    for i in bad:
-        a, b = pos[i], ends[i + 1]
-        for k in ks:
-            cand_pos.append(a + (b - a) * np.arange(k + 1) / k)
-            owner.append(i)
-            kk.append(k)
-    flat = np.concatenate(cand_pos)
-    if curve.closed:
-        flat = np.where(flat >= total, flat - total, flat)
-    cp = move_along_curve(mesh, curve, np.clip(flat, 0.0, total), 0.0).points
-    ok = _pairs_ok(mesh, cp.face[:-1], cp.bary[:-1], cp.face[1:], cp.bary[1:])
-    starts = np.concatenate([[0], np.cumsum([k + 1 for k in kk])])
+    # the fewest parts first: a step leaves the search at the first k that keeps the rule
+    a, b = pos[bad], ends[bad + 1]
+    indptr, vf = mesh.vertex_faces
+    pts = curve.points
+    kbest = _curves.subdivide_steps(
+        _i8(mesh.faces),
+        _i8(mesh.face_neighbors),
+        _i8(indptr),
+        _i8(vf),
+        np.ascontiguousarray(a, dtype=np.float64),
+        np.ascontiguousarray(b, dtype=np.float64),
+        _K_MIN,
+        _K_MAX,
+        bool(curve.closed),
+        total,
+        _i8(pieces.face),
+        np.ascontiguousarray(pieces.b0),
+        np.ascontiguousarray(pieces.b1),
+        np.ascontiguousarray(pieces.start),
+        np.ascontiguousarray(pieces.length),
+        np.ascontiguousarray(arc),
+        _i8(pts.face),
+        np.ascontiguousarray(pts.bary, dtype=np.float64),
+        tol.BARY_EPS,
+    )
     inserted: dict[int, NDArray] = {}
-    for c, i in enumerate(owner):
-        if i in inserted:
-            continue
-        if ok[starts[c] : starts[c + 1] - 1].all():
-            inserted[i] = cand_pos[c][1:-1]
+    for r in np.flatnonzero(kbest):
+        k = int(kbest[r])
+        inserted[int(bad[r])] = (a[r] + (b[r] - a[r]) * np.arange(k + 1) / k)[1:-1]
+    todo = bad[kbest == 0]
     inside = arc[:-1] if curve.closed else arc
-    for i in bad:  # no subdivision works: the curve's own points in this step always do
-        if i not in inserted:
-            a, b = pos[i], ends[i + 1]
-            inserted[i] = inside[(inside > a) & (inside < b)]
-    pieces, regular = [], []
-    for i in range(pos.size):
-        pieces.append(pos[i : i + 1])
-        regular.append(np.ones(1, dtype=bool))
-        if i in inserted:
-            pieces.append(inserted[i])
-            regular.append(np.zeros(inserted[i].size, dtype=bool))
-    pos2 = np.concatenate(pieces)
-    res = move_along_curve(mesh, curve, pos2, 0.0).points
+    for i in todo:  # no subdivision works: the curve's own points in this step always do
+        a, b = pos[i], ends[i + 1]
+        inserted[int(i)] = inside[(inside > a) & (inside < b)]
+    order = np.sort(bad)
+    runs = np.split(pos, order + 1)
+    parts, regular = [runs[0]], [np.ones(runs[0].size, dtype=bool)]
+    for i, run in zip(order.tolist(), runs[1:], strict=True):
+        extra = inserted[i]
+        parts += [extra, run]
+        regular += [np.zeros(extra.size, dtype=bool), np.ones(run.size, dtype=bool)]
+    pos2 = np.concatenate(parts)
+    res = _points_at(curve, pieces, pos2)
     return SurfaceCurve(res, closed=curve.closed, kind=curve.kind), np.concatenate(regular)

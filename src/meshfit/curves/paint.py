@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from meshfit._validate import as_points, as_surface_points
-from meshfit.curves.base import _as_curve, _pairs_ok, resample_curve
+from meshfit.curves.base import _as_curve, _attract_few, _pairs_ok, resample_curve
 from meshfit.errors import InputError, PathError
 from meshfit.mesh import Mesh
 from meshfit.surface.paths import greedy_path, path_to_surface_points
@@ -80,7 +80,7 @@ def _segment(
     xa, xb = mesh.xyz(a)[0], mesh.xyz(b)[0]
     t = np.linspace(0.0, 1.0, m)[1:-1, None]
     inner = pts[1 : m - 1]
-    att = attract_points(mesh, inner, xa + t * (xb - xa)).end
+    att = _attract_few(mesh, inner.face, inner.bary, xa + t * (xb - xa))
     face = np.concatenate([pts.face[:1], att.face, pts.face[-1:]])
     bary = np.concatenate([pts.bary[:1], att.bary, pts.bary[-1:]])
     # where attraction pulled neighbours apart (sharp bends, thin parts of the model: faces

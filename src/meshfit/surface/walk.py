@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from meshfit import tol
+from meshfit._kernels import curves as _curves
 from meshfit._kernels import walk as _walk
 from meshfit._validate import as_surface_points, as_vectors
 from meshfit.errors import InputError
@@ -327,32 +328,33 @@ def _representations(
     return out
 
 
+def _i8(a: NDArray) -> NDArray[np.int64]:
+    """``a`` as a C-contiguous int64 array (no copy when it already is one)."""
+    return np.ascontiguousarray(a, dtype=np.int64)
+
+
 def _curve_pieces(mesh: Mesh, points: SurfacePoints, closed: bool, name: str) -> _Pieces:
     m = len(points)
     if m == 0:
         raise InputError(f"{name} has no points")
     P = np.arange(m if closed else m - 1)
     Q = (P + 1) % m
-    pf = points.face[P].copy()
-    qf = points.face[Q].copy()
+    pf = np.array(points.face[P], dtype=np.int64)
+    qf = np.array(points.face[Q], dtype=np.int64)
     pb = _clean_bary(points.bary[P])
     qb = _clean_bary(points.bary[Q])
     FN = mesh.face_neighbors
-    for i in np.flatnonzero((pf != qf) & ~(FN[pf] == qf[:, None]).any(axis=1)):
-        # faces neither equal nor adjacent: try the other faces through an edge or vertex point
-        options = [
-            (a, b)
-            for a in _representations(mesh, int(pf[i]), pb[i])
-            for b in _representations(mesh, int(qf[i]), qb[i])
-            if a[0] == b[0] or b[0] in FN[a[0]]
-        ]
-        if not options:
-            raise InputError(
-                f"{name} points {P[i]} and {Q[i]} are on faces {pf[i]} and "
-                f"{qf[i]}, which are neither the same nor adjacent"
-            )
-        options.sort(key=lambda ab: ab[0][0] != ab[1][0])  # a shared face first
-        (pf[i], pb[i]), (qf[i], qb[i]) = options[0]
+    # faces neither equal nor adjacent: try the other faces through an edge or vertex point
+    # (a shared face first); the numba kernel follows the order of `_representations`
+    indptr, vf = mesh.vertex_faces
+    bad = _curves.rewrite_pairs(
+        _i8(mesh.faces), _i8(FN), _i8(indptr), _i8(vf), pf, pb, qf, qb, tol.BARY_EPS
+    )
+    if bad >= 0:
+        raise InputError(
+            f"{name} points {P[bad]} and {Q[bad]} are on faces {pf[bad]} and "
+            f"{qf[bad]}, which are neither the same nor adjacent"
+        )
     V, F = mesh.vertices, mesh.faces
     xp = np.einsum("ij,ijk->ik", pb, V[F[pf]])
     xq = np.einsum("ij,ijk->ik", qb, V[F[qf]])
@@ -500,7 +502,6 @@ def move_along_curve(
     dist = _as_scalars(distance, pos.size, "distance")
     pieces = _curve_pieces(mesh, points, closed, "curve")
     total = pieces.total
-    arc = np.append(pieces.start[0::2], total)
     slack = tol.length(mesh, tol.ON_SURFACE, scale="bbox_diagonal")
     if closed:
         s = np.mod(pos + dist, total) if total > 0 else np.zeros_like(pos)
@@ -516,16 +517,35 @@ def move_along_curve(
         raw = np.clip(pos, 0.0, total) + dist
         clamped = (raw < 0.0) | (raw > total)
         s = np.clip(raw, 0.0, total)
+    face, bary, segment = _place_on_pieces(points, closed, pieces, s)
     if pieces.face.size == 0:  # a single-point open curve
-        zero = np.zeros(pos.size)
-        return CurveMoveResult(
-            zero,
-            SurfacePoints(
-                np.repeat(points.face, pos.size), np.repeat(points.bary, pos.size, axis=0)
-            ),
-            np.zeros(pos.size, dtype=np.int64),
-            dist != 0.0,
+        return CurveMoveResult(np.zeros(pos.size), SurfacePoints(face, bary), segment, dist != 0.0)
+    return CurveMoveResult(s, SurfacePoints(face, bary), segment, clamped)
+
+
+def _curve_positions(pieces: _Pieces, closed: bool, pos: NDArray[np.float64]) -> NDArray:
+    """Arc-length positions already on the curve (open: within [0, total]) as used by
+    :func:`move_along_curve` with ``distance=0``."""
+    total = pieces.total
+    if closed:
+        s = np.mod(pos + 0.0, total) if total > 0 else np.zeros_like(pos)
+        s[s >= total] = 0.0
+        return s
+    return np.clip(np.clip(pos, 0.0, total) + 0.0, 0.0, total)
+
+
+def _place_on_pieces(
+    points: SurfacePoints, closed: bool, pieces: _Pieces, s: NDArray[np.float64]
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.int64]]:
+    """Face, barycentrics and segment of the curve points at arc lengths ``s`` (in range)."""
+    if pieces.face.size == 0:  # a single-point open curve
+        return (
+            np.repeat(points.face, s.size),
+            np.repeat(points.bary, s.size, axis=0),
+            np.zeros(s.size, dtype=np.int64),
         )
+    total = pieces.total
+    arc = np.append(pieces.start[0::2], total)
     j = np.clip(np.searchsorted(pieces.start, s, side="right") - 1, 0, pieces.face.size - 1)
     plen = pieces.length[j]
     t = np.divide(s - pieces.start[j], plen, out=np.ones_like(s), where=plen > 0)
@@ -542,7 +562,7 @@ def move_along_curve(
     face[hit] = points.face[at[hit]]
     bary[hit] = points.bary[at[hit]]
     segment[hit] = np.minimum(at[hit], pieces.face.size // 2 - 1)
-    return CurveMoveResult(s, SurfacePoints(face, _clean_bary(bary)), segment, clamped)
+    return face, _clean_bary(bary), segment
 
 
 def _as_scalars(value: ArrayLike, n: int | None, name: str) -> NDArray[np.float64]:

@@ -1,0 +1,437 @@
+"""Numba kernels for face-point curves.
+
+The sampling rule (consecutive points on the same or edge-adjacent faces, edge and vertex
+points written in every face that holds them), the subdivision search of uniform
+resampling, and serial walking / attraction for the few points curve bisection moves.
+
+No validation here: the wrappers in :mod:`meshfit.curves.base` and
+:mod:`meshfit.surface.walk` pass contiguous arrays of the right dtypes.
+
+Conventions as in :mod:`meshfit._kernels.walk`: ``F (nf, 3) i8`` faces, ``FN (nf, 3) i8``
+face across edge ``k = (F[f, k], F[f, (k + 1) % 3])`` (-1 on the boundary), ``VF_ptr
+(nv + 1,) i8`` / ``VF (3 nf,) i8`` the faces around each vertex (CSR).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from meshfit._kernels.walk import (
+    BOUNDARY,
+    CAPPED,
+    DONE,
+    _clean_bary,
+    _clip_at_boundary,
+    _descend,
+    _face_normal,
+    _position,
+    _start_direction,
+    _walk_one,
+)
+
+
+@njit(cache=True, nogil=True)
+def _representations(F, FN, VF_ptr, VF, face, bary, eps, faces_out, bary_out):
+    """Write every (face, bary) holding the point into the outputs; return how many.
+
+    Same order as :func:`meshfit.surface.walk._representations`: the point's own face
+    first, then the face across its edge (edge point) or the other faces around its vertex
+    in CSR order (vertex point). Outputs must hold ``1 + max valence`` rows.
+    """
+    faces_out[0] = face
+    bary_out[0, 0] = bary[0]
+    bary_out[0, 1] = bary[1]
+    bary_out[0, 2] = bary[2]
+    nz = 0
+    zi = -1
+    ki = -1
+    for c in range(3):
+        if bary[c] <= eps:
+            nz += 1
+            zi = c
+        else:
+            ki = c
+    n = 1
+    if nz == 1:
+        k = (zi + 1) % 3
+        g = FN[face, k]
+        if g >= 0:
+            va = F[face, k]
+            vc = F[face, (k + 1) % 3]
+            b0 = 0.0
+            b1 = 0.0
+            b2 = 0.0
+            ba = bary[k]
+            bc = bary[(k + 1) % 3]
+            # as the reference: slot of va is set first, then the slot of vc
+            for s in range(3):
+                if F[g, s] == va:
+                    if s == 0:
+                        b0 = ba
+                    elif s == 1:
+                        b1 = ba
+                    else:
+                        b2 = ba
+                    break
+            for s in range(3):
+                if F[g, s] == vc:
+                    if s == 0:
+                        b0 = bc
+                    elif s == 1:
+                        b1 = bc
+                    else:
+                        b2 = bc
+                    break
+            tot = b0 + b1 + b2
+            faces_out[1] = g
+            bary_out[1, 0] = b0 / tot
+            bary_out[1, 1] = b1 / tot
+            bary_out[1, 2] = b2 / tot
+            n = 2
+    elif nz == 2:
+        v = F[face, ki]
+        for j in range(VF_ptr[v], VF_ptr[v + 1]):
+            g = VF[j]
+            if g != face:
+                faces_out[n] = g
+                for s in range(3):
+                    bary_out[n, s] = 1.0 if F[g, s] == v else 0.0
+                n += 1
+    return n
+
+
+@njit(cache=True, nogil=True)
+def _adjacent(FN, f, g):
+    return FN[f, 0] == g or FN[f, 1] == g or FN[f, 2] == g
+
+
+@njit(cache=True, nogil=True)
+def _max_valence(F, FN, VF_ptr, fa, fb):
+    """Largest vertex valence over the faces of the pairs that are not trivially ok."""
+    m = 0
+    for i in range(fa.size):
+        f = fa[i]
+        g = fb[i]
+        if f == g or _adjacent(FN, f, g):
+            continue
+        for c in range(3):
+            for v in (F[f, c], F[g, c]):
+                d = VF_ptr[v + 1] - VF_ptr[v]
+                if d > m:
+                    m = d
+    return m
+
+
+@njit(cache=True, nogil=True)
+def _best_option(FN, fa_r, na, fb_r, nb):
+    """First pair (i, j) on a shared face, else the first on adjacent faces, else (-1, -1)."""
+    adj_i = -1
+    adj_j = -1
+    for i in range(na):
+        for j in range(nb):
+            if fa_r[i] == fb_r[j]:
+                return i, j
+            if adj_i < 0 and _adjacent(FN, fa_r[i], fb_r[j]):
+                adj_i = i
+                adj_j = j
+    return adj_i, adj_j
+
+
+@njit(cache=True, nogil=True)
+def pairs_ok(F, FN, VF_ptr, VF, fa, ba, fb, bb, eps):
+    """Whether each pair of face points lies on the same or edge-adjacent faces; (n,) bool."""
+    n = fa.size
+    ok = np.empty(n, dtype=np.bool_)
+    max_val = _max_valence(F, FN, VF_ptr, fa, fb)
+    fa_r = np.empty(max_val + 1, dtype=np.int64)
+    fb_r = np.empty(max_val + 1, dtype=np.int64)
+    ba_r = np.empty((max_val + 1, 3))
+    bb_r = np.empty((max_val + 1, 3))
+    for i in range(n):
+        f = fa[i]
+        g = fb[i]
+        if f == g or _adjacent(FN, f, g):
+            ok[i] = True
+            continue
+        na = _representations(F, FN, VF_ptr, VF, f, ba[i], eps, fa_r, ba_r)
+        nb = _representations(F, FN, VF_ptr, VF, g, bb[i], eps, fb_r, bb_r)
+        si, _ = _best_option(FN, fa_r, na, fb_r, nb)
+        ok[i] = si >= 0
+    return ok
+
+
+@njit(cache=True, nogil=True)
+def rewrite_pairs(F, FN, VF_ptr, VF, pf, pb, qf, qb, eps):
+    """Rewrite pairs on non-adjacent faces in faces that hold both points, in place.
+
+    For each pair whose faces are neither equal nor adjacent, the representations of both
+    points are searched for a shared face (preferred) or adjacent faces, in the order of
+    the reference implementation. Returns the index of the first pair with no such
+    representation, or -1.
+    """
+    n = pf.size
+    max_val = _max_valence(F, FN, VF_ptr, pf, qf)
+    fa_r = np.empty(max_val + 1, dtype=np.int64)
+    fb_r = np.empty(max_val + 1, dtype=np.int64)
+    ba_r = np.empty((max_val + 1, 3))
+    bb_r = np.empty((max_val + 1, 3))
+    for i in range(n):
+        f = pf[i]
+        g = qf[i]
+        if f == g or _adjacent(FN, f, g):
+            continue
+        na = _representations(F, FN, VF_ptr, VF, f, pb[i], eps, fa_r, ba_r)
+        nb = _representations(F, FN, VF_ptr, VF, g, qb[i], eps, fb_r, bb_r)
+        si, sj = _best_option(FN, fa_r, na, fb_r, nb)
+        if si < 0:
+            return i
+        pf[i] = fa_r[si]
+        qf[i] = fb_r[sj]
+        for c in range(3):
+            pb[i, c] = ba_r[si, c]
+            qb[i, c] = bb_r[sj, c]
+    return -1
+
+
+# ------------------------------------------------------------- serial walking for few points
+# The kernels in `meshfit._kernels.walk` are `parallel=True`; launching a parallel region costs
+# from ~20 us up to ~15 ms (OpenMP threads that must be woken on a loaded machine), which
+# dominates when curve bisection moves one point at a time. These are the same per-point
+# loops run serially: keep them in step with `walk_points` / `attract_points` there.
+
+
+@njit(cache=True, nogil=True)
+def walk_points_serial(V, F, FN, face, bary, step, max_faces, eps_len, bary_eps):
+    """Serial `meshfit._kernels.walk.walk_points` (same arguments and results)."""
+    n = face.shape[0]
+    out_face = face.copy()
+    out_bary = bary.copy()
+    length = np.zeros(n)
+    hit = np.zeros(n, dtype=np.bool_)
+    capped = np.zeros(n, dtype=np.bool_)
+    u = np.empty(3)
+    for i in range(n):
+        b = out_bary[i]
+        total = _start_direction(V, F, face[i], step[i], u)
+        if total <= eps_len:
+            continue
+        f, rest, status, _ = _walk_one(V, F, FN, face[i], b, u, total, max_faces, bary_eps)
+        out_face[i] = f
+        length[i] = total - rest if status != DONE else total
+        hit[i] = status == BOUNDARY
+        capped[i] = status == CAPPED
+    return out_face, out_bary, length, hit, capped
+
+
+@njit(cache=True, nogil=True)
+def attract_points_serial(
+    V, F, FN, VFp, VF, face, bary, targets, max_iter, max_faces, eps_len, bary_eps
+):
+    """Serial `meshfit._kernels.walk.attract_points` (same arguments and results)."""
+    n = face.shape[0]
+    out_face = face.copy()
+    out_bary = bary.copy()
+    distance = np.zeros(n)
+    iterations = np.zeros(n, dtype=np.int64)
+    hit = np.zeros(n, dtype=np.bool_)
+    converged = np.zeros(n, dtype=np.bool_)
+    x = np.empty(3)
+    nrm = np.empty(3)
+    step = np.empty(3)
+    u = np.empty(3)
+    cb = np.empty(3)
+    tmp = np.empty(3)
+    for i in range(n):
+        b = out_bary[i]
+        f = face[i]
+        _position(V, F, f, b, x)
+        tgt = targets[i]
+        dist = np.sqrt(np.sum((tgt - x) ** 2))
+        h = 1.0
+        it = 0
+        while it < max_iter:
+            it += 1
+            _face_normal(V, F, f, nrm)
+            off = np.sum((tgt - x) * nrm)
+            for d in range(3):
+                step[d] = h * (tgt[d] - off * nrm[d] - x[d])
+            _clip_at_boundary(V, F, FN, f, b, step, bary_eps)
+            moved = False
+            if np.sqrt(np.sum(step * step)) >= eps_len:
+                total = _start_direction(V, F, f, step, u)
+                cb[:] = b
+                g, _, _, _ = _walk_one(V, F, FN, f, cb, u, total, max_faces, bary_eps)
+                _position(V, F, g, cb, nrm)
+                cand = np.sqrt(np.sum((tgt - nrm) ** 2))
+                if cand < dist:
+                    f = g
+                    b[:] = cb
+                    dist = cand
+                    h = min(1.0, 2.0 * h)
+                    moved = True
+                else:
+                    h *= 0.5
+            if not moved:
+                f, dist, moved = _descend(V, F, FN, VFp, VF, f, b, tgt, dist, tmp, cb)
+                if not moved:
+                    converged[i] = True
+                    break
+            _position(V, F, f, b, x)
+        _clean_bary(b)
+        for k in range(3):
+            if FN[f, k] < 0 and b[(k + 2) % 3] <= bary_eps:
+                hit[i] = True
+        out_face[i] = f
+        distance[i] = dist
+        iterations[i] = it
+    return out_face, out_bary, distance, iterations, hit, converged
+
+
+# ------------------------------------------------------------ subdividing steps of resampling
+
+
+@njit(cache=True, nogil=True)
+def _place(s, closed, total, p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, pt_bary, out_b):
+    """Face point at arc length ``s`` (already in range) of a curve given by its pieces.
+
+    Same arithmetic as `meshfit.surface.walk._place_on_pieces` followed by `_clean_bary`;
+    barycentrics into ``out_b`` (3,), returns the face.
+    """
+    npc = p_face.size
+    j = np.searchsorted(p_start, s, side="right") - 1
+    if j < 0:
+        j = 0
+    if j > npc - 1:
+        j = npc - 1
+    plen = p_len[j]
+    t = (s - p_start[j]) / plen if plen > 0 else 1.0
+    if t < 0.0:
+        t = 0.0
+    elif t > 1.0:
+        t = 1.0
+    f = p_face[j]
+    for c in range(3):
+        out_b[c] = (1.0 - t) * p_b0[j, c] + t * p_b1[j, c]
+    at = np.searchsorted(arc, s)
+    if at > arc.size - 1:
+        at = arc.size - 1
+    if arc[at] == s:
+        if closed:
+            at = at % pt_face.size
+        f = pt_face[at]
+        for c in range(3):
+            out_b[c] = pt_bary[at, c]
+    if out_b[0] < 0.0 or out_b[1] < 0.0 or out_b[2] < 0.0:
+        for c in range(3):
+            if out_b[c] < 0.0:
+                out_b[c] = 0.0
+        tot = out_b[0] + out_b[1] + out_b[2]
+        for c in range(3):
+            out_b[c] = out_b[c] / tot
+    return f
+
+
+@njit(cache=True, nogil=True)
+def _pair_ok(F, FN, VF_ptr, VF, f, ba, g, bb, eps, fa_r, ba_r, fb_r, bb_r):
+    if f == g or _adjacent(FN, f, g):
+        return True
+    na = _representations(F, FN, VF_ptr, VF, f, ba, eps, fa_r, ba_r)
+    nb = _representations(F, FN, VF_ptr, VF, g, bb, eps, fb_r, bb_r)
+    si, _ = _best_option(FN, fa_r, na, fb_r, nb)
+    return si >= 0
+
+
+@njit(cache=True, nogil=True)
+def _place_part(
+    ai, d, j, k, closed, total, p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, pt_bary, out_b
+):
+    """Place part end j of k of the step from ``ai`` of length ``d`` (see `subdivide_steps`)."""
+    s = ai + d * j / k
+    if closed and s >= total:
+        s = s - total
+    if s < 0.0:
+        s = 0.0
+    elif s > total:
+        s = total
+    if closed and s >= total:
+        s = 0.0
+    return _place(
+        s, closed, total, p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, pt_bary, out_b
+    )
+
+
+@njit(cache=True, nogil=True)
+def subdivide_steps(
+    F, FN, VF_ptr, VF, a, b, k_min, k_max, closed, total,
+    p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, pt_bary, eps,
+):  # fmt: skip
+    """Fewest parts k in [k_min, k_max] that split each step [a, b] of a curve's arc length
+    evenly with every consecutive pair of parts on the same or adjacent faces; 0 if none.
+
+    Part ends are ``a + (b - a) * j / k`` (j = 0..k), wrapped past ``total`` on a closed
+    curve and clipped to [0, total], and placed as in `_place`; a k is abandoned at its
+    first failing pair.
+    """
+    n = a.size
+    out = np.zeros(n, dtype=np.int64)
+    m = 1
+    for v in range(VF_ptr.size - 1):
+        d = VF_ptr[v + 1] - VF_ptr[v]
+        if d > m:
+            m = d
+    fa_r = np.empty(m + 1, dtype=np.int64)
+    fb_r = np.empty(m + 1, dtype=np.int64)
+    ba_r = np.empty((m + 1, 3))
+    bb_r = np.empty((m + 1, 3))
+    prev = np.empty(3)
+    cur = np.empty(3)
+    for i in range(n):
+        ai = a[i]
+        d = b[i] - ai
+        # curve points strictly inside the step: the pair of parts around one of them is the
+        # one that usually fails (the curve passes a vertex there), so it is checked first
+        lo = np.searchsorted(arc, ai, side="right")
+        hi = np.searchsorted(arc, b[i], side="left")
+        # where the last tried k failed: that pair of the next k is checked first too
+        fail_at = ai + 0.5 * d
+        for k in range(k_min, k_max + 1):
+            ok = True
+            for q in range(lo - 1, hi):
+                v = fail_at if q < lo else arc[q]
+                j = int((v - ai) / d * k) if d > 0 else 0
+                if j > k - 1:
+                    j = k - 1
+                if j < 0:
+                    j = 0
+                f0 = _place_part(
+                    ai, d, j, k, closed, total, p_face, p_b0, p_b1, p_start, p_len, arc,
+                    pt_face, pt_bary, prev,
+                )  # fmt: skip
+                f1 = _place_part(
+                    ai, d, j + 1, k, closed, total, p_face, p_b0, p_b1, p_start, p_len,
+                    arc, pt_face, pt_bary, cur,
+                )  # fmt: skip
+                if not _pair_ok(F, FN, VF_ptr, VF, f0, prev, f1, cur, eps, fa_r, ba_r, fb_r, bb_r):
+                    ok = False
+                    break
+            if not ok:
+                continue
+            fprev = -1
+            for j in range(k + 1):
+                fcur = _place_part(
+                    ai, d, j, k, closed, total, p_face, p_b0, p_b1, p_start, p_len, arc,
+                    pt_face, pt_bary, cur,
+                )  # fmt: skip
+                if j > 0 and not _pair_ok(
+                    F, FN, VF_ptr, VF, fprev, prev, fcur, cur, eps, fa_r, ba_r, fb_r, bb_r
+                ):
+                    ok = False
+                    fail_at = ai + d * (j - 0.5) / k
+                    break
+                fprev = fcur
+                prev[:] = cur
+            if ok:
+                out[i] = k
+                break
+    return out
