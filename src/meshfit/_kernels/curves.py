@@ -101,7 +101,7 @@ def _representations(F, FN, VF_ptr, VF, face, bary, eps, faces_out, bary_out):
     return n
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _adjacent(FN, f, g):
     return FN[f, 0] == g or FN[f, 1] == g or FN[f, 2] == g
 
@@ -123,7 +123,7 @@ def _max_valence(F, FN, VF_ptr, fa, fb):
     return m
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _best_option(FN, fa_r, na, fb_r, nb):
     """First pair (i, j) on a shared face, else the first on adjacent faces, else (-1, -1)."""
     adj_i = -1
@@ -291,7 +291,7 @@ def attract_points_serial(
 # ------------------------------------------------------------ subdividing steps of resampling
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _place(s, closed, total, p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, pt_bary, out_b):
     """Face point at arc length ``s`` (already in range) of a curve given by its pieces.
 
@@ -332,7 +332,7 @@ def _place(s, closed, total, p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, p
     return f
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _pair_ok(F, FN, VF_ptr, VF, f, ba, g, bb, eps, fa_r, ba_r, fb_r, bb_r):
     if f == g or _adjacent(FN, f, g):
         return True
@@ -342,7 +342,7 @@ def _pair_ok(F, FN, VF_ptr, VF, f, ba, g, bb, eps, fa_r, ba_r, fb_r, bb_r):
     return si >= 0
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _place_part(
     ai, d, j, k, closed, total, p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, pt_bary, out_b
 ):
