@@ -21,11 +21,7 @@ from meshfit._kernels.walk import (
     BOUNDARY,
     CAPPED,
     DONE,
-    _clean_bary,
-    _clip_at_boundary,
-    _descend,
-    _face_normal,
-    _position,
+    _attract_one,
     _start_direction,
     _walk_one,
 )
@@ -236,55 +232,21 @@ def attract_points_serial(
     iterations = np.zeros(n, dtype=np.int64)
     hit = np.zeros(n, dtype=np.bool_)
     converged = np.zeros(n, dtype=np.bool_)
-    x = np.empty(3)
-    nrm = np.empty(3)
-    step = np.empty(3)
-    u = np.empty(3)
-    cb = np.empty(3)
-    tmp = np.empty(3)
     for i in range(n):
-        b = out_bary[i]
-        f = face[i]
-        _position(V, F, f, b, x)
-        tgt = targets[i]
-        dist = np.sqrt(np.sum((tgt - x) ** 2))
-        h = 1.0
-        it = 0
-        while it < max_iter:
-            it += 1
-            _face_normal(V, F, f, nrm)
-            off = np.sum((tgt - x) * nrm)
-            for d in range(3):
-                step[d] = h * (tgt[d] - off * nrm[d] - x[d])
-            _clip_at_boundary(V, F, FN, f, b, step, bary_eps)
-            moved = False
-            if np.sqrt(np.sum(step * step)) >= eps_len:
-                total = _start_direction(V, F, f, step, u)
-                cb[:] = b
-                g, _, _, _ = _walk_one(V, F, FN, f, cb, u, total, max_faces, bary_eps)
-                _position(V, F, g, cb, nrm)
-                cand = np.sqrt(np.sum((tgt - nrm) ** 2))
-                if cand < dist:
-                    f = g
-                    b[:] = cb
-                    dist = cand
-                    h = min(1.0, 2.0 * h)
-                    moved = True
-                else:
-                    h *= 0.5
-            if not moved:
-                f, dist, moved = _descend(V, F, FN, VFp, VF, f, b, tgt, dist, tmp, cb)
-                if not moved:
-                    converged[i] = True
-                    break
-            _position(V, F, f, b, x)
-        _clean_bary(b)
-        for k in range(3):
-            if FN[f, k] < 0 and b[(k + 2) % 3] <= bary_eps:
-                hit[i] = True
-        out_face[i] = f
-        distance[i] = dist
-        iterations[i] = it
+        out_face[i], distance[i], iterations[i], hit[i], converged[i] = _attract_one(
+            V,
+            F,
+            FN,
+            VFp,
+            VF,
+            face[i],
+            out_bary[i],
+            targets[i],
+            max_iter,
+            max_faces,
+            eps_len,
+            bary_eps,
+        )
     return out_face, out_bary, distance, iterations, hit, converged
 
 
