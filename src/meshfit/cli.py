@@ -6,6 +6,7 @@ Every :class:`meshfit.errors.MeshfitError` becomes one line on stderr and exit c
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import sys
 import time
@@ -14,11 +15,19 @@ from pathlib import Path
 
 from meshfit import __version__, errors
 
+__all__ = ["EXIT_ERROR", "EXIT_OK", "build_parser", "main", "print_json", "print_table"]
+
 EXIT_OK = 0
 EXIT_ERROR = 2
 
+#: Stage packages that add subcommands. Each module defines ``add_commands(sub)``, which adds
+#: its parsers to the ``argparse`` sub-parser action and sets ``func`` on each of them; a
+#: command's ``func(args)`` returns the exit code.
+_COMMAND_MODULES: tuple[str, ...] = (
+)
 
-def _print_json(data: dict) -> None:
+
+def print_json(data: dict) -> None:
     json.dump(data, sys.stdout, indent=2, sort_keys=False)
     sys.stdout.write("\n")
 
@@ -31,7 +40,7 @@ def _fmt(v) -> str:
     return str(v)
 
 
-def _print_table(title: str, data: dict) -> None:
+def print_table(title: str, data: dict) -> None:
     from rich.console import Console
     from rich.table import Table
 
@@ -71,9 +80,9 @@ def cmd_info(args: argparse.Namespace) -> int:
     out["repaired"] = bool(findings) and mesh is not None
     out = {"file": str(args.mesh), **out, "seconds": round(time.perf_counter() - t0, 3)}
     if args.json:
-        _print_json(out)
+        print_json(out)
     else:
-        _print_table(f"{args.mesh}", out)
+        print_table(f"{args.mesh}", out)
         for note in out["notes"]:
             print(f"note: {note}")
         for f in findings:
@@ -117,6 +126,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=cmd_demo)
+
+    for name in _COMMAND_MODULES:
+        importlib.import_module(name).add_commands(sub)
     return parser
 
 
@@ -125,7 +137,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     summary = run_demo(Path(args.out), faces=args.faces, quiet=args.json)
     if args.json:
-        _print_json(summary)
+        print_json(summary)
     return EXIT_OK
 
 
