@@ -1,0 +1,93 @@
+"""A four-sided patch cut out of a mesh: the input of the spring mesh."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from meshfit.errors import InputError
+from meshfit.mesh import Mesh
+from meshfit.types import SurfaceCurve, SurfacePoints, _readonly
+
+__all__ = ["Patch"]
+
+
+@dataclass(frozen=True, eq=False)
+class Patch:
+    """One four-sided region of a layout, as a submesh of its own (a topological disk).
+
+    The grid convention every later stage uses: side 0 runs from corner 0 to corner 1 (the
+    ``v = 0`` row, ``u`` rising), side 1 from corner 1 to corner 2 (``u = 1``), side 2 from
+    corner 2 to corner 3 (``v = 1``, ``u`` falling) and side 3 from corner 3 back to corner 0
+    (``u = 0``). The corners run counter-clockwise seen from the side the face normals point
+    to, so ``(dS/du) x (dS/dv)`` agrees with the face normals. A grid ``points[i, j]`` of shape
+    ``(nu, nv)`` then has ``points[0, 0]`` at corner 0, ``points[-1, 0]`` at corner 1,
+    ``points[-1, -1]`` at corner 2 and ``points[0, -1]`` at corner 3.
+
+    Attributes
+    ----------
+    index : int
+        The patch's index in its layout.
+    mesh : Mesh
+        The patch's faces as a mesh of their own: a disk whose boundary is the four sides.
+    corners : (4,) int64
+        Vertices of ``mesh`` at the four corners, in order.
+    sides : tuple of four (k_s,) int64
+        Vertex chains of ``mesh`` along each side, from corner ``s`` to corner ``s + 1``
+        (both ends included), following the mesh boundary.
+    face_parent : (nf_patch,) int64
+        Face of the original (uncut) mesh that each patch face lies in.
+    vertex_source : SurfacePoints
+        Every patch vertex as a point of the original mesh.
+    features : tuple of SurfaceCurve
+        Feature curves of this patch as face points of ``mesh`` (``kind="feature"``), each
+        running from one side to the opposite side (Krishnamurthy 2000, sec. 5.10).
+    feature_sides : tuple of (int, int)
+        For each feature curve, the sides its first and last points lie on.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 1.3 and fig. 1.2 (patches bounded by painted curves);
+       sec. 5.3 (the spring mesh resamples one four-sided patch).
+    """
+
+    index: int
+    mesh: Mesh
+    corners: NDArray[np.int64]
+    sides: tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]
+    face_parent: NDArray[np.int64]
+    vertex_source: SurfacePoints
+    features: tuple[SurfaceCurve, ...] = ()
+    feature_sides: tuple[tuple[int, int], ...] = field(default=())
+
+    def __post_init__(self) -> None:
+        corners = np.asarray(self.corners, dtype=np.int64).reshape(-1)
+        if corners.shape != (4,):
+            raise InputError(f"patch {self.index}: needs 4 corners, got {corners.shape[0]}")
+        if len(self.sides) != 4:
+            raise InputError(f"patch {self.index}: needs 4 sides, got {len(self.sides)}")
+        sides = tuple(_readonly(np.asarray(s, dtype=np.int64).reshape(-1)) for s in self.sides)
+        for s, chain in enumerate(sides):
+            if chain.shape[0] < 2 or chain[0] != corners[s] or chain[-1] != corners[(s + 1) % 4]:
+                raise InputError(
+                    f"patch {self.index}: side {s} must run from corner {s} "
+                    f"(vertex {int(corners[s])}) to corner {(s + 1) % 4} "
+                    f"(vertex {int(corners[(s + 1) % 4])})"
+                )
+        if len(self.feature_sides) != len(self.features):
+            raise InputError(
+                f"patch {self.index}: {len(self.features)} feature curves but "
+                f"{len(self.feature_sides)} feature_sides entries"
+            )
+        object.__setattr__(self, "corners", _readonly(corners))
+        object.__setattr__(self, "sides", sides)
+        object.__setattr__(
+            self, "face_parent", _readonly(np.asarray(self.face_parent, dtype=np.int64))
+        )
+
+    @property
+    def boundary(self) -> NDArray[np.int64]:
+        """(k,) int64: the closed boundary loop, sides 0..3 joined (each corner once)."""
+        return np.concatenate([s[:-1] for s in self.sides])
