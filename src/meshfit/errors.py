@@ -101,3 +101,8 @@ class PathError(MeshfitError):
 
 class CutError(MeshfitError):
     """A polyline cannot be cut into the mesh (points not on the same or adjacent faces)."""
+
+
+class TopologyError(MeshfitError):
+    """The mesh has the wrong topology for the operation (shrink wrapping needs one closed
+    genus-0 surface: no holes, no handles, one component)."""
