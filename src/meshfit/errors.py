@@ -12,6 +12,7 @@ __all__ = [
     "DegenerateFaceError",
     "DuplicateFaceError",
     "EmptyMeshError",
+    "FeatureCurveError",
     "IndexRangeError",
     "InputError",
     "MeshFileError",
@@ -106,3 +107,8 @@ class CutError(MeshfitError):
 class TopologyError(MeshfitError):
     """The mesh has the wrong topology for the operation (shrink wrapping needs one closed
     genus-0 surface: no holes, no handles, one component)."""
+
+
+class FeatureCurveError(MeshfitError, ValueError):
+    """A feature curve of a patch cannot guide the spring mesh: it does not run from one side
+    to the opposite side, or it crosses another feature curve of the same direction."""

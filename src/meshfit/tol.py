@@ -48,3 +48,10 @@ def length(mesh: Mesh, rel: float, *, scale: str = "mean_edge_length") -> float:
     if scale == "bbox_diagonal":
         return rel * mesh.bbox_diagonal
     raise ValueError(f"unknown scale {scale!r}")
+
+# --- meshfit.springs
+#: a feature curve's end lies on a side when it is this close to it, times the mean edge length
+FEATURE_END_ON_SIDE = 1e-3
+#: relaxation of a level stops when no spring point moves more than this, times its mean
+#: spring length (dimensionless)
+SPRING_CONVERGED = 2e-3
