@@ -1,0 +1,257 @@
+"""Numba kernels of the spring mesh: relaxation sweeps and FindMidPoint subdivision.
+
+No validation here: :mod:`meshfit.springs` checks every input and passes contiguous arrays.
+Grids are flattened row-major: point ``(i, j)`` of an ``(nu, nv)`` grid is row ``i * nv + j``;
+``i`` runs along ``u`` (the "left-right" neighbours), ``j`` along ``v`` ("up-down").
+``fastmath`` stays off: the walking kernels pick exit edges by sign tests.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from meshfit._kernels.walk import DONE, _start_direction, _walk_one
+
+#: spring point kinds (``SpringMesh.kind``)
+BOUNDARY = 0
+ANCHOR = 1
+CURVE = 2
+FREE = 3
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def grid_xyz(V, F, face, bary):
+    """Positions of face points; face (n,) i8, bary (n, 3) f8 -> (n, 3) f8."""
+    n = face.shape[0]
+    out = np.empty((n, 3))
+    for i in range(n):
+        f = face[i]
+        for c in range(3):
+            out[i, c] = (
+                bary[i, 0] * V[F[f, 0], c] + bary[i, 1] * V[F[f, 1], c] + bary[i, 2] * V[F[f, 2], c]
+            )
+    return out
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _pair_arc(X, p, a, b, out):
+    """Add the arc-length force (eq. 5.1) of neighbours ``a`` and ``b`` on point ``p`` to out."""
+    ax = X[a, 0] - X[p, 0]
+    ay = X[a, 1] - X[p, 1]
+    az = X[a, 2] - X[p, 2]
+    bx = X[b, 0] - X[p, 0]
+    by = X[b, 1] - X[p, 1]
+    bz = X[b, 2] - X[p, 2]
+    la = np.sqrt(ax * ax + ay * ay + az * az)
+    lb = np.sqrt(bx * bx + by * by + bz * bz)
+    if la > lb and la > 0.0:
+        s = (la - lb) / la
+        out[0] += s * ax
+        out[1] += s * ay
+        out[2] += s * az
+    elif lb > la and lb > 0.0:
+        s = (lb - la) / lb
+        out[0] += s * bx
+        out[1] += s * by
+        out[2] += s * bz
+    return la + lb
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def spring_force(X, nv, p, w_arc, w_fair, out):
+    """Resultant force (eq. 5.4) on interior grid point ``p``; returns its mean spring length.
+
+    ``out`` (3,) receives ``w_fair * F_fair / 4 + w_arc * F_arc / 4`` (a Gauss-Seidel step:
+    the fairness part alone moves the point to the centroid of its four neighbours).
+    """
+    left = p - nv
+    right = p + nv
+    down = p - 1
+    up = p + 1
+    arc = np.zeros(3)
+    h = _pair_arc(X, p, left, right, arc)
+    h += _pair_arc(X, p, down, up, arc)
+    for c in range(3):
+        fair = X[left, c] + X[right, c] + X[down, c] + X[up, c] - 4.0 * X[p, c]
+        out[c] = 0.25 * (w_fair * fair + w_arc * arc[c])
+    return 0.25 * h
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def relax_sweeps(
+    V,
+    F,
+    FN,
+    face,
+    bary,
+    nu,
+    nv,
+    movable,
+    n_sweeps,
+    it0,
+    ramp,
+    w_fair_end,
+    omega,
+    eps_rel,
+    bary_eps,
+    max_faces,
+):
+    """Gauss-Seidel relaxation sweeps of the free spring points, in place.
+
+    V (nv, 3) f8; F, FN (nf, 3) i8; face (n,) i8 and bary (n, 3) f8 (updated in place);
+    movable (n,) bool. The fairness weight ramps linearly from 0 at sweep 0 to ``w_fair_end``
+    at sweep ``ramp`` (eq. 5.4: arc length first, fairness later); sweep ``k`` of this call is
+    sweep ``it0 + k`` of the schedule. Stops early, once the ramp is over, when no point
+    moves more than ``eps_rel`` times its mean spring length. Returns (sweeps done, largest
+    relative move of the last sweep). Kernel of `meshfit.springs.relax.relax`.
+    """
+    n = face.shape[0]
+    X = grid_xyz(V, F, face, bary)
+    step = np.empty(3)
+    u = np.empty(3)
+    worst = 0.0
+    done = 0
+    for k in range(n_sweeps):
+        it = it0 + k
+        t = min(1.0, it / ramp) if ramp > 0 else 1.0
+        w_fair = w_fair_end * t
+        w_arc = 1.0 - w_fair
+        worst = 0.0
+        forward = it % 2 == 0
+        for q in range(n):
+            p = q if forward else n - 1 - q
+            if not movable[p]:
+                continue
+            h = spring_force(X, nv, p, w_arc, w_fair, step)
+            for c in range(3):
+                step[c] *= omega
+            total = _start_direction(V, F, face[p], step, u)
+            if h > 0.0 and total / h > worst:
+                worst = total / h
+            if total <= 0.0:
+                continue
+            f, rest, status, _ = _walk_one(
+                V, F, FN, face[p], bary[p], u, total, max_faces, bary_eps
+            )
+            face[p] = f
+            for c in range(3):
+                X[p, c] = (
+                    bary[p, 0] * V[F[f, 0], c]
+                    + bary[p, 1] * V[F[f, 1], c]
+                    + bary[p, 2] * V[F[f, 2], c]
+                )
+        done = k + 1
+        if it + 1 >= ramp and worst < eps_rel:
+            break
+    return done, worst
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _greedy_mid(V, indptr, indices, v1, v2, max_steps):
+    """Mid vertex (by length) of a greedy graph path v1 -> v2, or -1 if the descent sticks."""
+    if v1 == v2:
+        return v1
+    path = np.empty(max_steps + 1, dtype=np.int64)
+    path[0] = v1
+    cur = v1
+    m = 1
+    while cur != v2:
+        if m > max_steps:
+            return -1
+        best = -1
+        dx = V[cur, 0] - V[v2, 0]
+        dy = V[cur, 1] - V[v2, 1]
+        dz = V[cur, 2] - V[v2, 2]
+        bd = dx * dx + dy * dy + dz * dz
+        for e in range(indptr[cur], indptr[cur + 1]):
+            w = indices[e]
+            dx = V[w, 0] - V[v2, 0]
+            dy = V[w, 1] - V[v2, 1]
+            dz = V[w, 2] - V[v2, 2]
+            d = dx * dx + dy * dy + dz * dz
+            if d < bd:
+                bd = d
+                best = w
+        if best < 0:
+            return -1
+        path[m] = best
+        m += 1
+        cur = best
+    total = 0.0
+    for k in range(1, m):
+        a = path[k - 1]
+        b = path[k]
+        total += np.sqrt(
+            (V[a, 0] - V[b, 0]) ** 2 + (V[a, 1] - V[b, 1]) ** 2 + (V[a, 2] - V[b, 2]) ** 2
+        )
+    acc = 0.0
+    for k in range(1, m):
+        a = path[k - 1]
+        b = path[k]
+        el = np.sqrt((V[a, 0] - V[b, 0]) ** 2 + (V[a, 1] - V[b, 1]) ** 2 + (V[a, 2] - V[b, 2]) ** 2)
+        if acc + el >= 0.5 * total:
+            return a if 0.5 * total - acc < acc + el - 0.5 * total else b
+        acc += el
+    return path[m - 1]
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def find_midpoints(
+    V, F, FN, VFp, VF, indptr, indices, fa, ba, fb, bb, n_fair, max_steps, bary_eps, max_faces
+):
+    """FindMidPoint (sec. 5.6) for n pairs of face points; fa, fb (n,) i8, ba, bb (n, 3) f8.
+
+    The mid vertex of a greedy graph path between the pair's nearest vertices is the first
+    guess (half a chord walked from the first point when the descent sticks); ``n_fair``
+    local fairness moves (Force(P1, Pmid) + Force(P2, Pmid), walked on the surface) follow.
+    Returns face (n,) i8, bary (n, 3) f8. Kernel of `meshfit.springs.subdivide`.
+    """
+    n = fa.shape[0]
+    out_f = np.empty(n, dtype=np.int64)
+    out_b = np.empty((n, 3))
+    u = np.empty(3)
+    step = np.empty(3)
+    xa = np.empty(3)
+    xb = np.empty(3)
+    for i in range(n):
+        for c in range(3):
+            xa[c] = (
+                ba[i, 0] * V[F[fa[i], 0], c]
+                + ba[i, 1] * V[F[fa[i], 1], c]
+                + ba[i, 2] * V[F[fa[i], 2], c]
+            )
+            xb[c] = (
+                bb[i, 0] * V[F[fb[i], 0], c]
+                + bb[i, 1] * V[F[fb[i], 1], c]
+                + bb[i, 2] * V[F[fb[i], 2], c]
+            )
+        v1 = F[fa[i], np.argmax(ba[i])]
+        v2 = F[fb[i], np.argmax(bb[i])]
+        mid = _greedy_mid(V, indptr, indices, v1, v2, max_steps)
+        b = out_b[i]
+        if mid >= 0 and mid != v1 and mid != v2:
+            f = VF[VFp[mid]]
+            for c in range(3):
+                b[c] = 1.0 if F[f, c] == mid else 0.0
+        else:
+            f = fa[i]
+            for c in range(3):
+                b[c] = ba[i, c]
+            for c in range(3):
+                step[c] = 0.5 * (xb[c] - xa[c])
+            total = _start_direction(V, F, f, step, u)
+            if total > 0.0:
+                f, rest, status, _ = _walk_one(V, F, FN, f, b, u, total, max_faces, bary_eps)
+        for _k in range(n_fair):
+            for c in range(3):
+                x = b[0] * V[F[f, 0], c] + b[1] * V[F[f, 1], c] + b[2] * V[F[f, 2], c]
+                step[c] = 0.5 * (xa[c] + xb[c]) - x
+            total = _start_direction(V, F, f, step, u)
+            if total <= 0.0:
+                break
+            f, rest, status, _ = _walk_one(V, F, FN, f, b, u, total, max_faces, bary_eps)
+            if status != DONE:
+                break
+        out_f[i] = f
+    return out_f, out_b

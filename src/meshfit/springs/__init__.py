@@ -1,0 +1,23 @@
+"""Spring-mesh gridded resampling of four-sided patches (Krishnamurthy 2000, chapter 5).
+
+:func:`resample_patch` turns a :class:`meshfit.layout.Patch` into a regular grid of face
+points, coarse to fine, with feature curves as iso-curves; :func:`grid_metrics` measures a
+grid's arc-length uniformity, cell shape, area distortion, folds and fidelity.
+"""
+
+from meshfit.springs.grid import ANCHOR, BOUNDARY, CURVE, FREE, SpringMesh, grid_triangles
+from meshfit.springs.metrics import grid_metrics, spring_metrics
+from meshfit.springs.resample import SpringResult, resample_patch
+
+__all__ = [
+    "ANCHOR",
+    "BOUNDARY",
+    "CURVE",
+    "FREE",
+    "SpringMesh",
+    "SpringResult",
+    "grid_metrics",
+    "grid_triangles",
+    "resample_patch",
+    "spring_metrics",
+]

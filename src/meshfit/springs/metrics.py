@@ -1,0 +1,136 @@
+"""Quality of a spring mesh (or of any grid on a patch): uniformity, shape, folds, fidelity."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from meshfit.mesh import Mesh
+from meshfit.springs.grid import SpringMesh, grid_triangles
+
+__all__ = ["grid_metrics", "spring_metrics"]
+
+
+def _cv(d: NDArray[np.float64]) -> float:
+    m = d.mean()
+    return float(d.std() / m) if m > 0 else 0.0
+
+
+def _pieces(n: int, lines: NDArray[np.int64]) -> list[tuple[int, int]]:
+    ends = [0, *[int(x) for x in lines], n - 1]
+    return [(ends[k], ends[k + 1]) for k in range(len(ends) - 1)]
+
+
+def grid_metrics(
+    mesh: Mesh,
+    xyz: ArrayLike,
+    normals: ArrayLike,
+    *,
+    u_lines: ArrayLike = (),
+    v_lines: ArrayLike = (),
+    fidelity: bool = True,
+) -> dict[str, float | int]:
+    """Quality metrics of an ``(nu, nv)`` grid of points on a patch surface.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        The patch surface.
+    xyz : (nu, nv, 3) float64
+        Grid positions, model units.
+    normals : (nu, nv, 3) float64
+        Unit surface normal at each grid point (of the face it lies in).
+    u_lines, v_lines : (a,) int64, (b,) int64
+        Columns / rows that follow feature curves: arc-length uniformity is measured per
+        section between them (sec. 5.10.3).
+    fidelity : bool
+        Also measure the two-sided distance between the grid triangulation and ``mesh``.
+
+    Returns
+    -------
+    dict
+        ``arc_cv_max`` / ``arc_cv_mean``: coefficient of variation of the point spacing along
+        each iso-curve piece inside one section (max / mean over pieces); ``aspect_median``
+        / ``aspect_max``: cell aspect ratio (longer over shorter mean side, >= 1);
+        ``area_cv``: coefficient of variation of cell areas; ``area_ratio``: largest over
+        smallest cell area; ``folded``: cells with a triangle whose normal points against
+        the surface normal; ``fidelity_max`` / ``fidelity_rms``: two-sided distance between
+        the grid triangulation and ``mesh`` (grid triangle centroids and edge mid-points to
+        the surface, mesh vertices to the triangulation) over ``mesh.bbox_diagonal``.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 5.1-5.2 (arc length, aspect ratio, fairness) and
+       sec. 5.13 (fidelity of the resampling).
+    """
+    X = np.asarray(xyz, dtype=np.float64)
+    N = np.asarray(normals, dtype=np.float64)
+    nu, nv = X.shape[:2]
+    u_lines = np.asarray(u_lines, dtype=np.int64)
+    v_lines = np.asarray(v_lines, dtype=np.int64)
+    du = np.linalg.norm(np.diff(X, axis=0), axis=2)  # (nu-1, nv) spacing along u
+    dv = np.linalg.norm(np.diff(X, axis=1), axis=2)  # (nu, nv-1)
+    cvs = []
+    for a, b in _pieces(nu, u_lines):
+        seg = du[a:b]
+        m = seg.mean(axis=0)
+        cvs.append(np.where(m > 0, seg.std(axis=0) / np.where(m > 0, m, 1.0), 0.0))
+    for a, b in _pieces(nv, v_lines):
+        seg = dv[:, a:b]
+        m = seg.mean(axis=1)
+        cvs.append(np.where(m > 0, seg.std(axis=1) / np.where(m > 0, m, 1.0), 0.0))
+    cv = np.concatenate(cvs)
+    a_len = 0.5 * (du[:, :-1] + du[:, 1:])
+    b_len = 0.5 * (dv[:-1, :] + dv[1:, :])
+    lo = np.minimum(a_len, b_len)
+    aspect = np.maximum(a_len, b_len) / np.where(lo > 0, lo, np.nan)
+    aspect = np.where(np.isfinite(aspect), aspect, np.inf)
+    p00, p10, p11, p01 = X[:-1, :-1], X[1:, :-1], X[1:, 1:], X[:-1, 1:]
+    area = 0.5 * np.linalg.norm(np.cross(p11 - p00, p01 - p10), axis=2)
+    n1 = np.cross(p10 - p00, p11 - p00)
+    n2 = np.cross(p11 - p00, p01 - p00)
+    s1 = N[:-1, :-1] + N[1:, :-1] + N[1:, 1:]
+    s2 = N[:-1, :-1] + N[1:, 1:] + N[:-1, 1:]
+    folded = (np.einsum("ijk,ijk->ij", n1, s1) <= 0) | (np.einsum("ijk,ijk->ij", n2, s2) <= 0)
+    out: dict[str, float | int] = {
+        "nu": int(nu),
+        "nv": int(nv),
+        "arc_cv_max": float(cv.max()) if cv.size else 0.0,
+        "arc_cv_mean": float(cv.mean()) if cv.size else 0.0,
+        "aspect_median": float(np.median(aspect)),
+        "aspect_max": float(np.max(aspect)),
+        "area_cv": _cv(area.ravel()),
+        "area_ratio": float(area.max() / area.min()) if area.min() > 0 else float("inf"),
+        "folded": int(folded.sum()),
+    }
+    if fidelity:
+        out.update(_fidelity(mesh, X.reshape(-1, 3), grid_triangles(nu, nv)))
+    return out
+
+
+def _fidelity(mesh: Mesh, P: NDArray[np.float64], T: NDArray[np.int64]) -> dict[str, float]:
+    import igl
+
+    a, b, c = P[T[:, 0]], P[T[:, 1]], P[T[:, 2]]
+    samples = np.concatenate([(a + b + c) / 3.0, 0.5 * (a + b), 0.5 * (b + c), 0.5 * (c + a)])
+    d1, _, _ = igl.point_mesh_squared_distance(samples, mesh.vertices, mesh.faces)
+    d2, _, _ = igl.point_mesh_squared_distance(np.ascontiguousarray(mesh.vertices), P, T)
+    d = np.sqrt(np.concatenate([d1, d2]))
+    diag = mesh.bbox_diagonal
+    return {
+        "fidelity_max": float(d.max() / diag),
+        "fidelity_rms": float(np.sqrt(np.mean(d * d)) / diag),
+    }
+
+
+def spring_metrics(mesh: Mesh, spring: SpringMesh, *, fidelity: bool = True) -> dict:
+    """:func:`grid_metrics` of a spring mesh on its patch mesh (normals of the points' faces)."""
+    normals = mesh.face_normals[spring.points.face].reshape(*spring.shape, 3)
+    return grid_metrics(
+        mesh,
+        spring.xyz,
+        normals,
+        u_lines=spring.u_lines,
+        v_lines=spring.v_lines,
+        fidelity=fidelity,
+    )

@@ -1,0 +1,131 @@
+"""Spring mesh relaxation: arc-length and fairness forces, moves walked on the patch (sec. 5.5)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from meshfit import tol
+from meshfit._kernels import springs as _k
+from meshfit.springs.grid import FREE
+from meshfit.springs.state import State
+
+__all__ = ["relax"]
+
+#: walk steps never cross more faces than this (a relaxation step is about one spring long)
+_MAX_FACES = 10_000
+
+
+def _curve_step(state: State, X: np.ndarray, w_arc: float, w_fair: float) -> float:
+    """Move the curve points along their feature curves (eq. 5.14-5.17); returns the largest
+    move relative to the local spring length."""
+    nu, nv = state.nu, state.nv
+    Xg = X.reshape(nu, nv, 3)
+    worst = 0.0
+    for lines, idx, svals, along_u in (
+        (state.u_feat, state.u_lines, state.s_u, False),
+        (state.v_feat, state.v_lines, state.s_v, True),
+    ):
+        other = state.v_lines if not along_u else state.u_lines
+        for line, c, s in zip(lines, idx, svals, strict=True):
+            n_along = nv if not along_u else nu
+            movable = np.ones(n_along, dtype=bool)
+            movable[[0, -1]] = False
+            movable[other] = False  # anchors
+            k = np.flatnonzero(movable)
+            if k.size == 0:
+                continue
+            if not along_u:  # u feature: column c, neighbours across are columns c -/+ 1
+                P, A, B = Xg[c, k], Xg[c - 1, k], Xg[c + 1, k]
+            else:
+                P, A, B = Xg[k, c], Xg[k, c - 1], Xg[k, c + 1]
+            fa, fb = A - P, B - P
+            la = np.linalg.norm(fa, axis=1)
+            lb = np.linalg.norm(fb, axis=1)
+            T = line.tangent_at(s[k])
+            fair = fa / np.maximum(la, 1e-300)[:, None] + fb / np.maximum(lb, 1e-300)[:, None]
+            fair = np.einsum("ij,ij->i", fair, T)  # eq. 5.15-5.16
+            h = 0.5 * (la + lb)
+            arc = (s[k + 1] - s[k]) - (s[k] - s[k - 1])  # eq. 5.14
+            ds = 0.25 * (w_arc * arc + w_fair * fair * h)
+            new = np.clip(s[k] + ds, s[k - 1], s[k + 1])
+            # Gauss-Seidel would use new neighbours; Jacobi with clipping keeps the order
+            span = np.maximum(s[k + 1] - s[k - 1], 1e-300)
+            worst = max(worst, float(np.max(np.abs(new - s[k]) / span * 2.0)))
+            s[k] = new
+    return worst
+
+
+def relax(
+    state: State,
+    *,
+    max_iter: int,
+    ramp: int,
+    fairness: float,
+    omega: float,
+) -> tuple[int, float]:
+    """Relax the spring mesh of ``state`` at its current level, in place.
+
+    Free points move by the weighted sum (eq. 5.4) of the arc-length force (eq. 5.1) and the
+    fairness force (sec. 5.5.2), walked on the patch mesh (so they never leave it); curve
+    points slide along their feature curve (eq. 5.17); boundary points and anchors stay.
+    The fairness weight ramps from 0 to ``fairness`` over ``ramp`` sweeps (arc length first).
+    Sweeps stop when no point moves more than ``tol.SPRING_CONVERGED`` of its spring length.
+
+    Returns
+    -------
+    (int, float)
+        Sweeps done and the largest relative move of the last sweep.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 5.5.1-5.5.3, eq. 5.1 and 5.4; sec. 5.11.3, eq. 5.14-5.17.
+    """
+    mesh = state.mesh
+    movable = (state.kind() == FREE).ravel()
+    args = (mesh.vertices, mesh.faces, mesh.face_neighbors)
+    eps = tol.SPRING_CONVERGED
+    if not state.u_feat and not state.v_feat:
+        done, worst = _k.relax_sweeps(
+            *args,
+            state.face,
+            state.bary,
+            state.nu,
+            state.nv,
+            movable,
+            max_iter,
+            0,
+            ramp,
+            fairness,
+            omega,
+            eps,
+            tol.BARY_EPS,
+            _MAX_FACES,
+        )
+        return int(done), float(worst)
+    done, worst = 0, np.inf
+    for it in range(max_iter):
+        _, w1 = _k.relax_sweeps(
+            *args,
+            state.face,
+            state.bary,
+            state.nu,
+            state.nv,
+            movable,
+            1,
+            it,
+            ramp,
+            fairness,
+            omega,
+            eps,
+            tol.BARY_EPS,
+            _MAX_FACES,
+        )
+        t = min(1.0, it / ramp) if ramp > 0 else 1.0
+        X = _k.grid_xyz(mesh.vertices, mesh.faces, state.face, state.bary)
+        w2 = _curve_step(state, X, 1.0 - fairness * t, fairness * t)
+        state.set_feature_points()
+        done = it + 1
+        worst = max(float(w1), w2)
+        if it + 1 >= ramp and worst < eps:
+            break
+    return done, worst

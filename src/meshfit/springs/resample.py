@@ -1,0 +1,304 @@
+"""`resample_patch`: a patch resampled into a spring mesh, coarse to fine (sec. 5.3-5.11)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from meshfit.errors import InputError
+from meshfit.mesh import Mesh
+from meshfit.springs.features import FeatureLine, Sides, intersect_lines, prepare_features
+from meshfit.springs.grid import SpringMesh
+from meshfit.springs.init import chain_arc, closest_approach, dijkstra_paths
+from meshfit.springs.metrics import spring_metrics
+from meshfit.springs.relax import relax
+from meshfit.springs.state import State
+from meshfit.springs.subdivide import subdivide
+
+__all__ = ["SpringResult", "resample_patch"]
+
+
+@dataclass(frozen=True, eq=False)
+class SpringResult:
+    """Result of :func:`resample_patch`.
+
+    Attributes
+    ----------
+    levels : list of SpringMesh
+        The relaxed spring mesh at every level, coarsest first (coarse previews).
+    metrics : list of dict
+        :func:`meshfit.springs.grid_metrics` of each level (empty dicts when not asked for).
+    sweeps : list of int
+        Relaxation sweeps used at each level.
+    seconds : dict
+        Wall time of ``init``, ``relax``, ``subdivide`` (summed over levels) and ``metrics``.
+    """
+
+    levels: list[SpringMesh]
+    metrics: list[dict]
+    sweeps: list[int]
+    seconds: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def final(self) -> SpringMesh:
+        """The finest level."""
+        return self.levels[-1]
+
+
+def _sides(patch) -> Sides:
+    mesh = patch.mesh
+    chains = {
+        "bottom": np.asarray(patch.sides[0]),
+        "right": np.asarray(patch.sides[1]),
+        "top": np.asarray(patch.sides[2])[::-1].copy(),
+        "left": np.asarray(patch.sides[3])[::-1].copy(),
+    }
+    return Sides(chains, {k: chain_arc(mesh, c) for k, c in chains.items()})
+
+
+def _split_counts(total: int, breaks: list[float]) -> list[int]:
+    """Intervals per section, proportional to the sections' lengths, at least 1 each."""
+    lengths = np.diff(np.asarray(breaks, dtype=np.float64))
+    k = len(lengths)
+    total = max(total, k)
+    raw = lengths / lengths.sum() * total
+    counts = np.maximum(1, np.floor(raw).astype(int))
+    while counts.sum() < total:
+        counts[np.argmax(raw - counts)] += 1
+    return [int(c) for c in counts]
+
+
+def _as_counts(value, n: int, name: str) -> list[int] | None:
+    if value is None:
+        return None
+    counts = [int(c) for c in value]
+    if len(counts) != n or min(counts) < 1:
+        raise InputError(
+            f"{name} needs {n} positive interval counts (one per section), got {value!r}"
+        )
+    return counts
+
+
+def _vertex_point(mesh: Mesh, v: int) -> tuple[int, np.ndarray]:
+    vfp, vf = mesh.vertex_faces
+    f = int(vf[vfp[v]])
+    return f, (mesh.faces[f] == v).astype(np.float64)
+
+
+def _nearest_vertex(mesh: Mesh, face: int, bary: np.ndarray) -> int:
+    return int(mesh.faces[face, int(np.argmax(bary))])
+
+
+def _initialize(state: State) -> None:
+    """Level-0 spring points: intersections of Dijkstra iso-curves and feature curves (sec. 5.4,
+    sec. 5.11.2)."""
+    mesh = state.mesh
+    nu, nv = state.nu, state.nv
+    state.face = np.zeros(nu * nv, dtype=np.int64)
+    state.bary = np.zeros((nu * nv, 3))
+    state.set_boundary()
+    idx = np.arange(nu * nv).reshape(nu, nv)
+    ucol = dict(zip(state.u_lines.tolist(), state.u_feat, strict=True))
+    vrow = dict(zip(state.v_lines.tolist(), state.v_feat, strict=True))
+
+    def ends(a, b):
+        return (
+            _nearest_vertex(mesh, state.face[a], state.bary[a]),
+            _nearest_vertex(mesh, state.face[b], state.bary[b]),
+        )
+
+    ucols = [i for i in range(1, nu - 1) if i not in ucol]
+    vrows = [j for j in range(1, nv - 1) if j not in vrow]
+    paths = dijkstra_paths(
+        mesh,
+        [ends(idx[i, 0], idx[i, -1]) for i in ucols] + [ends(idx[0, j], idx[-1, j]) for j in vrows],
+    )
+    upath = dict(zip(ucols, paths[: len(ucols)], strict=True))
+    vpath = dict(zip(vrows, paths[len(ucols) :], strict=True))
+    state.s_u = [np.linspace(0.0, ln.total, nv) for ln in state.u_feat]
+    state.s_v = [np.linspace(0.0, ln.total, nu) for ln in state.v_feat]
+    su = dict(zip(ucol, state.s_u, strict=True))
+    sv = dict(zip(vrow, state.s_v, strict=True))
+    V = mesh.vertices
+    for i in range(1, nu - 1):
+        for j in range(1, nv - 1):
+            fu: FeatureLine | None = ucol.get(i)
+            fv: FeatureLine | None = vrow.get(j)
+            if fu is not None and fv is not None:
+                s, seg, t, _ = intersect_lines(mesh, fu, fv.xyz, fv.vertices)
+                su[i][j] = s
+                sv[j][i] = fv.position_of(min(seg, len(fv.arc) - 2), t)
+            elif fu is not None:
+                p = vpath[j]
+                su[i][j] = intersect_lines(mesh, fu, V[p], p)[0]
+            elif fv is not None:
+                p = upath[i]
+                sv[j][i] = intersect_lines(mesh, fv, V[p], p)[0]
+            else:
+                pu, pv = upath[i], vpath[j]
+                common, iu, iv = np.intersect1d(pu, pv, return_indices=True)
+                if common.size:
+                    cost = np.abs(iu / max(len(pu) - 1, 1) - j / (nv - 1)) + np.abs(
+                        iv / max(len(pv) - 1, 1) - i / (nu - 1)
+                    )
+                    v = int(common[np.argmin(cost)])
+                else:
+                    k, t, _, _, _ = closest_approach(V[pu], V[pv])
+                    v = int(pu[k + (1 if t > 0.5 else 0)]) if len(pu) > 1 else int(pu[0])
+                state.face[idx[i, j]], state.bary[idx[i, j]] = _vertex_point(mesh, v)
+    for s in [*state.s_u, *state.s_v]:
+        np.maximum.accumulate(s, out=s)  # keep the order along each feature curve
+    state.set_feature_points()
+
+
+def _final_level(n_level0: tuple[int, int], n_vertices: int, level, max_points) -> int:
+    mu, mv = n_level0
+
+    def count(k):
+        return (mu * 2**k + 1) * (mv * 2**k + 1)
+
+    if level is not None:
+        if isinstance(level, bool) or int(level) != level or level < 0:
+            raise InputError(f"level must be a non-negative integer, got {level!r}")
+        return int(level)
+    k = 0
+    # the first level whose point count reaches the patch's vertex count (sec. 5.6)
+    while count(k) < n_vertices:
+        k += 1
+    if max_points is not None:
+        if int(max_points) < count(0):
+            raise InputError(f"max_points={max_points} is below the level-0 grid ({count(0)})")
+        while k > 0 and count(k) > max_points:
+            k -= 1
+    return k
+
+
+def resample_patch(
+    patch,
+    *,
+    level: int | None = None,
+    max_points: int | None = None,
+    sections_u: Sequence[int] | None = None,
+    sections_v: Sequence[int] | None = None,
+    init_intervals: int = 2,
+    fairness: float = 0.5,
+    max_iter: int = 200,
+    ramp: int = 8,
+    omega: float = 1.0,
+    n_fair: int = 3,
+    metrics: bool = True,
+    fidelity: bool = True,
+    progress: Callable[[int, int], None] | None = None,
+) -> SpringResult:
+    """Resample a four-sided patch into a spring mesh, coarse to fine.
+
+    Level 0 comes from Dijkstra iso-curves between points at equal arc-length fractions of
+    opposite sides (``init_intervals`` intervals along the shorter direction, the other
+    direction in proportion to the patch's aspect ratio) and the feature curves; each level
+    is relaxed (arc-length force eq. 5.1 and fairness force sec. 5.5.2, weighted per eq. 5.4,
+    moves walked inside the patch), then subdivided by FindMidPoint (sec. 5.6) with the
+    sides resampled statically. Subdivision stops at the first level whose spring points
+    reach the patch's vertex count (or at ``level``; never above ``max_points``).
+
+    Parameters
+    ----------
+    patch : meshfit.layout.Patch
+        A four-sided disk patch; its feature curves become iso-curves of the spring mesh.
+    level : int, keyword-only, optional
+        Final level to reach; default from the vertex-count rule.
+    max_points : int, keyword-only, optional
+        Upper bound on the final grid's point count.
+    sections_u, sections_v : sequence of int, keyword-only, optional
+        Level-0 intervals of each section between u (v) feature curves, one more entry than
+        there are u (v) feature curves; default in proportion to the sections' lengths.
+    init_intervals : int, keyword-only
+        Level-0 intervals along the shorter direction (default 2).
+    fairness : float, keyword-only
+        Final weight of the fairness force, in [0, 1]; the arc-length force gets
+        ``1 - fairness`` (default 0.5).
+    max_iter : int, keyword-only
+        Relaxation sweeps allowed per level (default 200).
+    ramp : int, keyword-only
+        Sweeps over which the fairness weight grows from 0 (default 8).
+    omega : float, keyword-only
+        Over-relaxation factor of the Gauss-Seidel sweeps, in (0, 2) (default 1).
+    n_fair : int, keyword-only
+        Local fairness moves after each FindMidPoint guess (default 3).
+    metrics, fidelity : bool, keyword-only
+        Compute :func:`meshfit.springs.grid_metrics` of every level (with the fidelity
+        distances).
+    progress : callable(done, total), keyword-only, optional
+        Called after each level.
+
+    Returns
+    -------
+    SpringResult
+        Every level's spring mesh, metrics, sweep counts and timings.
+
+    Raises
+    ------
+    meshfit.errors.FeatureCurveError
+        A feature curve does not run side to side, or two of one direction cross.
+    meshfit.errors.InputError
+        Bad option values.
+
+    References
+    ----------
+    .. [1] Krishnamurthy, "Fitting Smooth Surfaces to Dense Polygon Meshes", PhD thesis,
+       Stanford 2000, sec. 5.3-5.8 (spring mesh), sec. 5.10-5.11 (feature curves).
+    """
+    if not 0.0 <= fairness <= 1.0:
+        raise InputError(f"fairness must be in [0, 1], got {fairness}")
+    if not 0.0 < omega < 2.0:
+        raise InputError(f"omega must be in (0, 2), got {omega}")
+    if int(init_intervals) < 1:
+        raise InputError(f"init_intervals must be >= 1, got {init_intervals}")
+    t0 = time.perf_counter()
+    mesh = patch.mesh
+    sides = _sides(patch)
+    us, vs, eb, et, el, er = prepare_features(
+        mesh, sides, patch.features, patch.feature_sides, patch.index
+    )
+    breaks = {
+        "bottom": [0.0, *eb, float(sides.arcs["bottom"][-1])],
+        "top": [0.0, *et, float(sides.arcs["top"][-1])],
+        "left": [0.0, *el, float(sides.arcs["left"][-1])],
+        "right": [0.0, *er, float(sides.arcs["right"][-1])],
+    }
+    len_u = max(sides.arcs["bottom"][-1], sides.arcs["top"][-1])
+    len_v = max(sides.arcs["left"][-1], sides.arcs["right"][-1])
+    base = int(init_intervals)
+    if len_u >= len_v:
+        mu, mv = max(base, round(base * len_u / len_v)), base
+    else:
+        mu, mv = base, max(base, round(base * len_v / len_u))
+    mid_u = [0.5 * (a + b) for a, b in zip(breaks["bottom"], breaks["top"], strict=True)]
+    mid_v = [0.5 * (a + b) for a, b in zip(breaks["left"], breaks["right"], strict=True)]
+    counts_u = _as_counts(sections_u, len(us) + 1, "sections_u") or _split_counts(mu, mid_u)
+    counts_v = _as_counts(sections_v, len(vs) + 1, "sections_v") or _split_counts(mv, mid_v)
+    state = State(mesh, patch.index, sides, us, vs, breaks, counts_u, counts_v)
+    final = _final_level((sum(counts_u), sum(counts_v)), mesh.n_vertices, level, max_points)
+    _initialize(state)
+    seconds = {"init": time.perf_counter() - t0, "relax": 0.0, "subdivide": 0.0, "metrics": 0.0}
+    levels, mets, sweeps = [], [], []
+    for k in range(final + 1):
+        if k > 0:
+            t = time.perf_counter()
+            subdivide(state, n_fair=n_fair)
+            seconds["subdivide"] += time.perf_counter() - t
+        t = time.perf_counter()
+        done, _ = relax(state, max_iter=max_iter, ramp=ramp, fairness=fairness, omega=omega)
+        seconds["relax"] += time.perf_counter() - t
+        sweeps.append(done)
+        snap = state.snapshot()
+        levels.append(snap)
+        t = time.perf_counter()
+        mets.append(spring_metrics(mesh, snap, fidelity=fidelity) if metrics else {})
+        seconds["metrics"] += time.perf_counter() - t
+        if progress is not None:
+            progress(k + 1, final + 1)
+    seconds["total"] = time.perf_counter() - t0
+    return SpringResult(levels, mets, sweeps, seconds)

@@ -1,0 +1,113 @@
+"""Working state of one patch's spring mesh while it is built (private)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from meshfit.mesh import Mesh
+from meshfit.springs.features import FeatureLine, Sides
+from meshfit.springs.grid import ANCHOR, BOUNDARY, CURVE, FREE, SpringMesh
+from meshfit.springs.init import chain_points
+from meshfit.types import SurfacePoints
+
+
+def section_positions(breaks: list[float], counts: list[int]) -> NDArray[np.float64]:
+    """Arc-length positions of grid points along a side: uniform within each section."""
+    out = [np.array([breaks[0]])]
+    for k, c in enumerate(counts):
+        out.append(np.linspace(breaks[k], breaks[k + 1], c + 1)[1:])
+    return np.concatenate(out)
+
+
+@dataclass
+class State:
+    mesh: Mesh
+    patch: int
+    sides: Sides
+    u_feat: list[FeatureLine]
+    v_feat: list[FeatureLine]
+    breaks: dict[str, list[float]]  # section ends along each side (incl. 0 and the length)
+    counts_u: list[int]  # intervals per u section (between u feature columns)
+    counts_v: list[int]
+    level: int = 0
+    face: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
+    bary: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
+    s_u: list[NDArray[np.float64]] = field(default_factory=list)  # (nv,) per u feature
+    s_v: list[NDArray[np.float64]] = field(default_factory=list)  # (nu,) per v feature
+
+    @property
+    def nu(self) -> int:
+        return sum(self.counts_u) + 1
+
+    @property
+    def nv(self) -> int:
+        return sum(self.counts_v) + 1
+
+    @property
+    def u_lines(self) -> NDArray[np.int64]:
+        return np.cumsum(self.counts_u)[:-1].astype(np.int64)
+
+    @property
+    def v_lines(self) -> NDArray[np.int64]:
+        return np.cumsum(self.counts_v)[:-1].astype(np.int64)
+
+    def kind(self) -> NDArray[np.uint8]:
+        k = np.full((self.nu, self.nv), FREE, dtype=np.uint8)
+        ul, vl = self.u_lines, self.v_lines
+        k[ul, :] = CURVE
+        k[:, vl] = CURVE
+        k[np.ix_(ul, vl)] = ANCHOR
+        k[0, :] = k[-1, :] = k[:, 0] = k[:, -1] = BOUNDARY
+        return k
+
+    def boundary_points(self) -> dict[str, SurfacePoints]:
+        """Static resampling of the four sides at this level (sec. 5.6)."""
+        out = {}
+        for name, counts in (
+            ("bottom", self.counts_u),
+            ("top", self.counts_u),
+            ("left", self.counts_v),
+            ("right", self.counts_v),
+        ):
+            pos = section_positions(self.breaks[name], counts)
+            out[name] = chain_points(self.mesh, self.sides.chains[name], self.sides.arcs[name], pos)
+        return out
+
+    def set_boundary(self) -> None:
+        nu, nv = self.nu, self.nv
+        idx = np.arange(nu * nv).reshape(nu, nv)
+        bp = self.boundary_points()
+        for name, rows in (
+            ("bottom", idx[:, 0]),
+            ("top", idx[:, -1]),
+            ("left", idx[0, :]),
+            ("right", idx[-1, :]),
+        ):
+            self.face[rows] = bp[name].face
+            self.bary[rows] = bp[name].bary
+
+    def set_feature_points(self) -> None:
+        """Place every point of the feature columns / rows at its arc position."""
+        nv = self.nv
+        idx = np.arange(self.nu * nv).reshape(self.nu, nv)
+        for line, col, s in zip(self.u_feat, self.u_lines, self.s_u, strict=True):
+            pts = line.points_at(self.mesh, s[1:-1])
+            self.face[idx[col, 1:-1]] = pts.face
+            self.bary[idx[col, 1:-1]] = pts.bary
+        for line, row, s in zip(self.v_feat, self.v_lines, self.s_v, strict=True):
+            keep = np.ones(self.nu, dtype=bool)
+            keep[[0, -1]] = False
+            keep[self.u_lines] = False  # anchors already placed on the u feature
+            cols = np.flatnonzero(keep)
+            if cols.size:
+                pts = line.points_at(self.mesh, s[cols])
+                self.face[idx[cols, row]] = pts.face
+                self.bary[idx[cols, row]] = pts.bary
+
+    def snapshot(self) -> SpringMesh:
+        sp = SurfacePoints(self.face.copy(), self.bary.copy())
+        xyz = self.mesh.xyz(sp).reshape(self.nu, self.nv, 3)
+        return SpringMesh(sp, self.kind(), self.level, self.patch, xyz, self.u_lines, self.v_lines)
