@@ -121,5 +121,5 @@ def test_resample_errors():
     bad = SurfaceCurve(SurfacePoints([mesh.n_faces], [[1.0, 0, 0]]))
     with pytest.raises(InputError, match="outside the mesh"):
         check_sampling(mesh, bad)
-    with pytest.raises(InputError, match="neither the same nor adjacent"):
+    with pytest.raises(InputError, match="neither the same, adjacent nor sharing a vertex"):
         curve_length(mesh, SurfaceCurve(SurfacePoints.at_vertices(mesh.faces, [0, 440])))

@@ -607,8 +607,20 @@ def test_curve_through_a_vertex_shared_by_non_adjacent_faces(spot):
     curve = SurfacePoints.concatenate([at_v, inside])
     arc = curve_arc_lengths(spot, curve)
     assert_allclose(arc[-1], np.linalg.norm(spot.xyz(inside) - spot.vertices[v]))
-    with pytest.raises(InputError, match="neither the same nor adjacent"):
-        curve_arc_lengths(spot, SurfacePoints.concatenate([point_at(7, [0.2, 0.3, 0.5]), inside]))
+    # an interior point of face 7: the segment is routed through the shared vertex
+    p = point_at(7, [0.2, 0.3, 0.5])
+    arc = curve_arc_lengths(spot, SurfacePoints.concatenate([p, inside]))
+    via = np.linalg.norm(spot.xyz(p) - spot.vertices[v])
+    assert_allclose(arc[-1], via + np.linalg.norm(spot.xyz(inside) - spot.vertices[v]))
+    half = move_along_curve(spot, SurfacePoints.concatenate([p, inside]), [via], [0.0])
+    assert_allclose(
+        spot.xyz(half.points), spot.vertices[v][None], atol=tol.TEST_ATOL * spot.bbox_diagonal
+    )
+    far_away = int(np.argmax(np.linalg.norm(spot.vertices - spot.vertices[v], axis=1)))
+    with pytest.raises(InputError, match="neither the same, adjacent nor sharing a vertex"):
+        curve_arc_lengths(
+            spot, SurfacePoints.concatenate([p, SurfacePoints.at_vertices(spot.faces, [far_away])])
+        )
 
 
 def test_move_along_curve_rejects_bad_input(spot, rng):

@@ -158,13 +158,14 @@ def pairs_ok(F, FN, VF_ptr, VF, fa, ba, fb, bb, eps):
 
 
 @njit(cache=True, nogil=True)
-def rewrite_pairs(F, FN, VF_ptr, VF, pf, pb, qf, qb, eps):
+def rewrite_pairs(F, FN, VF_ptr, VF, pf, pb, qf, qb, eps, via):
     """Rewrite pairs on non-adjacent faces in faces that hold both points, in place.
 
     For each pair whose faces are neither equal nor adjacent, the representations of both
     points are searched for a shared face (preferred) or adjacent faces, in the order of
-    the reference implementation. Returns the index of the first pair with no such
-    representation, or -1.
+    the reference implementation. A pair with no such representation whose faces share a
+    vertex gets that vertex in ``via (n,) int64`` (-1 elsewhere). Returns the index of the
+    first pair on faces sharing nothing, or -1. Wrapped by `meshfit.surface.walk`.
     """
     n = pf.size
     max_val = _max_valence(F, FN, VF_ptr, pf, qf)
@@ -173,6 +174,7 @@ def rewrite_pairs(F, FN, VF_ptr, VF, pf, pb, qf, qb, eps):
     ba_r = np.empty((max_val + 1, 3))
     bb_r = np.empty((max_val + 1, 3))
     for i in range(n):
+        via[i] = -1
         f = pf[i]
         g = qf[i]
         if f == g or _adjacent(FN, f, g):
@@ -181,7 +183,13 @@ def rewrite_pairs(F, FN, VF_ptr, VF, pf, pb, qf, qb, eps):
         nb = _representations(F, FN, VF_ptr, VF, g, qb[i], eps, fb_r, bb_r)
         si, sj = _best_option(FN, fa_r, na, fb_r, nb)
         if si < 0:
-            return i
+            for a in range(3):
+                for b in range(3):
+                    if F[f, a] == F[g, b]:
+                        via[i] = F[f, a]
+            if via[i] < 0:
+                return i
+            continue
         pf[i] = fa_r[si]
         qf[i] = fb_r[sj]
         for c in range(3):
@@ -304,6 +312,57 @@ def _pair_ok(F, FN, VF_ptr, VF, f, ba, g, bb, eps, fa_r, ba_r, fb_r, bb_r):
     return si >= 0
 
 
+@njit(cache=True, nogil=True)
+def revert_jumps(V, F, FN, VF_ptr, VF, face, bary, gface, gbary, keep, max_gap, eps):
+    """Clear ``keep`` (n,) bool in place until no consecutive pair jumps; returns rounds.
+
+    Point i is ``(face, bary)[i]`` where ``keep[i]`` and ``(gface, gbary)[i]`` elsewhere. A
+    pair jumps when its faces are neither the same nor edge-adjacent (as `pairs_ok`) and
+    either share no vertex or lie more than ``max_gap`` apart; both its points are then
+    reverted, and the sweep steps back to recheck the pair before. Kernel of
+    `meshfit.curves.paint.paint_curve`.
+    """
+    n = face.size
+    m = 1
+    for v in range(VF_ptr.size - 1):
+        d = VF_ptr[v + 1] - VF_ptr[v]
+        if d > m:
+            m = d
+    fa_r = np.empty(m + 1, dtype=np.int64)
+    fb_r = np.empty(m + 1, dtype=np.int64)
+    ba_r = np.empty((m + 1, 3))
+    bb_r = np.empty((m + 1, 3))
+    reverts = 0
+    i = 0
+    while i < n - 1:
+        f0 = face[i] if keep[i] else gface[i]
+        f1 = face[i + 1] if keep[i + 1] else gface[i + 1]
+        b0 = bary[i] if keep[i] else gbary[i]
+        b1 = bary[i + 1] if keep[i + 1] else gbary[i + 1]
+        jump = False
+        if not _pair_ok(F, FN, VF_ptr, VF, f0, b0, f1, b1, eps, fa_r, ba_r, fb_r, bb_r):
+            share = False
+            for a in range(3):
+                for b in range(3):
+                    if F[f0, a] == F[f1, b]:
+                        share = True
+            gap = 0.0
+            for d in range(3):
+                x0 = b0[0] * V[F[f0, 0], d] + b0[1] * V[F[f0, 1], d] + b0[2] * V[F[f0, 2], d]
+                x1 = b1[0] * V[F[f1, 0], d] + b1[1] * V[F[f1, 1], d] + b1[2] * V[F[f1, 2], d]
+                gap += (x1 - x0) ** 2
+            jump = not share or np.sqrt(gap) > max_gap
+        if jump and (keep[i] or keep[i + 1]):
+            keep[i] = False
+            keep[i + 1] = False
+            reverts += 1
+            if i > 0:
+                i -= 1
+            continue
+        i += 1
+    return reverts
+
+
 @njit(cache=True, nogil=True, inline="always")
 def _place_part(
     ai, d, j, k, closed, total, p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, pt_bary, out_b
@@ -333,7 +392,7 @@ def subdivide_steps(
 
     Part ends are ``a + (b - a) * j / k`` (j = 0..k), wrapped past ``total`` on a closed
     curve and clipped to [0, total], and placed as in `_place`; a k is abandoned at its
-    first failing pair.
+    first failing pair. A step holding a curve point at a mesh vertex gets 0 at once.
     """
     n = a.size
     out = np.zeros(n, dtype=np.int64)
@@ -357,6 +416,15 @@ def subdivide_steps(
         hi = np.searchsorted(arc, b[i], side="left")
         # where the last tried k failed: that pair of the next k is checked first too
         fail_at = ai + 0.5 * d
+        # a curve point at a mesh vertex inside the step: parts on either side of it lie on
+        # faces that share only that vertex whatever k is, so no even split keeps the rule
+        at_vertex = False
+        for q in range(lo, hi):
+            for c in range(3):
+                if pt_bary[q, c] >= 1.0 - eps:
+                    at_vertex = True
+        if at_vertex:
+            continue
         for k in range(k_min, k_max + 1):
             ok = True
             for q in range(lo - 1, hi):

@@ -16,12 +16,14 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from meshfit import tol
+from meshfit._kernels import curves as _curves
 from meshfit._validate import as_points, as_surface_points
-from meshfit.curves.base import _as_curve, _attract_few, _pairs_ok, resample_curve
+from meshfit.curves.base import _as_curve, _attract_few, resample_curve
 from meshfit.errors import InputError, PathError
 from meshfit.mesh import Mesh
 from meshfit.surface.paths import greedy_path, path_to_surface_points
-from meshfit.surface.walk import attract_points
+from meshfit.surface.walk import _i8, attract_points
 from meshfit.types import SurfaceCurve, SurfacePoints
 
 __all__ = ["attract_curve", "extend_to_curve", "paint_curve"]
@@ -83,15 +85,20 @@ def _segment(
     else:
         path = greedy_path(mesh, va, vb).vertices
         # pick -> its snap vertex (same face) -> path samples -> snap vertex -> pick
-        raw = SurfacePoints.concatenate([a, path_to_surface_points(mesh, path), b])
-    graph = resample_curve(mesh, SurfaceCurve(raw), spacing=spacing)
-    pts = graph.points
+        # (edge midpoints too: samples about half an edge apart, as dense as the result)
+        per_edge = max(0, int(np.ceil(mesh.mean_edge_length / spacing)) - 1)
+        samples = path_to_surface_points(mesh, path, per_edge=per_edge)
+        raw = SurfacePoints.concatenate([a, samples, b])
+    pts = raw
     m = len(pts)
     if m <= 2:
-        return pts
-    # CurveAttract toward the chord: targets evenly spaced along the straight 3-D segment
-    xa, xb = mesh.xyz(a)[0], mesh.xyz(b)[0]
-    t = np.linspace(0.0, 1.0, m)[1:-1, None]
+        return resample_curve(mesh, SurfaceCurve(pts), spacing=spacing).points
+    # CurveAttract toward the chord: each graph sample's target is the chord point at the
+    # same fraction of the length (the samples keep their order and rough spacing)
+    x = mesh.xyz(pts)
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(x, axis=0), axis=1))])
+    t = (arc[1:-1] / arc[-1])[:, None] if arc[-1] > 0 else np.zeros((m - 2, 1))
+    xa, xb = x[0], x[-1]
     inner = pts[1 : m - 1]
     att = _attract_few(mesh, inner.face, inner.bary, xa + t * (xb - xa))
     face = np.concatenate([pts.face[:1], att.face, pts.face[-1:]])
@@ -102,21 +109,21 @@ def _segment(
     # through a fan of faces is filled in by densify_curve below
     keep = np.ones(m, dtype=bool)
     keep[[0, -1]] = False  # the picks are graph samples already
-    F = mesh.faces
-    for _ in range(m):
-        f = np.where(keep, face, pts.face)
-        b_ = np.where(keep[:, None], bary, pts.bary)
-        x = np.einsum("ij,ijk->ik", b_, mesh.vertices[F[f]])
-        ok = _pairs_ok(mesh, f[:-1], b_[:-1], f[1:], b_[1:])
-        near = (F[f[:-1]][:, :, None] == F[f[1:]][:, None, :]).any(axis=(1, 2))
-        near &= np.linalg.norm(np.diff(x, axis=0), axis=1) <= 3.0 * spacing
-        jump = ~ok & ~near
-        if not jump.any():
-            break
-        bad = np.flatnonzero(jump)
-        keep[bad] = False
-        keep[bad + 1] = False
-        keep[[0, -1]] = False
+    indptr, vf = mesh.vertex_faces
+    _curves.revert_jumps(
+        mesh.vertices,
+        _i8(mesh.faces),
+        _i8(mesh.face_neighbors),
+        _i8(indptr),
+        _i8(vf),
+        _i8(face),
+        np.ascontiguousarray(bary),
+        _i8(pts.face),
+        np.ascontiguousarray(pts.bary),
+        keep,
+        3.0 * max(spacing, mesh.mean_edge_length),
+        tol.BARY_EPS,
+    )
     straight = SurfacePoints(
         np.where(keep, face, pts.face), np.where(keep[:, None], bary, pts.bary)
     )

@@ -345,24 +345,33 @@ def _curve_pieces(mesh: Mesh, points: SurfacePoints, closed: bool, name: str) ->
     qb = _clean_bary(points.bary[Q])
     FN = mesh.face_neighbors
     # faces neither equal nor adjacent: try the other faces through an edge or vertex point
-    # (a shared face first); the numba kernel follows the order of `_representations`
+    # (a shared face first); the numba kernel follows the order of `_representations`.
+    # Faces that still share only a vertex are joined through that vertex.
     indptr, vf = mesh.vertex_faces
+    via = np.empty(P.size, dtype=np.int64)
     bad = _curves.rewrite_pairs(
-        _i8(mesh.faces), _i8(FN), _i8(indptr), _i8(vf), pf, pb, qf, qb, tol.BARY_EPS
+        _i8(mesh.faces), _i8(FN), _i8(indptr), _i8(vf), pf, pb, qf, qb, tol.BARY_EPS, via
     )
     if bad >= 0:
         raise InputError(
             f"{name} points {P[bad]} and {Q[bad]} are on faces {pf[bad]} and "
-            f"{qf[bad]}, which are neither the same nor adjacent"
+            f"{qf[bad]}, which are neither the same, adjacent nor sharing a vertex"
         )
     V, F = mesh.vertices, mesh.faces
     xp = np.einsum("ij,ijk->ik", pb, V[F[pf]])
     xq = np.einsum("ij,ijk->ik", qb, V[F[qf]])
     n = P.size
-    # crossing point X on the shared edge; X = Q when both points share a face
+    # crossing point X on the shared edge (or the shared vertex); X = Q when both points
+    # share a face
     xf_b = qb.copy()  # X in the face of P (overwritten below for adjacent pairs)
     xg_b = qb.copy()  # X in the face of Q
-    adj = np.flatnonzero(pf != qf)
+    corner = np.flatnonzero(via >= 0)
+    if corner.size:
+        xf_b[corner] = 0.0
+        xg_b[corner] = 0.0
+        xf_b[corner, np.argmax(F[pf[corner]] == via[corner, None], axis=1)] = 1.0
+        xg_b[corner, np.argmax(F[qf[corner]] == via[corner, None], axis=1)] = 1.0
+    adj = np.flatnonzero((pf != qf) & (via < 0))
     if adj.size:
         f, g = pf[adj], qf[adj]
         k = np.argmax(FN[f] == g[:, None], axis=1)
@@ -415,7 +424,9 @@ def curve_arc_lengths(
     points that some such pair of faces holds). A segment between adjacent faces is the
     straight line in the two faces unfolded about their shared edge; where that line would
     leave the two faces (a reflex unfolding) it bends at the shared edge's end vertex, so a
-    segment is always the shortest path inside its two faces.
+    segment is always the shortest path inside its two faces. Points on faces that share
+    only a vertex (which a relaxed snake may leave, and :func:`meshfit.surface.cut_mesh`
+    accepts) are joined through that vertex.
 
     Parameters
     ----------
@@ -470,7 +481,8 @@ def move_along_curve(
     ----------
     mesh : Mesh
     curve : SurfaceCurve or SurfacePoints
-        m >= 1 ordered face points, consecutive ones on the same or adjacent faces.
+        m >= 1 ordered face points, consecutive ones on the same or adjacent faces (or
+        faces sharing a vertex, joined through it).
     position : (n,) float64
         Current arc-length parameters, model units; within ``[0, total]`` for an open curve,
         any value (taken modulo the length) for a closed one.
