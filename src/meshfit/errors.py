@@ -15,6 +15,7 @@ __all__ = [
     "FeatureCurveError",
     "IndexRangeError",
     "InputError",
+    "LayoutError",
     "MeshFileError",
     "MeshValidationError",
     "MeshfitError",
@@ -112,3 +113,10 @@ class TopologyError(MeshfitError):
 class FeatureCurveError(MeshfitError, ValueError):
     """A feature curve of a patch cannot guide the spring mesh: it does not run from one side
     to the opposite side, or it crosses another feature curve of the same direction."""
+
+
+class LayoutError(InputError):
+    """A patch layout is malformed or does not fit its mesh: unknown file version, bad JSON,
+    curve ends away from their corners, a patch without four sides joined end to end, curves
+    crossing away from corners, a patch region that is not a disk, a layout made for another
+    mesh. The message names the curve, patch, corner or file line."""

@@ -55,3 +55,11 @@ FEATURE_END_ON_SIDE = 1e-3
 #: relaxation of a level stops when no spring point moves more than this, times its mean
 #: spring length (dimensionless)
 SPRING_CONVERGED = 2e-3
+
+# --- meshfit.layout
+#: a curve end is at its corner when this close to it, times the mean edge length
+LAYOUT_CORNER_MATCH = 1e-6
+#: stored barycentric coordinates must sum to 1 within this (absolute; files keep ~12 digits)
+LAYOUT_BARY_SUM = 1e-9
+#: patch face areas sum to the mesh area within this relative error (tests)
+LAYOUT_AREA_RTOL = 1e-9
