@@ -52,9 +52,9 @@ def length(mesh: Mesh, rel: float, *, scale: str = "mean_edge_length") -> float:
 # --- meshfit.springs
 #: a feature curve's end lies on a side when it is this close to it, times the mean edge length
 FEATURE_END_ON_SIDE = 1e-3
-#: relaxation of a level stops when no spring point moves more than this, times its mean
-#: spring length (dimensionless)
-SPRING_CONVERGED = 2e-3
+#: relaxation of a level stops when the root-mean-square move of its points is below this,
+#: times their spring lengths (dimensionless)
+SPRING_CONVERGED = 1e-3
 
 # --- meshfit.layout
 #: a curve end is at its corner when this close to it, times the mean edge length
