@@ -104,3 +104,119 @@ def with_features(patch: Patch, fn, us=(), vs=(), n: int = 400) -> Patch:
         tuple(feats),
         tuple(fsides),
     )
+
+
+def disk_patch(mesh: Mesh, seed: int, radius: float, index: int = 0) -> Patch:
+    """Patch of the faces within graph distance ``radius`` of vertex ``seed`` (a disk), its
+    four corners at quarter arc lengths of the boundary loop."""
+    from scipy.sparse.csgraph import connected_components, dijkstra
+
+    d = dijkstra(mesh.edge_graph, directed=False, indices=seed, limit=radius * 1.5)
+    faces = np.flatnonzero((d[mesh.faces] <= radius).all(axis=1))
+    # keep the seed's component and fill holes: the complement's components other than
+    # the largest go back into the patch
+    inside = np.zeros(mesh.n_faces, dtype=bool)
+    inside[faces] = True
+    fn = mesh.face_neighbors
+    rows = np.repeat(np.arange(mesh.n_faces), 3)
+    cols = fn.ravel()
+    ok = cols >= 0
+    rows, cols = rows[ok], cols[ok]
+    from scipy import sparse
+
+    same = inside[rows] == inside[cols]
+    g = sparse.csr_matrix(
+        (np.ones(same.sum()), (rows[same], cols[same])), shape=(mesh.n_faces,) * 2
+    )
+    _, lab = connected_components(g, directed=False)
+    seed_face = mesh.vertex_faces[1][mesh.vertex_faces[0][seed]]
+    out_labels, counts = np.unique(lab[~inside], return_counts=True)
+    big_out = out_labels[np.argmax(counts)]
+    keep = (lab == lab[seed_face]) | (~inside & (lab != big_out))
+    faces = np.flatnonzero(keep)
+    used, inv = np.unique(mesh.faces[faces], return_inverse=True)
+    sub = Mesh(mesh.vertices[used], inv.reshape(-1, 3), name=f"{mesh.name}-disk")
+    assert len(sub.boundary_loops) == 1 and sub.euler_characteristic == 1, "not a disk"
+    loop = np.asarray(sub.boundary_loops[0])
+    a, b = int(loop[0]), int(loop[1])
+    f = sub.faces[np.flatnonzero((sub.faces == a).any(1) & (sub.faces == b).any(1))[0]]
+    k = int(np.flatnonzero(f == a)[0])
+    if f[(k + 1) % 3] != b:
+        loop = loop[::-1]
+    arc = np.concatenate(
+        [
+            [0],
+            np.cumsum(
+                np.linalg.norm(np.diff(sub.vertices[np.append(loop, loop[0])], axis=0), axis=1)
+            ),
+        ]
+    )
+    ks = [int(np.argmin(np.abs(arc[:-1] - q * arc[-1]))) for q in (0, 0.25, 0.5, 0.75)]
+    ext = np.append(loop, loop)
+    sides = tuple(ext[ks[s] : (ks[s + 1] if s < 3 else ks[0] + len(loop)) + 1] for s in range(4))
+    corners = loop[ks]
+    vs = SurfacePoints(*_vertex_points(sub))
+    return Patch(index, sub, corners, sides, faces, vs)
+
+
+def _submesh_patch(mesh: Mesh, faces: np.ndarray, corner_xyz: np.ndarray, index: int) -> Patch:
+    used, inv = np.unique(mesh.faces[faces], return_inverse=True)
+    sub = Mesh(mesh.vertices[used], inv.reshape(-1, 3), name=f"{mesh.name}-patch")
+    assert len(sub.boundary_loops) == 1 and sub.euler_characteristic == 1, "not a disk"
+    loop = np.asarray(sub.boundary_loops[0])
+    a, b = int(loop[0]), int(loop[1])
+    f = sub.faces[np.flatnonzero((sub.faces == a).any(1) & (sub.faces == b).any(1))[0]]
+    k = int(np.flatnonzero(f == a)[0])
+    if f[(k + 1) % 3] != b:
+        loop = loop[::-1]
+    ks = [int(np.argmin(np.linalg.norm(sub.vertices[loop] - c, axis=1))) for c in corner_xyz]
+    start = ks[0]
+    loop = np.roll(loop, -start)
+    ks = sorted((k - start) % len(loop) for k in ks)
+    ext = np.append(loop, loop[0])
+    sides = tuple(ext[ks[s] : (ks[s + 1] if s < 3 else len(loop)) + 1] for s in range(4))
+    corners = loop[ks]
+    vs = SurfacePoints(*_vertex_points(sub))
+    return Patch(index, sub, corners, sides, faces, vs)
+
+
+def cut_patch(mesh: Mesh, center: int, radius: float, *, n: int = 240, index: int = 0) -> Patch:
+    """Patch cut out of ``mesh`` along a closed curve: a square of half-size ``radius`` in the
+    tangent plane at vertex ``center`` projected onto the surface; corners at its corners."""
+    from scipy.sparse.csgraph import connected_components
+    from scipy import sparse
+
+    from meshfit.curves import densify_curve
+    from meshfit.surface import closest_surface_points, cut_mesh
+
+    indptr, vf = mesh.vertex_faces
+    nrm = mesh.face_normals[vf[indptr[center] : indptr[center + 1]]].sum(0)
+    nrm /= np.linalg.norm(nrm)
+    e1 = np.cross(nrm, [1.0, 0, 0] if abs(nrm[0]) < 0.9 else [0, 1.0, 0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(nrm, e1)
+    t = np.linspace(-1.0, 1.0, n // 4, endpoint=False)
+    one = np.ones_like(t)
+    sq = np.concatenate(
+        [
+            np.stack([-one, -t], 1),
+            np.stack([t, -one], 1),
+            np.stack([one, t], 1),
+            np.stack([-t, one], 1),
+        ]
+    )  # a square run counter-clockwise, starting at its corner (-1, 1)
+    ring = mesh.vertices[center] + radius * (sq[:, :1] * e1 + sq[:, 1:] * e2)
+    pts = closest_surface_points(mesh, ring)
+    curve = densify_curve(mesh, SurfaceCurve(pts, closed=True, kind="boundary"))
+    cut = cut_mesh(mesh, curve, closed=True, split=True)
+    cm = cut.mesh
+    fn = cm.face_neighbors
+    rows = np.repeat(np.arange(cm.n_faces), 3)
+    cols = fn.ravel()
+    ok = cols >= 0
+    g = sparse.csr_matrix((np.ones(ok.sum()), (rows[ok], cols[ok])), shape=(cm.n_faces,) * 2)
+    _, lab = connected_components(g, directed=False)
+    seed_face = cm.vertex_faces[1][cm.vertex_faces[0][center]]
+    faces = np.flatnonzero(lab == lab[seed_face])
+    corner_xyz = mesh.xyz(SurfacePoints(pts.face[:: n // 4], pts.bary[:: n // 4]))
+    return _submesh_patch(cm, faces, corner_xyz, index)

@@ -35,6 +35,28 @@ def grid_xyz(V, F, face, bary):
 
 
 @njit(cache=True, nogil=True, fastmath=False)
+def walk_inside(V, F, FN, f, b, u, total, max_faces, bary_eps, tries):
+    """Walk face point (f, b) by ``total`` along unit in-plane ``u``, never onto the boundary.
+
+    A walk that reaches the mesh boundary is undone and retried at half the length, up to
+    ``tries`` times (then the point stays). ``b`` (3,) is updated in place. Returns the new
+    face and the length moved.
+    """
+    b0 = b.copy()
+    u0 = u.copy()
+    length = total
+    for _t in range(tries + 1):
+        g, _rest, status, _ = _walk_one(V, F, FN, f, b, u, length, max_faces, bary_eps)
+        if status == DONE:
+            return g, length
+        for c in range(3):
+            b[c] = b0[c]
+            u[c] = u0[c]
+        length *= 0.5
+    return f, 0.0
+
+
+@njit(cache=True, nogil=True, fastmath=False)
 def _pair_arc(X, p, a, b, out):
     """Add the arc-length force (eq. 5.1) of neighbours ``a`` and ``b`` on point ``p`` to out."""
     ax = X[a, 0] - X[p, 0]
@@ -88,6 +110,8 @@ def relax_sweeps(
     nu,
     nv,
     movable,
+    alpha,
+    prev,
     n_sweeps,
     it0,
     ramp,
@@ -100,11 +124,15 @@ def relax_sweeps(
     """Gauss-Seidel relaxation sweeps of the free spring points, in place.
 
     V (nv, 3) f8; F, FN (nf, 3) i8; face (n,) i8 and bary (n, 3) f8 (updated in place);
-    movable (n,) bool. The fairness weight ramps linearly from 0 at sweep 0 to ``w_fair_end``
-    at sweep ``ramp`` (eq. 5.4: arc length first, fairness later); sweep ``k`` of this call is
-    sweep ``it0 + k`` of the schedule. Stops early, once the ramp is over, when no point
-    moves more than ``eps_rel`` times its mean spring length. Returns (sweeps done, largest
-    relative move of the last sweep). Kernel of `meshfit.springs.relax.relax`.
+    movable (n,) bool; alpha (n,) f8 per-point step factors and prev (n, 3) f8 previous moves
+    (both updated in place: a point whose step turns back halves its factor, otherwise the
+    factor grows back towards 1, so points that overshoot on curved parts settle). The
+    fairness weight ramps linearly from 0 at sweep 0 to ``w_fair_end`` at sweep ``ramp``
+    (eq. 5.4: arc length first, fairness later); sweep ``k`` of this call is sweep ``it0 + k``
+    of the schedule. Stops early, once the ramp is over, when the root-mean-square move of the
+    free points is below ``eps_rel`` times their mean spring lengths. Returns (sweeps done,
+    largest and root-mean-square relative move of the last sweep). Kernel of
+    `meshfit.springs.relax.relax`.
     """
     n = face.shape[0]
     X = grid_xyz(V, F, face, bary)
@@ -118,33 +146,42 @@ def relax_sweeps(
         w_fair = w_fair_end * t
         w_arc = 1.0 - w_fair
         worst = 0.0
+        sq = 0.0
+        count = 0
         forward = it % 2 == 0
         for q in range(n):
             p = q if forward else n - 1 - q
             if not movable[p]:
                 continue
             h = spring_force(X, nv, p, w_arc, w_fair, step)
-            for c in range(3):
-                step[c] *= omega
             total = _start_direction(V, F, face[p], step, u)
-            if h > 0.0 and total / h > worst:
-                worst = total / h
             if total <= 0.0:
                 continue
-            f, rest, status, _ = _walk_one(
-                V, F, FN, face[p], bary[p], u, total, max_faces, bary_eps
-            )
+            turn = u[0] * prev[p, 0] + u[1] * prev[p, 1] + u[2] * prev[p, 2]
+            if turn < 0.0:  # the move turns back (e.g. across a crease): damp this point
+                alpha[p] *= 0.5
+            else:
+                alpha[p] = min(1.0, alpha[p] * 1.25)
+            total *= omega * alpha[p]
+            f, moved = walk_inside(V, F, FN, face[p], bary[p], u, total, max_faces, bary_eps, 6)
+            if h > 0.0:
+                worst = max(worst, moved / h)
+                sq += (moved / h) ** 2
+            count += 1
             face[p] = f
             for c in range(3):
-                X[p, c] = (
+                x = (
                     bary[p, 0] * V[F[f, 0], c]
                     + bary[p, 1] * V[F[f, 1], c]
                     + bary[p, 2] * V[F[f, 2], c]
                 )
+                prev[p, c] = x - X[p, c]
+                X[p, c] = x
         done = k + 1
-        if it + 1 >= ramp and worst < eps_rel:
+        rms = np.sqrt(sq / max(count, 1))
+        if it + 1 >= ramp and rms < eps_rel:
             break
-    return done, worst
+    return done, worst, rms
 
 
 @njit(cache=True, nogil=True, fastmath=False)
@@ -242,7 +279,7 @@ def find_midpoints(
                 step[c] = 0.5 * (xb[c] - xa[c])
             total = _start_direction(V, F, f, step, u)
             if total > 0.0:
-                f, rest, status, _ = _walk_one(V, F, FN, f, b, u, total, max_faces, bary_eps)
+                f, _m = walk_inside(V, F, FN, f, b, u, total, max_faces, bary_eps, 6)
         for _k in range(n_fair):
             for c in range(3):
                 x = b[0] * V[F[f, 0], c] + b[1] * V[F[f, 1], c] + b[2] * V[F[f, 2], c]
@@ -250,8 +287,6 @@ def find_midpoints(
             total = _start_direction(V, F, f, step, u)
             if total <= 0.0:
                 break
-            f, rest, status, _ = _walk_one(V, F, FN, f, b, u, total, max_faces, bary_eps)
-            if status != DONE:
-                break
+            f, _m = walk_inside(V, F, FN, f, b, u, total, max_faces, bary_eps, 6)
         out_f[i] = f
     return out_f, out_b

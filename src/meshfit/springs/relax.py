@@ -16,11 +16,11 @@ _MAX_FACES = 10_000
 
 
 def _curve_step(state: State, X: np.ndarray, w_arc: float, w_fair: float) -> float:
-    """Move the curve points along their feature curves (eq. 5.14-5.17); returns the largest
-    move relative to the local spring length."""
+    """Move the curve points along their feature curves (eq. 5.14-5.17); returns the root-mean-
+    square move relative to the local spring length."""
     nu, nv = state.nu, state.nv
     Xg = X.reshape(nu, nv, 3)
-    worst = 0.0
+    moves = []
     for lines, idx, svals, along_u in (
         (state.u_feat, state.u_lines, state.s_u, False),
         (state.v_feat, state.v_lines, state.s_v, True),
@@ -50,9 +50,12 @@ def _curve_step(state: State, X: np.ndarray, w_arc: float, w_fair: float) -> flo
             new = np.clip(s[k] + ds, s[k - 1], s[k + 1])
             # Gauss-Seidel would use new neighbours; Jacobi with clipping keeps the order
             span = np.maximum(s[k + 1] - s[k - 1], 1e-300)
-            worst = max(worst, float(np.max(np.abs(new - s[k]) / span * 2.0)))
+            moves.append(np.abs(new - s[k]) / span * 2.0)
             s[k] = new
-    return worst
+    if not moves:
+        return 0.0
+    m = np.concatenate(moves)
+    return float(np.sqrt(np.mean(m * m)))
 
 
 def relax(
@@ -62,14 +65,17 @@ def relax(
     ramp: int,
     fairness: float,
     omega: float,
+    start: int = 0,
 ) -> tuple[int, float]:
     """Relax the spring mesh of ``state`` at its current level, in place.
 
     Free points move by the weighted sum (eq. 5.4) of the arc-length force (eq. 5.1) and the
     fairness force (sec. 5.5.2), walked on the patch mesh (so they never leave it); curve
     points slide along their feature curve (eq. 5.17); boundary points and anchors stay.
-    The fairness weight ramps from 0 to ``fairness`` over ``ramp`` sweeps (arc length first).
-    Sweeps stop when no point moves more than ``tol.SPRING_CONVERGED`` of its spring length.
+    The fairness weight ramps from 0 to ``fairness`` over ``ramp`` sweeps (arc length first),
+    counted from sweep ``start`` of the schedule (``start >= ramp``: final weights at once).
+    Sweeps stop when the root-mean-square move is below ``tol.SPRING_CONVERGED`` of the
+    spring lengths.
 
     Returns
     -------
@@ -84,16 +90,20 @@ def relax(
     movable = (state.kind() == FREE).ravel()
     args = (mesh.vertices, mesh.faces, mesh.face_neighbors)
     eps = tol.SPRING_CONVERGED
+    alpha = np.ones(state.nu * state.nv)
+    prev = np.zeros((state.nu * state.nv, 3))
     if not state.u_feat and not state.v_feat:
-        done, worst = _k.relax_sweeps(
+        done, _worst, rms = _k.relax_sweeps(
             *args,
             state.face,
             state.bary,
             state.nu,
             state.nv,
             movable,
+            alpha,
+            prev,
             max_iter,
-            0,
+            start,
             ramp,
             fairness,
             omega,
@@ -101,18 +111,20 @@ def relax(
             tol.BARY_EPS,
             _MAX_FACES,
         )
-        return int(done), float(worst)
+        return int(done), float(rms)
     done, worst = 0, np.inf
     for it in range(max_iter):
-        _, w1 = _k.relax_sweeps(
+        _, _w1, w1 = _k.relax_sweeps(
             *args,
             state.face,
             state.bary,
             state.nu,
             state.nv,
             movable,
+            alpha,
+            prev,
             1,
-            it,
+            start + it,
             ramp,
             fairness,
             omega,
@@ -120,12 +132,12 @@ def relax(
             tol.BARY_EPS,
             _MAX_FACES,
         )
-        t = min(1.0, it / ramp) if ramp > 0 else 1.0
+        t = min(1.0, (start + it) / ramp) if ramp > 0 else 1.0
         X = _k.grid_xyz(mesh.vertices, mesh.faces, state.face, state.bary)
         w2 = _curve_step(state, X, 1.0 - fairness * t, fairness * t)
         state.set_feature_points()
         done = it + 1
         worst = max(float(w1), w2)
-        if it + 1 >= ramp and worst < eps:
+        if start + it + 1 >= ramp and worst < eps:
             break
     return done, worst

@@ -164,9 +164,10 @@ def _final_level(n_level0: tuple[int, int], n_vertices: int, level, max_points) 
         if isinstance(level, bool) or int(level) != level or level < 0:
             raise InputError(f"level must be a non-negative integer, got {level!r}")
         return int(level)
+    # the level whose point count is closest (by ratio) to the patch's vertex count: "spring
+    # points comparable to the number of mesh vertices" (sec. 5.6)
     k = 0
-    # the first level whose point count reaches the patch's vertex count (sec. 5.6)
-    while count(k) < n_vertices:
+    while count(k + 1) <= n_vertices or count(k + 1) / n_vertices < n_vertices / count(k):
         k += 1
     if max_points is not None:
         if int(max_points) < count(0):
@@ -200,8 +201,8 @@ def resample_patch(
     direction in proportion to the patch's aspect ratio) and the feature curves; each level
     is relaxed (arc-length force eq. 5.1 and fairness force sec. 5.5.2, weighted per eq. 5.4,
     moves walked inside the patch), then subdivided by FindMidPoint (sec. 5.6) with the
-    sides resampled statically. Subdivision stops at the first level whose spring points
-    reach the patch's vertex count (or at ``level``; never above ``max_points``).
+    sides resampled statically. Subdivision stops at the level whose spring point count
+    is closest to the patch's vertex count (or at ``level``; never above ``max_points``).
 
     Parameters
     ----------
@@ -222,7 +223,8 @@ def resample_patch(
     max_iter : int, keyword-only
         Relaxation sweeps allowed per level (default 200).
     ramp : int, keyword-only
-        Sweeps over which the fairness weight grows from 0 (default 8).
+        Sweeps of level 0 over which the fairness weight grows from 0 (default 8); later
+        levels start from points already in place and use the final weights.
     omega : float, keyword-only
         Over-relaxation factor of the Gauss-Seidel sweeps, in (0, 2) (default 1).
     n_fair : int, keyword-only
@@ -290,7 +292,14 @@ def resample_patch(
             subdivide(state, n_fair=n_fair)
             seconds["subdivide"] += time.perf_counter() - t
         t = time.perf_counter()
-        done, _ = relax(state, max_iter=max_iter, ramp=ramp, fairness=fairness, omega=omega)
+        done, _ = relax(
+            state,
+            max_iter=max_iter,
+            ramp=ramp,
+            fairness=fairness,
+            omega=omega,
+            start=0 if k == 0 else ramp,
+        )
         seconds["relax"] += time.perf_counter() - t
         sweeps.append(done)
         snap = state.snapshot()

@@ -1,4 +1,4 @@
-"""Spring mesh subdivision: FindMidPoint between neighbours, sides resampled statically (sec. 5.6)."""
+"""Spring mesh subdivision: FindMidPoint, sides resampled statically (sec. 5.6)."""
 
 from __future__ import annotations
 
