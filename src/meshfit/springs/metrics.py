@@ -29,6 +29,7 @@ def grid_metrics(
     u_lines: ArrayLike = (),
     v_lines: ArrayLike = (),
     fidelity: bool = True,
+    scale: float | None = None,
 ) -> dict[str, float | int]:
     """Quality metrics of an ``(nu, nv)`` grid of points on a patch surface.
 
@@ -45,6 +46,9 @@ def grid_metrics(
         section between them (sec. 5.10.3).
     fidelity : bool
         Also measure the two-sided distance between the grid triangulation and ``mesh``.
+    scale : float, optional
+        Length the fidelity distances are divided by, model units (e.g. the whole model's
+        bounding-box diagonal); default ``mesh.bbox_diagonal``.
 
     Returns
     -------
@@ -56,7 +60,7 @@ def grid_metrics(
         smallest cell area; ``folded``: cells with a triangle whose normal points against
         the surface normal; ``fidelity_max`` / ``fidelity_rms``: two-sided distance between
         the grid triangulation and ``mesh`` (grid triangle centroids and edge mid-points to
-        the surface, mesh vertices to the triangulation) over ``mesh.bbox_diagonal``.
+        the surface, mesh vertices to the triangulation) over ``scale``.
 
     References
     ----------
@@ -104,11 +108,14 @@ def grid_metrics(
         "folded": int(folded.sum()),
     }
     if fidelity:
-        out.update(_fidelity(mesh, X.reshape(-1, 3), grid_triangles(nu, nv)))
+        diag = mesh.bbox_diagonal if scale is None else float(scale)
+        out.update(_fidelity(mesh, X.reshape(-1, 3), grid_triangles(nu, nv), diag))
     return out
 
 
-def _fidelity(mesh: Mesh, P: NDArray[np.float64], T: NDArray[np.int64]) -> dict[str, float]:
+def _fidelity(
+    mesh: Mesh, P: NDArray[np.float64], T: NDArray[np.int64], diag: float
+) -> dict[str, float]:
     import igl
 
     a, b, c = P[T[:, 0]], P[T[:, 1]], P[T[:, 2]]
@@ -116,14 +123,15 @@ def _fidelity(mesh: Mesh, P: NDArray[np.float64], T: NDArray[np.int64]) -> dict[
     d1, _, _ = igl.point_mesh_squared_distance(samples, mesh.vertices, mesh.faces)
     d2, _, _ = igl.point_mesh_squared_distance(np.ascontiguousarray(mesh.vertices), P, T)
     d = np.sqrt(np.concatenate([d1, d2]))
-    diag = mesh.bbox_diagonal
     return {
         "fidelity_max": float(d.max() / diag),
         "fidelity_rms": float(np.sqrt(np.mean(d * d)) / diag),
     }
 
 
-def spring_metrics(mesh: Mesh, spring: SpringMesh, *, fidelity: bool = True) -> dict:
+def spring_metrics(
+    mesh: Mesh, spring: SpringMesh, *, fidelity: bool = True, scale: float | None = None
+) -> dict:
     """:func:`grid_metrics` of a spring mesh on its patch mesh (normals of the points' faces)."""
     normals = mesh.face_normals[spring.points.face].reshape(*spring.shape, 3)
     return grid_metrics(
@@ -133,4 +141,5 @@ def spring_metrics(mesh: Mesh, spring: SpringMesh, *, fidelity: bool = True) -> 
         u_lines=spring.u_lines,
         v_lines=spring.v_lines,
         fidelity=fidelity,
+        scale=scale,
     )

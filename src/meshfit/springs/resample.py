@@ -192,6 +192,7 @@ def resample_patch(
     n_fair: int = 3,
     metrics: bool = True,
     fidelity: bool = True,
+    scale: float | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> SpringResult:
     """Resample a four-sided patch into a spring mesh, coarse to fine.
@@ -232,6 +233,9 @@ def resample_patch(
     metrics, fidelity : bool, keyword-only
         Compute :func:`meshfit.springs.grid_metrics` of every level (with the fidelity
         distances).
+    scale : float, keyword-only, optional
+        Length the fidelity distances are divided by (e.g. the whole model's bounding-box
+        diagonal); default the patch mesh's.
     progress : callable(done, total), keyword-only, optional
         Called after each level.
 
@@ -305,7 +309,7 @@ def resample_patch(
         snap = state.snapshot()
         levels.append(snap)
         t = time.perf_counter()
-        mets.append(spring_metrics(mesh, snap, fidelity=fidelity) if metrics else {})
+        mets.append(spring_metrics(mesh, snap, fidelity=fidelity, scale=scale) if metrics else {})
         seconds["metrics"] += time.perf_counter() - t
         if progress is not None:
             progress(k + 1, final + 1)
