@@ -183,8 +183,8 @@ def _submesh_patch(mesh: Mesh, faces: np.ndarray, corner_xyz: np.ndarray, index:
 def cut_patch(mesh: Mesh, center: int, radius: float, *, n: int = 240, index: int = 0) -> Patch:
     """Patch cut out of ``mesh`` along a closed curve: a square of half-size ``radius`` in the
     tangent plane at vertex ``center`` projected onto the surface; corners at its corners."""
-    from scipy.sparse.csgraph import connected_components
     from scipy import sparse
+    from scipy.sparse.csgraph import connected_components
 
     from meshfit.curves import densify_curve
     from meshfit.surface import closest_surface_points, cut_mesh

@@ -1,0 +1,143 @@
+"""Slow, obviously-correct oracles of the spring-mesh kernels (`meshfit._kernels.springs`)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from meshfit.mesh import Mesh
+from meshfit.surface import walk_points
+from meshfit.types import SurfacePoints
+
+
+def spring_force(X, nv, p, w_arc, w_fair):
+    """Eq. 5.1 (per direction: toward the farther neighbour by the length difference) and
+    the fairness sum (sec. 5.5.2), both over 4; returns (force (3,), mean spring length)."""
+    arc = np.zeros(3)
+    lengths = []
+    for a, b in ((p - nv, p + nv), (p - 1, p + 1)):
+        fa, fb = X[a] - X[p], X[b] - X[p]
+        la, lb = np.linalg.norm(fa), np.linalg.norm(fb)
+        lengths += [la, lb]
+        if la > lb:
+            arc += (la - lb) * fa / la
+        elif lb > la:
+            arc += (lb - la) * fb / lb
+    fair = X[p - nv] + X[p + nv] + X[p - 1] + X[p + 1] - 4 * X[p]
+    return 0.25 * (w_fair * fair + w_arc * arc), float(np.mean(lengths))
+
+
+def _walk_inside(mesh: Mesh, f, b, vec, tries=6):
+    """Walk by ``vec`` (in the face plane); undo and halve when the walk reaches the boundary."""
+    for _ in range(tries + 1):
+        res = walk_points(mesh, SurfacePoints(np.array([f]), b[None]), vec[None])
+        if not res.hit_boundary[0]:
+            return int(res.end.face[0]), res.end.bary[0].copy(), float(np.linalg.norm(vec))
+        vec = 0.5 * vec
+    return f, b.copy(), 0.0
+
+
+def relax_sweeps(
+    mesh: Mesh,
+    face,
+    bary,
+    nu,
+    nv,
+    movable,
+    alpha,
+    prev,
+    n_sweeps,
+    it0,
+    ramp,
+    w_fair_end,
+    omega,
+    eps_rel,
+):
+    """Gauss-Seidel sweeps as documented in the kernel, one point at a time in Python."""
+    face = face.copy()
+    bary = bary.copy()
+    alpha = alpha.copy()
+    prev = prev.copy()
+    X = mesh.xyz(SurfacePoints(face, bary))
+    done, worst, rms = 0, 0.0, 0.0
+    for k in range(n_sweeps):
+        it = it0 + k
+        t = min(1.0, it / ramp) if ramp > 0 else 1.0
+        w_fair = w_fair_end * t
+        order = range(nu * nv) if it % 2 == 0 else range(nu * nv - 1, -1, -1)
+        moves = []
+        for p in order:
+            if not movable[p]:
+                continue
+            force, h = spring_force(X, nv, p, 1.0 - w_fair, w_fair)
+            n = mesh.face_normals[face[p]]
+            step = force - (force @ n) * n
+            total = np.linalg.norm(step)
+            if total <= 0:
+                continue
+            alpha[p] = alpha[p] * 0.5 if (step / total) @ prev[p] < 0 else min(1.0, alpha[p] * 1.25)
+            step = step * omega * alpha[p]
+            face[p], bary[p], moved = _walk_inside(mesh, face[p], bary[p], step)
+            moves.append(moved / h)
+            x = mesh.xyz(SurfacePoints(face[p : p + 1], bary[p : p + 1]))[0]
+            prev[p] = x - X[p]
+            X[p] = x
+        done = k + 1
+        worst = max(moves) if moves else 0.0
+        rms = float(np.sqrt(np.mean(np.square(moves)))) if moves else 0.0
+        if it + 1 >= ramp and rms < eps_rel:
+            break
+    return face, bary, done, worst, rms
+
+
+def _greedy_mid(mesh: Mesh, v1, v2, max_steps):
+    if v1 == v2:
+        return v1
+    V = mesh.vertices
+    path = [v1]
+    while path[-1] != v2:
+        if len(path) > max_steps:
+            return -1
+        cur = path[-1]
+        nbrs = mesh.vertex_neighbors(cur)
+        d = np.sum((V[nbrs] - V[v2]) ** 2, axis=1)
+        k = int(np.argmin(d))
+        if d[k] >= np.sum((V[cur] - V[v2]) ** 2):
+            return -1
+        path.append(int(nbrs[k]))
+    seg = np.linalg.norm(np.diff(V[path], axis=0), axis=1)
+    acc = np.concatenate([[0.0], np.cumsum(seg)])
+    half = 0.5 * acc[-1]
+    k = int(np.searchsorted(acc, half))  # first vertex at or past half the length
+    return path[k - 1] if half - acc[k - 1] < acc[k] - half else path[k]
+
+
+def find_midpoints(mesh: Mesh, a: SurfacePoints, b: SurfacePoints, n_fair, max_steps):
+    """FindMidPoint (sec. 5.6): greedy path mid vertex, then local fairness walks."""
+    xa, xb = mesh.xyz(a), mesh.xyz(b)
+    out_f = np.empty(len(a), dtype=np.int64)
+    out_b = np.empty((len(a), 3))
+    indptr, vf = mesh.vertex_faces
+    for i in range(len(a)):
+        v1 = int(mesh.faces[a.face[i], np.argmax(a.bary[i])])
+        v2 = int(mesh.faces[b.face[i], np.argmax(b.bary[i])])
+        mid = _greedy_mid(mesh, v1, v2, max_steps)
+        if mid >= 0 and mid not in (v1, v2):
+            f = int(vf[indptr[mid]])
+            bb = (mesh.faces[f] == mid).astype(float)
+        else:
+            f, bb = int(a.face[i]), a.bary[i].copy()
+            n = mesh.face_normals[f]
+            step = 0.5 * (xb[i] - xa[i])
+            step = step - (step @ n) * n
+            if np.linalg.norm(step) > 0:
+                f, bb, _ = _walk_inside(mesh, f, bb, step)
+        for _ in range(n_fair):
+            x = mesh.xyz(SurfacePoints(np.array([f]), bb[None]))[0]
+            n = mesh.face_normals[f]
+            step = 0.5 * (xa[i] + xb[i]) - x
+            step = step - (step @ n) * n
+            if np.linalg.norm(step) <= 0:
+                break
+            f, bb, _ = _walk_inside(mesh, f, bb, step)
+        out_f[i], out_b[i] = f, bb
+    return out_f, out_b

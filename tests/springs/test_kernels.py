@@ -1,0 +1,87 @@
+"""Spring-mesh kernels against their slow oracles (tests/reference/springs.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from meshfit import tol
+from meshfit._kernels import springs as K
+from meshfit.springs import FREE, resample_patch
+from meshfit.types import SurfacePoints
+
+from ..conftest import real_mesh
+from ..reference import springs as ref
+from .patches import cap_map, cut_patch, param_patch
+
+
+@pytest.fixture(scope="module")
+def patches():
+    return {
+        "cap": param_patch(cap_map(), 16, 16),
+        "spot": cut_patch(real_mesh("spot"), 100, 0.25),
+    }
+
+
+@pytest.mark.parametrize("name", ["cap", "spot"])
+def test_relax_sweeps_matches_oracle(patches, name, rng):
+    patch = patches[name]
+    mesh = patch.mesh
+    sm = resample_patch(patch, level=1, max_iter=1, metrics=False).final
+    nu, nv = sm.shape
+    movable = (sm.kind == FREE).ravel()
+    face = sm.points.face.copy()
+    bary = sm.points.bary.copy()
+    alpha = np.ones(nu * nv)
+    prev = np.zeros((nu * nv, 3))
+    want = ref.relax_sweeps(mesh, face, bary, nu, nv, movable, alpha, prev, 5, 0, 3, 0.5, 1.0, 0.0)
+    done, worst, rms = K.relax_sweeps(
+        mesh.vertices, mesh.faces, mesh.face_neighbors, face, bary, nu, nv, movable, alpha, prev,
+        5, 0, 3, 0.5, 1.0, 0.0, tol.BARY_EPS, 10_000,
+    )  # fmt: skip
+    got = mesh.xyz(SurfacePoints(face, bary))
+    assert done == want[2] == 5
+    assert_allclose(got, mesh.xyz(SurfacePoints(want[0], want[1])), atol=1e-9 * mesh.bbox_diagonal)
+    assert_allclose([worst, rms], want[3:], rtol=1e-6)
+    assert_allclose(bary.sum(axis=1), 1.0, atol=1e-12)
+
+
+def test_spring_force_matches_oracle(rng):
+    X = rng.normal(size=(12, 3))
+    nv = 4
+    for p in (5, 6):
+        out = np.empty(3)
+        h = K.spring_force(X, nv, p, 0.7, 0.3, out)
+        want, wh = ref.spring_force(X, nv, p, 0.7, 0.3)
+        assert_allclose(out, want, atol=1e-14)
+        assert_allclose(h, wh)
+
+
+@pytest.mark.parametrize("name", ["cap", "spot"])
+def test_find_midpoints_matches_oracle(patches, name, rng):
+    from meshfit.surface import random_surface_points
+
+    mesh = patches[name].mesh
+    a = random_surface_points(mesh, 40, rng=rng)
+    b = SurfacePoints(a.face[::-1].copy(), a.bary[::-1].copy())
+    vfp, vf = mesh.vertex_faces
+    indptr, indices = mesh.vertex_adjacency
+    f, bb = K.find_midpoints(
+        mesh.vertices, mesh.faces, mesh.face_neighbors, vfp, vf, indptr, indices,
+        a.face, a.bary, b.face, b.bary, 3, 2000, tol.BARY_EPS, 10_000,
+    )  # fmt: skip
+    wf, wb = ref.find_midpoints(mesh, a, b, 3, 2000)
+    assert_allclose(
+        mesh.xyz(SurfacePoints(f, bb)),
+        mesh.xyz(SurfacePoints(wf, wb)),
+        atol=1e-9 * mesh.bbox_diagonal,
+    )
+
+
+def test_grid_xyz_is_mesh_xyz(patches, rng):
+    from meshfit.surface import random_surface_points
+
+    mesh = patches["spot"].mesh
+    sp = random_surface_points(mesh, 50, rng=rng)
+    assert_allclose(K.grid_xyz(mesh.vertices, mesh.faces, sp.face, sp.bary), mesh.xyz(sp))
