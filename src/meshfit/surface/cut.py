@@ -41,7 +41,7 @@ from meshfit.errors import CutError, InputError
 from meshfit.mesh import Mesh, topology
 from meshfit.types import SurfaceCurve, SurfacePoints
 
-__all__ = ["CutResult", "cut_mesh"]
+__all__ = ["CutResult", "NetworkCutResult", "cut_mesh", "cut_mesh_network"]
 
 #: a walk between two consecutive curve points never takes more steps than this
 _MAX_WALK_STEPS = 100_000
@@ -648,7 +648,23 @@ def cut_mesh(
         raise InputError(f"a cut needs at least 2 curve points, got {n}")
     cutter = _Cutter(mesh)
     cps = [_classify(cutter, int(points.face[i]), points.bary[i], i) for i in range(n)]
+    path = _insert_curve(cutter, cps, closed)
+    path = _drop_spikes(_expand(cutter, path, closed), closed)
+    if len(path) < 2:
+        raise CutError(f"the curve's {n} points collapse to a single vertex: nothing to cut")
+    edges = list(itertools.pairwise(path)) + ([(path[-1], path[0])] if closed else [])
+    cutter.cut = {_key(a, b) for a, b in edges}
+    return _assemble(cutter, mesh, path, closed, split)
 
+
+def _insert_curve(cutter: _Cutter, cps: list[_CutPoint], closed: bool) -> list[int]:
+    """Insert one curve's snapped points into the triangulation and join them by edges.
+
+    Returns the curve's vertices in order (before :func:`_expand`); the joining edges are added
+    to ``cutter.cut``. A point whose ``vertex`` is set (an original vertex, or a corner inserted
+    earlier) is used as that vertex.
+    """
+    n = len(cps)
     # 1. a sequence in which consecutive points share an original face
     seq: list[_CutPoint] = []
     pairs = [(i, i + 1) for i in range(n - 1)] + ([(n - 1, 0)] if closed else [])
@@ -691,12 +707,7 @@ def cut_mesh(
         prev = nxt
     if closed and len(path) > 1 and path[-1] == path[0]:
         path.pop()  # the walk ended back at the first vertex
-    path = _drop_spikes(_expand(cutter, path, closed), closed)
-    if len(path) < 2:
-        raise CutError(f"the curve's {n} points collapse to a single vertex: nothing to cut")
-    edges = list(itertools.pairwise(path)) + ([(path[-1], path[0])] if closed else [])
-    cutter.cut = {_key(a, b) for a, b in edges}
-    return _assemble(cutter, mesh, path, closed, split)
+    return path
 
 
 def _expand(cutter: _Cutter, path: list[int], closed: bool) -> list[int]:
@@ -734,7 +745,9 @@ def _drop_spikes(path: list[int], closed: bool) -> list[int]:
     return stack
 
 
-def _assemble(cutter: _Cutter, mesh: Mesh, path: list[int], closed: bool, split: bool) -> CutResult:
+def _refined(cutter: _Cutter, mesh: Mesh):
+    """Arrays of the refined (not yet split) triangulation: vertices, faces, face parents,
+    vertex sources, vertex parents and colours."""
     nv0, nf0 = cutter.nv0, cutter.nf0
     n_new = len(cutter.new_xyz)
     vertices = np.concatenate([mesh.vertices, np.asarray(cutter.new_xyz).reshape(-1, 3)])
@@ -762,6 +775,11 @@ def _assemble(cutter: _Cutter, mesh: Mesh, path: list[int], closed: bool, split:
         colors = np.concatenate(
             [mesh.vertex_colors, np.clip(np.round(new_c), 0, 255).astype(np.uint8)]
         )
+    return vertices, faces, face_parent, src, parent, colors
+
+
+def _assemble(cutter: _Cutter, mesh: Mesh, path: list[int], closed: bool, split: bool) -> CutResult:
+    vertices, faces, face_parent, src, parent, colors = _refined(cutter, mesh)
     path_arr = np.asarray(path, dtype=np.int64)
     other = path_arr.copy()
     if split:
@@ -775,8 +793,193 @@ def _assemble(cutter: _Cutter, mesh: Mesh, path: list[int], closed: bool, split:
     return CutResult(new_mesh, path_arr, other, face_parent, parent, src, closed)
 
 
+# ------------------------------------------------------------------------- network of curves
+@dataclass(frozen=True)
+class NetworkCutResult:
+    """Result of :func:`cut_mesh_network`.
+
+    Attributes
+    ----------
+    mesh : Mesh
+        The cut mesh (validated). Its first ``n_refined`` vertices are the vertices of the
+        refined, unsplit triangulation (original vertices first, then the ones the cut made);
+        with ``split=True`` the copies made by splitting follow.
+    curve_vertices : tuple of (k_i,) int64
+        Each curve's vertices in the refined triangulation, from its first corner to its last.
+    corners : (nc,) int64
+        Vertex of the refined triangulation at each corner.
+    copy_of : (nv_new,) int64
+        Refined-triangulation vertex each vertex of ``mesh`` copies (identity without split).
+    face_parent : (nf_new,) int64
+        Original face each new face lies in.
+    vertex_parent : (nv_new,) int64
+        Original vertex each new vertex copies, -1 for vertices created by the cut.
+    vertex_source : SurfacePoints
+        Every vertex of ``mesh`` as a face point of the original mesh.
+    """
+
+    mesh: Mesh
+    curve_vertices: tuple[NDArray[np.int64], ...]
+    corners: NDArray[np.int64]
+    copy_of: NDArray[np.int64]
+    face_parent: NDArray[np.int64]
+    vertex_parent: NDArray[np.int64]
+    vertex_source: SurfacePoints
+
+
+def cut_mesh_network(
+    mesh: Mesh,
+    curves: list[SurfacePoints | SurfaceCurve],
+    corners: SurfacePoints,
+    ends: NDArray[np.int64],
+    *,
+    split: bool = True,
+) -> NetworkCutResult:
+    """Cut a mesh along a network of open curves that meet only at shared corners.
+
+    All curves are inserted into one dynamic triangulation: each corner is inserted once, so
+    the curves that end at it share one vertex, and the mesh is then split along the union of
+    the cut edges (the polygonal patches of Krishnamurthy 2000, sec. 1.3, fig. 1.2).
+
+    Parameters
+    ----------
+    mesh : Mesh
+    curves : list of SurfacePoints or SurfaceCurve
+        ``nk`` open curves of face points (sampled as for :func:`cut_mesh`). The first and last
+        point of curve ``i`` are replaced by corners ``ends[i, 0]`` and ``ends[i, 1]``.
+    corners : SurfacePoints
+        ``nc`` corner points.
+    ends : (nk, 2) int64
+        Corner index at the start and end of each curve.
+    split : bool, keyword-only
+        Duplicate the vertices of the cut so that the regions between the curves become
+        separate pieces (default). When False only the triangulation is refined.
+
+    Returns
+    -------
+    NetworkCutResult
+
+    Raises
+    ------
+    CutError
+        Two curves meet away from their shared corners (the message names both curves and
+        the point), a curve collapses to one point, or consecutive points are too far apart.
+    InputError
+        Bad face points, corner indices out of range.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 1.3, fig. 1.2 (patch boundaries) and sec. 8.1.3 (patches
+       sharing boundary curves and corners).
+    """
+    corners = as_surface_points(mesh, corners, name="corners")
+    ends = np.asarray(ends, dtype=np.int64).reshape(-1, 2)
+    if ends.shape[0] != len(curves):
+        raise InputError(f"ends has {ends.shape[0]} rows for {len(curves)} curves")
+    nc = len(corners)
+    if ends.size and (ends.min() < 0 or ends.max() >= nc):
+        i = int(np.flatnonzero((ends < 0).any(axis=1) | (ends >= nc).any(axis=1))[0])
+        raise InputError(f"curve {i}: corner index out of range 0..{nc - 1}: {ends[i].tolist()}")
+    cutter = _Cutter(mesh)
+    corner_cp: list[_CutPoint] = []
+    corner_v = np.empty(nc, dtype=np.int64)
+    for c in range(nc):
+        cp = _classify(cutter, int(corners.face[c]), corners.bary[c], c)
+        v = cutter.insert(cp, cp.face)
+        if v < cutter.nv0:
+            cp = _vertex_point(cutter, v, c)
+        else:
+            cp = _CutPoint(cp.face, cp.bary, v, cp.faces, cutter.xyz(v), c)
+        corner_v[c] = v
+        corner_cp.append(cp)
+        cutter.on_path.add(v)
+    if len(set(corner_v.tolist())) < nc:
+        a, b = _first_repeat(corner_v)
+        raise CutError(f"corners {a} and {b} fall on the same point")
+    raw: list[list[int]] = []
+    for i, curve in enumerate(curves):
+        pts = curve.points if isinstance(curve, SurfaceCurve) else curve
+        pts = as_surface_points(mesh, pts, name=f"curve {i}")
+        if len(pts) < 2:
+            raise InputError(f"curve {i}: needs at least 2 points, got {len(pts)}")
+        cps = [_classify(cutter, int(pts.face[k]), pts.bary[k], k) for k in range(len(pts))]
+        cps[0] = corner_cp[ends[i, 0]]
+        cps[-1] = corner_cp[ends[i, 1]]
+        try:
+            raw.append(_insert_curve(cutter, cps, False))
+        except CutError as exc:
+            raise CutError(f"curve {i}: {exc}") from None
+    paths = []
+    for i, path in enumerate(raw):
+        path = _drop_spikes(_expand(cutter, path, False), False)
+        if len(path) < 2:
+            raise CutError(f"curve {i} collapses to a single vertex: nothing to cut")
+        paths.append(path)
+    _check_meetings(paths, corner_v, ends)
+    cutter.cut = {_key(a, b) for path in paths for a, b in itertools.pairwise(path)}
+    vertices, faces, face_parent, src, parent, colors = _refined(cutter, mesh)
+    copy_of = np.arange(vertices.shape[0], dtype=np.int64)
+    if split:
+        faces, copy_of = _split_faces(cutter, faces, vertices.shape[0])
+        vertices = vertices[copy_of]
+        parent = parent[copy_of]
+        src = src[copy_of]
+        colors = None if colors is None else colors[copy_of]
+    new_mesh = Mesh(vertices, faces, colors, name=mesh.name)
+    return NetworkCutResult(
+        new_mesh,
+        tuple(np.asarray(p, dtype=np.int64) for p in paths),
+        corner_v,
+        copy_of,
+        face_parent,
+        parent,
+        src,
+    )
+
+
+def _first_repeat(a: NDArray[np.int64]) -> tuple[int, int]:
+    seen: dict[int, int] = {}
+    for i, v in enumerate(a.tolist()):
+        if v in seen:
+            return seen[v], i
+        seen[v] = i
+    return -1, -1  # pragma: no cover
+
+
+def _check_meetings(paths: list[list[int]], corner_v: NDArray[np.int64], ends: NDArray) -> None:
+    """Raise when a curve touches itself or another curve away from its own end corners."""
+    owner: dict[int, int] = {}
+    corner_of = {int(v): c for c, v in enumerate(corner_v.tolist())}
+    for i, path in enumerate(paths):
+        own_ends = {path[0], path[-1]}
+        for k, v in enumerate(path):
+            if v in own_ends and k in (0, len(path) - 1):
+                continue
+            if v in corner_of:
+                raise CutError(
+                    f"curve {i} passes through corner {corner_of[v]} (point {k} of its path): "
+                    "curves may meet only at their end corners"
+                )
+            j = owner.get(v)
+            if j is not None:
+                what = "touches itself" if j == i else f"crosses or touches curve {j}"
+                raise CutError(
+                    f"curve {i} {what} away from the corners, at cut vertex {v} "
+                    f"(point {k} of its path)"
+                )
+            owner[v] = i
+
+
 def _split_along(cutter: _Cutter, faces: NDArray[np.int64], nv: int, path: list[int], closed: bool):
     """Give each fan of faces around a vertex that the cut separates its own vertex copy."""
+    new_faces, copy_of = _split_faces(cutter, faces, nv)
+    left, right = _path_sides(cutter, new_faces, path, closed)
+    return new_faces, copy_of, left, right
+
+
+def _split_faces(cutter: _Cutter, faces: NDArray[np.int64], nv: int):
+    """Faces with each fan separated by ``cutter.cut`` on its own vertex copy, and the vertex
+    each new vertex copies (the first ``nv`` keep their index)."""
     table = topology.edge_table(faces, nv)
     n = np.int64(max(nv, 1))
     keys = table.edges[:, 0] * n + table.edges[:, 1]
@@ -800,7 +1003,11 @@ def _split_along(cutter: _Cutter, faces: NDArray[np.int64], nv: int, path: list[
     copy_of = np.concatenate([np.arange(nv), fan_vertex[extra]])
     new_faces = new_id[fan].reshape(-1, 3)
 
-    # the copies of each path vertex on the left and right of the curve
+    return new_faces, copy_of
+
+
+def _path_sides(cutter: _Cutter, new_faces: NDArray[np.int64], path: list[int], closed: bool):
+    """The copies of each path vertex on the left and right of the curve after splitting."""
     k = len(path)
     left = np.full(k, -1, dtype=np.int64)
     right = np.full(k, -1, dtype=np.int64)
@@ -817,4 +1024,4 @@ def _split_along(cutter: _Cutter, faces: NDArray[np.int64], nv: int, path: list[
                 right[i] = v
     left = np.where(left < 0, right, left)
     right = np.where(right < 0, left, right)
-    return new_faces, copy_of, left, right
+    return left, right

@@ -1,0 +1,364 @@
+"""Patch extraction: cut the mesh along every boundary curve and take each patch as a submesh.
+
+Method
+------
+1. One network cut (:func:`meshfit.surface.cut.cut_mesh_network`) inserts all curves into one
+   triangulation, each corner once, and splits the mesh along the union of the cut edges.
+   Curves meeting away from their corners are an error.
+2. The face components of the split mesh are the patch regions. Each must be a disk: one
+   boundary loop and Euler characteristic 1 (a second loop means a hole of the mesh inside the
+   region, a lower characteristic a handle).
+3. A region's boundary loop, in half-edge order (the region on the left), is split at the
+   corners into chains; each chain runs along one curve, forwards or backwards. The cyclic
+   sequence of (curve, reversed) pairs is matched against the layout's patches, which fixes
+   the patch's corner 0 and side order.
+4. Every face must belong to a patch: a region that is no patch of the layout is an error
+   naming one of its faces (the policy for closed and open meshes alike; on an open mesh the
+   layout's curves run along the mesh boundary where a patch side lies on it).
+5. Feature curves are mapped to face points of the patch submesh (each point into the
+   sub-triangle of its original face that holds it), and their ends snapped onto the nearest
+   side.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from meshfit.errors import CutError, LayoutError
+from meshfit.layout.layout import Layout, check_layout
+from meshfit.layout.patch import Patch
+from meshfit.mesh import Mesh
+from meshfit.mesh.locate import barycentric
+from meshfit.surface.cut import NetworkCutResult, cut_mesh_network
+from meshfit.types import SurfaceCurve, SurfacePoints
+
+__all__ = ["check_layout_topology", "extract_patches"]
+
+
+@dataclass
+class _Region:
+    """One face component of the split mesh matched to a layout patch."""
+
+    patch: int
+    faces: NDArray[np.int64]  # faces of the split mesh
+    loop: NDArray[np.int64]  # boundary loop (split-mesh vertices), starting at corner 0
+    corner_pos: list[int]  # positions in ``loop`` of corners 0..3
+
+
+def _partition(
+    mesh: Mesh, layout: Layout, progress: Callable[[int, int], None] | None
+) -> tuple[NetworkCutResult, list[_Region]]:
+    check_layout(mesh, layout)
+    try:
+        res = cut_mesh_network(mesh, list(layout.curves), layout.corners, layout.curve_ends)
+    except CutError as exc:
+        raise LayoutError(str(exc)) from None
+    cut = res.mesh
+    copy_of = res.copy_of
+    corner_of = {int(v): c for c, v in enumerate(res.corners.tolist())}
+    # directed refined edge -> (curve, reversed)
+    along: dict[tuple[int, int], tuple[int, bool]] = {}
+    for i, path in enumerate(res.curve_vertices):
+        p = path.tolist()
+        for a, b in itertools.pairwise(p):
+            along[(a, b)] = (i, False)
+            along[(b, a)] = (i, True)
+
+    labels = cut.face_components
+    n_comp = cut.n_components
+    vcomp = cut.vertex_components
+    n_f = np.bincount(labels, minlength=n_comp)
+    n_v = np.bincount(vcomp, minlength=n_comp)
+    n_e = np.bincount(vcomp[cut.edges[:, 0]], minlength=n_comp)
+    chi = n_v - n_e + n_f
+    loops_of: list[list[NDArray[np.int64]]] = [[] for _ in range(n_comp)]
+    for loop in cut.boundary_loops:
+        loops_of[int(vcomp[loop[0]])].append(loop)
+    first_face = np.full(n_comp, -1, dtype=np.int64)
+    order = np.argsort(labels, kind="stable")
+    starts = np.searchsorted(labels[order], np.arange(n_comp))
+    first_face[:] = order[starts]
+
+    by_set: dict[frozenset[int], list[int]] = {}
+    for p in range(layout.n_patches):
+        by_set.setdefault(frozenset(layout.patch_curves[p].tolist()), []).append(p)
+
+    def orig_face(c: int) -> int:
+        return int(res.face_parent[first_face[c]])
+
+    def chains(loop: NDArray[np.int64], c: int) -> tuple[list[tuple[int, bool]], list[int]]:
+        ref = copy_of[loop].tolist()
+        pos = [k for k, v in enumerate(ref) if v in corner_of]
+        seq: list[tuple[int, bool]] = []
+        n = len(ref)
+        for k in range(n):
+            e = (ref[k], ref[(k + 1) % n])
+            if e not in along:
+                raise LayoutError(
+                    f"the region containing face {orig_face(c)} reaches the mesh boundary away "
+                    f"from the curves (at vertex {int(loop[k])} of the cut mesh): a hole of "
+                    "the mesh inside a patch, or a patch side that is no curve"
+                )
+        for k in pos:
+            seq.append(along[(ref[k], ref[(k + 1) % n])])
+        return seq, pos
+
+    regions: list[_Region] = []
+    claimed: dict[int, int] = {}
+    for c in range(n_comp):
+        if progress is not None:
+            progress(c, n_comp + layout.n_patches)
+        loops = loops_of[c]
+        curves_seen: set[int] = set()
+        for loop in loops:
+            ref = copy_of[loop].tolist()
+            for k in range(len(ref)):
+                e = (ref[k], ref[(k + 1) % len(ref)])
+                if e in along:
+                    curves_seen.add(along[e][0])
+        cand = [
+            p
+            for p in range(layout.n_patches)
+            if set(layout.patch_curves[p].tolist()) <= curves_seen
+        ]
+        name = (
+            f"patch {cand[0]}" if len(cand) == 1 else f"the region containing face {orig_face(c)}"
+        )
+        if len(loops) != 1:
+            raise LayoutError(
+                f"{name} is not a disk: its region has {len(loops)} boundary loops "
+                "(a hole of the mesh inside it, or curves that do not close around it)"
+            )
+        if chi[c] != 1:
+            raise LayoutError(
+                f"{name} is not a disk: Euler characteristic {int(chi[c])} instead of 1 "
+                f"(a handle inside it)"
+            )
+        seq, pos = chains(loops[0], c)
+        match = _match(layout, by_set, seq)
+        if match is None:
+            curves = sorted({s[0] for s in seq})
+            rev = _match(layout, by_set, [(ci, not r) for ci, r in reversed(seq)])
+            if rev is not None:
+                raise LayoutError(
+                    f"patch {rev[0]}: its sides run clockwise seen from outside; list them "
+                    "counter-clockwise (the patch on the left of each side)"
+                )
+            raise LayoutError(
+                f"face {orig_face(c)} lies in a region bounded by {len(seq)} curve(s) "
+                f"{curves} at {len(pos)} corner(s) that is no patch of the layout: every face "
+                "must belong to a four-sided patch"
+            )
+        p, rot = match
+        if p in claimed:
+            raise LayoutError(
+                f"patch {p}: two regions (faces {orig_face(claimed[p])} and {orig_face(c)}) "
+                "are bounded by its sides"
+            )
+        claimed[p] = c
+        start = pos[rot]
+        loop = np.roll(loops[0], -start)
+        cpos = [(pos[(rot + s) % 4] - start) % loops[0].size for s in range(4)]
+        regions.append(_Region(p, np.flatnonzero(labels == c), loop, cpos))
+    missing = [p for p in range(layout.n_patches) if p not in claimed]
+    if missing:
+        raise LayoutError(f"patch {missing[0]} bounds no region of its own")
+    regions.sort(key=lambda r: r.patch)
+    return res, regions
+
+
+def _match(
+    layout: Layout, by_set: dict[frozenset[int], list[int]], seq: list[tuple[int, bool]]
+) -> tuple[int, int] | None:
+    """The patch whose sides are ``seq`` up to rotation, and the rotation (side 0 at
+    ``seq[rot]``)."""
+    if len(seq) != 4:
+        return None
+    for p in by_set.get(frozenset(s[0] for s in seq), []):
+        want = [
+            (int(layout.patch_curves[p, s]), bool(layout.patch_reversed[p, s])) for s in range(4)
+        ]
+        for rot in range(4):
+            if [seq[(rot + s) % 4] for s in range(4)] == want:
+                return p, rot
+    return None
+
+
+def check_layout_topology(mesh: Mesh, layout: Layout) -> None:
+    """Check that a layout's curves meet only at corners and every patch is a disk bounded by
+    its four sides, the patches covering the mesh.
+
+    Raises
+    ------
+    meshfit.errors.LayoutError
+        Naming the curve, patch or face at fault.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 1.3, fig. 1.2.
+    """
+    _partition(mesh, layout, None)
+
+
+def extract_patches(
+    mesh: Mesh, layout: Layout, *, progress: Callable[[int, int], None] | None = None
+) -> list[Patch]:
+    """Cut a mesh along a layout's curves into one four-sided submesh per patch.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        The mesh the layout was made for (checked by fingerprint).
+    layout : Layout
+    progress : callable(done, total), keyword-only, optional
+        Called as regions are identified and patches built.
+
+    Returns
+    -------
+    list of Patch
+        ``patches[p]`` is layout patch ``p``: its submesh (a disk), corners and sides in the
+        layout's order (side ``s`` along ``layout.patch_curves[p, s]``), ``face_parent`` (face
+        of ``mesh``), ``vertex_source`` (points of ``mesh``) and its feature curves as face
+        points of the submesh with ``feature_sides`` (the sides their ends were snapped onto).
+
+    Raises
+    ------
+    meshfit.errors.LayoutError
+        Layout of another mesh, curves crossing away from corners, a patch that is not a disk or
+        not bounded by its four sides, faces in no patch (every face must belong to a patch).
+
+    Notes
+    -----
+    The patch face areas sum to the mesh area: the cut only subdivides faces.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 1.3 and fig. 1.2 (polygonal patches bounded by the painted
+       curves), sec. 5.3 (each patch resampled on its own), sec. 5.10 (feature curves).
+    """
+    res, regions = _partition(mesh, layout, progress)
+    cut = res.mesh
+    out: list[Patch] = []
+    n_steps = cut.n_components + layout.n_patches
+    for k, reg in enumerate(regions):
+        if progress is not None:
+            progress(cut.n_components + k, n_steps)
+        out.append(_build_patch(mesh, layout, res, reg))
+    if progress is not None:
+        progress(n_steps, n_steps)
+    return out
+
+
+def _build_patch(mesh: Mesh, layout: Layout, res: NetworkCutResult, reg: _Region) -> Patch:
+    cut = res.mesh
+    faces = cut.faces[reg.faces]
+    used, inv = np.unique(faces.reshape(-1), return_inverse=True)
+    sub_faces = inv.reshape(-1, 3).astype(np.int64)
+    local = np.full(cut.n_vertices, -1, dtype=np.int64)
+    local[used] = np.arange(used.size)
+    colors = None if cut.vertex_colors is None else cut.vertex_colors[used]
+    name = f"{mesh.name or 'mesh'}-patch{reg.patch}"
+    sub = Mesh(cut.vertices[used], sub_faces, colors, name=name)
+    loop = local[reg.loop]
+    n = loop.size
+    cpos = reg.corner_pos
+    corners = loop[cpos]
+    sides = []
+    for s in range(4):
+        a, b = cpos[s], cpos[(s + 1) % 4]
+        if b <= a:
+            b += n
+        sides.append(np.take(loop, np.arange(a, b + 1), mode="wrap"))
+    face_parent = res.face_parent[reg.faces]
+    vertex_source = res.vertex_source[used]
+    feats, feat_sides = [], []
+    for f in layout.features[reg.patch]:
+        curve, fs = _map_feature(mesh, sub, face_parent, sides, f)
+        feats.append(curve)
+        feat_sides.append(fs)
+    return Patch(
+        reg.patch,
+        sub,
+        corners,
+        (sides[0], sides[1], sides[2], sides[3]),
+        face_parent,
+        vertex_source,
+        tuple(feats),
+        tuple(feat_sides),
+    )
+
+
+def _map_feature(
+    mesh: Mesh,
+    sub: Mesh,
+    face_parent: NDArray[np.int64],
+    sides: list[NDArray[np.int64]],
+    feature: SurfaceCurve,
+) -> tuple[SurfaceCurve, tuple[int, int]]:
+    """A feature curve of ``mesh`` as face points of the patch submesh, ends on sides."""
+    xyz = mesh.xyz(feature.points)
+    order = np.argsort(face_parent, kind="stable")
+    sorted_parent = face_parent[order]
+    n = xyz.shape[0]
+    face = np.full(n, -1, dtype=np.int64)
+    bary = np.zeros((n, 3))
+    for i in range(n):
+        f = int(feature.points.face[i])
+        lo, hi = np.searchsorted(sorted_parent, [f, f + 1])
+        if hi > lo:
+            cand = order[lo:hi]
+            b = barycentric(sub, cand, np.repeat(xyz[i : i + 1], cand.size, axis=0))
+            j = int(np.argmax(b.min(axis=1)))
+            if b[j].min() > -1e-9:
+                face[i] = cand[j]
+                bb = np.clip(b[j], 0.0, None)
+                bary[i] = bb / bb.sum()
+    miss = np.flatnonzero(face < 0)
+    if miss.size:  # points on faces outside the patch: the closest point of the patch
+        cp = sub.closest_points(xyz[miss])
+        face[miss] = cp.points.face
+        bary[miss] = cp.points.bary
+    end_sides = []
+    edge_face = _boundary_edge_faces(sub)
+    for k in (0, n - 1):
+        s, f, b = _snap_to_sides(sub, sides, edge_face, xyz[k])
+        face[k], bary[k] = f, b
+        end_sides.append(s)
+    curve = SurfaceCurve(SurfacePoints(face, bary), kind="feature")
+    return curve, (end_sides[0], end_sides[1])
+
+
+def _boundary_edge_faces(sub: Mesh) -> dict[tuple[int, int], tuple[int, int]]:
+    """Directed boundary half-edge (a, b) -> (face, slot of a)."""
+    out = {}
+    fn = sub.face_neighbors
+    for f, k in zip(*np.nonzero(fn < 0), strict=True):
+        a, b = int(sub.faces[f, k]), int(sub.faces[f, (k + 1) % 3])
+        out[(a, b)] = (int(f), int(k))
+    return out
+
+
+def _snap_to_sides(sub: Mesh, sides, edge_face, x: NDArray[np.float64]):
+    """The nearest point to ``x`` on the patch sides: (side, face, bary)."""
+    best = (np.inf, 0, 0, 0, 0.0)
+    V = sub.vertices
+    for s, chain in enumerate(sides):
+        a, b = V[chain[:-1]], V[chain[1:]]
+        e = b - a
+        ee = np.einsum("ij,ij->i", e, e)
+        t = np.clip(np.einsum("ij,ij->i", x - a, e) / np.where(ee > 0, ee, 1.0), 0.0, 1.0)
+        d = np.linalg.norm(a + t[:, None] * e - x, axis=1)
+        j = int(np.argmin(d))
+        if d[j] < best[0]:
+            best = (float(d[j]), s, int(chain[j]), int(chain[j + 1]), float(t[j]))
+    _, s, va, vb, t = best
+    f, k = edge_face[(va, vb)]
+    bary = np.zeros(3)
+    bary[k] = 1.0 - t
+    bary[(k + 1) % 3] = t
+    return s, f, bary
