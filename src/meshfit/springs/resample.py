@@ -59,16 +59,10 @@ def _sides(patch) -> Sides:
     return Sides(chains, {k: chain_arc(mesh, c) for k, c in chains.items()})
 
 
-def _split_counts(total: int, breaks: list[float]) -> list[int]:
-    """Intervals per section, proportional to the sections' lengths, at least 1 each."""
+def _split_counts(spacing: float, breaks: list[float]) -> list[int]:
+    """Intervals per section for a target spacing, at least 1 each."""
     lengths = np.diff(np.asarray(breaks, dtype=np.float64))
-    k = len(lengths)
-    total = max(total, k)
-    raw = lengths / lengths.sum() * total
-    counts = np.maximum(1, np.floor(raw).astype(int))
-    while counts.sum() < total:
-        counts[np.argmax(raw - counts)] += 1
-    return [int(c) for c in counts]
+    return [max(1, round(float(length) / spacing)) for length in lengths]
 
 
 def _as_counts(value, n: int, name: str) -> list[int] | None:
@@ -276,15 +270,17 @@ def resample_patch(
     }
     len_u = max(sides.arcs["bottom"][-1], sides.arcs["top"][-1])
     len_v = max(sides.arcs["left"][-1], sides.arcs["right"][-1])
-    base = int(init_intervals)
-    if len_u >= len_v:
-        mu, mv = max(base, round(base * len_u / len_v)), base
-    else:
-        mu, mv = base, max(base, round(base * len_v / len_u))
+    # level-0 spacing: ``init_intervals`` intervals along the shorter direction, the other in
+    # proportion (sec. 5.4: counts from the patch's aspect ratio); at least one per section
+    spacing = min(len_u, len_v) / int(init_intervals)
     mid_u = [0.5 * (a + b) for a, b in zip(breaks["bottom"], breaks["top"], strict=True)]
     mid_v = [0.5 * (a + b) for a, b in zip(breaks["left"], breaks["right"], strict=True)]
-    counts_u = _as_counts(sections_u, len(us) + 1, "sections_u") or _split_counts(mu, mid_u)
-    counts_v = _as_counts(sections_v, len(vs) + 1, "sections_v") or _split_counts(mv, mid_v)
+    if not us:
+        mid_u = [0.0, len_u]
+    if not vs:
+        mid_v = [0.0, len_v]
+    counts_u = _as_counts(sections_u, len(us) + 1, "sections_u") or _split_counts(spacing, mid_u)
+    counts_v = _as_counts(sections_v, len(vs) + 1, "sections_v") or _split_counts(spacing, mid_v)
     state = State(mesh, patch.index, sides, us, vs, breaks, counts_u, counts_v)
     final = _final_level((sum(counts_u), sum(counts_v)), mesh.n_vertices, level, max_points)
     _initialize(state)
