@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
@@ -57,7 +59,7 @@ def test_every_level_is_kept_and_the_grid_doubles(plane):
     res = resample_patch(plane, level=3, metrics=False)
     assert [lv.level for lv in res.levels] == [0, 1, 2, 3]
     shapes = [lv.shape for lv in res.levels]
-    for (a, b), (c, d) in zip(shapes, shapes[1:]):
+    for (a, b), (c, d) in itertools.pairwise(shapes):
         assert (c, d) == (2 * a - 1, 2 * b - 1)
     # coarse points keep their places at even indices of the next level only up to the
     # relaxation's moves: on a plane they do not move at all
