@@ -1,0 +1,189 @@
+"""Benchmark: spring meshes of every patch of the igea and nefertiti layouts against libigl.
+
+For each layout in ``examples/layouts/{igea,nefertiti}.json`` (patches cut with
+:func:`meshfit.layout.extract_patches`):
+
+- time of :func:`meshfit.springs.resample_patch` to the final level (all levels, no metrics;
+  median of several runs after a warm-up compile), per patch and summed over the layout;
+- the peer, timed in the same run on the same patches: libigl's harmonic map of the patch to
+  the unit square (``igl.harmonic``, boundary fixed by arc length along each side) resampled
+  on the same ``(nu, nv)`` grid (grid parameters located in the flattened patch with libigl's
+  point-mesh distance, positions interpolated barycentrically);
+- every quality metric of :func:`meshfit.springs.grid_metrics` for both, side by side
+  (fidelity relative to the whole model's bounding-box diagonal).
+
+Run: ``python benchmarks/springs.py [--repeats 3] [--meshes igea nefertiti]``. Prints JSON and
+writes ``benchmarks/results/springs.json`` atomically.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+from _common import ROOT, median_time, mesh_path, write_result
+
+from meshfit.layout import extract_patches, load_layout
+from meshfit.mesh import load_mesh
+from meshfit.springs import grid_metrics, resample_patch, spring_metrics
+
+METRICS = (
+    "arc_cv_max",
+    "arc_cv_mean",
+    "aspect_median",
+    "aspect_max",
+    "area_cv",
+    "area_ratio",
+    "folded",
+    "fidelity_max",
+    "fidelity_rms",
+)
+
+
+def _square_boundary(patch) -> tuple[np.ndarray, np.ndarray]:
+    """Boundary vertices and their unit-square positions by arc length along each side."""
+    V = patch.mesh.vertices
+    corners = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    b, bc = [], []
+    for s, chain in enumerate(patch.sides):
+        seg = np.linalg.norm(np.diff(V[chain], axis=0), axis=1)
+        t = np.concatenate([[0.0], np.cumsum(seg)]) / max(seg.sum(), 1e-300)
+        a, c = corners[s], corners[(s + 1) % 4]
+        b.append(chain[:-1])
+        bc.append(a + t[:-1, None] * (c - a))
+    return np.concatenate(b).astype(np.int64), np.concatenate(bc)
+
+
+def harmonic_grid(patch, nu: int, nv: int) -> tuple[np.ndarray, np.ndarray]:
+    """libigl harmonic map to the unit square, resampled on an (nu, nv) grid.
+
+    Returns the grid positions (nu, nv, 3) and the normals of the faces they lie in.
+    """
+    import igl
+
+    mesh = patch.mesh
+    b, bc = _square_boundary(patch)
+    uv = igl.harmonic(mesh.vertices, mesh.faces, b, bc, 1)
+    uv3 = np.ascontiguousarray(np.column_stack([uv, np.zeros(len(uv))]))
+    s, t = np.meshgrid(np.linspace(0, 1, nu), np.linspace(0, 1, nv), indexing="ij")
+    q = np.ascontiguousarray(np.column_stack([s.ravel(), t.ravel(), np.zeros(s.size)]))
+    _, face, closest = igl.point_mesh_squared_distance(q, uv3, mesh.faces)
+    F = mesh.faces[face]
+    bary = igl.barycentric_coordinates(
+        closest, uv3[F[:, 0]].copy(), uv3[F[:, 1]].copy(), uv3[F[:, 2]].copy()
+    )
+    bad = ~np.isfinite(bary).all(axis=1)
+    if bad.any():  # a triangle flattened to a segment (all three corners on one side)
+        d = np.linalg.norm(uv3[F[bad]] - closest[bad, None, :], axis=2)
+        bary[bad] = 0.0
+        bary[np.flatnonzero(bad), np.argmin(d, axis=1)] = 1.0
+    V = mesh.vertices
+    xyz = (
+        bary[:, :1] * V[F[:, 0]] + bary[:, 1:2] * V[F[:, 1]] + bary[:, 2:] * V[F[:, 2]]
+    ).reshape(nu, nv, 3)
+    return xyz, mesh.face_normals[face].reshape(nu, nv, 3)
+
+
+def _round(d: dict) -> dict:
+    return {k: (round(v, 6) if isinstance(v, float) else v) for k, v in d.items()}
+
+
+def run_layout(name: str, repeats: int) -> dict:
+    mesh = load_mesh(mesh_path(name))
+    layout = load_layout(ROOT / "examples" / "layouts" / f"{name}.json", mesh)
+    patches = extract_patches(mesh, layout)
+    diag = mesh.bbox_diagonal
+    rows = []
+    for patch in patches:
+        resample_patch(patch, metrics=False)  # warm-up (compile on the first patch)
+        t_ours, _ = median_time(lambda p=patch: resample_patch(p, metrics=False), repeats)
+        res = resample_patch(patch, metrics=False)
+        nu, nv = res.final.shape
+        harmonic_grid(patch, nu, nv)
+        t_peer, _ = median_time(lambda p=patch: harmonic_grid(p, nu, nv), repeats)
+        xyz, nrm = harmonic_grid(patch, nu, nv)
+        ours = spring_metrics(patch.mesh, res.final, scale=diag)
+        peer = grid_metrics(patch.mesh, xyz, nrm, scale=diag)
+        rows.append(
+            {
+                "patch": patch.index,
+                "vertices": patch.mesh.n_vertices,
+                "features": len(patch.features),
+                "grid": [nu, nv],
+                "level": res.final.level,
+                "sweeps": res.sweeps,
+                "seconds": round(t_ours, 5),
+                "peer_seconds": round(t_peer, 5),
+                "ratio": round(t_ours / t_peer, 3),
+                "springs": _round({k: ours[k] for k in METRICS}),
+                "harmonic": _round({k: peer[k] for k in METRICS}),
+            }
+        )
+    largest = max(rows, key=lambda r: r["vertices"])
+    total = sum(r["seconds"] for r in rows)
+    total_peer = sum(r["peer_seconds"] for r in rows)
+    worst = {}
+    for who in ("springs", "harmonic"):
+        worst[who] = {
+            "arc_cv_max": max(r[who]["arc_cv_max"] for r in rows),
+            "aspect_median_max": max(r[who]["aspect_median"] for r in rows),
+            "folded_total": sum(r[who]["folded"] for r in rows),
+            "fidelity_max": max(r[who]["fidelity_max"] for r in rows),
+            "area_cv_median": statistics.median(r[who]["area_cv"] for r in rows),
+        }
+    return {
+        "mesh": name,
+        "vertices": mesh.n_vertices,
+        "patches": len(rows),
+        "largest_patch": {
+            "patch": largest["patch"],
+            "vertices": largest["vertices"],
+            "grid": largest["grid"],
+            "seconds": largest["seconds"],
+            "peer_seconds": largest["peer_seconds"],
+            "ratio": largest["ratio"],
+            "target_seconds": 0.2,
+            "target_ratio": 1.5,
+        },
+        "layout_seconds": round(total, 4),
+        "layout_peer_seconds": round(total_peer, 4),
+        "layout_ratio": round(total / total_peer, 3),
+        "worst_over_patches": worst,
+        "per_patch": rows,
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=3, help="timed runs (median reported)")
+    ap.add_argument("--meshes", nargs="+", default=["igea", "nefertiti"])
+    args = ap.parse_args()
+    import igl
+    import numba
+
+    load_start = os.getloadavg()[0]
+    layouts = [run_layout(name, args.repeats) for name in args.meshes]
+    out = {
+        "benchmark": "springs",
+        "machine": {
+            "python": platform.python_version(),
+            "cpus": os.cpu_count(),
+            "numba": numba.__version__,
+            "igl": getattr(igl, "__version__", "2.6.x"),
+            "load_avg_start": round(load_start, 2),
+            "load_avg_end": round(os.getloadavg()[0], 2),
+        },
+        "peer": "igl.harmonic to the unit square (boundary by arc length per side), resampled "
+        "on the same grid with igl.point_mesh_squared_distance + barycentric interpolation",
+        "layouts": layouts,
+    }
+    write_result("springs", out)
+
+
+if __name__ == "__main__":
+    main()
