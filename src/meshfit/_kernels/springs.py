@@ -35,15 +35,16 @@ def grid_xyz(V, F, face, bary):
 
 
 @njit(cache=True, nogil=True, fastmath=False)
-def walk_inside(V, F, FN, f, b, u, total, max_faces, bary_eps, tries):
+def walk_inside(V, F, FN, f, b, u, total, max_faces, bary_eps, tries, b0, u0):
     """Walk face point (f, b) by ``total`` along unit in-plane ``u``, never onto the boundary.
 
     A walk that reaches the mesh boundary is undone and retried at half the length, up to
-    ``tries`` times (then the point stays). ``b`` (3,) is updated in place. Returns the new
-    face and the length moved.
+    ``tries`` times (then the point stays). ``b`` (3,) is updated in place; ``b0``, ``u0``
+    (3,) are scratch. Returns the new face and the length moved.
     """
-    b0 = b.copy()
-    u0 = u.copy()
+    for c in range(3):
+        b0[c] = b[c]
+        u0[c] = u[c]
     length = total
     for _t in range(tries + 1):
         g, _rest, status, _ = _walk_one(V, F, FN, f, b, u, length, max_faces, bary_eps)
@@ -138,6 +139,8 @@ def relax_sweeps(
     X = grid_xyz(V, F, face, bary)
     step = np.empty(3)
     u = np.empty(3)
+    s0 = np.empty(3)
+    s1 = np.empty(3)
     worst = 0.0
     done = 0
     for k in range(n_sweeps):
@@ -163,7 +166,9 @@ def relax_sweeps(
             else:
                 alpha[p] = min(1.0, alpha[p] * 1.25)
             total *= omega * alpha[p]
-            f, moved = walk_inside(V, F, FN, face[p], bary[p], u, total, max_faces, bary_eps, 6)
+            f, moved = walk_inside(
+                V, F, FN, face[p], bary[p], u, total, max_faces, bary_eps, 6, s0, s1
+            )
             if h > 0.0:
                 worst = max(worst, moved / h)
                 sq += (moved / h) ** 2
@@ -185,11 +190,11 @@ def relax_sweeps(
 
 
 @njit(cache=True, nogil=True, fastmath=False)
-def _greedy_mid(V, indptr, indices, v1, v2, max_steps):
-    """Mid vertex (by length) of a greedy graph path v1 -> v2, or -1 if the descent sticks."""
+def _greedy_mid(V, indptr, indices, v1, v2, max_steps, path):
+    """Mid vertex (by length) of a greedy graph path v1 -> v2, or -1 if the descent sticks;
+    ``path`` (max_steps + 1,) i8 is scratch."""
     if v1 == v2:
         return v1
-    path = np.empty(max_steps + 1, dtype=np.int64)
     path[0] = v1
     cur = v1
     m = 1
@@ -251,6 +256,9 @@ def find_midpoints(
     step = np.empty(3)
     xa = np.empty(3)
     xb = np.empty(3)
+    s0 = np.empty(3)
+    s1 = np.empty(3)
+    path = np.empty(max_steps + 1, dtype=np.int64)
     for i in range(n):
         for c in range(3):
             xa[c] = (
@@ -265,7 +273,7 @@ def find_midpoints(
             )
         v1 = F[fa[i], np.argmax(ba[i])]
         v2 = F[fb[i], np.argmax(bb[i])]
-        mid = _greedy_mid(V, indptr, indices, v1, v2, max_steps)
+        mid = _greedy_mid(V, indptr, indices, v1, v2, max_steps, path)
         b = out_b[i]
         if mid >= 0 and mid != v1 and mid != v2:
             f = VF[VFp[mid]]
@@ -279,7 +287,7 @@ def find_midpoints(
                 step[c] = 0.5 * (xb[c] - xa[c])
             total = _start_direction(V, F, f, step, u)
             if total > 0.0:
-                f, _m = walk_inside(V, F, FN, f, b, u, total, max_faces, bary_eps, 6)
+                f, _m = walk_inside(V, F, FN, f, b, u, total, max_faces, bary_eps, 6, s0, s1)
         for _k in range(n_fair):
             for c in range(3):
                 x = b[0] * V[F[f, 0], c] + b[1] * V[F[f, 1], c] + b[2] * V[F[f, 2], c]
@@ -287,6 +295,6 @@ def find_midpoints(
             total = _start_direction(V, F, f, step, u)
             if total <= 0.0:
                 break
-            f, _m = walk_inside(V, F, FN, f, b, u, total, max_faces, bary_eps, 6)
+            f, _m = walk_inside(V, F, FN, f, b, u, total, max_faces, bary_eps, 6, s0, s1)
         out_f[i] = f
     return out_f, out_b

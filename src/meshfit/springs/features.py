@@ -27,6 +27,7 @@ class Sides:
 
     chains: dict[str, NDArray[np.int64]]
     arcs: dict[str, NDArray[np.float64]]
+    edge_faces: dict[str, tuple[NDArray, NDArray, NDArray]]
 
 
 @dataclass

@@ -18,36 +18,52 @@ def chain_arc(mesh: Mesh, chain: NDArray[np.int64]) -> NDArray[np.float64]:
     return np.concatenate([[0.0], np.cumsum(seg)])
 
 
-def _edge_face(mesh: Mesh, a: int, b: int) -> tuple[int, int, int]:
-    """A face holding edge (a, b) and the slots of a and b in it."""
-    indptr, vf = mesh.vertex_faces
-    for f in vf[indptr[a] : indptr[a + 1]]:
-        row = mesh.faces[f]
-        if b in row:
-            return int(f), int(np.flatnonzero(row == a)[0]), int(np.flatnonzero(row == b)[0])
-    raise AssertionError(f"vertices {a} and {b} share no face")  # chains follow mesh edges
+def chain_edge_faces(mesh: Mesh, chain: NDArray[np.int64]) -> tuple[NDArray, NDArray, NDArray]:
+    """For each edge of a vertex chain along mesh edges: a face holding it and the slots of
+    the edge's two vertices in that face; (k - 1,) int64 each."""
+    F = mesh.faces
+    n = np.int64(mesh.n_vertices)
+    key = np.concatenate([F[:, k] * n + F[:, (k + 1) % 3] for k in range(3)])
+    key = np.concatenate([key, np.concatenate([F[:, (k + 1) % 3] * n + F[:, k] for k in range(3)])])
+    nf = F.shape[0]
+    face = np.tile(np.arange(nf), 6)
+    sa = np.concatenate(
+        [np.full(nf, k) for k in range(3)] + [np.full(nf, (k + 1) % 3) for k in range(3)]
+    )
+    sb = np.concatenate(
+        [np.full(nf, (k + 1) % 3) for k in range(3)] + [np.full(nf, k) for k in range(3)]
+    )
+    order = np.argsort(key, kind="stable")
+    want = chain[:-1] * n + chain[1:]
+    pos = np.searchsorted(key[order], want)
+    pos = np.minimum(pos, len(order) - 1)
+    hit = order[pos]
+    if not np.array_equal(key[hit], want):
+        raise AssertionError("side chains follow mesh edges")
+    return face[hit], sa[hit], sb[hit]
 
 
 def chain_points(
-    mesh: Mesh, chain: NDArray[np.int64], arc: NDArray[np.float64], positions: NDArray
+    mesh: Mesh,
+    chain: NDArray[np.int64],
+    arc: NDArray[np.float64],
+    positions: NDArray,
+    edge_faces: tuple[NDArray, NDArray, NDArray] | None = None,
 ) -> SurfacePoints:
     """Face points at arc-length ``positions`` (m,) along a vertex chain (on its edges)."""
+    if edge_faces is None:
+        edge_faces = chain_edge_faces(mesh, chain)
+    ef, ea, eb = edge_faces
     positions = np.clip(np.asarray(positions, dtype=np.float64), 0.0, arc[-1])
     k = np.clip(np.searchsorted(arc, positions, side="right") - 1, 0, len(chain) - 2)
     seg = arc[k + 1] - arc[k]
     t = np.where(seg > 0, (positions - arc[k]) / np.where(seg > 0, seg, 1.0), 0.0)
     t = np.clip(t, 0.0, 1.0)
-    face = np.empty(len(positions), dtype=np.int64)
+    face = ef[k]
     bary = np.zeros((len(positions), 3))
-    cache: dict[tuple[int, int], tuple[int, int, int]] = {}
-    for n, (kk, tt) in enumerate(zip(k, t, strict=True)):
-        key = (int(chain[kk]), int(chain[kk + 1]))
-        if key not in cache:
-            cache[key] = _edge_face(mesh, *key)
-        f, sa, sb = cache[key]
-        face[n] = f
-        bary[n, sa] = 1.0 - tt
-        bary[n, sb] += tt
+    rows = np.arange(len(positions))
+    bary[rows, ea[k]] = 1.0 - t
+    bary[rows, eb[k]] += t
     return SurfacePoints(face, bary)
 
 

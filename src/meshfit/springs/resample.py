@@ -12,7 +12,7 @@ from meshfit.errors import InputError
 from meshfit.mesh import Mesh
 from meshfit.springs.features import FeatureLine, Sides, intersect_lines, prepare_features
 from meshfit.springs.grid import SpringMesh
-from meshfit.springs.init import chain_arc, closest_approach, dijkstra_paths
+from meshfit.springs.init import chain_arc, chain_edge_faces, closest_approach, dijkstra_paths
 from meshfit.springs.metrics import spring_metrics
 from meshfit.springs.relax import relax
 from meshfit.springs.state import State
@@ -56,7 +56,11 @@ def _sides(patch) -> Sides:
         "top": np.asarray(patch.sides[2])[::-1].copy(),
         "left": np.asarray(patch.sides[3])[::-1].copy(),
     }
-    return Sides(chains, {k: chain_arc(mesh, c) for k, c in chains.items()})
+    return Sides(
+        chains,
+        {k: chain_arc(mesh, c) for k, c in chains.items()},
+        {k: chain_edge_faces(mesh, c) for k, c in chains.items()},
+    )
 
 
 def _split_counts(spacing: float, breaks: list[float]) -> list[int]:

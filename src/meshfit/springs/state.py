@@ -73,7 +73,13 @@ class State:
             ("right", self.counts_v),
         ):
             pos = section_positions(self.breaks[name], counts)
-            out[name] = chain_points(self.mesh, self.sides.chains[name], self.sides.arcs[name], pos)
+            out[name] = chain_points(
+                self.mesh,
+                self.sides.chains[name],
+                self.sides.arcs[name],
+                pos,
+                self.sides.edge_faces[name],
+            )
         return out
 
     def set_boundary(self) -> None:
