@@ -63,3 +63,15 @@ LAYOUT_CORNER_MATCH = 1e-6
 LAYOUT_BARY_SUM = 1e-9
 #: patch face areas sum to the mesh area within this relative error (tests)
 LAYOUT_AREA_RTOL = 1e-9
+
+# --- meshfit.bspline / meshfit.displacement / meshfit.stitch
+#: |S_u x S_v| below this times |S_u| |S_v| is a degenerate (collapsed) point of a spline (dimensionless)
+BSPLINE_DEGENERATE = 1e-12
+#: at a degenerate point the normal is taken this far (in parameter) towards the patch middle
+BSPLINE_NORMAL_STEP = 1e-6
+#: closest-point Newton iteration on a spline stops when the parameter step is below this
+BSPLINE_CLOSEST_STEP = 1e-12
+#: iteration cap of the closest-point Newton iteration
+BSPLINE_CLOSEST_MAX_ITER = 50
+#: a fitted surface reproduces exact spline data to this relative error (tests)
+BSPLINE_FIT_RTOL = 1e-10
