@@ -7,6 +7,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from meshfit.curves.base import check_sampling, densify_curve
 from meshfit.curves.paint import paint_curve
 from meshfit.errors import InputError, LayoutError
 from meshfit.layout.layout import Layout, layout_from_curves
@@ -156,7 +157,7 @@ def cube_layout(
         q = pts[a][None] + t[:, None] * (pts[b] - pts[a])[None]
         mid = project(q) if len(t) else SurfacePoints(np.zeros(0, np.int64), np.zeros((0, 3)))
         picks = SurfacePoints.concatenate([corners[a], mid, corners[b]])
-        curves.append(paint_curve(mesh, picks, spacing=spacing))
+        curves.append(_tidy(mesh, paint_curve(mesh, picks, spacing=spacing), spacing))
     features = [[] for _ in patches]
     if feature_patch is not None:
         lat = squares[feature_patch]
@@ -178,7 +179,7 @@ def cube_layout(
                 end = _nearest_sample(mesh, curves, patches[feature_patch][s_to], project(q[-1:]))
                 picks = SurfacePoints.concatenate([start, mid, end])
                 features[feature_patch].append(
-                    paint_curve(mesh, picks, kind="feature", spacing=spacing)
+                    _tidy(mesh, paint_curve(mesh, picks, kind="feature", spacing=spacing), spacing)
                 )
     return layout_from_curves(mesh, corners, curves, ends, patches, features)
 
@@ -192,3 +193,30 @@ def _nearest_sample(
     d = np.linalg.norm(x - mesh.xyz(target)[0], axis=1)
     d[[0, -1]] = np.inf
     return c.points[int(np.argmin(d))]
+
+
+def _tidy(mesh: Mesh, curve: SurfaceCurve, spacing: float) -> SurfaceCurve:
+    """Drop painted samples that stall or step back (closer than ``spacing / 4`` to the last
+    kept sample, or closer to the sample two back than to the last), keeping both ends; the
+    sampling rule is restored with :func:`meshfit.curves.densify_curve` where needed."""
+    x = mesh.xyz(curve.points)
+    n = len(x)
+    keep = [0]
+    for i in range(1, n - 1):
+        while True:
+            if np.linalg.norm(x[i] - x[keep[-1]]) < 0.25 * spacing:
+                break  # a stall: drop sample i
+            if len(keep) >= 2 and np.linalg.norm(x[i] - x[keep[-2]]) <= np.linalg.norm(
+                x[keep[-1]] - x[keep[-2]]
+            ):
+                keep.pop()  # a step back towards the sample two back: a zig-zag
+                continue
+            keep.append(i)
+            break
+    while len(keep) >= 2 and np.linalg.norm(x[n - 1] - x[keep[-1]]) < 0.25 * spacing:
+        keep.pop()
+    keep.append(n - 1)
+    out = SurfaceCurve(curve.points[np.asarray(keep)], kind=curve.kind)
+    if len(check_sampling(mesh, out)):
+        out = densify_curve(mesh, out)
+    return out

@@ -911,7 +911,7 @@ def cut_mesh_network(
             raise CutError(f"curve {i}: {exc}") from None
     paths = []
     for i, path in enumerate(raw):
-        path = _drop_spikes(_expand(cutter, path, False), False)
+        path = _drop_loops(_drop_spikes(_expand(cutter, path, False), False))
         if len(path) < 2:
             raise CutError(f"curve {i} collapses to a single vertex: nothing to cut")
         paths.append(path)
@@ -935,6 +935,23 @@ def cut_mesh_network(
         parent,
         src,
     )
+
+
+def _drop_loops(path: list[int]) -> list[int]:
+    """Cut out closed detours ``v ... v`` of an open path (left where a walk curled round and
+    came back to a vertex it had passed), so each vertex appears once."""
+    out: list[int] = []
+    where: dict[int, int] = {}
+    for v in path:
+        k = where.get(v)
+        if k is not None:
+            for u in out[k + 1 :]:
+                del where[u]
+            del out[k + 1 :]
+            continue
+        where[v] = len(out)
+        out.append(v)
+    return out
 
 
 def _first_repeat(a: NDArray[np.int64]) -> tuple[int, int]:
