@@ -19,27 +19,22 @@ def chain_arc(mesh: Mesh, chain: NDArray[np.int64]) -> NDArray[np.float64]:
 
 
 def chain_edge_faces(mesh: Mesh, chain: NDArray[np.int64]) -> tuple[NDArray, NDArray, NDArray]:
-    """For each edge of a vertex chain along mesh edges: a face holding it and the slots of
-    the edge's two vertices in that face; (k - 1,) int64 each."""
+    """For each edge of a vertex chain along the mesh boundary: the face holding it and the
+    slots of the edge's two vertices in that face; (k - 1,) int64 each."""
     F = mesh.faces
+    f, k = np.nonzero(mesh.face_neighbors < 0)  # boundary edge k of face f
+    a, b = F[f, k], F[f, (k + 1) % 3]
     n = np.int64(mesh.n_vertices)
-    key = np.concatenate([F[:, k] * n + F[:, (k + 1) % 3] for k in range(3)])
-    key = np.concatenate([key, np.concatenate([F[:, (k + 1) % 3] * n + F[:, k] for k in range(3)])])
-    nf = F.shape[0]
-    face = np.tile(np.arange(nf), 6)
-    sa = np.concatenate(
-        [np.full(nf, k) for k in range(3)] + [np.full(nf, (k + 1) % 3) for k in range(3)]
-    )
-    sb = np.concatenate(
-        [np.full(nf, (k + 1) % 3) for k in range(3)] + [np.full(nf, k) for k in range(3)]
-    )
-    order = np.argsort(key, kind="stable")
+    key = np.concatenate([a * n + b, b * n + a])
+    face = np.concatenate([f, f])
+    sa = np.concatenate([k, (k + 1) % 3])
+    sb = np.concatenate([(k + 1) % 3, k])
+    order = np.argsort(key)
     want = chain[:-1] * n + chain[1:]
-    pos = np.searchsorted(key[order], want)
-    pos = np.minimum(pos, len(order) - 1)
+    pos = np.minimum(np.searchsorted(key[order], want), len(order) - 1)
     hit = order[pos]
     if not np.array_equal(key[hit], want):
-        raise AssertionError("side chains follow mesh edges")
+        raise AssertionError("side chains follow the patch boundary")
     return face[hit], sa[hit], sb[hit]
 
 

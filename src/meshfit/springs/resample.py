@@ -187,7 +187,7 @@ def resample_patch(
     max_iter: int = 200,
     ramp: int = 8,
     omega: float = 1.0,
-    n_fair: int = 3,
+    n_fair: int = 2,
     metrics: bool = True,
     fidelity: bool = True,
     scale: float | None = None,
@@ -227,7 +227,7 @@ def resample_patch(
     omega : float, keyword-only
         Over-relaxation factor of the Gauss-Seidel sweeps, in (0, 2) (default 1).
     n_fair : int, keyword-only
-        Local fairness moves after each FindMidPoint guess (default 3).
+        Local fairness moves after each FindMidPoint guess (default 2).
     metrics, fidelity : bool, keyword-only
         Compute :func:`meshfit.springs.grid_metrics` of every level (with the fidelity
         distances).
