@@ -1,0 +1,288 @@
+"""Gridded least-squares fitting of a cubic B-spline surface, and its error measures."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+import scipy.linalg
+from numpy.typing import ArrayLike, NDArray
+
+from meshfit import tol
+from meshfit.bspline.basis import DEGREE, basis_matrix, clamped_knots
+from meshfit.bspline.surface import BSplineSurface
+from meshfit.errors import InputError
+
+__all__ = ["FitErrors", "closest_parameters", "fit_bspline", "fit_errors", "grid_parameters"]
+
+#: names of the boundary rows of control points that can be pinned, and the row they name
+SIDES = ("u0", "u1", "v0", "v1")
+
+
+def grid_parameters(n: int) -> NDArray[np.float64]:
+    """Uniform parameters of a grid line of ``n`` points: ``(n,) float64``, ``i / (n - 1)``."""
+    return np.linspace(0.0, 1.0, n)
+
+
+@lru_cache(maxsize=64)
+def _solver(n: int, m: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Collocation matrix ``B (n, m)`` of n uniform samples and the pseudo-inverse ``(m, n)``.
+
+    The pseudo-inverse ``(B^T B)^-1 B^T`` comes from a Cholesky factorisation of the banded
+    ``m x m`` normal matrix; cached, so re-fitting a grid of a seen size costs two products.
+    """
+    B = basis_matrix(grid_parameters(n), clamped_knots(m), DEGREE, 0)
+    cho = scipy.linalg.cho_factor(B.T @ B)
+    pinv = scipy.linalg.cho_solve(cho, B.T)
+    B.flags.writeable = False
+    pinv.flags.writeable = False
+    return B, pinv
+
+
+def _as_grid(grid_xyz: ArrayLike) -> NDArray[np.float64]:
+    try:
+        X = np.asarray(grid_xyz, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError("grid_xyz must be numeric with shape (nu, nv, 3)") from None
+    if X.ndim != 3 or X.shape[2] != 3:
+        raise InputError(f"grid_xyz must have shape (nu, nv, 3), got {X.shape}")
+    if not np.isfinite(X).all():
+        i, j = np.argwhere(~np.isfinite(X).all(axis=2))[0]
+        raise InputError(f"grid_xyz[{i}, {j}] is not finite")
+    return X
+
+
+def fit_bspline(
+    grid_xyz: ArrayLike,
+    *,
+    controls: tuple[int, int],
+    pin_boundary: Mapping[str, ArrayLike] | None = None,
+) -> BSplineSurface:
+    """Least-squares cubic B-spline surface through a gridded set of points.
+
+    Solves eq. 4.4 of the thesis, ``X = B_u P B_v^T`` in the least-squares sense, as two small
+    solves, ``P = (B_u^T B_u)^-1 B_u^T X B_v (B_v^T B_v)^-1``: an ``(mu, nu)`` and an
+    ``(mv, nv)`` pseudo-inverse, never the ``(nu nv) x (mu mv)`` system.
+
+    Parameters
+    ----------
+    grid_xyz : (nu, nv, 3) float64
+        Grid points, model units; ``grid_xyz[i, j]`` is sampled at ``(u_i, v_j) =
+        (i / (nu - 1), j / (nv - 1))``.
+    controls : (int, int)
+        Control resolution ``(mu, mv)``, with ``4 <= mu <= nu`` and ``4 <= mv <= nv``.
+    pin_boundary : mapping of str to (m, 3) float64, optional
+        Boundary rows of control points held fixed, by side: ``"u0"`` is ``P[0, :]``,
+        ``"u1"`` ``P[-1, :]`` (each ``(mv, 3)``), ``"v0"`` ``P[:, 0]``, ``"v1"`` ``P[:, -1]``
+        (each ``(mu, 3)``), in increasing parameter order. Pinned sides meeting at a corner
+        must agree on the corner point. The remaining control points are the least-squares
+        solution given the pinned ones; the problem stays separable because the free
+        control points form the product of the free rows and free columns. Default: none.
+
+    Returns
+    -------
+    BSplineSurface
+        Clamped uniform knots, ``control_points (mu, mv, 3)``.
+
+    Raises
+    ------
+    InputError
+        Bad shapes, a control resolution out of range, non-finite values, an unknown side,
+        or pinned sides that disagree at a corner.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 4.3.2, eq. 4.4; sec. 6.2; sec. 8.1.3 (boundary
+       constraints at the fitting step).
+    """
+    X = _as_grid(grid_xyz)
+    nu, nv = X.shape[:2]
+    try:
+        mu, mv = (int(c) for c in controls)
+    except (TypeError, ValueError):
+        raise InputError(f"controls must be a pair of integers, got {controls!r}") from None
+    if not (DEGREE + 1 <= mu <= nu and DEGREE + 1 <= mv <= nv):
+        raise InputError(
+            f"controls {(mu, mv)} out of range for a {nu} x {nv} grid: need 4 <= mu <= {nu} "
+            f"and 4 <= mv <= {nv}"
+        )
+    Bu, Pu = _solver(nu, mu)
+    Bv, Pv = _solver(nv, mv)
+    if not pin_boundary:
+        P = np.einsum("ai,ijc,bj->abc", Pu, X, Pv, optimize=True)
+        return BSplineSurface(P)
+
+    P = np.zeros((mu, mv, 3))
+    fixed = np.zeros((mu, mv), dtype=bool)
+    rows_free = np.ones(mu, dtype=bool)
+    cols_free = np.ones(mv, dtype=bool)
+    for side, values in pin_boundary.items():
+        if side not in SIDES:
+            raise InputError(f"pin_boundary side must be one of {SIDES}, got {side!r}")
+        n = mv if side[0] == "u" else mu
+        vals = np.asarray(values, dtype=np.float64)
+        if vals.shape != (n, 3) or not np.isfinite(vals).all():
+            raise InputError(
+                f"pin_boundary[{side!r}] must be finite with shape ({n}, 3), got {vals.shape}"
+            )
+        idx = (np.s_[0, :], np.s_[-1, :], np.s_[:, 0], np.s_[:, -1])[SIDES.index(side)]
+        overlap = fixed[idx]
+        if overlap.any() and not np.allclose(P[idx][overlap], vals[overlap], rtol=0, atol=0):
+            raise InputError(f"pin_boundary[{side!r}] disagrees with another side at a corner")
+        P[idx] = vals
+        fixed[idx] = True
+        if side[0] == "u":
+            rows_free[0 if side == "u0" else -1] = False
+        else:
+            cols_free[0 if side == "v0" else -1] = False
+    # residual of the pinned part, then least squares over free rows x free columns
+    R = X - np.einsum("ia,abc,jb->ijc", Bu, P, Bv, optimize=True)
+    Bu_f, Bv_f = Bu[:, rows_free], Bv[:, cols_free]
+    Pu_f = scipy.linalg.cho_solve(scipy.linalg.cho_factor(Bu_f.T @ Bu_f), Bu_f.T)
+    Pv_f = scipy.linalg.cho_solve(scipy.linalg.cho_factor(Bv_f.T @ Bv_f), Bv_f.T)
+    free = np.einsum("ai,ijc,bj->abc", Pu_f, R, Pv_f, optimize=True)
+    P[np.ix_(rows_free, cols_free)] = free
+    return BSplineSurface(P)
+
+
+@dataclass(frozen=True)
+class FitErrors:
+    """Error of a surface against grid points, model units.
+
+    Attributes
+    ----------
+    parametric_rms, parametric_max : float
+        ``|X_ij - S(u_i, v_j)|`` over the grid (eq. 6.1): RMS and maximum.
+    normal_rms, normal_max : float
+        Distance of each grid point to its closest point on the surface (eq. 6.2): RMS and
+        maximum. Never above the parametric figures.
+    """
+
+    parametric_rms: float
+    parametric_max: float
+    normal_rms: float
+    normal_max: float
+
+    def as_dict(self) -> dict[str, float]:
+        return {
+            "parametric_rms": self.parametric_rms,
+            "parametric_max": self.parametric_max,
+            "normal_rms": self.normal_rms,
+            "normal_max": self.normal_max,
+        }
+
+
+def closest_parameters(
+    surface: BSplineSurface,
+    points: ArrayLike,
+    u0: ArrayLike,
+    v0: ArrayLike,
+    *,
+    max_iter: int = tol.BSPLINE_CLOSEST_MAX_ITER,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Closest points on a surface by Newton iteration from starting parameters.
+
+    Parameters
+    ----------
+    surface : BSplineSurface
+    points : (n, 3) float64
+        Query points, model units.
+    u0, v0 : (n,) float64
+        Starting parameters (for grid data, the grid parameters: the closest point is near).
+    max_iter : int
+        Iteration cap (default ``tol.BSPLINE_CLOSEST_MAX_ITER``).
+
+    Returns
+    -------
+    u, v : (n,) float64
+        Parameters of the closest points found, in [0, 1] (steps are clipped to the domain).
+    distance : (n,) float64
+        Distances, model units; never above the distance at the start parameters.
+
+    Notes
+    -----
+    Newton on ``f(u, v) = |S(u, v) - X|^2 / 2`` with the full Hessian ``J^T J + r . S''``,
+    falling back to Gauss-Newton where that is not positive definite, and halving any step
+    that does not decrease the distance (point inversion, Piegl & Tiller sec. 6.1).
+    """
+    X = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    u = np.clip(np.asarray(u0, dtype=np.float64).ravel().copy(), 0.0, 1.0)
+    v = np.clip(np.asarray(v0, dtype=np.float64).ravel().copy(), 0.0, 1.0)
+    S = surface.evaluate(u, v)
+    d2 = ((S - X) ** 2).sum(axis=1)
+    active = np.ones(u.size, dtype=bool)
+    for _ in range(max_iter):
+        idx = np.flatnonzero(active)
+        if idx.size == 0:
+            break
+        S, Su, Sv, Suu, Suv, Svv = surface.evaluate(u[idx], v[idx], derivatives=2)
+        r = S - X[idx]
+        g = np.stack([(r * Su).sum(1), (r * Sv).sum(1)], axis=1)
+        a = (Su * Su).sum(1) + (r * Suu).sum(1)
+        b = (Su * Sv).sum(1) + (r * Suv).sum(1)
+        c = (Sv * Sv).sum(1) + (r * Svv).sum(1)
+        det = a * c - b * b
+        gn = (a <= 0) | (det <= 0)
+        a = np.where(gn, (Su * Su).sum(1), a)
+        b = np.where(gn, (Su * Sv).sum(1), b)
+        c = np.where(gn, (Sv * Sv).sum(1), c)
+        det = a * c - b * b
+        ok = det > 0
+        det = np.where(ok, det, 1.0)
+        du = np.where(ok, -(c * g[:, 0] - b * g[:, 1]) / det, 0.0)
+        dv = np.where(ok, -(a * g[:, 1] - b * g[:, 0]) / det, 0.0)
+        step = np.ones(idx.size)
+        done = ~ok.copy()
+        for _half in range(30):
+            todo = ~done
+            if not todo.any():
+                break
+            un = np.clip(u[idx] + step * du, 0.0, 1.0)
+            vn = np.clip(v[idx] + step * dv, 0.0, 1.0)
+            dn = ((surface.evaluate(un[todo], vn[todo]) - X[idx[todo]]) ** 2).sum(1)
+            better = dn <= d2[idx[todo]]
+            t_idx = np.flatnonzero(todo)
+            acc = t_idx[better]
+            u[idx[acc]], v[idx[acc]], d2[idx[acc]] = un[acc], vn[acc], dn[better]
+            done[acc] = True
+            step[t_idx[~better]] *= 0.5
+        moved = np.abs(step * du) + np.abs(step * dv)
+        still = ok & (moved > tol.BSPLINE_CLOSEST_STEP) & (step > 2.0**-29)
+        active[idx[~still]] = False
+    return u, v, np.sqrt(d2)
+
+
+def fit_errors(surface: BSplineSurface, grid_xyz: ArrayLike) -> FitErrors:
+    """Parametric (eq. 6.1) and normal (eq. 6.2) distance errors of a surface to grid points.
+
+    Parameters
+    ----------
+    surface : BSplineSurface
+    grid_xyz : (nu, nv, 3) float64
+        Grid points at the uniform grid parameters (see :func:`fit_bspline`).
+
+    Returns
+    -------
+    FitErrors
+        RMS and max of both measures, model units.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 6.2, eqs. 6.1 and 6.2.
+    """
+    X = _as_grid(grid_xyz)
+    nu, nv = X.shape[:2]
+    gu, gv = grid_parameters(nu), grid_parameters(nv)
+    S = surface.evaluate_grid(gu, gv)
+    par = np.linalg.norm(X - S, axis=2).ravel()
+    U, V = np.meshgrid(gu, gv, indexing="ij")
+    _, _, nd = closest_parameters(surface, X.reshape(-1, 3), U.ravel(), V.ravel())
+    nd = np.minimum(nd, par)
+    return FitErrors(
+        parametric_rms=float(np.sqrt(np.mean(par**2))),
+        parametric_max=float(par.max()),
+        normal_rms=float(np.sqrt(np.mean(nd**2))),
+        normal_max=float(nd.max()),
+    )
