@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["DEGREE", "basis_matrix", "basis_local", "clamped_knots"]
+__all__ = ["DEGREE", "basis_local", "basis_matrix", "clamped_knots"]
 
 #: polynomial degree of every surface in meshfit.bspline (order 4)
 DEGREE = 3

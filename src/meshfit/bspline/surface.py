@@ -168,7 +168,9 @@ class BSplineSurface:
         Bv = [basis_matrix(v, self.knots_v, DEGREE, d) for d in range(derivatives + 1)]
         pairs = [(0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2)][: (1, 3, 6)[derivatives]]
         P = self.control_points
-        out = tuple(np.einsum("ia,abc,jb->ijc", Bu[du], P, Bv[dv], optimize=True) for du, dv in pairs)
+        out = tuple(
+            np.einsum("ia,abc,jb->ijc", Bu[du], P, Bv[dv], optimize=True) for du, dv in pairs
+        )
         return out[0] if derivatives == 0 else out
 
     def normals(self, u: ArrayLike, v: ArrayLike) -> NDArray[np.float64]:
