@@ -120,3 +120,14 @@ class LayoutError(InputError):
     curve ends away from their corners, a patch without four sides joined end to end, curves
     crossing away from corners, a patch region that is not a disk, a layout made for another
     mesh. The message names the curve, patch, corner or file line."""
+
+
+class ImageFileError(MeshfitError):
+    """A displacement or bump map image is unreadable, of an unsupported layout (channels, bit
+    depth) or lacks the metadata needed to turn its pixels back into values (kind, value
+    range) when none was given. The message names the file."""
+
+
+class ExportError(MeshfitError):
+    """A spline export cannot be written or read back: an optional library is missing
+    (STEP needs ``meshfit[cad]``), or a file does not hold what the exporter wrote."""
