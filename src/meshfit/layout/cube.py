@@ -12,9 +12,13 @@ from meshfit.curves.paint import paint_curve
 from meshfit.errors import InputError, LayoutError
 from meshfit.layout.layout import Layout, layout_from_curves
 from meshfit.mesh import Mesh
+from meshfit.mesh.locate import RayHits
 from meshfit.types import SurfaceCurve, SurfacePoints
 
 __all__ = ["cube_layout"]
+
+#: ray origins tried again (on the copy of bbox diagonal 10) where a ray slips between faces
+_NUDGES = 1e-6 * np.array([[1.0, 0.7, 0.3], [-0.4, 1.0, -0.8], [0.9, -0.6, 1.0]])
 
 
 def _cube_network(n: int):
@@ -142,6 +146,14 @@ def cube_layout(
         d = directions(q)
         d = d / np.linalg.norm(d, axis=1, keepdims=True)
         hits = unit.ray_first_hit(np.zeros_like(d), d)
+        face, bary = hits.face.copy(), hits.bary.copy()
+        for nudge in _NUDGES:  # a ray through an edge or vertex may slip between the faces
+            miss = np.flatnonzero(face < 0)
+            if miss.size == 0:
+                break
+            again = unit.ray_first_hit(np.repeat(nudge[None], miss.size, axis=0), d[miss])
+            face[miss], bary[miss] = again.face, again.bary
+        hits = RayHits(face >= 0, hits.t, face, bary)
         if not hits.hit.all():
             k = int(np.flatnonzero(~hits.hit)[0])
             raise LayoutError(

@@ -1,0 +1,426 @@
+"""Layouts: the JSON file format and its validation, and patch extraction on the test layouts
+of igea, nefertiti and spot and on analytic planes and cylinders."""
+
+from __future__ import annotations
+
+import json
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from meshfit import tol
+from meshfit.errors import LayoutError, MeshfitError
+from meshfit.layout import (
+    Layout,
+    check_layout_topology,
+    extract_patches,
+    layout_from_curves,
+    layout_to_json,
+    load_layout,
+    mesh_fingerprint,
+    save_layout,
+)
+from meshfit.layout.cube import cube_layout
+from meshfit.mesh import Mesh
+from meshfit.types import SurfacePoints
+
+from .. import shapes
+from ..conftest import CLOSED_REAL, real_mesh
+
+ROOT = Path(__file__).resolve().parents[2]
+LAYOUTS = ROOT / "examples" / "layouts"
+
+
+@cache
+def real_layout(name: str) -> Layout:
+    return load_layout(LAYOUTS / f"{name}.json", real_mesh(name), check_topology=False)
+
+
+@cache
+def real_patches(name: str):
+    return extract_patches(real_mesh(name), real_layout(name))
+
+
+@cache
+def sphere() -> Mesh:
+    return shapes.icosphere(3)
+
+
+@cache
+def sphere_layout() -> Layout:
+    return cube_layout(sphere(), frame=np.eye(3), feature_patch=0)
+
+
+# ------------------------------------------------------------------------- helpers
+def _patch_list(layout: Layout) -> list[list[tuple[int, bool]]]:
+    return [
+        [(int(layout.patch_curves[p, s]), bool(layout.patch_reversed[p, s])) for s in range(4)]
+        for p in range(layout.n_patches)
+    ]
+
+
+def _rebuild(mesh, layout, *, curves=None, patches=None, corners=None, features=None):
+    return layout_from_curves(
+        mesh,
+        layout.corners if corners is None else corners,
+        list(layout.curves) if curves is None else curves,
+        layout.curve_ends,
+        _patch_list(layout) if patches is None else patches,
+        [list(f) for f in layout.features] if features is None else features,
+    )
+
+
+def _assert_patch_is_disk_with_four_sides(patch):
+    m = patch.mesh
+    assert m.n_components == 1
+    assert m.euler_characteristic == 1
+    loops = m.boundary_loops
+    assert len(loops) == 1
+    loop = loops[0]
+    b = patch.boundary
+    assert b.size == loop.size
+    k = int(np.flatnonzero(loop == b[0])[0])
+    assert np.array_equal(np.roll(loop, -k), b)  # the sides follow the boundary half-edges
+    # each side edge is a half-edge of a patch face: the patch lies on the left of each side
+    tails, heads = m.faces.reshape(-1).tolist(), np.roll(m.faces, -1, 1).reshape(-1).tolist()
+    half = set(zip(tails, heads, strict=True))
+    for side in patch.sides:
+        assert side.size >= 2
+        for a, c in zip(side[:-1].tolist(), side[1:].tolist(), strict=True):
+            assert (a, c) in half
+
+
+def _distance_to_polyline(x, pts):
+    a, b = pts[:-1], pts[1:]
+    e = b - a
+    t = np.clip(np.einsum("ij,ij->i", x - a, e) / np.einsum("ij,ij->i", e, e), 0, 1)
+    return float(np.min(np.linalg.norm(a + t[:, None] * e - x, axis=1)))
+
+
+# ------------------------------------------------------------------------- file format
+@pytest.mark.parametrize("name", CLOSED_REAL)
+def test_real_layout_round_trips(name, tmp_path):
+    mesh = real_mesh(name)
+    layout = real_layout(name)
+    path = save_layout(layout, tmp_path / "out.json", mesh=mesh)
+    again = load_layout(path, mesh, check_topology=False)
+    assert again == layout
+    assert path.read_text() == (LAYOUTS / f"{name}.json").read_text()
+    assert path.stat().st_size < 5_000_000
+    assert not list(tmp_path.glob(".*.tmp"))  # the temporary file was renamed
+
+
+def test_analytic_layout_round_trips_bit_exactly(tmp_path):
+    layout = sphere_layout()
+    path = save_layout(layout, tmp_path / "sphere.json")
+    again = load_layout(path, sphere())
+    assert again == layout
+    assert len(again.features[0]) == 4
+
+
+def test_real_layouts_have_at_least_12_patches_and_igea_features():
+    for name in CLOSED_REAL:
+        assert real_layout(name).n_patches >= 12
+    feats = real_layout("igea").features[0]
+    assert len(feats) == 4
+
+
+# ------------------------------------------------------------------------- extraction
+@pytest.mark.parametrize("name", CLOSED_REAL)
+def test_real_layout_patches_are_disks_covering_the_mesh(name):
+    mesh = real_mesh(name)
+    layout = real_layout(name)
+    patches = real_patches(name)
+    assert [p.index for p in patches] == list(range(layout.n_patches))
+    for p in patches:
+        _assert_patch_is_disk_with_four_sides(p)
+        assert_allclose(
+            mesh.xyz(p.vertex_source), p.mesh.vertices, atol=tol.TEST_ATOL * mesh.bbox_diagonal
+        )
+        assert p.face_parent.min() >= 0 and p.face_parent.max() < mesh.n_faces
+    area = sum(p.mesh.area for p in patches)
+    assert_allclose(area, mesh.area, rtol=tol.LAYOUT_AREA_RTOL)
+    # every original face is covered by patch faces of total area equal to its own
+    per_face = np.zeros(mesh.n_faces)
+    for p in patches:
+        np.add.at(per_face, p.face_parent, p.mesh.face_areas)
+    assert_allclose(per_face, mesh.face_areas, rtol=1e-6, atol=1e-12 * mesh.bbox_diagonal**2)
+
+
+@pytest.mark.parametrize("name", CLOSED_REAL)
+def test_shared_corners_and_sides_coincide(name):
+    mesh = real_mesh(name)
+    layout = real_layout(name)
+    patches = real_patches(name)
+    atol = tol.TEST_ATOL * mesh.bbox_diagonal
+    corner_xyz = mesh.xyz(layout.corners)
+    for p in patches:
+        ids = layout.patch_corners(p.index)
+        assert_allclose(p.mesh.vertices[p.corners], corner_xyz[ids], atol=atol)
+    # a curve's two sides (one per neighbouring patch) are the same polyline, reversed
+    sides: dict[int, list] = {}
+    for p in patches:
+        for s in range(4):
+            c = int(layout.patch_curves[p.index, s])
+            pts = p.mesh.vertices[p.sides[s]]
+            sides.setdefault(c, []).append(pts[::-1] if layout.patch_reversed[p.index, s] else pts)
+    for c, pair in sides.items():
+        assert len(pair) == 2, f"curve {c} bounds {len(pair)} patches"
+        assert pair[0].shape == pair[1].shape
+        assert_allclose(pair[0], pair[1], atol=atol)
+
+
+def test_feature_curves_end_on_their_sides():
+    mesh = real_mesh("igea")
+    patch = real_patches("igea")[0]
+    assert len(patch.features) == 4
+    assert sorted(patch.feature_sides) == [(0, 2), (0, 2), (3, 1), (3, 1)]
+    near = tol.FEATURE_END_ON_SIDE * patch.mesh.mean_edge_length
+    for f, (a, b) in zip(patch.features, patch.feature_sides, strict=True):
+        x = patch.mesh.xyz(f.points)
+        assert _distance_to_polyline(x[0], patch.mesh.vertices[patch.sides[a]]) <= near
+        assert _distance_to_polyline(x[-1], patch.mesh.vertices[patch.sides[b]]) <= near
+        assert f.kind == "feature"
+    # the mapped points are the painted points
+    layout = real_layout("igea")
+    for f, g in zip(patch.features, layout.features[0], strict=True):
+        assert_allclose(
+            patch.mesh.xyz(f.points)[1:-1],
+            mesh.xyz(g.points)[1:-1],
+            atol=1e-9 * mesh.bbox_diagonal,
+        )
+
+
+def _plane_points(mesh: Mesh, xy) -> SurfacePoints:
+    xyz = np.concatenate([np.asarray(xy, float), np.zeros((len(xy), 1))], axis=1)
+    return mesh.closest_points(xyz).points
+
+
+def _segment(mesh: Mesh, a, b, step: float) -> SurfacePoints:
+    n = max(2, int(np.ceil(np.linalg.norm(np.subtract(b, a)) / step)) + 1)
+    t = np.linspace(0, 1, n)[:, None]
+    return _plane_points(mesh, (1 - t) * np.asarray(a) + t * np.asarray(b))
+
+
+def plane_grid_layout(k: int = 3):
+    mesh = shapes.plane(20)
+    g = np.linspace(0, 1, k + 1)
+    cid = {(i, j): i * (k + 1) + j for i in range(k + 1) for j in range(k + 1)}
+    corners = _plane_points(mesh, [(g[i], g[j]) for i in range(k + 1) for j in range(k + 1)])
+    curves, ends, edge = [], [], {}
+    step = 0.25 * mesh.mean_edge_length
+    for (i, j), c in cid.items():
+        for di, dj in ((1, 0), (0, 1)):
+            if (i + di, j + dj) in cid:
+                d = cid[(i + di, j + dj)]
+                edge[(c, d)] = len(curves)
+                curves.append(_segment(mesh, (g[i], g[j]), (g[i + di], g[j + dj]), step))
+                ends.append((c, d))
+    patches = []
+    for i in range(k):
+        for j in range(k):
+            loop = [cid[(i, j)], cid[(i + 1, j)], cid[(i + 1, j + 1)], cid[(i, j + 1)]]
+            sides = []
+            for s in range(4):
+                a, b = loop[s], loop[(s + 1) % 4]
+                sides.append((edge[(a, b)], False) if (a, b) in edge else (edge[(b, a)], True))
+            patches.append(sides)
+    return mesh, layout_from_curves(mesh, corners, curves, ends, patches)
+
+
+def test_plane_3x3_grid_gives_nine_squares():
+    mesh, layout = plane_grid_layout(3)
+    patches = extract_patches(mesh, layout)
+    assert len(patches) == 9
+    # cut_mesh joins consecutive curve points on faces that share only a vertex through that
+    # vertex, so a side may leave the straight line by up to ~1/3 of an edge there
+    eps = 0.5 * mesh.mean_edge_length
+    for p in patches:
+        _assert_patch_is_disk_with_four_sides(p)
+        assert_allclose(p.mesh.area, 1 / 9, atol=4 * eps / 3)
+        c = p.mesh.vertices[p.corners]
+        assert_allclose(c[1] - c[0], [1 / 3, 0, 0], atol=1e-12)  # side 0 along +x
+        assert_allclose(c[3] - c[0], [0, 1 / 3, 0], atol=1e-12)  # side 3 back along -y
+        for s in range(4):  # every side is a straight segment
+            x = p.mesh.vertices[p.sides[s]]
+            e = (x[-1] - x[0]) / np.linalg.norm(x[-1] - x[0])
+            assert np.abs(np.cross(x - x[0], e)).max() <= eps
+    assert_allclose(sum(p.mesh.area for p in patches), 1.0, rtol=1e-12)
+
+
+def test_cylinder_splits_into_four_patches_around():
+    mesh = shapes.cylinder()  # 32 around, 16 along, radius 1, height 2
+    idx = np.arange(32 * 17).reshape(32, 17)
+    cols = [0, 8, 16, 24]
+    corner_v = [idx[c, 0] for c in cols] + [idx[c, -1] for c in cols]
+    corners = SurfacePoints.at_vertices(mesh.faces, corner_v)
+    curves, ends = [], []
+    for k, c in enumerate(cols):  # vertical curves 0..3, bottom arcs 4..7, top arcs 8..11
+        curves.append(SurfacePoints.at_vertices(mesh.faces, idx[c, :]))
+        ends.append((k, k + 4))
+    for row, off in ((0, 0), (-1, 4)):
+        for k, c in enumerate(cols):
+            ring = [idx[(c + s) % 32, row] for s in range(9)]
+            curves.append(SurfacePoints.at_vertices(mesh.faces, ring))
+            ends.append((off + k, off + (k + 1) % 4))
+    patches = [[(4 + k, False), ((k + 1) % 4, False), (8 + k, True), (k, True)] for k in range(4)]
+    layout = layout_from_curves(mesh, corners, curves, ends, patches)
+    out = extract_patches(mesh, layout)
+    assert len(out) == 4
+    for p in out:
+        _assert_patch_is_disk_with_four_sides(p)
+        assert p.mesh.n_faces == mesh.n_faces // 4
+        assert [s.size for s in p.sides] == [9, 17, 9, 17]
+        n = p.mesh.face_normals.mean(axis=0)
+        c = p.mesh.vertices.mean(axis=0)
+        assert n[:2] @ c[:2] > 0  # outward: the corners run counter-clockwise from outside
+    assert_allclose(sum(p.mesh.area for p in out), mesh.area, rtol=1e-12)
+
+
+def test_sphere_layout_extracts_and_checks():
+    out = extract_patches(sphere(), sphere_layout())
+    assert len(out) == 24
+    for p in out:
+        _assert_patch_is_disk_with_four_sides(p)
+    assert_allclose(sum(p.mesh.area for p in out), sphere().area, rtol=tol.LAYOUT_AREA_RTOL)
+    calls = []
+    extract_patches(sphere(), sphere_layout(), progress=lambda d, t: calls.append((d, t)))
+    assert calls and calls[-1][0] == calls[-1][1]
+
+
+# ------------------------------------------------------------------------- bad layouts
+def _corrupt(tmp_path, edit, name="spot"):
+    doc = json.loads((LAYOUTS / f"{name}.json").read_text())
+    edit(doc)
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda d: d.__setitem__("meshfit_layout", 2), "unknown layout version 2"),
+        (lambda d: d.pop("meshfit_layout"), "not a meshfit layout file"),
+        (lambda d: d.pop("curves"), "missing key 'curves'"),
+        (lambda d: d["curves"][3].pop("bary"), "missing key 'curves[3].bary'"),
+        (lambda d: d["curves"][3]["face"].__setitem__(5, 10**6), "curve 3 point 5: face index"),
+        (lambda d: d["corners"]["bary"].__setitem__(2, [0.5, 0.5, 0.5]), "corner 2: barycentric"),
+        (lambda d: d["curves"][4]["bary"].__setitem__(7, [1.2, -0.1, -0.1]), "curve 4 point 7"),
+        (lambda d: d["patches"][2]["sides"].pop(), "patch 2 has 3 sides"),
+        (
+            lambda d: d["patches"][5].__setitem__(
+                "sides", [d["patches"][5]["sides"][i] for i in (0, 2, 1, 3)]
+            ),
+            "patch 5: side 0",
+        ),
+        (lambda d: d["patches"][1]["sides"][0].__setitem__(0, 999), "patch 1 side 0: curve index"),
+        (lambda d: d["mesh"].__setitem__("sha256", "0" * 64), "made for another mesh"),
+    ],
+)
+def test_corrupted_files_raise_layout_errors(tmp_path, edit, message):
+    path = _corrupt(tmp_path, edit)
+    with pytest.raises(LayoutError, match=message.replace("[", r"\[").replace("]", r"\]")):
+        load_layout(path, real_mesh("spot"), check_topology=False)
+
+
+def test_curve_end_away_from_its_corner(tmp_path):
+    def edit(d):
+        c = d["curves"][4]
+        c["face"][0] = c["face"][5]
+        c["bary"][0] = c["bary"][5]
+
+    with pytest.raises(LayoutError, match=r"curve 4: its start is .* from corner"):
+        load_layout(_corrupt(tmp_path, edit), real_mesh("spot"))
+
+
+def test_malformed_json_names_the_line(tmp_path):
+    text = (LAYOUTS / "spot.json").read_text().splitlines()
+    text[5] = '{"corners":[0,1],"face":[1,2,,3]},'  # a broken curve on line 6
+    path = tmp_path / "bad.json"
+    path.write_text("\n".join(text))
+    with pytest.raises(LayoutError, match="malformed JSON at line 6"):
+        load_layout(path, real_mesh("spot"))
+
+
+def test_layout_of_another_mesh(tmp_path):
+    path = tmp_path / "igea.json"
+    path.write_text((LAYOUTS / "spot.json").read_text())
+    with pytest.raises(LayoutError, match="made for another mesh"):
+        load_layout(path, real_mesh("nefertiti"))
+    assert mesh_fingerprint(real_mesh("spot")) == real_layout("spot").fingerprint
+
+
+def test_missing_file_raises_meshfit_error(tmp_path):
+    with pytest.raises(MeshfitError):
+        load_layout(tmp_path / "nope.json", sphere())
+
+
+def test_crossing_curves_raise():
+    from meshfit.curves import paint_curve
+
+    mesh, layout = sphere(), sphere_layout()
+    c = 0
+    a, b = layout.curve_ends[c]
+    # repaint curve 0 through a far point: it crosses other curves on its way
+    far = int(np.argmax(np.linalg.norm(mesh.vertices - mesh.xyz(layout.corners[a]), axis=1)))
+    picks = SurfacePoints.concatenate(
+        [
+            layout.corners[a],
+            SurfacePoints.at_vertices(mesh.faces, [far]),
+            layout.corners[b],
+        ]
+    )
+    curves = list(layout.curves)
+    curves[c] = paint_curve(mesh, picks)
+    bad = _rebuild(mesh, layout, curves=curves)
+    with pytest.raises(LayoutError, match=r"cross|passes through corner"):
+        check_layout_topology(mesh, bad)
+
+
+def test_clockwise_patch_raises():
+    mesh, layout = sphere(), sphere_layout()
+    patches = _patch_list(layout)
+    patches[3] = [(c, not r) for c, r in reversed(patches[3])]
+    with pytest.raises(LayoutError, match="patch 3: its sides run clockwise"):
+        extract_patches(mesh, _rebuild(mesh, layout, patches=patches))
+
+
+def test_uncovered_region_raises_naming_a_face():
+    mesh, layout = sphere(), sphere_layout()
+    patches = _patch_list(layout)[:-1]
+    feats = [list(f) for f in layout.features][:-1]
+    with pytest.raises(LayoutError, match=r"face \d+ lies in a region .* no patch of the layout"):
+        extract_patches(mesh, _rebuild(mesh, layout, patches=patches, features=feats))
+
+
+def test_patch_with_a_hole_is_not_a_disk():
+    full = sphere()
+    d = np.array([1.0, 0.5, 0.5]) / np.linalg.norm([1.0, 0.5, 0.5])
+    centres = full.vertices[full.faces].mean(axis=1)
+    centres /= np.linalg.norm(centres, axis=1, keepdims=True)
+    keep = centres @ d < np.cos(np.radians(8))
+    used = np.unique(full.faces[keep])
+    remap = np.full(full.n_vertices, -1)
+    remap[used] = np.arange(used.size)
+    mesh = Mesh(full.vertices[used], remap[full.faces[keep]], name="holed sphere")
+    assert len(mesh.boundary_loops) == 1
+    layout = cube_layout(mesh, frame=np.eye(3), center=full.vertices.mean(axis=0))
+    with pytest.raises(LayoutError, match="not a disk: its region has 2 boundary loops"):
+        extract_patches(mesh, layout)
+
+
+def test_structural_errors_at_construction():
+    mesh, layout = sphere(), sphere_layout()
+    patches = _patch_list(layout)
+    patches[0] = patches[0][:3]
+    with pytest.raises(LayoutError, match="patch 0 has 3 sides"):
+        _rebuild(mesh, layout, patches=patches)
+    patches = _patch_list(layout)
+    patches[1][2] = patches[1][1]
+    with pytest.raises(LayoutError, match="patch 1 uses a curve twice"):
+        _rebuild(mesh, layout, patches=patches)
+    assert "meshfit_layout" in layout_to_json(layout)
