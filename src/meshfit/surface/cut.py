@@ -169,6 +169,8 @@ class _Cutter:
         self.split_of: dict[tuple[int, int], int] = {}
         self.on_path: set[int] = set()
         self.snap_ok: tuple[int, ...] = ()
+        # join points on faces sharing only a vertex across the fan (else through the vertex)
+        self.route_fans = False
 
     # ------------------------------------------------------------------ lookups
     def face(self, f: int) -> tuple[int, int, int]:
@@ -564,7 +566,7 @@ def _bridge(cutter: _Cutter, p: _CutPoint, q: _CutPoint, i: int, j: int) -> list
                     best, best_len = x, d
     if best is not None:
         return [best]
-    # faces sharing a vertex only: route through it
+    # faces sharing a vertex only: route through it (or across the fan of faces around it)
     vp = {v for f in p.faces for v in cutter.face(f)}
     vq = {v for f in q.faces for v in cutter.face(f)}
     shared = sorted(vp & vq)
@@ -573,12 +575,60 @@ def _bridge(cutter: _Cutter, p: _CutPoint, q: _CutPoint, i: int, j: int) -> list
             shared,
             key=lambda v: _norm(_sub(cutter.xyz(v), p.xyz)) + _norm(_sub(q.xyz, cutter.xyz(v))),
         )
+        if cutter.route_fans:
+            fan = _fan_crossings(cutter, p, q, v)
+            if fan:
+                return fan
         return [_vertex_point(cutter, v, p.index)]
     raise CutError(
         f"curve points {i} and {j} lie on faces {p.face} and {q.face}, which are not "
         "the same, edge-adjacent or sharing a vertex: sample the curve more densely "
         "(consecutive points on the same or adjacent faces)"
     )
+
+
+def _fan_crossings(cutter: _Cutter, p: _CutPoint, q: _CutPoint, v: int) -> list[_CutPoint]:
+    """Crossings of the segment p -> q with the edges around vertex ``v`` between a face of p
+    and a face of q, going round ``v`` the way that passes fewer faces (empty when none)."""
+    around = cutter.faces_around(v)
+    starts = sorted(f for f in p.faces if f in around)
+    best: list[tuple[int, int]] | None = None
+    for f0 in starts:
+        for first in range(3):
+            fv = cutter.face(f0)
+            if v not in (fv[first], fv[(first + 1) % 3]):
+                continue  # only the two edges of f0 at v lead round the fan
+            steps: list[tuple[int, int]] = []
+            f, k = f0, first
+            for _ in range(len(around)):
+                h = int(cutter.FN[f, k])
+                if h < 0 or h not in around or h == f0:
+                    steps = []
+                    break
+                steps.append((f, k))
+                if h in q.faces:
+                    break
+                hv = cutter.face(h)
+                # leave h by its other edge at v
+                k = next(
+                    kk
+                    for kk in range(3)
+                    if v in (hv[kk], hv[(kk + 1) % 3]) and int(cutter.FN[h, kk]) != f
+                )
+                f = h
+            else:
+                steps = []
+            if steps and (best is None or len(steps) < len(best)):
+                best = steps
+    if not best:
+        return []
+    out: list[_CutPoint] = []
+    prev = p
+    for f, k in best:
+        x = _crossing(cutter, prev, f, k, q)
+        out.append(x)
+        prev = x
+    return out
 
 
 def _common_face(p: _CutPoint, q: _CutPoint) -> int:
@@ -881,6 +931,7 @@ def cut_mesh_network(
         i = int(np.flatnonzero((ends < 0).any(axis=1) | (ends >= nc).any(axis=1))[0])
         raise InputError(f"curve {i}: corner index out of range 0..{nc - 1}: {ends[i].tolist()}")
     cutter = _Cutter(mesh)
+    cutter.route_fans = True
     corner_cp: list[_CutPoint] = []
     corner_v = np.empty(nc, dtype=np.int64)
     for c in range(nc):
