@@ -1,0 +1,206 @@
+"""Map images: OpenEXR float32 and 16-bit PNG with the value range in the text metadata.
+
+EXR files hold the float32 values (``RGB`` for 3-channel maps, ``Y`` for scalar maps) and
+string header attributes ``meshfit_map`` (format version), ``meshfit_kind`` and
+``meshfit_frame``. PNG files hold values quantised to 16 bits over ``[min, max]``: pixel
+``q`` stands for ``min + q / 65535 (max - min)``; a ``tEXt`` chunk with keyword ``meshfit``
+holds JSON ``{"meshfit_map": 1, "kind", "min", "max", "frame"}``. An image edited elsewhere
+that lost its metadata is read back by passing ``kind`` (and for PNG ``value_range``).
+Files are written to a temporary name and renamed.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import OpenEXR
+import png
+
+from meshfit.displacement.maps import FRAME, KINDS, DisplacementMap
+from meshfit.errors import ImageFileError, InputError
+
+__all__ = ["read_exr", "read_png", "write_exr", "write_png"]
+
+#: version of the metadata written to map images
+MAP_FORMAT = 1
+_COMPRESSION = {
+    "none": OpenEXR.NO_COMPRESSION,
+    "zip": OpenEXR.ZIP_COMPRESSION,
+    "piz": OpenEXR.PIZ_COMPRESSION,
+    "pxr24": OpenEXR.PXR24_COMPRESSION,
+    "b44": OpenEXR.B44_COMPRESSION,
+    "dwaa": OpenEXR.DWAA_COMPRESSION,
+}
+
+
+def _atomic(path: str | os.PathLike, write) -> None:
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=path.suffix)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def write_exr(dmap: DisplacementMap, path: str | os.PathLike, *, compression: str = "zip") -> None:
+    """Write a map as an OpenEXR float32 image.
+
+    Parameters
+    ----------
+    dmap : DisplacementMap
+    path : str or path
+    compression : {"zip", "none", "piz", "pxr24", "b44", "dwaa"}
+        ``zip``/``none``/``piz`` are lossless; ``pxr24`` (24-bit floats), ``b44`` and ``dwaa``
+        are lossy (the thesis' compression game). Default ``zip``.
+    """
+    if compression not in _COMPRESSION:
+        raise InputError(f"compression must be one of {tuple(_COMPRESSION)}, got {compression!r}")
+    img = np.ascontiguousarray(dmap.image)
+    channels = {"RGB": img} if dmap.channels == 3 else {"Y": np.ascontiguousarray(img[:, :, 0])}
+    header = {
+        "compression": _COMPRESSION[compression],
+        "type": OpenEXR.scanlineimage,
+        "meshfit_map": str(MAP_FORMAT),
+        "meshfit_kind": dmap.kind,
+        "meshfit_frame": FRAME,
+    }
+
+    def write(tmp: str) -> None:
+        with OpenEXR.File(header, channels) as f:
+            f.write(tmp)
+
+    _atomic(path, write)
+
+
+def read_exr(path: str | os.PathLike, *, kind: str | None = None) -> DisplacementMap:
+    """Read a map from an OpenEXR image (``RGB`` or ``Y`` channels, any pixel type).
+
+    ``kind`` overrides (or replaces missing) ``meshfit_kind`` metadata.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ImageFileError(f"{path}: no such file")
+    try:
+        with OpenEXR.File(str(path)) as f:
+            header = dict(f.header())
+            ch = {k: np.asarray(v.pixels) for k, v in f.channels().items()}
+    except Exception as exc:  # the binding raises plain RuntimeError on bad files
+        raise ImageFileError(f"{path}: not a readable OpenEXR file ({exc})") from None
+    kind = kind or header.get("meshfit_kind")
+    if kind is None:
+        raise ImageFileError(f"{path}: no meshfit_kind in the header; pass kind=")
+    if kind not in KINDS:
+        raise ImageFileError(f"{path}: unknown map kind {kind!r}")
+    if "RGB" in ch:
+        vals = ch["RGB"]
+    elif "Y" in ch:
+        vals = ch["Y"][:, :, None]
+    elif {"R", "G", "B"} <= set(ch):
+        vals = np.stack([ch["R"], ch["G"], ch["B"]], axis=-1)
+    else:
+        raise ImageFileError(f"{path}: expected RGB or Y channels, found {sorted(ch)}")
+    if vals.shape[2] != KINDS[kind]:
+        raise ImageFileError(
+            f"{path}: a {kind} map needs {KINDS[kind]} channels, not {vals.shape[2]}"
+        )
+    return DisplacementMap(vals.astype(np.float64), kind)
+
+
+def write_png(
+    dmap: DisplacementMap,
+    path: str | os.PathLike,
+    *,
+    value_range: tuple[float, float] | None = None,
+) -> None:
+    """Write a map as a 16-bit PNG (grey for scalar maps, RGB for 3-channel maps).
+
+    Parameters
+    ----------
+    dmap : DisplacementMap
+    path : str or path
+    value_range : (float, float), optional
+        Values mapped to pixel 0 and 65535; default the map's min and max (``[-1, 1]`` for
+        bump maps). Values outside are clipped. The quantisation step is
+        ``(max - min) / 65535``; the value stored is within half a step.
+    """
+    vals = dmap.values
+    if value_range is None:
+        lo, hi = (-1.0, 1.0) if dmap.kind == "bump" else (float(vals.min()), float(vals.max()))
+    else:
+        lo, hi = (float(x) for x in value_range)
+    if not (np.isfinite(lo) and np.isfinite(hi)) or hi < lo:
+        raise InputError(f"value_range must be finite with min <= max, got {(lo, hi)}")
+    if hi == lo:
+        hi = lo + 1.0
+    q = np.rint((np.clip(vals, lo, hi) - lo) / (hi - lo) * 65535.0).astype(np.uint16)
+    h, w, c = q.shape
+    buf = io.BytesIO()
+    png.Writer(w, h, bitdepth=16, greyscale=c == 1).write(buf, q.reshape(h, w * c).tolist())
+    meta = {"meshfit_map": MAP_FORMAT, "kind": dmap.kind, "min": lo, "max": hi, "frame": FRAME}
+    text = b"meshfit\x00" + json.dumps(meta).encode("latin-1")
+    chunks = list(png.Reader(bytes=buf.getvalue()).chunks())
+    chunks.insert(1, (b"tEXt", text))
+
+    def write(tmp: str) -> None:
+        with open(tmp, "wb") as fh:
+            png.write_chunks(fh, chunks)
+
+    _atomic(path, write)
+
+
+def read_png(
+    path: str | os.PathLike,
+    *,
+    kind: str | None = None,
+    value_range: tuple[float, float] | None = None,
+) -> DisplacementMap:
+    """Read a map from a PNG (grey or RGB, 8 or 16 bits, e.g. after editing).
+
+    ``kind`` and ``value_range`` override (or replace missing) ``meshfit`` text metadata.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ImageFileError(f"{path}: no such file")
+    meta: dict = {}
+    raw = path.read_bytes()
+    try:
+        for ctype, data in png.Reader(bytes=raw).chunks():
+            if ctype == b"tEXt" and data.startswith(b"meshfit\x00"):
+                meta = json.loads(data[len(b"meshfit\x00") :].decode("latin-1"))
+        w, h, rows, info = png.Reader(bytes=raw).asDirect()
+        q = np.vstack([np.asarray(r, dtype=np.float64) for r in rows])
+    except (png.Error, ValueError, json.JSONDecodeError) as exc:
+        raise ImageFileError(f"{path}: not a readable PNG with meshfit metadata ({exc})") from None
+    c = info["planes"]
+    if info.get("alpha"):
+        q = q.reshape(h, w, c)[:, :, : c - 1]
+        c -= 1
+    q = q.reshape(h, w, c)
+    kind = kind or meta.get("kind")
+    if kind is None:
+        raise ImageFileError(f"{path}: no meshfit metadata; pass kind= and value_range=")
+    if kind not in KINDS:
+        raise ImageFileError(f"{path}: unknown map kind {kind!r}")
+    if value_range is None:
+        if "min" not in meta or "max" not in meta:
+            raise ImageFileError(f"{path}: no value range in the metadata; pass value_range=")
+        value_range = (meta["min"], meta["max"])
+    lo, hi = (float(x) for x in value_range)
+    if KINDS[kind] == 1 and c == 3:  # an editor saved a grey map as RGB: take the mean
+        q = q.mean(axis=2, keepdims=True)
+        c = 1
+    if c != KINDS[kind]:
+        raise ImageFileError(f"{path}: a {kind} map needs {KINDS[kind]} channels, not {c}")
+    vals = lo + q / float(2 ** info["bitdepth"] - 1) * (hi - lo)
+    if kind == "bump":
+        vals /= np.linalg.norm(vals, axis=-1, keepdims=True)
+    return DisplacementMap(vals, kind)

@@ -1,0 +1,245 @@
+import numpy as np
+import png
+import pytest
+from numpy.testing import assert_allclose
+
+from meshfit.bspline import fit_bspline, grid_parameters
+from meshfit.displacement import (
+    DisplacementMap,
+    bump_map,
+    bump_normals,
+    displacement_map,
+    read_exr,
+    read_png,
+    reconstruct,
+    resample_map,
+    sample_bilinear,
+    vector_values,
+)
+from meshfit.errors import ImageFileError, InputError
+from tests.bspline.grids import random_surface, scan_grid
+
+F32 = 2.0**-24  # float32 unit round-off
+
+
+def _scale(X):
+    return float(np.abs(X).max())
+
+
+@pytest.fixture(scope="module", params=["igea", "nefertiti"])
+def fitted(request):
+    X = scan_grid(request.param)
+    return X, fit_bspline(X, controls=(10, 9))
+
+
+def _analytic(rng):
+    s = random_surface(rng)
+    u, v = grid_parameters(33), grid_parameters(29)
+    U, V = np.meshgrid(u, v, indexing="ij")
+    bumps = 0.01 * np.sin(20 * U)[..., None] * np.cos(15 * V)[..., None]
+    X = s.evaluate_grid(u, v) + bumps * s.normals(U, V) + 0.003 * rng.normal(size=(33, 29, 3))
+    return X, fit_bspline(X, controls=(7, 9))
+
+
+def test_vector_map_reproduces_grid_to_float64(fitted):
+    X, s = fitted
+    d = displacement_map(s, X)
+    assert d.values.shape == (*X.shape[:2], 3)
+    assert d.image.dtype == np.float32
+    assert_allclose(reconstruct(s, d), X, rtol=0, atol=4 * np.finfo(float).eps * _scale(X))
+
+
+def test_vector_map_reproduces_grid_analytic(rng):
+    X, s = _analytic(rng)
+    assert_allclose(reconstruct(s, displacement_map(s, X)), X, rtol=0, atol=1e-15 * 8)
+
+
+def test_components_are_frame_dot_products(rng):
+    X, s = _analytic(rng)
+    d = displacement_map(s, X)
+    U, V = np.meshgrid(grid_parameters(33), grid_parameters(29), indexing="ij")
+    T, B, N = s.frames(U, V)
+    D = X - s.evaluate(U, V)
+    assert_allclose(d.values[..., 0], (D * T).sum(-1), atol=1e-15)
+    assert_allclose(d.values[..., 2], (D * N).sum(-1), atol=1e-15)
+    n = displacement_map(s, X, kind="normal")
+    m = displacement_map(s, X, kind="magnitude")
+    assert_allclose(n.values[..., 0], d.values[..., 2])
+    assert_allclose(m.values[..., 0], np.linalg.norm(D, axis=-1), atol=1e-15)
+
+
+def test_scalar_maps_with_base(rng):
+    X, s = _analytic(rng)
+    d = displacement_map(s, X)
+    m = displacement_map(s, X, kind="magnitude")
+    n = displacement_map(s, X, kind="normal")
+    assert_allclose(reconstruct(s, m, base=d), X, atol=1e-14)
+    assert_allclose(reconstruct(s, n, base=d), X, atol=1e-14)
+    with pytest.raises(InputError, match="base"):
+        reconstruct(s, m)
+    # normal map alone: displacement along N only
+    S = s.evaluate_grid(grid_parameters(33), grid_parameters(29))
+    U, V = np.meshgrid(grid_parameters(33), grid_parameters(29), indexing="ij")
+    assert_allclose(reconstruct(s, n), S + n.values * s.normals(U, V), atol=1e-14)
+
+
+def test_doubling_normal_map_doubles_normal_component(rng):
+    """The thesis' image game: editing the grey (normal) map moves only the normal part."""
+    X, s = _analytic(rng)
+    d = displacement_map(s, X)
+    n = displacement_map(s, X, kind="normal")
+    twice = DisplacementMap(2 * n.values, "normal")
+    got = displacement_map(s, reconstruct(s, twice, base=d))
+    assert_allclose(got.values[..., :2], d.values[..., :2], atol=1e-13)
+    assert_allclose(got.values[..., 2], 2 * d.values[..., 2], atol=1e-13)
+    # scaling a magnitude map scales the vectors along their directions
+    m = displacement_map(s, X, kind="magnitude")
+    half = DisplacementMap(0.5 * m.values, "magnitude")
+    assert_allclose(vector_values(half, d), 0.5 * d.values, atol=1e-15)
+
+
+def test_reconstruction_at_other_resolutions_is_bilinear(fitted):
+    X, s = fitted
+    d = displacement_map(s, X)
+    h, w = d.shape
+    fine = reconstruct(s, d, shape=(2 * h - 1, 2 * w - 1))
+    assert_allclose(fine[::2, ::2], X, atol=1e-12 * _scale(X))
+    # midpoints carry the mean of the neighbouring displacements
+    up = resample_map(d, (2 * h - 1, 2 * w - 1))
+    assert_allclose(up.values[1::2, ::2], 0.5 * (d.values[:-1] + d.values[1:]), atol=1e-15)
+    uv = np.random.default_rng(3).uniform(0, 1, (20, 2))
+    i, j = (uv[:, 0] * (h - 1)).astype(int), (uv[:, 1] * (w - 1)).astype(int)
+    fx, fy = uv[:, 0] * (h - 1) - i, uv[:, 1] * (w - 1) - j
+    V = d.values
+    want = (
+        (1 - fx)[:, None] * (1 - fy)[:, None] * V[i, j]
+        + fx[:, None] * (1 - fy)[:, None] * V[i + 1, j]
+        + (1 - fx)[:, None] * fy[:, None] * V[i, j + 1]
+        + (fx * fy)[:, None] * V[i + 1, j + 1]
+    )
+    assert_allclose(sample_bilinear(V, uv[:, 0], uv[:, 1]), want, atol=1e-15)
+    coarse = reconstruct(s, d, shape=(7, 5))
+    assert coarse.shape == (7, 5, 3)
+    assert_allclose(coarse[[0, -1]][:, [0, -1]], X[[0, -1]][:, [0, -1]], atol=1e-12 * _scale(X))
+
+
+def test_exr_round_trip_to_float32(fitted, tmp_path):
+    X, s = fitted
+    d = displacement_map(s, X)
+    d.to_exr(tmp_path / "d.exr")
+    e = DisplacementMap.from_exr(tmp_path / "d.exr")
+    assert e.kind == "vector"
+    np.testing.assert_array_equal(e.image, d.image)
+    # rebuilt from the file: within float32 rounding of the displacement, plus float64 noise
+    err = np.linalg.norm(reconstruct(s, e) - X, axis=-1)
+    bound = np.sqrt(3) * F32 * np.linalg.norm(d.values, axis=-1) + 8 * np.finfo(float).eps * _scale(
+        X
+    )
+    assert (err <= bound).all()
+    n = displacement_map(s, X, kind="normal")
+    n.to_exr(tmp_path / "n.exr")
+    np.testing.assert_array_equal(read_exr(tmp_path / "n.exr").image, n.image)
+
+
+def test_png_round_trip_within_half_a_step(fitted, tmp_path):
+    X, s = fitted
+    for kind in ("normal", "magnitude", "vector"):
+        m = displacement_map(s, X, kind=kind)
+        m.to_png(tmp_path / f"{kind}.png")
+        r = read_png(tmp_path / f"{kind}.png")
+        step = (m.values.max() - m.values.min()) / 65535
+        assert r.kind == kind
+        assert np.abs(r.values - m.values).max() <= 0.5 * step * (1 + 1e-9)
+    info = png.Reader(bytes=(tmp_path / "normal.png").read_bytes()).read()[3]
+    assert info["bitdepth"] == 16 and info["greyscale"]
+
+
+def test_edited_images_rebuild_geometry(fitted, tmp_path):
+    """Scaling, lossy compression, compositing and 8-bit re-saving all come back to geometry."""
+    X, s = fitted
+    d = displacement_map(s, X)
+    spline_only = np.linalg.norm(reconstruct(s, DisplacementMap(0 * d.values)) - X, axis=-1)
+    # 1. scaled: a half-resolution image, rebuilt at full resolution
+    half = resample_map(d, ((d.shape[0] + 1) // 2, (d.shape[1] + 1) // 2))
+    half.to_exr(tmp_path / "half.exr")
+    got = reconstruct(s, read_exr(tmp_path / "half.exr"), shape=d.shape)
+    err = np.linalg.norm(got - X, axis=-1)
+    assert np.sqrt(np.mean(err**2)) < 0.8 * np.sqrt(np.mean(spline_only**2))
+    # 2. lossy compression (PXR24 keeps 15 mantissa bits)
+    d.to_exr(tmp_path / "pxr.exr", compression="pxr24")
+    lossy = read_exr(tmp_path / "pxr.exr")
+    assert not np.array_equal(lossy.image, d.image)
+    err = np.linalg.norm(reconstruct(s, lossy) - X, axis=-1)
+    assert (
+        err <= np.sqrt(3) * 2.0**-15 * np.linalg.norm(d.values, axis=-1) + 1e-12 * _scale(X)
+    ).all()
+    # 3. compositing: erase the detail in a rectangle, keep it elsewhere
+    vals = d.values.copy()
+    vals[5:15, 10:20] = 0
+    DisplacementMap(vals, "vector").to_exr(tmp_path / "erased.exr")
+    got = reconstruct(s, read_exr(tmp_path / "erased.exr"))
+    S = s.evaluate_grid(grid_parameters(d.shape[0]), grid_parameters(d.shape[1]))
+    assert_allclose(got[5:15, 10:20], S[5:15, 10:20], atol=1e-12 * _scale(X))
+    keep = np.ones(d.shape, bool)
+    keep[5:15, 10:20] = False
+    assert (np.linalg.norm(got - X, axis=-1)[keep] <= 1e-6 * np.abs(d.values).max()).all()
+    # 4. a grey map re-saved by an editor as 8-bit RGB without metadata
+    n = displacement_map(s, X, kind="normal")
+    lo, hi = float(n.values.min()), float(n.values.max())
+    q8 = np.rint((n.values[..., 0] - lo) / (hi - lo) * 255).astype(np.uint8)
+    rgb = np.repeat(q8[..., None], 3, axis=2)
+    with open(tmp_path / "edit.png", "wb") as fh:
+        png.Writer(rgb.shape[1], rgb.shape[0], bitdepth=8, greyscale=False).write(
+            fh, rgb.reshape(rgb.shape[0], -1).tolist()
+        )
+    with pytest.raises(ImageFileError, match="metadata"):
+        read_png(tmp_path / "edit.png")
+    r = read_png(tmp_path / "edit.png", kind="normal", value_range=(lo, hi))
+    assert np.abs(r.values - n.values).max() <= 0.5 * (hi - lo) / 255 * (1 + 1e-9)
+    got = reconstruct(s, r, base=d)
+    assert (np.linalg.norm(got - X, axis=-1) <= 0.5 * (hi - lo) / 255 * (1 + 1e-9)).all()
+
+
+def test_bump_map(rng, tmp_path):
+    X, s = _analytic(rng)
+    U, V = np.meshgrid(grid_parameters(33), grid_parameters(29), indexing="ij")
+    on = s.evaluate(U, V)
+    flat = bump_map(s, on, normals=s.normals(U, V))
+    assert_allclose(flat.values, np.broadcast_to([0, 0, 1.0], flat.values.shape), atol=1e-14)
+    # normals of the bumpy grid come back in world space
+    b = bump_map(s, X)
+    from meshfit.displacement import grid_normals
+
+    assert_allclose(bump_normals(s, b), grid_normals(X), atol=1e-13)
+    assert_allclose(np.linalg.norm(b.values, axis=-1), 1.0, atol=1e-14)
+    # finite differences of the spline's own samples give nearly its normals
+    approx = bump_map(s, on)
+    assert np.degrees(np.arccos(np.clip(approx.values[2:-2, 2:-2, 2], -1, 1))).max() < 2.0
+    b.to_png(tmp_path / "bump.png")
+    r = read_png(tmp_path / "bump.png")
+    assert r.kind == "bump"
+    assert np.abs(r.values - b.values).max() <= 2 / 65535
+    b.to_exr(tmp_path / "bump.exr")
+    np.testing.assert_array_equal(read_exr(tmp_path / "bump.exr").image, b.image)
+
+
+def test_bad_maps_and_files(tmp_path, rng):
+    with pytest.raises(InputError, match="kind"):
+        DisplacementMap(np.zeros((4, 4, 3)), "height")
+    with pytest.raises(InputError, match="shape"):
+        DisplacementMap(np.zeros((4, 4, 3)), "normal")
+    with pytest.raises(InputError, match=r"texel \[1, 2\]"):
+        v = np.zeros((4, 4, 3))
+        v[1, 2, 0] = np.nan
+        DisplacementMap(v)
+    with pytest.raises(ImageFileError, match="no such file"):
+        read_exr(tmp_path / "missing.exr")
+    (tmp_path / "junk.exr").write_bytes(b"not an image")
+    with pytest.raises(ImageFileError, match="OpenEXR"):
+        read_exr(tmp_path / "junk.exr")
+    (tmp_path / "junk.png").write_bytes(b"not an image")
+    with pytest.raises(ImageFileError, match="PNG"):
+        read_png(tmp_path / "junk.png")
+    X, s = _analytic(rng)
+    with pytest.raises(InputError, match="bump"):
+        reconstruct(s, bump_map(s, X))
