@@ -58,7 +58,7 @@ def test_components_are_frame_dot_products(rng):
     X, s = _analytic(rng)
     d = displacement_map(s, X)
     U, V = np.meshgrid(grid_parameters(33), grid_parameters(29), indexing="ij")
-    T, B, N = s.frames(U, V)
+    T, _, N = s.frames(U, V)
     D = X - s.evaluate(U, V)
     assert_allclose(d.values[..., 0], (D * T).sum(-1), atol=1e-15)
     assert_allclose(d.values[..., 2], (D * N).sum(-1), atol=1e-15)
