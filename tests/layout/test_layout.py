@@ -424,3 +424,25 @@ def test_structural_errors_at_construction():
     with pytest.raises(LayoutError, match="patch 1 uses a curve twice"):
         _rebuild(mesh, layout, patches=patches)
     assert "meshfit_layout" in layout_to_json(layout)
+
+
+def test_patch_with_a_handle_is_not_a_disk():
+    mesh = shapes.torus()  # 48 x 24 grid of vertices idx[u, v] = 24 u + v
+    idx = np.arange(48 * 24).reshape(48, 24)
+    u0, v0, k = 10, 4, 4
+    loop = [idx[u0, v0], idx[u0 + k, v0], idx[u0 + k, v0 + k], idx[u0, v0 + k]]
+    corners = SurfacePoints.at_vertices(mesh.faces, loop)
+    chains = [
+        idx[u0 : u0 + k + 1, v0],
+        idx[u0 + k, v0 : v0 + k + 1],
+        idx[u0 : u0 + k + 1, v0 + k][::-1],
+        idx[u0, v0 : v0 + k + 1][::-1],
+    ]
+    curves = [SurfacePoints.at_vertices(mesh.faces, c) for c in chains]
+    ends = [(s, (s + 1) % 4) for s in range(4)]
+    small = [(s, False) for s in range(4)]
+    rest = [(s, True) for s in (3, 2, 1, 0)]
+    for sides in ((small, rest), (rest, small)):  # one of the two orders is counter-clockwise
+        layout = layout_from_curves(mesh, corners, curves, ends, list(sides))
+        with pytest.raises(LayoutError, match="not a disk: Euler characteristic -1"):
+            extract_patches(mesh, layout)

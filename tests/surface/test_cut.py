@@ -398,3 +398,57 @@ def test_bad_input_raises():
         cut_mesh(mesh, SurfacePoints([0, mesh.n_faces], [[1 / 3] * 3] * 2))
     with pytest.raises(CutError, match="nothing to cut"):
         cut_mesh(mesh, SurfacePoints([0, 0], [[1 / 3] * 3] * 2))
+
+
+# ------------------------------------------------------------------------- network cuts
+def _sphere_network():
+    from meshfit.layout.cube import cube_layout
+
+    mesh = analytic_mesh("icosphere")
+    layout = cube_layout(mesh, frame=np.eye(3))
+    return mesh, layout
+
+
+def test_network_cut_shares_corners_and_separates_regions():
+    from meshfit.surface.cut import cut_mesh_network
+
+    mesh, layout = _sphere_network()
+    res = cut_mesh_network(mesh, list(layout.curves), layout.corners, layout.curve_ends)
+    # each corner is one vertex of the refined triangulation, where its curves start or end
+    for i, path in enumerate(res.curve_vertices):
+        a, b = layout.curve_ends[i]
+        assert path[0] == res.corners[a] and path[-1] == res.corners[b]
+    assert len(set(res.corners.tolist())) == len(layout.corners)
+    # the 48 curves of the projected cube cut the sphere into its 24 patches, all disks
+    assert res.mesh.n_components == layout.n_patches
+    assert len(res.mesh.boundary_loops) == layout.n_patches
+    assert_allclose(res.mesh.area, mesh.area, rtol=1e-12)
+    assert_allclose(
+        mesh.xyz(res.vertex_source), res.mesh.vertices, atol=tol.TEST_ATOL * mesh.bbox_diagonal
+    )
+    assert np.array_equal(res.vertex_source.face.shape, (res.mesh.n_vertices,))
+    assert (res.copy_of < res.mesh.n_vertices).all()
+
+
+def test_network_cut_without_split_only_refines():
+    from meshfit.surface.cut import cut_mesh_network
+
+    mesh, layout = _sphere_network()
+    res = cut_mesh_network(
+        mesh, list(layout.curves), layout.corners, layout.curve_ends, split=False
+    )
+    assert res.mesh.is_closed and res.mesh.n_components == 1
+    assert np.array_equal(res.copy_of, np.arange(res.mesh.n_vertices))
+
+
+def test_network_cut_rejects_meeting_curves():
+    from meshfit.surface.cut import cut_mesh_network
+
+    mesh, layout = _sphere_network()
+    curves = list(layout.curves)
+    ends = layout.curve_ends.copy()
+    # curve 0 twice: the copy runs on top of it
+    with pytest.raises(CutError, match="curve 48 crosses or touches curve 0"):
+        cut_mesh_network(mesh, [*curves, curves[0]], layout.corners, np.vstack([ends, ends[:1]]))
+    with pytest.raises(InputError, match="corner index out of range"):
+        cut_mesh_network(mesh, curves[:1], layout.corners, [[0, 999]])
