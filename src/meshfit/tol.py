@@ -75,3 +75,6 @@ BSPLINE_CLOSEST_STEP = 1e-12
 BSPLINE_CLOSEST_MAX_ITER = 50
 #: a fitted surface reproduces exact spline data to this relative error (tests)
 BSPLINE_FIT_RTOL = 1e-10
+#: a feature-curve point lies in its patch (or on a side) when within this of it, times the mean
+#: edge length
+LAYOUT_FEATURE_INSIDE = 1e-6
