@@ -446,3 +446,24 @@ def test_patch_with_a_handle_is_not_a_disk():
         layout = layout_from_curves(mesh, corners, curves, ends, list(sides))
         with pytest.raises(LayoutError, match="not a disk: Euler characteristic -1"):
             extract_patches(mesh, layout)
+
+
+def test_feature_outside_its_patch_raises():
+    mesh, layout = sphere(), sphere_layout()
+    feats = [list(f) for f in layout.features]
+    feats[7], feats[0] = feats[0], []
+    with pytest.raises(LayoutError, match=r"patch 7 feature 0: .*(outside the patch|away from)"):
+        extract_patches(mesh, _rebuild(mesh, layout, features=feats))
+
+
+def test_feature_between_adjacent_sides_raises():
+    from meshfit.curves import paint_curve
+
+    mesh, layout = sphere(), sphere_layout()
+    c0, c1 = int(layout.patch_curves[0, 0]), int(layout.patch_curves[0, 1])
+    a = layout.curves[c0].points[len(layout.curves[c0]) // 2]
+    b = layout.curves[c1].points[len(layout.curves[c1]) // 2]
+    feats = [list(f) for f in layout.features]
+    feats[0] = [paint_curve(mesh, SurfacePoints.concatenate([a, b]), kind="feature")]
+    with pytest.raises(LayoutError, match="patch 0 feature 0 runs from side 0 to side 1"):
+        extract_patches(mesh, _rebuild(mesh, layout, features=feats))

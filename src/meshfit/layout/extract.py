@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from meshfit import tol
 from meshfit.errors import CutError, LayoutError
 from meshfit.layout.layout import Layout, check_layout
 from meshfit.layout.patch import Patch
@@ -277,8 +278,16 @@ def _build_patch(mesh: Mesh, layout: Layout, res: NetworkCutResult, reg: _Region
     face_parent = res.face_parent[reg.faces]
     vertex_source = res.vertex_source[used]
     feats, feat_sides = [], []
-    for f in layout.features[reg.patch]:
-        curve, fs = _map_feature(mesh, sub, face_parent, sides, f)
+    for j, f in enumerate(layout.features[reg.patch]):
+        try:
+            curve, fs = _map_feature(mesh, sub, face_parent, sides, f)
+        except LayoutError as exc:
+            raise LayoutError(f"patch {reg.patch} feature {j}: {exc}") from None
+        if fs[1] != (fs[0] + 2) % 4:
+            raise LayoutError(
+                f"patch {reg.patch} feature {j} runs from side {fs[0]} to side {fs[1]}: a "
+                "feature curve must run from one side to the opposite side"
+            )
         feats.append(curve)
         feat_sides.append(fs)
     return Patch(
@@ -314,19 +323,29 @@ def _map_feature(
             cand = order[lo:hi]
             b = barycentric(sub, cand, np.repeat(xyz[i : i + 1], cand.size, axis=0))
             j = int(np.argmax(b.min(axis=1)))
-            if b[j].min() > -1e-9:
+            if b[j].min() > -tol.LAYOUT_BARY_SUM:
                 face[i] = cand[j]
                 bb = np.clip(b[j], 0.0, None)
                 bary[i] = bb / bb.sum()
+    near = tol.length(sub, tol.LAYOUT_FEATURE_INSIDE)
     miss = np.flatnonzero(face < 0)
-    if miss.size:  # points on faces outside the patch: the closest point of the patch
+    if miss.size:  # points on faces outside the patch, or on a side: the closest patch point
         cp = sub.closest_points(xyz[miss])
         face[miss] = cp.points.face
         bary[miss] = cp.points.bary
+        inner = (miss > 0) & (miss < n - 1)  # the ends are checked against the sides below
+        far = miss[inner & (cp.distance > near)]
+        if far.size:
+            raise LayoutError(f"point {int(far[0])} lies outside the patch")
     end_sides = []
     edge_face = _boundary_edge_faces(sub)
     for k in (0, n - 1):
-        s, f, b = _snap_to_sides(sub, sides, edge_face, xyz[k])
+        s, f, b, d = _snap_to_sides(sub, sides, edge_face, xyz[k])
+        if d > near:
+            raise LayoutError(
+                f"its {'first' if k == 0 else 'last'} point is {d:.3g} away from the patch "
+                f"sides: a feature curve starts and ends on sides"
+            )
         face[k], bary[k] = f, b
         end_sides.append(s)
     curve = SurfaceCurve(SurfacePoints(face, bary), kind="feature")
@@ -356,9 +375,9 @@ def _snap_to_sides(sub: Mesh, sides, edge_face, x: NDArray[np.float64]):
         j = int(np.argmin(d))
         if d[j] < best[0]:
             best = (float(d[j]), s, int(chain[j]), int(chain[j + 1]), float(t[j]))
-    _, s, va, vb, t = best
+    d, s, va, vb, t = best
     f, k = edge_face[(va, vb)]
     bary = np.zeros(3)
     bary[k] = 1.0 - t
     bary[(k + 1) % 3] = t
-    return s, f, bary
+    return s, f, bary, d
