@@ -285,8 +285,9 @@ def _relax(
     history = []
     converged = False
     free = ~fixed
+    x_prev2 = None  # positions two iterations back, for the net-move test
+    x_prev = x = x0
     for _ in range(max_iter):
-        x = _ks.positions(mesh.vertices, mesh.faces, face, bary)
         force = _ks.snake_forces(x, closed, w_fair, w_curv, w_arc, levels)
         if external is not None:
             ext = external
@@ -305,6 +306,13 @@ def _relax(
         if mm < stop:
             converged = True
             break
+        # a point flipping between two faces at a sharp fold moves every iteration but goes
+        # nowhere: a net move over two iterations below the tolerance also stops
+        x = _ks.positions(mesh.vertices, mesh.faces, face, bary)
+        if x_prev2 is not None and float(np.linalg.norm(x - x_prev2, axis=1).max()) < stop:
+            converged = True
+            break
+        x_prev2, x_prev = x_prev, x
     return face, bary, np.asarray(history, dtype=np.float64), converged
 
 
@@ -332,8 +340,9 @@ def relax_snake(
     at ``step`` times the local sample spacing and walks the face point by it. A move that
     would put two consecutive samples on faces that are neither equal nor edge-adjacent (when
     they were before) is halved, and dropped if halving does not help, so the curve keeps
-    the sampling rule. Fixed samples never move. Iteration stops when the largest move is
-    below ``tol_move * mesh.mean_edge_length``.
+    the sampling rule. Fixed samples never move. Iteration stops when the largest move, or
+    the largest net move over the last two iterations (a point flipping between two faces at
+    a sharp fold), is below ``tol_move * mesh.mean_edge_length``.
 
     Parameters
     ----------
