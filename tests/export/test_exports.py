@@ -1,0 +1,192 @@
+import numpy as np
+import pytest
+import trimesh
+from numpy.testing import assert_allclose
+
+from meshfit.bspline import BSplineSurface, fit_bspline, grid_parameters
+from meshfit.displacement import DisplacementMap, displacement_map, read_exr, reconstruct
+from meshfit.errors import ExportError, InputError
+from meshfit.export import (
+    export_3dm,
+    export_gltf,
+    export_iges,
+    export_obj,
+    export_step,
+    export_usd,
+    rhino_knots,
+    step_available,
+    tessellate,
+)
+from tests.bspline.grids import random_surface, scan_grid
+from tests.export.iges_reader import entity_128_surface, read_entities, read_global, read_sections
+
+
+@pytest.fixture(scope="module")
+def network():
+    """Three patches: two fitted to a scan grid (one with a map), one exact random spline."""
+    X = scan_grid("igea")
+    left, right = X[:31], X[30:]
+    s0 = fit_bspline(left, controls=(8, 7))
+    s1 = fit_bspline(right, controls=(6, 9))
+    s2 = random_surface(np.random.default_rng(5), 5, 4)
+    d0 = displacement_map(s0, left)
+    return [s0, s1, s2], [d0, None, None], left
+
+
+def _uv(n=40):
+    rng = np.random.default_rng(1)
+    return rng.uniform(0, 1, n), rng.uniform(0, 1, n)
+
+
+def test_iges_round_trip(network, tmp_path):
+    surfaces, _, _ = network
+    path = export_iges(tmp_path / "net.igs", surfaces, names=["left", "right", "extra"])
+    sec = read_sections(path)
+    g = read_global(sec)
+    assert g[0] == "1H," and g[1] == "1H;" and g[22] == "11"  # IGES 5.3
+    ents = read_entities(path)
+    assert [e["type"] for e in ents] == [128, 128, 128]
+    assert [e["label"] for e in ents] == ["left", "right", "extra"]
+    u, v = _uv()
+    for e, s in zip(ents, surfaces, strict=True):
+        r = entity_128_surface(e["params"])
+        np.testing.assert_array_equal(r.control_points, s.control_points)
+        np.testing.assert_array_equal(r.knots_u, s.knots_u)
+        assert_allclose(r.evaluate(u, v), s.evaluate(u, v), rtol=0, atol=1e-15)
+
+
+def _xyz(p):
+    return [p.X, p.Y, p.Z]
+
+
+def test_3dm_round_trip(network, tmp_path):
+    import rhino3dm
+
+    surfaces, _, _ = network
+    path = export_3dm(tmp_path / "net.3dm", surfaces)
+    model = rhino3dm.File3dm.Read(str(path))
+    assert len(model.Objects) == len(surfaces)
+    u, v = _uv(15)
+    for obj, s in zip(model.Objects, surfaces, strict=True):
+        g = obj.Geometry
+        assert isinstance(g, rhino3dm.NurbsSurface)
+        mu, mv = s.shape
+        assert (g.Points.CountU, g.Points.CountV, g.OrderU, g.OrderV) == (mu, mv, 4, 4)
+        assert list(g.KnotsU.ToList()) == rhino_knots(s.knots_u)
+        assert len(g.KnotsU.ToList()) == mu + 2  # openNURBS drops one knot at each end
+        cp = np.array(
+            [[_xyz(g.Points.GetControlPoint(i, j)) for j in range(mv)] for i in range(mu)]
+        )
+        np.testing.assert_array_equal(cp, s.control_points)
+        got = np.array(
+            [[p.X, p.Y, p.Z] for p in (g.PointAt(a, b) for a, b in zip(u, v, strict=True))]
+        )
+        assert_allclose(got, s.evaluate(u, v), rtol=0, atol=1e-12)
+
+
+def test_usd_round_trip(network, tmp_path):
+    from pxr import Usd, UsdGeom
+
+    surfaces, disps, left = network
+    path = export_usd(tmp_path / "net.usda", surfaces, displacements=disps)
+    stage = Usd.Stage.Open(str(path))
+    prims = [p for p in stage.Traverse() if p.IsA(UsdGeom.NurbsPatch)]
+    assert [p.GetName() for p in prims] == ["patch_0", "patch_1", "patch_2"]
+    for prim, s, d in zip(prims, surfaces, disps, strict=True):
+        np_ = UsdGeom.NurbsPatch(prim)
+        mu, mv = s.shape
+        assert np_.GetUVertexCountAttr().Get() == mu and np_.GetVVertexCountAttr().Get() == mv
+        assert np_.GetUOrderAttr().Get() == 4
+        ku = np.array(np_.GetUKnotsAttr().Get())
+        kv = np.array(np_.GetVKnotsAttr().Get())
+        np.testing.assert_array_equal(ku, s.knots_u)
+        pts = np.array(np_.GetPointsAttr().Get(), dtype=np.float64)
+        P32 = pts.reshape(mv, mu, 3).transpose(1, 0, 2)
+        assert_allclose(P32, s.control_points, rtol=2.0**-23, atol=0)
+        exact = np.array(prim.GetAttribute("meshfit:controlPoints").Get())
+        r = BSplineSurface(exact.reshape(mv, mu, 3).transpose(1, 0, 2), ku, kv)
+        np.testing.assert_array_equal(r.control_points, s.control_points)
+        asset = prim.GetAttribute("meshfit:displacement")
+        if d is None:
+            assert not asset.IsValid() or asset.Get() is None
+            continue
+        img = tmp_path / asset.Get().path
+        m = read_exr(img)
+        assert m.kind == prim.GetAttribute("meshfit:displacementKind").Get() == "vector"
+        np.testing.assert_array_equal(m.image, d.image)
+        # the displaced surface rebuilt from the USD file alone is the grid (float32 maps)
+        got = reconstruct(r, m)
+        bound = np.sqrt(3) * 2.0**-24 * np.abs(d.values).max() + 1e-15 * np.abs(left).max() * 8
+        assert np.abs(got - left).max() <= bound
+
+
+@pytest.mark.parametrize("displaced", [True, False])
+def test_obj_round_trip(network, tmp_path, displaced):
+    surfaces, disps, left = network
+    path = export_obj(
+        tmp_path / "net.obj", surfaces, displacements=disps if displaced else None, shape=(21, 17)
+    )
+    m = trimesh.load(path, process=False, maintain_order=True)
+    want = [
+        tessellate(s, d if displaced else None, shape=(21, 17))
+        for s, d in zip(surfaces, disps, strict=True)
+    ]
+    V = np.concatenate([w[0] for w in want])
+    F = np.concatenate([w[1] + 21 * 17 * k for k, w in enumerate(want)])
+    np.testing.assert_array_equal(m.vertices, V)
+    np.testing.assert_array_equal(m.faces, F)
+    first = m.vertices[: 21 * 17].reshape(21, 17, 3)
+    if displaced:  # at other resolutions: spline + bilinear map
+        assert_allclose(first, reconstruct(surfaces[0], disps[0], shape=(21, 17)), atol=0)
+        corners = first[[0, -1]][:, [0, -1]]
+        assert_allclose(corners, left[[0, -1]][:, [0, -1]], atol=1e-15)
+    else:
+        assert_allclose(first, surfaces[0].evaluate_grid(grid_parameters(21), grid_parameters(17)))
+    # outward orientation: the first triangle of each cell turns like S_u x S_v
+    n_tri = m.face_normals[: 20 * 16].reshape(20, 16, 3)
+    cu, cv = (np.arange(20) + 0.5) / 20, (np.arange(16) + 0.5) / 16
+    U, V = np.meshgrid(cu, cv, indexing="ij")
+    assert ((n_tri * surfaces[0].normals(U, V)).sum(-1) > 0).all()
+
+
+def test_obj_at_map_resolution_is_the_grid(network, tmp_path):
+    surfaces, disps, left = network
+    path = export_obj(tmp_path / "one.obj", surfaces[0], displacements=disps[0])
+    m = trimesh.load(path, process=False, maintain_order=True)
+    assert_allclose(m.vertices.reshape(left.shape), left, rtol=0, atol=1e-15 * 8)
+
+
+def test_gltf_round_trip(network, tmp_path):
+    surfaces, disps, _ = network
+    path = export_gltf(tmp_path / "net.glb", surfaces, displacements=disps, shape=(12, 10))
+    scene = trimesh.load(path, process=False)
+    assert sorted(scene.geometry) == ["patch_0", "patch_1", "patch_2"]
+    for k, (s, d) in enumerate(zip(surfaces, disps, strict=True)):
+        g = scene.geometry[f"patch_{k}"]
+        V, F, _ = tessellate(s, d, shape=(12, 10))
+        assert_allclose(g.vertices, V, rtol=2.0**-23, atol=1e-7 * np.abs(V).max())
+        np.testing.assert_array_equal(g.faces, F)
+
+
+def test_export_rejects_bad_input(network, tmp_path):
+    surfaces, disps, _ = network
+    with pytest.raises(InputError, match="names"):
+        export_obj(tmp_path / "a.obj", surfaces, names=["a", "a", "b"])
+    with pytest.raises(InputError, match="2 displacement maps"):
+        export_obj(tmp_path / "a.obj", surfaces, displacements=disps[:2])
+    with pytest.raises(InputError, match=".usda"):
+        export_usd(tmp_path / "a.txt", surfaces)
+    with pytest.raises(InputError, match="units"):
+        export_iges(tmp_path / "a.igs", surfaces, units="furlong")
+    with pytest.raises(InputError, match="BSplineSurface"):
+        export_3dm(tmp_path / "a.3dm", [np.zeros((4, 4, 3))])
+    bump = DisplacementMap(np.dstack([np.zeros((4, 4, 2)), np.ones((4, 4))]), "bump")
+    with pytest.raises(InputError, match="bump"):
+        export_obj(tmp_path / "a.obj", surfaces[0], displacements=bump)
+    assert not list(tmp_path.glob(".*"))  # no temporary files left behind
+
+
+@pytest.mark.skipif(step_available(), reason="OCP present: STEP writer still to be written")
+def test_step_needs_the_cad_extra(network, tmp_path):
+    with pytest.raises(ExportError, match=r"meshfit\[cad\]"):
+        export_step(tmp_path / "a.step", network[0])
