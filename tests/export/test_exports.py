@@ -174,7 +174,7 @@ def test_export_rejects_bad_input(network, tmp_path):
         export_obj(tmp_path / "a.obj", surfaces, names=["a", "a", "b"])
     with pytest.raises(InputError, match="2 displacement maps"):
         export_obj(tmp_path / "a.obj", surfaces, displacements=disps[:2])
-    with pytest.raises(InputError, match=".usda"):
+    with pytest.raises(InputError, match=r"\.usda"):
         export_usd(tmp_path / "a.txt", surfaces)
     with pytest.raises(InputError, match="units"):
         export_iges(tmp_path / "a.igs", surfaces, units="furlong")
