@@ -47,7 +47,7 @@ def test_plane_gives_the_analytic_grid(plane):
     u, v = np.meshgrid(np.linspace(0, 2, nu), np.linspace(0, 1, nv), indexing="ij")
     want = np.stack([u, v, np.zeros_like(u)], axis=-1)
     # relaxation stops when the RMS move is below tol.SPRING_CONVERGED of the spacing
-    assert_allclose(sm.xyz, want, atol=2 * tol.SPRING_CONVERGED * (1.0 / (nv - 1)))
+    assert_allclose(sm.xyz, want, atol=4 * tol.SPRING_CONVERGED * (1.0 / (nv - 1)))
     for lvl in res.levels:
         assert_on_patch(plane, lvl)
     m = res.metrics[-1]

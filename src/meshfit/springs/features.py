@@ -12,6 +12,7 @@ from meshfit.errors import FeatureCurveError
 from meshfit.mesh import Mesh
 from meshfit.springs.init import closest_approach, project_on_chain
 from meshfit.surface import curve_arc_lengths, move_along_curve
+from meshfit.surface import walk as _walk
 from meshfit.types import SurfaceCurve, SurfacePoints
 
 __all__ = ["FeatureLine", "Sides", "prepare_features"]
@@ -40,15 +41,20 @@ class FeatureLine:
     arc: NDArray[np.float64]
     xyz: NDArray[np.float64]
     vertices: NDArray[np.int64]
+    pieces: object = None  # the curve's surface pieces, computed once (MovePointOnCurve)
 
     @property
     def total(self) -> float:
         return float(self.arc[-1])
 
     def points_at(self, mesh: Mesh, s: NDArray) -> SurfacePoints:
-        """Face points at arc-length positions ``s`` along the curve."""
+        """Face points at arc-length positions ``s`` along the curve (exactly on its surface
+        segments, as :func:`meshfit.surface.move_along_curve` places them)."""
         s = np.clip(np.asarray(s, dtype=np.float64), 0.0, self.total)
-        return move_along_curve(mesh, self.curve, s, 0.0).points
+        if self.pieces is None:
+            return move_along_curve(mesh, self.curve, s, 0.0).points
+        face, bary, _ = _walk._place_on_pieces(self.curve.points, False, self.pieces, s)
+        return SurfacePoints(face, bary)
 
     def tangent_at(self, s: NDArray) -> NDArray[np.float64]:
         """(n, 3) unit tangents (direction of rising arc length) at positions ``s``."""
@@ -68,7 +74,9 @@ def _line(mesh: Mesh, index: int, curve: SurfaceCurve, reverse: bool) -> Feature
     c = SurfaceCurve(pts, closed=False, kind="feature")
     arc = curve_arc_lengths(mesh, c)
     faces = mesh.faces[pts.face]
-    return FeatureLine(index, c, arc, mesh.xyz(pts), np.unique(faces))
+    # the pieces move_along_curve builds on every call, kept for the relaxation's many calls
+    pieces = _walk._curve_pieces(mesh, pts, False, f"feature curve {index}")
+    return FeatureLine(index, c, arc, mesh.xyz(pts), np.unique(faces), pieces)
 
 
 def prepare_features(

@@ -66,6 +66,7 @@ def relax(
     fairness: float,
     omega: float,
     start: int = 0,
+    eps: float = tol.SPRING_CONVERGED,
 ) -> tuple[int, float]:
     """Relax the spring mesh of ``state`` at its current level, in place.
 
@@ -74,8 +75,7 @@ def relax(
     points slide along their feature curve (eq. 5.17); boundary points and anchors stay.
     The fairness weight ramps from 0 to ``fairness`` over ``ramp`` sweeps (arc length first),
     counted from sweep ``start`` of the schedule (``start >= ramp``: final weights at once).
-    Sweeps stop when the root-mean-square move is below ``tol.SPRING_CONVERGED`` of the
-    spring lengths.
+    Sweeps stop when the root-mean-square move is below ``eps`` of the spring lengths.
 
     Returns
     -------
@@ -89,7 +89,6 @@ def relax(
     mesh = state.mesh
     movable = (state.kind() == FREE).ravel()
     args = (mesh.vertices, mesh.faces, mesh.face_neighbors)
-    eps = tol.SPRING_CONVERGED
     alpha = np.ones(state.nu * state.nv)
     prev = np.zeros((state.nu * state.nv, 3))
     if not state.u_feat and not state.v_feat:

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from meshfit import tol
 from meshfit.errors import InputError
 from meshfit.mesh import Mesh
 from meshfit.springs.features import FeatureLine, Sides, intersect_lines, prepare_features
@@ -19,6 +20,11 @@ from meshfit.springs.state import State
 from meshfit.springs.subdivide import subdivide
 
 __all__ = ["SpringResult", "resample_patch"]
+
+#: level 0 gets this many times ``max_iter`` sweeps ...
+COARSE_SWEEPS = 10
+#: ... and converges to this fraction of tol.SPRING_CONVERGED
+COARSE_EPS = 0.01
 
 
 @dataclass(frozen=True, eq=False)
@@ -182,9 +188,9 @@ def resample_patch(
     max_points: int | None = None,
     sections_u: Sequence[int] | None = None,
     sections_v: Sequence[int] | None = None,
-    init_intervals: int = 2,
+    init_intervals: int = 8,
     fairness: float = 0.5,
-    max_iter: int = 200,
+    max_iter: int = 30,
     ramp: int = 8,
     omega: float = 1.0,
     n_fair: int = 2,
@@ -215,12 +221,14 @@ def resample_patch(
         Level-0 intervals of each section between u (v) feature curves, one more entry than
         there are u (v) feature curves; default in proportion to the sections' lengths.
     init_intervals : int, keyword-only
-        Level-0 intervals along the shorter direction (default 2).
+        Level-0 intervals along the shorter direction (default 8: on coarser grids the
+        Euclidean springs pull iso-curves tight across bumps and hollows, which finer levels
+        cannot undo).
     fairness : float, keyword-only
         Final weight of the fairness force, in [0, 1]; the arc-length force gets
         ``1 - fairness`` (default 0.5).
     max_iter : int, keyword-only
-        Relaxation sweeps allowed per level (default 200).
+        Relaxation sweeps allowed per level (default 30; level 0 gets ten times as many).
     ramp : int, keyword-only
         Sweeps of level 0 over which the fairness weight grows from 0 (default 8); later
         levels start from points already in place and use the final weights.
@@ -272,8 +280,8 @@ def resample_patch(
         "left": [0.0, *el, float(sides.arcs["left"][-1])],
         "right": [0.0, *er, float(sides.arcs["right"][-1])],
     }
-    len_u = max(sides.arcs["bottom"][-1], sides.arcs["top"][-1])
-    len_v = max(sides.arcs["left"][-1], sides.arcs["right"][-1])
+    len_u = 0.5 * (sides.arcs["bottom"][-1] + sides.arcs["top"][-1])
+    len_v = 0.5 * (sides.arcs["left"][-1] + sides.arcs["right"][-1])
     # level-0 spacing: ``init_intervals`` intervals along the shorter direction, the other in
     # proportion (sec. 5.4: counts from the patch's aspect ratio); at least one per section
     spacing = min(len_u, len_v) / int(init_intervals)
@@ -296,13 +304,16 @@ def resample_patch(
             subdivide(state, n_fair=n_fair)
             seconds["subdivide"] += time.perf_counter() - t
         t = time.perf_counter()
+        # level 0 starts from graph paths and must travel far: it is relaxed to a tighter
+        # tolerance with more sweeps (it is small); later levels only settle new points
         done, _ = relax(
             state,
-            max_iter=max_iter,
+            max_iter=max_iter if k else max_iter * COARSE_SWEEPS,
             ramp=ramp,
             fairness=fairness,
             omega=omega,
             start=0 if k == 0 else ramp,
+            eps=tol.SPRING_CONVERGED * (1.0 if k else COARSE_EPS),
         )
         seconds["relax"] += time.perf_counter() - t
         sweeps.append(done)
