@@ -131,3 +131,8 @@ class ImageFileError(MeshfitError):
 class ExportError(MeshfitError):
     """A spline export cannot be written or read back: an optional library is missing
     (STEP needs ``meshfit[cad]``), or a file does not hold what the exporter wrote."""
+
+
+class StreamError(MeshfitError):
+    """A progressive-transmission stream is truncated, of an unknown version, or holds a
+    packet whose level or vertex range does not fit its header."""
