@@ -103,6 +103,9 @@ class BaseMesh:
         ``max / min`` of ``cell_area`` (``inf`` when a cell is empty).
     splits : int
         Edges bisected by the split heuristic.
+    min_faces : int
+        Keep splitting until the base has at least this many faces (default 20: the
+        icosahedron; more base faces give finer levels for the same level count).
     iterations : int
         Relaxation steps run in total.
     """
@@ -182,6 +185,10 @@ def _equalize(s, faces, area, alpha):
     return _guard(s, new, faces)
 
 
+#: the base-mesh relaxation at one face count stops after this many steps without a new best
+_STALL = 8
+
+
 def _split(s, faces, area):
     """Bisect the edge whose two adjacent cells hold the largest summed area."""
     edges, fe = _topo.unique_edges(faces)
@@ -212,7 +219,8 @@ def base_mesh(
     *,
     max_faces: int = 100,
     target_ratio: float = 2.0,
-    iterations: int = 40,
+    min_faces: int = 20,
+    iterations: int = 20,
     alpha: float = 0.5,
     seed: int = 0,
     relaxation: str = "equalize",
@@ -235,8 +243,11 @@ def base_mesh(
         Face budget (default 100).
     target_ratio : float
         Stop splitting once ``max/min`` cell area is at most this (default 2).
+    min_faces : int
+        Keep splitting until the base has at least this many faces (default 20: the
+        icosahedron; more base faces give finer levels for the same level count).
     iterations : int
-        Relaxation steps after the start and after every split (default 40).
+        Relaxation steps after the start and after every split (default 20).
     alpha : float
         Damping factor of eq. 1, in (0, 1] (default 0.5).
     seed : int
@@ -280,21 +291,31 @@ def base_mesh(
     total_it = 0
     splits = 0
     while True:
+        stage = None  # best configuration at this face count
+        since = 0
         for _ in range(iterations):
             v = step(v, f, area, alpha)
             area, cell = cell_areas(v, f, pts, w, cell)
             total_it += 1
             ratio = float(area.max() / area.min()) if area.min() > 0 else np.inf
-            if best is None or ratio < best[0]:
-                best = (ratio, v.copy(), f.copy(), area.copy(), splits, total_it)
+            since += 1
+            if stage is None or ratio < stage[0]:
+                stage = (ratio, v.copy(), f.copy(), area.copy(), splits, cell.copy())
+                since = 0
+            if since >= _STALL or ratio <= target_ratio:
+                break
+        if len(f) >= min_faces and (best is None or stage[0] < best[0]):
+            best = stage
         if progress:
             progress("base mesh", min(1.0, len(f) / max_faces))
-        if best[0] <= target_ratio or len(f) + 2 > max_faces:
+        if (best is not None and best[0] <= target_ratio) or len(f) + 2 > max_faces:
             break
-        # split from the best configuration of this face count
+        _, v, f, area, _, cell = stage  # split the best configuration of this face count
         v, f = _split(v, f, area)
         splits += 1
         area, cell = cell_areas(v, f, pts, w)
+    if best is None:
+        best = stage
     _, v, f, _, splits, _ = best
     area, _ = cell_areas(v, f, _face_centroids_on_sphere(smap), smap.mesh.face_areas)
     ratio = float(area.max() / area.min()) if area.min() > 0 else np.inf
