@@ -5,6 +5,11 @@
   again (ends fixed) with coarse-to-fine forces (``levels=None``) and with single-resolution
   forces (``levels=1``): iterations and wall time to converge (``tol_move`` default), ratio.
   Single-resolution runs are capped at ``--max-iter`` iterations (reported as not converged).
+- Impulse propagation (sec. 3.7), measured directly: with the stopping test off, the number
+  of iterations until the sample a quarter of the way from the fixed end (three quarters of
+  the snake away from the pulled end) has moved ``--impulse`` mean edge lengths, for both
+  force evaluations, and their ratio. Single-resolution forces reach one sample further per
+  iteration; coarse-to-fine forces reach every sample in the first iteration.
 - Time of one relaxation iteration for a 1,000-point snake (target <= 5 ms), median of runs.
 
 Run: ``python benchmarks/snakes.py [--repeats 3]``. Prints JSON and writes
@@ -45,6 +50,9 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3, help="timed runs (median reported)")
     ap.add_argument("--pull", type=float, default=10.0, help="end move, mean edge lengths")
     ap.add_argument("--max-iter", type=int, default=20_000, help="iteration cap per relaxation")
+    ap.add_argument(
+        "--impulse", type=float, default=1e-3, help="move that counts as arrival, mean edges"
+    )
     args = ap.parse_args()
 
     t0 = time.perf_counter()
@@ -83,7 +91,35 @@ def main() -> None:
             "seconds_median": t,
             "seconds": times,
             "ms_per_iteration": 1e3 * t / max(r.iterations, 1),
+            "curve": r.curve,
         }
+
+    # impulse propagation: iterations (stopping test off) until the far sample moves
+    probe = len(pulled) // 4
+    x_probe = mesh.xyz(pulled.points[probe])[0]
+    impulse = {}
+    for name, levels in (("coarse_to_fine", None), ("single_resolution", 1)):
+        cur, done, chunk = pulled, 0, 1
+        t0 = time.perf_counter()
+        while done < args.max_iter:
+            cur = relax_snake(mesh, cur, levels=levels, max_iter=chunk, tol_move=0.0).curve
+            done += chunk
+            if np.linalg.norm(mesh.xyz(cur.points[probe])[0] - x_probe) > args.impulse * h:
+                break
+            chunk = min(2 * chunk, 64)
+        moved = np.linalg.norm(mesh.xyz(cur.points[probe])[0] - x_probe) / h
+        impulse[name] = {
+            "iterations_at_most": done,
+            "arrived": bool(moved > args.impulse),
+            "probe_move_edges": float(moved),
+            "seconds": time.perf_counter() - t0,
+        }
+    x_c2f = mesh.xyz(runs["coarse_to_fine"]["curve"].points)
+    x_one = mesh.xyz(runs["single_resolution"]["curve"].points)
+    x_pull = mesh.xyz(pulled.points)
+    for name, x in (("coarse_to_fine", x_c2f), ("single_resolution", x_one)):
+        runs[name]["probe_move_edges"] = float(np.linalg.norm(x[probe] - x_pull[probe]) / h)
+        del runs[name]["curve"]
 
     small = make_snake(mesh, 1000)
     n_iter = 200
@@ -107,6 +143,16 @@ def main() -> None:
             **runs,
             "iteration_ratio_single_over_c2f": single["iterations"] / max(c2f["iterations"], 1),
             "time_ratio_single_over_c2f": single["seconds_median"] / c2f["seconds_median"],
+            "final_curves_max_distance_edges": float(
+                np.linalg.norm(x_c2f - x_one, axis=1).max() / h
+            ),
+            "impulse_probe_index": probe,
+            "impulse_threshold_edges": args.impulse,
+            "impulse_propagation": impulse,
+            "impulse_iteration_ratio_single_over_c2f": impulse["single_resolution"][
+                "iterations_at_most"
+            ]
+            / impulse["coarse_to_fine"]["iterations_at_most"],
             "one_iteration_1000_points_ms": 1e3 * t_it / n_iter,
             "one_iteration_target_ms": 5.0,
             "one_iteration_runs_ms": [1e3 * t / n_iter for t in times_it],

@@ -7,6 +7,7 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from meshfit import tol
+from meshfit.curves import curve_length, paint_curve
 from meshfit.curves.snake import _pairs_ok, edit_snake, relax_snake, snake_forces
 from meshfit.errors import InputError
 from meshfit.types import SurfaceCurve, SurfacePoints
@@ -226,3 +227,16 @@ def test_errors(great_arc):
         edit_snake(SPHERE, great_arc, edit_index=0, section=3, force=[0, 0, 1])
     with pytest.raises(InputError, match="SurfaceCurve"):
         relax_snake(SPHERE, great_arc.points)
+
+
+def test_converges_on_a_bumpy_scan():
+    """Forces projected on the interpolated vertex normal's plane: no jitter at creases."""
+    from meshfit.demo import demo_mesh
+
+    mesh = demo_mesh(20_000)
+    top, bottom = int(mesh.vertices[:, 2].argmax()), int(mesh.vertices[:, 2].argmin())
+    curve = paint_curve(mesh, [top, bottom])
+    res = relax_snake(mesh, curve, max_iter=5000)
+    assert res.converged
+    assert curve_length(mesh, res.curve) < curve_length(mesh, curve)
+    on_surface(mesh, res.curve)

@@ -419,3 +419,12 @@ def test_at_vertices_rejects_unused_and_out_of_range_vertices():
         SurfacePoints.at_vertices(np.array([[0, 2, 3]]), [1])
     empty = SurfacePoints.at_vertices(faces, np.zeros(0, dtype=np.int64))
     assert len(empty) == 0
+
+
+def test_vertex_normals_point_outward_on_a_sphere():
+    mesh = analytic_mesh("icosphere")
+    radial = mesh.vertices / np.linalg.norm(mesh.vertices, axis=1)[:, None]
+    n = mesh.vertex_normals
+    assert_allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-12)
+    assert (np.einsum("ij,ij->i", n, radial) > 0.99).all()
+    assert not n.flags.writeable

@@ -31,13 +31,9 @@ _CHANNEL = {"red": 0, "green": 1, "blue": 2}
 
 
 def vertex_normals(mesh: Mesh) -> NDArray[np.float64]:
-    """(nv, 3) float64 unit vertex normals: area-weighted mean of the adjacent face normals."""
-    acc = np.zeros((mesh.n_vertices, 3))
-    w = mesh.face_normals * mesh.face_areas[:, None]
-    for k in range(3):
-        np.add.at(acc, mesh.faces[:, k], w)
-    ln = np.linalg.norm(acc, axis=1, keepdims=True)
-    return acc / np.where(ln > 0, ln, 1.0)
+    """(nv, 3) float64 unit vertex normals: area-weighted mean of the adjacent face normals
+    (``mesh.vertex_normals``, cached on the mesh)."""
+    return mesh.vertex_normals
 
 
 def _angles_cot(mesh: Mesh):

@@ -208,6 +208,7 @@ class _Stepper:
         self.F = mesh.faces
         self.FN = mesh.face_neighbors
         self.N = mesh.face_normals
+        self.VN = mesh.vertex_normals
         self.eps = tol.length(mesh, tol.WALK_EPS)
 
     def walk(self, face, bary, move):
@@ -277,6 +278,7 @@ def _relax(
 ):
     stepper = _Stepper(mesh, closed)
     n = face.shape[0]
+    ids = np.arange(n, dtype=np.int64)
     gain = 1.0 / max(1.0, w_fair + w_curv + w_arc)
     stop = tol_move * mesh.mean_edge_length
     x0 = _ks.positions(mesh.vertices, mesh.faces, face, bary)
@@ -294,7 +296,11 @@ def _relax(
             if callable(external):
                 ext = _external(external, SurfaceCurve(SurfacePoints(face, bary), closed, kind), n)
             force += ext
-        move = _ks.capped_moves(x, force, face, stepper.N, fixed, closed, gain, step, floor)
+        # tangent plane of the interpolated vertex normal: continuous across edges, so a point
+        # on a crease is not pushed back and forth between the planes of its two faces
+        nrm = np.einsum("ij,ijk->ik", bary, stepper.VN[mesh.faces[face]])
+        nrm /= np.linalg.norm(nrm, axis=1)[:, None]
+        move = _ks.capped_moves(x, force, ids, nrm, fixed, closed, gain, step, floor)
         if not np.isfinite(move).all():
             bad = int(np.flatnonzero(~np.isfinite(move).all(axis=1))[0])
             raise InputError(f"snake force is not finite at curve point {bad}")

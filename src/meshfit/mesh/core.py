@@ -296,6 +296,21 @@ class Mesh:
         return _frozen(self._face_cross / (2.0 * self.face_areas[:, None]))
 
     @cached_property
+    def vertex_normals(self) -> NDArray[np.float64]:
+        """(nv, 3) float64: unit vertex normals, the area-weighted mean of the face normals
+        around each vertex (a vertex on no face gets a zero row)."""
+        w = self._face_cross  # face normal times twice the face area
+        acc = np.stack(
+            [
+                np.bincount(self.faces.ravel(), np.repeat(w[:, d], 3), self.n_vertices)
+                for d in range(3)
+            ],
+            axis=1,
+        )
+        ln = np.linalg.norm(acc, axis=1, keepdims=True)
+        return _frozen(acc / np.where(ln > 0, ln, 1.0))
+
+    @cached_property
     def edge_lengths(self) -> NDArray[np.float64]:
         """(ne,) float64: length of each row of :attr:`edges`."""
         e = self.edges
