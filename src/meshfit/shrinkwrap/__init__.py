@@ -1,6 +1,12 @@
 """Shrink wrapping: subdivision-connectivity remeshing of closed genus-0 meshes and
-progressive transmission (Kobbelt, Vorsatz, Labsik & Seidel 1999)."""
+progressive transmission (Kobbelt, Vorsatz, Labsik & Seidel 1999).
 
+Verbs: :func:`sphere_map` (sec. 6), :func:`base_mesh` (sec. 6), :func:`shrink_wrap`
+(sec. 4, 7), :func:`encode_stream` / :func:`decode_stream` (sec. 8.1), :func:`fill_holes`.
+"""
+
+from meshfit.shrinkwrap.base import BaseMesh, base_mesh, icosahedron
+from meshfit.shrinkwrap.holes import fill_holes
 from meshfit.shrinkwrap.sphere import (
     SphereMap,
     check_genus0,
@@ -8,11 +14,39 @@ from meshfit.shrinkwrap.sphere import (
     spherical_orientation,
     triangle_quality,
 )
+from meshfit.shrinkwrap.stream import (
+    Packet,
+    Stream,
+    decode_stream,
+    encode_stream,
+    read_stream,
+    reconstruction_errors,
+    write_stream,
+)
+from meshfit.shrinkwrap.subdivision import subdivide_step
+from meshfit.shrinkwrap.wrap import WrapLevel, WrapResult, level_metrics, shrink_wrap, wrap_report
 
 __all__ = [
+    "BaseMesh",
+    "Packet",
     "SphereMap",
+    "Stream",
+    "WrapLevel",
+    "WrapResult",
+    "base_mesh",
     "check_genus0",
+    "decode_stream",
+    "encode_stream",
+    "fill_holes",
+    "icosahedron",
+    "level_metrics",
+    "read_stream",
+    "reconstruction_errors",
+    "shrink_wrap",
     "sphere_map",
     "spherical_orientation",
+    "subdivide_step",
     "triangle_quality",
+    "wrap_report",
+    "write_stream",
 ]

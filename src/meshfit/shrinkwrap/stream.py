@@ -293,7 +293,7 @@ def reconstruction_errors(
         got, used = [], 0
         for p in stream.packets:
             if used + len(p.values) > budget + 1e-9:
-                cut = int(round(budget - used))
+                cut = round(budget - used)
                 if cut > 0:
                     got.append(Packet(p.level, p.start, p.values[:cut]))
                 break

@@ -371,3 +371,63 @@ def level_metrics(mesh: Mesh, level: WrapLevel, *, samples_per_face: int = 1) ->
         "hausdorff": float(max(d1.max(), d2.max()) / diag),
         "tightness": level.tightness,
     }
+
+
+def wrap_report(
+    result: WrapResult,
+    *,
+    schemes: tuple[str, ...] = ("loop", "butterfly"),
+    fractions: tuple[float, ...] = (0.01, 0.03, 0.1),
+) -> dict:
+    """The metrics of a wrap as a JSON-ready dict.
+
+    Keys: ``input`` (name, faces, bbox diagonal), ``sphere_map`` (method, flips, max aspect,
+    notes), ``base`` (faces, max / min cell surface area and their ratio, splits),
+    ``switch_level``, ``levels`` (one :func:`level_metrics` dict per level: flips, min angle,
+    aspect, RMS and Hausdorff as fractions of the bbox diagonal), ``reconstruction`` (per
+    scheme: RMS vertex error of the finest level after the first 1 %, 3 %, 10 % of the
+    detail coefficients, fraction of the bbox diagonal), ``seconds``.
+    """
+    from meshfit.shrinkwrap.stream import encode_stream, reconstruction_errors
+
+    mesh = result.sphere_map.mesh
+    diag = mesh.bbox_diagonal
+    b = result.base
+    top = result.levels[-1]
+    rec = {}
+    for sch in schemes:
+        st = encode_stream(top.vertices, b.faces, len(b.sphere), top.level, scheme=sch)
+        errs = reconstruction_errors(st, top.vertices, (0.0, *fractions))
+        rec[sch] = {
+            "coefficients": st.n_coefficients,
+            "bytes": len(st.to_bytes()),
+            **{k: v / diag for k, v in errs.items()},
+        }
+    sm = result.sphere_map
+    return {
+        "input": {
+            "name": mesh.name,
+            "faces": mesh.n_faces,
+            "vertices": mesh.n_vertices,
+            "bbox_diagonal": diag,
+        },
+        "sphere_map": {
+            "method": sm.method,
+            "flips": sm.flips,
+            "min_det": sm.min_det,
+            "max_aspect": sm.max_aspect,
+            "notes": list(sm.notes),
+        },
+        "base": {
+            "faces": len(b.faces),
+            "vertices": len(b.sphere),
+            "cell_area_max": float(b.cell_area.max()),
+            "cell_area_min": float(b.cell_area.min()),
+            "cell_area_ratio": b.area_ratio,
+            "splits": b.splits,
+        },
+        "switch_level": result.switch_level,
+        "levels": [level_metrics(mesh, lv) for lv in result.levels],
+        "reconstruction": rec,
+        "seconds": {k: round(v, 3) for k, v in result.seconds.items()},
+    }
