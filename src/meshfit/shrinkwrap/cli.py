@@ -1,0 +1,217 @@
+"""``meshfit wrap`` and ``meshfit stream encode|decode``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import tempfile
+from pathlib import Path
+
+from meshfit import errors
+
+__all__ = ["add_commands"]
+
+
+def _progress(quiet: bool):
+    """A rich progress bar driven by the API's ``progress(stage, fraction)`` callback."""
+    if quiet:
+        return None, None
+    from rich.progress import Progress
+
+    bar = Progress(transient=True)
+    tasks: dict[str, int] = {}
+
+    def cb(stage: str, fraction: float) -> None:
+        if stage not in tasks:
+            tasks[stage] = bar.add_task(stage, total=1.0)
+        bar.update(tasks[stage], completed=fraction)
+
+    return bar, cb
+
+
+def _load(path: str, fill: bool):
+    from meshfit.mesh import load_mesh
+    from meshfit.shrinkwrap import check_genus0, fill_holes
+
+    mesh = load_mesh(path, repair=True)
+    if fill and not mesh.is_closed:
+        mesh = fill_holes(mesh)
+    try:
+        check_genus0(mesh)
+    except errors.TopologyError as exc:
+        hint = "" if fill or mesh.is_closed else " (try --fill-holes)"
+        raise errors.TopologyError(f"{path}: {exc}{hint}") from None
+    return mesh
+
+
+def _write_json(path: Path, data: dict) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+    with os.fdopen(fd, "w") as fh:
+        json.dump(data, fh, indent=2)
+        fh.write("\n")
+    os.replace(tmp, path)
+
+
+def _wrap(args: argparse.Namespace):
+    from meshfit.shrinkwrap import shrink_wrap
+
+    mesh = _load(args.mesh, args.fill_holes)
+    bar, cb = _progress(args.json)
+    if bar is not None:
+        with bar:
+            res = shrink_wrap(mesh, levels=args.levels, base_faces=args.base_faces, progress=cb)
+    else:
+        res = shrink_wrap(mesh, levels=args.levels, base_faces=args.base_faces)
+    return mesh, res
+
+
+def cmd_wrap(args: argparse.Namespace) -> int:
+    """Shrink wrap a mesh; write M0..Mm, the stream and the metrics."""
+    from meshfit.cli import print_json, print_table
+    from meshfit.mesh.io import save_mesh
+    from meshfit.shrinkwrap import encode_stream, wrap_report, write_stream
+
+    if args.levels < 0:
+        raise errors.InputError(f"--levels must be >= 0, got {args.levels}")
+    _, res = _wrap(args)
+    report = wrap_report(res)
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        for lv in res.levels:
+            save_mesh(lv.mesh, out / f"M{lv.level}.ply")
+        top = res.levels[-1]
+        st = encode_stream(top.vertices, res.base.faces, len(res.base.sphere), top.level)
+        write_stream(st, out / "wrap.mfsw")
+        _write_json(out / "metrics.json", report)
+        report["out"] = str(out)
+    if args.json:
+        print_json(report)
+    else:
+        lv = report["levels"][-1]
+        print_table(
+            f"wrap {args.mesh}",
+            {
+                "sphere map": report["sphere_map"]["method"],
+                "base faces": report["base"]["faces"],
+                "base cell area max/min": report["base"]["cell_area_ratio"],
+                "levels": len(report["levels"]) - 1,
+                "finest faces": lv["faces"],
+                "flips": lv["flips"],
+                "min angle deg": lv["min_angle_deg"],
+                "rms / diag": lv["rms"],
+                "hausdorff / diag": lv["hausdorff"],
+            },
+        )
+    return 0
+
+
+def cmd_encode(args: argparse.Namespace) -> int:
+    from meshfit.cli import print_json
+    from meshfit.shrinkwrap import encode_stream, write_stream
+
+    _, res = _wrap(args)
+    top = res.levels[-1]
+    st = encode_stream(
+        top.vertices,
+        res.base.faces,
+        len(res.base.sphere),
+        top.level,
+        scheme=args.scheme,
+        packet_size=args.packet_size,
+        value_bytes=8 if args.float64 else 4,
+    )
+    write_stream(st, args.output)
+    info = {
+        "stream": str(args.output),
+        "scheme": st.scheme,
+        "levels": st.levels,
+        "base_faces": len(st.base_faces),
+        "packets": len(st.packets),
+        "coefficients": st.n_coefficients,
+        "bytes": Path(args.output).stat().st_size,
+    }
+    if args.json:
+        print_json(info)
+    else:
+        print(" ".join(f"{k}={v}" for k, v in info.items()))
+    return 0
+
+
+def cmd_decode(args: argparse.Namespace) -> int:
+    from meshfit.cli import print_json
+    from meshfit.mesh import Mesh
+    from meshfit.mesh.io import save_mesh
+    from meshfit.shrinkwrap import decode_stream, read_stream
+
+    st = read_stream(args.stream)
+    if not 0.0 <= args.fraction <= 1.0:
+        raise errors.InputError(f"--fraction must be in [0, 1], got {args.fraction}")
+    budget = args.fraction * st.n_coefficients
+    got, used = [], 0
+    for p in st.packets:
+        if used + len(p.values) > budget:
+            break
+        got.append(p)
+        used += len(p.values)
+    x, f = decode_stream(st, got, level=args.level)
+    save_mesh(Mesh(x, f, name=Path(args.output).name), args.output)
+    info = {
+        "output": str(args.output),
+        "level": st.levels if args.level is None else args.level,
+        "vertices": len(x),
+        "faces": len(f),
+        "packets_used": len(got),
+        "coefficients_used": used,
+    }
+    if args.json:
+        print_json(info)
+    else:
+        print(" ".join(f"{k}={v}" for k, v in info.items()))
+    return 0
+
+
+def _wrap_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("mesh", help="closed genus-0 mesh file")
+    p.add_argument("--levels", type=int, default=5, help="refinement levels (default: 5)")
+    p.add_argument(
+        "--base-faces", type=int, default=100, help="base mesh face budget (default: 100)"
+    )
+    p.add_argument(
+        "--fill-holes",
+        action="store_true",
+        help="close holes (boundary loops of up to 1000 edges) with fans first",
+    )
+    p.add_argument("--json", action="store_true", help="print JSON")
+
+
+def add_commands(sub) -> None:
+    """Add ``wrap`` and ``stream`` to the ``meshfit`` sub-parsers."""
+    p = sub.add_parser("wrap", help="subdivision-connectivity remesh by shrink wrapping")
+    _wrap_args(p)
+    p.add_argument("--out", help="folder for M0..Mm (.ply), wrap.mfsw and metrics.json")
+    p.set_defaults(func=cmd_wrap)
+
+    s = sub.add_parser("stream", help="progressive transmission streams")
+    ssub = s.add_subparsers(dest="stream_command", required=True, metavar="ACTION")
+    e = ssub.add_parser("encode", help="wrap a mesh and write its progressive stream")
+    _wrap_args(e)
+    e.add_argument("-o", "--output", required=True, help="stream file (.mfsw)")
+    e.add_argument("--scheme", choices=("loop", "butterfly"), default="loop")
+    e.add_argument("--packet-size", type=int, default=1024, help="coefficients per packet")
+    e.add_argument("--float64", action="store_true", help="store float64 coefficients")
+    e.set_defaults(func=cmd_encode)
+
+    d = ssub.add_parser("decode", help="reconstruct a mesh from a stream")
+    d.add_argument("stream", help="stream file (.mfsw)")
+    d.add_argument("-o", "--output", required=True, help="mesh file to write")
+    d.add_argument("--level", type=int, default=None, help="level (default: finest)")
+    d.add_argument(
+        "--fraction",
+        type=float,
+        default=1.0,
+        help="use the first fraction of the coefficients in transmission order (default: 1)",
+    )
+    d.add_argument("--json", action="store_true", help="print JSON")
+    d.set_defaults(func=cmd_decode)
