@@ -25,6 +25,7 @@ EXIT_ERROR = 2
 #: command's ``func(args)`` returns the exit code.
 _COMMAND_MODULES: tuple[str, ...] = (
     "meshfit.layout.cli",
+    "meshfit.shrinkwrap.cli",
 )
 
 
