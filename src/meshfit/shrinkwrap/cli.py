@@ -40,8 +40,7 @@ def _load(path: str, fill: bool):
     try:
         check_genus0(mesh)
     except errors.TopologyError as exc:
-        hint = "" if fill or mesh.is_closed else " (try --fill-holes)"
-        raise errors.TopologyError(f"{path}: {exc}{hint}") from None
+        raise errors.TopologyError(f"{path}: {exc}") from None
     return mesh
 
 

@@ -52,8 +52,8 @@ def check_genus0(mesh: Mesh) -> None:
         sizes = ", ".join(str(len(lp)) for lp in loops[:8])
         raise errors.TopologyError(
             f"{name} is not closed: {len(loops)} boundary loop(s) (hole sizes in edges: {sizes}); "
-            "shrink wrapping needs a closed genus-0 surface (close holes with fill_holes / "
-            "--fill-holes)"
+            "shrink wrapping needs a closed genus-0 surface (close small holes with "
+            "fill_holes, or --fill-holes on the command line)"
         )
     if mesh.genus != 0:
         raise errors.TopologyError(

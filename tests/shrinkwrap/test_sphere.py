@@ -1,0 +1,88 @@
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from meshfit import errors, tol
+from meshfit._kernels import shrinkwrap as _k
+from meshfit.shrinkwrap import _topo, check_genus0, icosahedron, sphere_map
+from meshfit.shrinkwrap.subdivision import subdivide_step
+from meshfit.surface import random_surface_points
+
+from ..conftest import analytic_mesh, real_mesh
+from ..reference import shrinkwrap as ref
+from .conftest import smap
+
+
+@pytest.mark.parametrize("name", ["spot", "nefertiti", "igea"])
+def test_sphere_map_has_no_flips(name):
+    sm = smap(name)
+    assert sm.method == "tutte"
+    assert sm.flips == 0
+    assert sm.min_det > 0
+    assert_allclose(np.linalg.norm(sm.sphere, axis=1), 1.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["spot", "igea"])
+def test_inverse_then_evaluate_returns_the_surface_point(name, rng):
+    sm = smap(name)
+    mesh = real_mesh(name)
+    pts = random_surface_points(mesh, 2000, rng)
+    back = sm.locate(sm.inverse(pts))
+    assert_allclose(mesh.xyz(back), mesh.xyz(pts), atol=1e3 * tol.TEST_ATOL * mesh.bbox_diagonal)
+
+
+def test_locate_matches_oracle(rng):
+    sm = smap("spot")
+    q = rng.normal(size=(60, 3))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    got = sm.locate(q)
+    face, bary = ref.locate_sphere(sm.sphere, sm.mesh.faces, q)
+    # a point on a shared edge may go to either face: compare the mapped positions
+    assert_allclose(
+        sm.mesh.xyz(got),
+        np.einsum("ij,ijk->ik", bary, sm.mesh.vertices[sm.mesh.faces[face]]),
+        atol=1e-9,
+    )
+    assert (got.face == face).mean() > 0.95
+
+
+def test_walk_kernel_matches_brute_kernel_and_oracle(rng):
+    v, f = icosahedron()
+    for _ in range(3):
+        v, f = subdivide_step(v, f, "butterfly")
+        v /= np.linalg.norm(v, axis=1, keepdims=True)
+    fn = _topo.face_neighbors(f)
+    q = rng.normal(size=(200, 3))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    start = rng.integers(0, len(f), size=200)
+    face, bary, found = _k.locate_sphere(v, f, fn, start, q, 10_000)
+    assert found.all()
+    f2, b2 = _k.locate_sphere_brute(v, f, q)
+    f3, b3 = ref.locate_sphere(v, f, q)
+    assert_allclose(face, f3)
+    assert_allclose(f2, f3)
+    assert_allclose(bary, b3, atol=1e-12)
+    assert_allclose(b2, b3, atol=1e-12)
+    assert_allclose(_k.spherical_dets(v, f), ref.spherical_dets(v, f), rtol=1e-10)
+
+
+def test_icosphere_maps_without_flips():
+    sm = sphere_map(analytic_mesh("icosphere"))
+    assert sm.flips == 0
+
+
+@pytest.mark.parametrize(
+    ("mesh", "what"),
+    [(lambda: analytic_mesh("torus"), "genus 1"), (lambda: real_mesh("bunny"), "5 boundary loop")],
+    ids=["torus", "bunny"],
+)
+def test_wrong_topology_is_a_clear_error(mesh, what):
+    with pytest.raises(errors.TopologyError, match=what):
+        sphere_map(mesh())
+    with pytest.raises(errors.TopologyError):
+        check_genus0(mesh())
+
+
+def test_unknown_method_is_an_input_error():
+    with pytest.raises(errors.InputError, match="method"):
+        sphere_map(analytic_mesh("icosphere"), method="voxel")
