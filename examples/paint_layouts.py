@@ -1,9 +1,9 @@
 """Paint the test layouts of igea, nefertiti and spot and save them as layout files.
 
-Each layout is a 2 x 2 subdivided cube projected from the mesh centroid onto the surface
-(24 four-sided patches, 26 corners, 48 boundary curves), its edges painted with
-``meshfit.curves.paint_curve`` through projected picks. Patch 0 of igea gets two feature
-curves in each direction. Every layout is checked by extracting its patches.
+Each layout is an n x n subdivided cube projected from the mesh centroid onto the surface
+(n = 2: 24 four-sided patches, 26 corners, 48 boundary curves; n = 3: 54 patches), its edges
+painted with ``meshfit.curves.paint_curve`` through projected picks. Patch 0 of igea gets
+two feature curves in each direction. Every layout is checked by extracting its patches.
 
 Usage::
 
@@ -25,8 +25,10 @@ from meshfit.layout.cube import cube_layout
 from meshfit.mesh import load_mesh
 from meshfit.types import SurfaceCurve, SurfacePoints
 
-#: mesh name -> (patch given feature curves or None, projected picks per cube edge)
-LAYOUTS = {"igea": (0, 24), "nefertiti": (None, 24), "spot": (None, 24)}
+#: mesh name -> (cube subdivision n: 6 n^2 patches, patch given feature curves or None,
+#: projected picks per cube edge). Nefertiti uses the 3 x 3 cube: its 2 x 2 projection gives
+#: a patch over the crown and back of the head with sides of lengths 7.6 : 1
+LAYOUTS = {"igea": (2, 0, 24), "nefertiti": (3, None, 16), "spot": (2, None, 24)}
 DIGITS = 12
 
 
@@ -66,10 +68,10 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     for name in args.only:
-        feature_patch, picks = LAYOUTS[name]
+        n, feature_patch, picks = LAYOUTS[name]
         mesh = load_mesh(Path(args.data) / "meshes" / f"{name}.ply")
         t0 = time.perf_counter()
-        layout = cube_layout(mesh, feature_patch=feature_patch, picks_per_curve=picks)
+        layout = cube_layout(mesh, n=n, feature_patch=feature_patch, picks_per_curve=picks)
         layout = _compact(mesh, layout)
         t1 = time.perf_counter()
         patches = extract_patches(mesh, layout)
