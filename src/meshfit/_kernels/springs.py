@@ -38,17 +38,23 @@ def grid_xyz(V, F, face, bary):
 def walk_inside(V, F, FN, f, b, u, total, max_faces, bary_eps, tries, b0, u0):
     """Walk face point (f, b) by ``total`` along unit in-plane ``u``, never onto the boundary.
 
-    A walk that reaches the mesh boundary is undone and retried at half the length, up to
-    ``tries`` times (then the point stays). ``b`` (3,) is updated in place; ``b0``, ``u0``
-    (3,) are scratch. Returns the new face and the length moved.
+    A walk that reaches the mesh boundary (or fails on a sliver face) is undone and retried at
+    half the length, up to ``tries`` times (then the point stays). ``b`` (3,) is updated in
+    place; ``b0``, ``u0`` (3,) are scratch. Returns the new face and the length moved.
     """
     for c in range(3):
         b0[c] = b[c]
         u0[c] = u[c]
     length = total
     for _t in range(tries + 1):
-        g, _rest, status, _ = _walk_one(V, F, FN, f, b, u, length, max_faces, bary_eps)
-        if status == DONE:
+        ok = True
+        try:  # a sliver face (zero Gram determinant) divides by zero in the walk
+            g, _rest, status, _ = _walk_one(V, F, FN, f, b, u, length, max_faces, bary_eps)
+        except Exception:  # numba raises ZeroDivisionError there
+            ok = False
+            status = -1
+            g = f
+        if ok and status == DONE and np.isfinite(b[0] + b[1] + b[2]):
             return g, length
         for c in range(3):
             b[c] = b0[c]

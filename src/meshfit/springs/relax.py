@@ -140,3 +140,51 @@ def relax(
         if start + it + 1 >= ramp and worst < eps:
             break
     return done, worst
+
+
+def folded_cells(state: State) -> np.ndarray:
+    """(nu - 1, nv - 1) bool: cells with a triangle whose normal points against the surface
+    normals at its corners (the `grid_metrics` fold test)."""
+    mesh = state.mesh
+    X = _k.grid_xyz(mesh.vertices, mesh.faces, state.face, state.bary).reshape(
+        state.nu, state.nv, 3
+    )
+    N = mesh.face_normals[state.face].reshape(state.nu, state.nv, 3)
+    p00, p10, p11, p01 = X[:-1, :-1], X[1:, :-1], X[1:, 1:], X[:-1, 1:]
+    n1 = np.cross(p10 - p00, p11 - p00)
+    n2 = np.cross(p11 - p00, p01 - p00)
+    s1 = N[:-1, :-1] + N[1:, :-1] + N[1:, 1:]
+    s2 = N[:-1, :-1] + N[1:, 1:] + N[:-1, 1:]
+    return (np.einsum("ijk,ijk->ij", n1, s1) <= 0) | (np.einsum("ijk,ijk->ij", n2, s2) <= 0)
+
+
+def untangle(state: State, *, rounds: int, sweeps: int, reach: int) -> int:
+    """Smooth the free points around folded cells with the fairness force alone, in place.
+
+    The fairness force moves a point to the centroid of its neighbours (a discrete harmonic
+    map), which unfolds cells that the arc-length force folded where Euclidean springs pull
+    across a bump or into a hollow (sec. 5.5.3, fig. 5.5). Points within ``reach`` cells of
+    a fold move; up to ``rounds`` rounds of ``sweeps`` sweeps. Returns the folded cells left.
+    """
+    from scipy.ndimage import binary_dilation
+
+    mesh = state.mesh
+    free = state.kind() == FREE
+    folds = folded_cells(state)
+    for _ in range(rounds):
+        if not folds.any():
+            break
+        near = np.zeros((state.nu, state.nv), dtype=bool)
+        near[:-1, :-1] |= folds
+        near[1:, :-1] |= folds
+        near[:-1, 1:] |= folds
+        near[1:, 1:] |= folds
+        near = binary_dilation(near, iterations=reach) & free
+        n = state.nu * state.nv
+        _k.relax_sweeps(
+            mesh.vertices, mesh.faces, mesh.face_neighbors, state.face, state.bary,
+            state.nu, state.nv, near.ravel(), np.ones(n), np.zeros((n, 3)), sweeps, 1, 1,
+            1.0, 1.0, 0.0, tol.BARY_EPS, _MAX_FACES,
+        )  # fmt: skip
+        folds = folded_cells(state)
+    return int(folds.sum())

@@ -15,7 +15,7 @@ from meshfit.springs.features import FeatureLine, Sides, intersect_lines, prepar
 from meshfit.springs.grid import SpringMesh
 from meshfit.springs.init import chain_arc, chain_edge_faces, closest_approach, dijkstra_paths
 from meshfit.springs.metrics import spring_metrics
-from meshfit.springs.relax import relax
+from meshfit.springs.relax import relax, untangle
 from meshfit.springs.state import State
 from meshfit.springs.subdivide import subdivide
 
@@ -194,6 +194,7 @@ def resample_patch(
     ramp: int = 8,
     omega: float = 1.0,
     n_fair: int = 2,
+    untangle_rounds: int = 3,
     metrics: bool = True,
     fidelity: bool = True,
     scale: float | None = None,
@@ -236,6 +237,9 @@ def resample_patch(
         Over-relaxation factor of the Gauss-Seidel sweeps, in (0, 2) (default 1).
     n_fair : int, keyword-only
         Local fairness moves after each FindMidPoint guess (default 2).
+    untangle_rounds : int, keyword-only
+        After each level's relaxation, rounds of fairness-only sweeps around folded cells
+        (default 3; 0 turns it off).
     metrics, fidelity : bool, keyword-only
         Compute :func:`meshfit.springs.grid_metrics` of every level (with the fidelity
         distances).
@@ -315,6 +319,8 @@ def resample_patch(
             start=0 if k == 0 else ramp,
             eps=tol.SPRING_CONVERGED * (1.0 if k else COARSE_EPS),
         )
+        if untangle_rounds:
+            untangle(state, rounds=untangle_rounds, sweeps=max_iter, reach=2)
         seconds["relax"] += time.perf_counter() - t
         sweeps.append(done)
         snap = state.snapshot()
