@@ -8,7 +8,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from meshfit import tol
-from meshfit.bspline.basis import DEGREE, basis_local, basis_matrix, clamped_knots
+from meshfit._kernels import bspline as _k
+from meshfit.bspline.basis import DEGREE, basis_local, clamped_knots
 from meshfit.errors import InputError
 
 __all__ = ["BSplineSurface"]
@@ -158,18 +159,21 @@ class BSplineSurface:
     ) -> NDArray[np.float64] | tuple[NDArray[np.float64], ...]:
         """Like :meth:`evaluate` on the tensor grid ``u (nu,) x v (nv,)``: arrays ``(nu, nv, 3)``.
 
-        Two small matrix products per output (``B_u P B_v^T``), the fast path for images.
+        Two banded products per output (``B_u P B_v^T``), the fast path for images.
         """
         if derivatives not in (0, 1, 2):
             raise InputError(f"derivatives must be 0, 1 or 2, got {derivatives!r}")
         u = np.atleast_1d(np.asarray(u, dtype=np.float64))
         v = np.atleast_1d(np.asarray(v, dtype=np.float64))
-        Bu = [basis_matrix(u, self.knots_u, DEGREE, d) for d in range(derivatives + 1)]
-        Bv = [basis_matrix(v, self.knots_v, DEGREE, d) for d in range(derivatives + 1)]
+        fu, Nu = basis_local(u, self.knots_u, DEGREE, derivatives)
+        fv, Nv = basis_local(v, self.knots_v, DEGREE, derivatives)
         pairs = [(0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2)][: (1, 3, 6)[derivatives]]
         P = self.control_points
         out = tuple(
-            np.einsum("ia,abc,jb->ijc", Bu[du], P, Bv[dv], optimize=True) for du, dv in pairs
+            _k.grid_eval(
+                fu, np.ascontiguousarray(Nu[:, du, :]), fv, np.ascontiguousarray(Nv[:, dv, :]), P
+            )
+            for du, dv in pairs
         )
         return out[0] if derivatives == 0 else out
 
