@@ -6,9 +6,10 @@ import json
 import os
 import statistics
 import sys
-import tempfile
 import time
 from pathlib import Path
+
+from meshfit._atomic import write_text
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
@@ -41,7 +42,4 @@ def write_result(name: str, data: dict) -> None:
     RESULTS.mkdir(parents=True, exist_ok=True)
     text = json.dumps(data, indent=2)
     print(text)
-    fd, tmp = tempfile.mkstemp(dir=RESULTS, suffix=".tmp")
-    with os.fdopen(fd, "w") as fh:
-        fh.write(text + "\n")
-    os.replace(tmp, RESULTS / f"{name}.json")
+    write_text(RESULTS / f"{name}.json", text + "\n")

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import os
 import re
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -19,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from meshfit import errors
+from meshfit._atomic import write_bytes
 from meshfit.mesh.core import Mesh
 
 __all__ = ["FORMATS", "RawMesh", "load_mesh", "read_mesh_arrays", "save_mesh"]
@@ -620,12 +620,4 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike) -> Path:
         )
     tm = trimesh.Trimesh(mesh.vertices, mesh.faces, vertex_colors=mesh.vertex_colors, process=False)
     data = tm.export(file_type=suffix[1:])
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent or ".")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data if isinstance(data, bytes) else data.encode())
-        os.replace(tmp, p)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return p
+    return write_bytes(p, data if isinstance(data, bytes) else data.encode())

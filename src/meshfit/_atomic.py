@@ -1,0 +1,62 @@
+"""Atomic file output: write to a temporary name in the target folder, then rename.
+
+A crash or an exception leaves either the old file or the new one, never half of one. The
+result gets the permissions an ordinary ``open(path, "w")`` would give (``0o666`` less the
+umask), not the private ``0o600`` of a temporary file.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+__all__ = ["atomic_write", "write_bytes", "write_text"]
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def atomic_write(path: str | os.PathLike, write: Callable[[str], object]) -> Path:
+    """Call ``write(tmp_path)`` to create the file, then rename it to ``path``.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        Target file; its folder must exist.
+    write : callable
+        Writes the whole file at the temporary path it is given (same folder and suffix as
+        ``path``, so writers that pick a format from the suffix work).
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{path.stem}.", suffix=path.suffix)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+def write_bytes(path: str | os.PathLike, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically."""
+    return atomic_write(path, lambda tmp: Path(tmp).write_bytes(data))
+
+
+def write_text(path: str | os.PathLike, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically."""
+    return atomic_write(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
