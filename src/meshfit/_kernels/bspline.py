@@ -69,26 +69,27 @@ def grid_eval(fu, Nu, fv, Nv, P):
 
 @njit(cache=True, nogil=True)
 def dense_sandwich(A, X, B):
-    """``A X B^T`` per coordinate; kernel of `bspline.fit_bspline` (normal-matrix inverses).
+    """``A X B^T`` per channel; kernel of `bspline.fit_bspline` and map resampling.
 
-    A (a, n) f8; X (n, m, 3) f8; B (b, m) f8 -> (a, b, 3).
+    A (a, n) f8; X (n, m, c) f8; B (b, m) f8 -> (a, b, c). Zero weights are skipped.
     """
     na, n = A.shape
     nb, m = B.shape
-    T = np.zeros((na, m, 3))
+    nc = X.shape[2]
+    T = np.zeros((na, m, nc))
     for r in range(na):
         for i in range(n):
             w = A[r, i]
             if w != 0.0:
                 for j in range(m):
-                    for c in range(3):
+                    for c in range(nc):
                         T[r, j, c] += w * X[i, j, c]
-    out = np.zeros((na, nb, 3))
+    out = np.zeros((na, nb, nc))
     for r in range(na):
         for s in range(nb):
             for j in range(m):
                 w = B[s, j]
                 if w != 0.0:
-                    for c in range(3):
+                    for c in range(nc):
                         out[r, s, c] += w * T[r, j, c]
     return out

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from meshfit._kernels import bspline as _k
 from meshfit.bspline import BSplineSurface, grid_parameters
 from meshfit.bspline.fit import _as_grid
 from meshfit.errors import InputError
@@ -278,7 +279,7 @@ def resample_map(dmap: DisplacementMap, shape: tuple[int, int]) -> DisplacementM
         raise InputError(f"a map needs at least 2 x 2 texels, got {shape}")
     Wu = _bilinear_weights(h2, dmap.shape[0])
     Wv = _bilinear_weights(w2, dmap.shape[1])
-    vals = np.einsum("ia,abc,jb->ijc", Wu, dmap.values, Wv, optimize=True)
+    vals = _k.dense_sandwich(Wu, np.ascontiguousarray(dmap.values), Wv)
     if dmap.kind == "bump":
         vals /= np.linalg.norm(vals, axis=-1, keepdims=True)
     return DisplacementMap(vals, dmap.kind)
@@ -354,7 +355,7 @@ def reconstruct(
     if (h2, w2) != dmap.shape:
         Wu = _bilinear_weights(h2, dmap.shape[0])
         Wv = _bilinear_weights(w2, dmap.shape[1])
-        comp = np.einsum("ia,abc,jb->ijc", Wu, comp, Wv, optimize=True)
+        comp = _k.dense_sandwich(Wu, np.ascontiguousarray(comp), Wv)
     S, T, B, N = _grid_frames(surface, h2, w2)
     return S + comp[..., :1] * T + comp[..., 1:2] * B + comp[..., 2:] * N
 
