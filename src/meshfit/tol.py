@@ -78,6 +78,6 @@ BSPLINE_FIT_RTOL = 1e-10
 #: a feature-curve point lies in its patch (or on a side) when within this of it, times the mean
 #: edge length
 LAYOUT_FEATURE_INSIDE = 1e-6
-#: above this condition number of the collocation matrix the gridded fit applies the SVD
-#: pseudo-inverse instead of the normal equations (which square it; dimensionless)
-BSPLINE_GRAM_COND = 100.0
+#: the gridded fit uses the normal equations when samples >= this times controls per
+#: direction (collocation condition number below ~10 there), else the QR pseudo-inverse
+BSPLINE_GRAM_RATIO = 1.25
