@@ -212,3 +212,15 @@ def test_kernels_match_dense_products(rng):
     C = rng.normal(size=(5, n))
     want_d = np.stack([A @ X[..., c] @ C.T for c in range(3)], axis=-1)
     assert_allclose(k.dense_sandwich(A, X, C), want_d, atol=1e-12)
+
+
+@pytest.mark.parametrize(("n", "m"), [(40, 12), (30, 30), (100, 90)])
+def test_qr_pinv_kernel_matches_numpy(n, m):
+    from meshfit._kernels import bspline as k
+
+    B = basis_matrix(grid_parameters(n), clamped_knots(m))
+    pinv, gram_inv = k.qr_pinv(B)
+    want = np.linalg.pinv(B)
+    cond = np.linalg.cond(B)
+    assert_allclose(pinv, want, rtol=0, atol=100 * cond * np.finfo(float).eps * np.abs(want).max())
+    assert_allclose(gram_inv @ (B.T @ B), np.eye(m), atol=100 * cond**2 * np.finfo(float).eps)

@@ -93,3 +93,51 @@ def dense_sandwich(A, X, B):
                     for c in range(nc):
                         out[r, s, c] += w * T[r, j, c]
     return out
+
+
+@njit(cache=True, nogil=True)
+def qr_pinv(B):
+    """Pseudo-inverse ``(m, n)`` of a full-rank ``B (n, m)``, n >= m, and ``(B^T B)^-1``.
+
+    Gram-Schmidt QR with a second orthogonalisation pass (orthogonal to round-off), then
+    ``R^-1 Q^T`` by back substitution; kernel of `bspline.fit_bspline`. No LAPACK call:
+    LAPACK's thread start-up costs tens of ms on a busy machine.
+    """
+    n, m = B.shape
+    Q = np.zeros((n, m))
+    R = np.zeros((m, m))
+    v = np.zeros(n)
+    for k in range(m):
+        for i in range(n):
+            v[i] = B[i, k]
+        for _pass in range(2):
+            for j in range(k):
+                r = 0.0
+                for i in range(n):
+                    r += Q[i, j] * v[i]
+                R[j, k] += r
+                for i in range(n):
+                    v[i] -= r * Q[i, j]
+        nv = 0.0
+        for i in range(n):
+            nv += v[i] * v[i]
+        nv = np.sqrt(nv)
+        R[k, k] = nv
+        for i in range(n):
+            Q[i, k] = v[i] / nv
+    pinv = np.zeros((m, n))
+    for col in range(n):
+        for k in range(m - 1, -1, -1):
+            s = Q[col, k]
+            for j in range(k + 1, m):
+                s -= R[k, j] * pinv[j, col]
+            pinv[k, col] = s / R[k, k]
+    gram_inv = np.zeros((m, m))
+    for a in range(m):
+        for b in range(a, m):
+            s = 0.0
+            for i in range(n):
+                s += pinv[a, i] * pinv[b, i]
+            gram_inv[a, b] = s
+            gram_inv[b, a] = s
+    return pinv, gram_inv

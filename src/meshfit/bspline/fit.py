@@ -32,12 +32,12 @@ def _solver(n: int, m: int):
 
     Returns ``first (n,)``, ``values (n, 4)`` (the non-zero basis functions per sample), the
     dense collocation matrix ``B (n, m)``, ``(B^T B)^-1 (m, m)``, and the pseudo-inverse
-    ``B^+ (m, n)`` by SVD when ``cond(B)`` exceeds ``tol.BSPLINE_GRAM_COND`` (else None).
+    ``B^+ (m, n)`` (from a QR factorisation) when ``n < tol.BSPLINE_GRAM_RATIO * m``, else None.
 
     The normal equations square the condition number of ``B``: fine while m is well below
-    n (cond(B) ~ 5 for 30 controls on 100 samples), not when m approaches n (cond(B) ~ 2e4
-    for 60 on 60), where the SVD pseudo-inverse is applied instead. Cached, so re-fitting a
-    grid of a seen size costs only the products.
+    n (cond(B) ~ 5 for 30 controls on 100 samples, 7 for 48 on 60), not when m approaches n
+    (cond(B) ~ 2e4 for 60 on 60), where the QR pseudo-inverse is applied to the grid instead.
+    Cached, so re-fitting a grid of a seen size costs only the products.
     """
     t = grid_parameters(n)
     U = clamped_knots(m)
@@ -45,15 +45,12 @@ def _solver(n: int, m: int):
     first = np.ascontiguousarray(first)
     vals = np.ascontiguousarray(vals[:, 0, :])
     B = basis_matrix(t, U, DEGREE, 0)
-    uu, sv, vt = np.linalg.svd(B, full_matrices=False)
-    inv = (vt.T / sv**2) @ vt
-    pinv = None
-    if sv[0] / sv[-1] > tol.BSPLINE_GRAM_COND:
-        pinv = np.ascontiguousarray((vt.T / sv) @ uu.T)
-        pinv.flags.writeable = False
-    inv = np.ascontiguousarray(0.5 * (inv + inv.T))
-    for a in (first, vals, B, inv):
-        a.flags.writeable = False
+    pinv, inv = _k.qr_pinv(B)
+    if n >= tol.BSPLINE_GRAM_RATIO * m:
+        pinv = None
+    for a in (first, vals, B, inv, pinv):
+        if a is not None:
+            a.flags.writeable = False
     return first, vals, B, inv, pinv
 
 
@@ -131,8 +128,8 @@ def fit_bspline(
         if Pu is None and Pv is None:
             G = _k.gram_sandwich(fu, Nu, fv, Nv, X, mu, mv)  # B_u^T X B_v
             return BSplineSurface(_k.dense_sandwich(Mu, G, Mv))
-        Pu = Mu @ Bu.T if Pu is None else Pu
-        Pv = Mv @ Bv.T if Pv is None else Pv
+        Pu = _k.qr_pinv(Bu)[0] if Pu is None else Pu
+        Pv = _k.qr_pinv(Bv)[0] if Pv is None else Pv
         return BSplineSurface(_k.dense_sandwich(Pu, X, Pv))
 
     P = np.zeros((mu, mv, 3))
@@ -162,12 +159,11 @@ def fit_bspline(
     R = X - _k.grid_eval(fu, Nu, fv, Nv, P)
     G = _k.gram_sandwich(fu, Nu, fv, Nv, R, mu, mv)[np.ix_(rows_free, cols_free)]
     Bu_f, Bv_f = Bu[:, rows_free], Bv[:, cols_free]
+    Pu_f, Mu_f = _k.qr_pinv(np.ascontiguousarray(Bu_f))
+    Pv_f, Mv_f = _k.qr_pinv(np.ascontiguousarray(Bv_f))
     if Pu is None and Pv is None:
-        Mu_f = np.linalg.pinv(Bu_f.T @ Bu_f)
-        Mv_f = np.linalg.pinv(Bv_f.T @ Bv_f)
         P[np.ix_(rows_free, cols_free)] = _k.dense_sandwich(Mu_f, np.ascontiguousarray(G), Mv_f)
     else:
-        Pu_f, Pv_f = np.linalg.pinv(Bu_f), np.linalg.pinv(Bv_f)
         P[np.ix_(rows_free, cols_free)] = _k.dense_sandwich(Pu_f, R, Pv_f)
     return BSplineSurface(P)
 
