@@ -1,0 +1,202 @@
+"""Benchmark: gridded B-spline fitting (meshfit.bspline.fit_bspline) against peers.
+
+A 100 x 100 grid ray-cast onto nefertiti (a height-field-like window of the face, the same
+construction as the tests' ``scan_grid``) is fitted with 30 x 30 control points, degree 3:
+
+- ``meshfit``: :func:`meshfit.bspline.fit_bspline` (two small solves), cold (solver cache
+  cleared before every call) and warm (the interactive re-fit of a seen grid size);
+- ``geomdl``: ``geomdl.fitting.approximate_surface`` (The NURBS Book A9.7, pure Python),
+  same control counts, its own chord-length parameters and averaged knots;
+- ``occ``: OpenCASCADE ``GeomAPI_PointsToBSplineSurface`` with degree pinned to 3, when
+  ``OCP`` (``meshfit[cad]``) is importable; reported as unavailable otherwise.
+
+Accuracy is compared on one measure every method can be held to: the RMS / max distance of
+the grid points to their closest points on the fitted surface (eq. 6.2), with the same
+Newton closest-point code; meshfit's parametric error (eq. 6.1) is reported too.
+
+Re-fitting one patch at a new control resolution (the interactive case; target <= 20 ms)
+is timed on the same grid for a sweep of resolutions, cold.
+
+Whole-layout figures (fit + displacement + stitch for every patch of igea and nefertiti at
+8 x 8 and 16 x 16 controls) need the spring meshes of ``meshfit.springs`` on a layout; the
+hook is :func:`layout_figures`, which takes the patch grids and reports ``pending`` until a
+layout's grids are passed to it.
+
+Run: ``python benchmarks/fit.py [--repeats 5]``. Prints JSON and writes
+``benchmarks/results/fit.json`` atomically.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import os
+import platform
+import time
+
+import numpy as np
+from _common import median_time, mesh_path, write_result
+
+from meshfit.bspline import BSplineSurface, fit_bspline, fit_errors
+from meshfit.bspline.fit import _solver, closest_parameters, grid_parameters
+from meshfit.displacement import displacement_map
+from meshfit.mesh import Mesh, load_mesh
+
+
+def scan_grid(name: str, n: int, half: float = 0.15, centre=(0.5, 0.6)) -> np.ndarray:
+    """``(n, n, 3)`` grid ray-cast along -z onto a square window of the mesh's bbox."""
+    mesh = load_mesh(mesh_path(name))
+    scale = 1000.0 / mesh.bbox_diagonal  # ray casting misses on tiny models (see tests)
+    mesh = Mesh(mesh.vertices * scale, mesh.faces)
+    lo, hi = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
+    ext = hi - lo
+    su = lo[0] + ext[0] * (centre[0] + half * np.linspace(-1, 1, n))
+    sv = lo[1] + ext[1] * (centre[1] + half * np.linspace(-1, 1, n))
+    U, V = np.meshgrid(su, sv, indexing="ij")
+    o = np.stack([U.ravel(), V.ravel(), np.full(n * n, hi[2] + 0.1 * ext[2])], axis=1)
+    d = np.tile([0.0, 0.0, -1.0], (n * n, 1))
+    hits = mesh.ray_first_hit(o, d)
+    if not hits.hit.all():
+        raise SystemExit(f"{int((~hits.hit).sum())} rays missed {name}")
+    return (o + hits.t[:, None] * d).reshape(n, n, 3) / scale
+
+
+def normal_errors(surface: BSplineSurface, X: np.ndarray, u0, v0) -> dict:
+    U, V = np.meshgrid(u0, v0, indexing="ij")
+    _, _, dist = closest_parameters(surface, X.reshape(-1, 3), U.ravel(), V.ravel())
+    return {"normal_rms": float(np.sqrt(np.mean(dist**2))), "normal_max": float(dist.max())}
+
+
+def bench_meshfit(X, m, repeats):
+    def cold():
+        _solver.cache_clear()
+        return fit_bspline(X, controls=(m, m))
+
+    t_cold, _ = median_time(cold, repeats)
+    fit_bspline(X, controls=(m, m))
+    t_warm, _ = median_time(lambda: fit_bspline(X, controls=(m, m)), max(repeats, 20))
+    s = fit_bspline(X, controls=(m, m))
+    e = fit_errors(s, X)
+    return s, {
+        "time_s_cold": t_cold,
+        "time_s_warm": t_warm,
+        "parametric_rms": e.parametric_rms,
+        "parametric_max": e.parametric_max,
+        **normal_errors(s, X, grid_parameters(X.shape[0]), grid_parameters(X.shape[1])),
+    }
+
+
+def bench_geomdl(X, m, repeats):
+    if importlib.util.find_spec("geomdl") is None:
+        return None, {"available": False, "reason": "geomdl not installed (meshfit[bench])"}
+    import geomdl
+    from geomdl import fitting
+
+    n0, n1 = X.shape[:2]
+    pts = X.reshape(-1, 3).tolist()  # geomdl: v varies fastest, as our (i, j) order
+    out = {}
+
+    def run():
+        out["s"] = fitting.approximate_surface(
+            pts, n0, n1, 3, 3, ctrlpts_size_u=m, ctrlpts_size_v=m
+        )
+
+    t, _ = median_time(run, repeats)
+    g = out["s"]
+    P = np.array(g.ctrlpts).reshape(g.ctrlpts_size_u, g.ctrlpts_size_v, 3)
+    s = BSplineSurface(P, np.array(g.knotvector_u), np.array(g.knotvector_v))
+    uk, vl = fitting.compute_params_surface(pts, n0, n1, False)
+    U, V = np.meshgrid(uk, vl, indexing="ij")
+    par = np.linalg.norm(s.evaluate(U, V) - X, axis=-1)
+    return s, {
+        "available": True,
+        "version": geomdl.__version__,
+        "time_s": t,
+        "parametric_rms_own_parameters": float(np.sqrt(np.mean(par**2))),
+        **normal_errors(s, X, np.asarray(uk), np.asarray(vl)),
+    }
+
+
+def bench_occ(X, m, repeats):
+    if importlib.util.find_spec("OCP") is None:
+        return {"available": False, "reason": "OCP (cadquery-ocp, meshfit[cad]) not installed"}
+    return {"available": False, "reason": "OCP present but the OCC runner is not written yet"}
+
+
+def layout_figures(grids_by_layout: dict | None = None, controls=(8, 16)) -> dict:
+    """Hook for whole layouts: ``{layout name: [patch grids (nu, nv, 3)]}`` -> fit + map time.
+
+    Stitch time is added when ``meshfit.stitch`` runs on spring-mesh layouts.
+    """
+    if not grids_by_layout:
+        return {"status": "pending: needs spring meshes of igea / nefertiti layouts"}
+    out = {}
+    for name, grids in grids_by_layout.items():
+        for m in controls:
+            t0 = time.perf_counter()
+            for X in grids:
+                s = fit_bspline(X, controls=(min(m, X.shape[0]), min(m, X.shape[1])))
+                displacement_map(s, X)
+            out[f"{name}_{m}x{m}"] = {
+                "patches": len(grids),
+                "fit_and_map_s": time.perf_counter() - t0,
+            }
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=5, help="timed runs (median reported)")
+    ap.add_argument("--grid", type=int, default=100)
+    ap.add_argument("--controls", type=int, default=30)
+    args = ap.parse_args()
+    load_start = os.getloadavg()[0]
+
+    X = scan_grid("nefertiti", args.grid)
+    m = args.controls
+    _, ours = bench_meshfit(X, m, args.repeats)
+    _, geo = bench_geomdl(X, m, max(1, args.repeats // 2))
+    occ = bench_occ(X, m, args.repeats)
+
+    refit = {}
+    for k in (8, 12, 16, 24, 40, 64):
+
+        def cold(k=k):
+            _solver.cache_clear()
+            fit_bspline(X, controls=(k, k))
+
+        refit[f"{k}x{k}"] = median_time(cold, max(args.repeats, 10))[0]
+
+    data = {
+        "benchmark": f"gridded B-spline fit, {args.grid}x{args.grid} grid on nefertiti, "
+        f"{m}x{m} control points, degree 3",
+        "grid": [args.grid, args.grid],
+        "controls": [m, m],
+        "model_units": "nefertiti scan units (window ~71 x 109 x 40)",
+        "meshfit": ours,
+        "geomdl": geo,
+        "occ": occ,
+        "ratios": {},
+        "refit_one_patch_s_cold": refit,
+        "refit_target_s": 0.020,
+        "refit_max_s": max(refit.values()),
+        "layouts": layout_figures(),
+        "repeats": args.repeats,
+        "machine": {
+            "python": platform.python_version(),
+            "cpus": os.cpu_count(),
+            "load_avg_start": load_start,
+            "load_avg_end": os.getloadavg()[0],
+        },
+    }
+    if geo.get("available"):
+        data["ratios"] = {
+            "geomdl_time_over_meshfit_cold": geo["time_s"] / ours["time_s_cold"],
+            "geomdl_time_over_meshfit_warm": geo["time_s"] / ours["time_s_warm"],
+            "geomdl_normal_rms_over_meshfit": geo["normal_rms"] / ours["normal_rms"],
+        }
+    write_result("fit", data)
+
+
+if __name__ == "__main__":
+    main()
