@@ -17,8 +17,11 @@ def unique_edges(faces: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[n
     face_edges : (nf, 3) int64
     """
     he = np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2)
-    key = np.sort(he, axis=1)
-    edges, inv = np.unique(key, axis=0, return_inverse=True)
+    lo = np.minimum(he[:, 0], he[:, 1]).astype(np.int64)
+    hi = np.maximum(he[:, 0], he[:, 1]).astype(np.int64)
+    n = int(hi.max()) + 1 if len(hi) else 1
+    key, inv = np.unique(lo * n + hi, return_inverse=True)
+    edges = np.stack([key // n, key % n], axis=1)
     return edges.astype(np.int64), inv.reshape(-1, 3).astype(np.int64)
 
 

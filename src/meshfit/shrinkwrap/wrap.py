@@ -214,6 +214,7 @@ def shrink_wrap(
     surface_iterations: int = 4,
     alpha: float = 0.5,
     switch_tightness: float = 0.1,
+    switch_min_angle_deg: float = 10.0,
     min_switch_level: int = 2,
     progress: Callable[[str, float], None] | None = None,
 ) -> WrapResult:
@@ -235,7 +236,9 @@ def shrink_wrap(
     Switching rule: after the parameter phase of level ``i >= min_switch_level``, if the 95th
     percentile of the distance from the face centroids of ``M_i`` to the input is at most
     ``switch_tightness`` times the mean edge length of ``M_i`` (normal rays then meet the
-    surface near their start), all later levels use the surface phase. Every move that would
+    surface near their start), or if ``M_i`` has a triangle with an angle below
+    ``switch_min_angle_deg`` (the sphere metric no longer approximates the surface metric
+    well enough), all later levels use the surface phase. Every move that would
     flip a triangle in the parameter domain is undone, so each ``M_i`` stays a bijective
     image of the sphere.
 
@@ -254,7 +257,10 @@ def shrink_wrap(
     alpha : float
         Damping factor of eq. 1, in (0, 1] (default 0.5).
     switch_tightness : float
-        Threshold of the switching rule (default 0.1).
+        Tightness threshold of the switching rule (default 0.1).
+    switch_min_angle_deg : float
+        Also switch when the parameter phase leaves a triangle with a smaller angle, degrees
+        (default 10): the surface metric then has to take over.
     min_switch_level : int
         No switch before this level (default 2).
     progress : callable(stage, fraction), optional
@@ -317,7 +323,8 @@ def shrink_wrap(
         x = mesh.xyz(loc)
         tight = _tightness(mesh, x, faces)
         out.append(WrapLevel(lev, x, faces, s, loc, phase, its, used, tight))
-        if phase == "parameter" and lev >= min_switch_level and tight <= switch_tightness:
+        thin = np.degrees(triangle_quality(x, faces)[0].min()) < switch_min_angle_deg
+        if phase == "parameter" and lev >= min_switch_level and (tight <= switch_tightness or thin):
             phase = "surface"
             switch = lev + 1
         secs[f"level_{lev}"] = time.perf_counter() - t0

@@ -1,0 +1,125 @@
+import itertools
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from meshfit import errors
+from meshfit.shrinkwrap import (
+    base_mesh,
+    fill_holes,
+    icosahedron,
+    level_metrics,
+    shrink_wrap,
+    spherical_orientation,
+    wrap_report,
+)
+
+from ..conftest import analytic_mesh, real_mesh
+from .conftest import smap, wrap
+
+#: the issue's targets
+MAX_BASE_FACES = 100
+MAX_CELL_RATIO = 3.0
+MAX_RMS_L5 = 0.0005  # 0.05 % of the bbox diagonal
+MIN_ANGLE_DEG = 5.0
+
+
+def test_icosahedron_is_outward_and_unit():
+    v, f = icosahedron()
+    assert f.shape == (20, 3)
+    assert (spherical_orientation(v, f) > 0).all()
+    assert_allclose(np.linalg.norm(v, axis=1), 1.0)
+
+
+@pytest.mark.parametrize("name", ["igea", "nefertiti"])
+def test_base_mesh_is_small_and_balanced(name):
+    b = wrap(name, 5).base
+    assert len(b.faces) <= MAX_BASE_FACES
+    assert b.area_ratio <= MAX_CELL_RATIO
+    assert (spherical_orientation(b.sphere, b.faces) > 0).all()
+    assert_allclose(b.cell_area.sum(), real_mesh(name).area, rtol=1e-9)
+
+
+def test_umbrella_base_relaxation_runs_without_flips():
+    b = base_mesh(smap("spot"), relaxation="umbrella", iterations=5, max_faces=30)
+    assert (spherical_orientation(b.sphere, b.faces) > 0).all()
+
+
+_L5 = {
+    "igea": [],
+    # measured: level-5 RMS 0.076 % of the diagonal (30-face base, 30,720 faces at level 5;
+    # input-to-wrap distance dominates: 0.076 % against 0.027 % wrap-to-input)
+    "nefertiti": [pytest.mark.xfail(strict=True, reason="nefertiti level-5 RMS 0.076% > 0.05%")],
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", [pytest.param(n, marks=m) for n, m in _L5.items()], ids=list(_L5))
+def test_level5_rms_within_target(name):
+    m = level_metrics(real_mesh(name), wrap(name, 5).levels[5])
+    assert m["rms"] <= MAX_RMS_L5
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["igea", "nefertiti"])
+def test_level5_has_no_flips_and_no_thin_triangles(name):
+    m = level_metrics(real_mesh(name), wrap(name, 5).levels[5])
+    assert m["flips"] == 0
+    assert m["min_angle_deg"] >= MIN_ANGLE_DEG
+
+
+@pytest.mark.parametrize("name", ["igea", "nefertiti"])
+def test_levels_have_subdivision_connectivity_and_lie_on_the_input(name):
+    res = wrap(name, 5)
+    mesh = real_mesh(name)
+    nf0 = len(res.base.faces)
+    for lv in res.levels:
+        assert lv.faces.shape == (nf0 * 4**lv.level, 3)
+        assert lv.mesh.is_closed and lv.mesh.genus == 0
+        d = mesh.closest_points(lv.vertices).distance
+        assert d.max() <= 1e-9 * mesh.bbox_diagonal
+        assert_allclose(mesh.xyz(lv.points), lv.vertices)
+
+
+def test_surface_phase_runs_and_keeps_the_map_bijective():
+    res = shrink_wrap(
+        real_mesh("spot"), levels=3, smap=smap("spot"), min_switch_level=1, switch_tightness=10.0
+    )
+    assert res.switch_level == 2
+    assert [lv.phase for lv in res.levels] == ["base", "parameter", "surface", "surface"]
+    for lv in res.levels:
+        assert (spherical_orientation(lv.sphere, lv.faces) > 0).all()
+
+
+def test_metrics_report_has_the_issue_figures():
+    rep = wrap_report(wrap("igea", 5))
+    assert rep["sphere_map"]["method"] == "tutte"
+    assert rep["base"]["faces"] <= MAX_BASE_FACES
+    assert rep["base"]["cell_area_max"] / rep["base"]["cell_area_min"] <= MAX_CELL_RATIO
+    assert [lv["level"] for lv in rep["levels"]] == list(range(6))
+    rms = [lv["rms"] for lv in rep["levels"]]
+    assert all(b < a for a, b in itertools.pairwise(rms))
+    for sch in ("loop", "butterfly"):
+        r = rep["reconstruction"][sch]
+        assert r["0%"] > r["1%"] > r["3%"] > r["10%"] > 0
+
+
+def test_fill_holes_closes_the_bunny_and_it_wraps():
+    bunny = real_mesh("bunny")
+    closed = fill_holes(bunny)
+    assert closed.is_closed and closed.genus == 0
+    assert closed.n_vertices == bunny.n_vertices + 5
+    assert_allclose(closed.vertices[: bunny.n_vertices], bunny.vertices)
+    res = shrink_wrap(closed, levels=2)
+    assert (spherical_orientation(res.levels[-1].sphere, res.levels[-1].faces) > 0).all()
+
+
+def test_fill_holes_refuses_large_holes():
+    with pytest.raises(errors.TopologyError, match="larger than max_edges"):
+        fill_holes(real_mesh("nefertiti_fraunhofer"), max_edges=100)
+
+
+def test_wrap_rejects_a_handle():
+    with pytest.raises(errors.TopologyError, match="genus"):
+        shrink_wrap(analytic_mesh("torus"), levels=1)
