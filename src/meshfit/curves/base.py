@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 
 from meshfit import tol
 from meshfit._kernels import curves as _curves
+from meshfit._kernels import walk as _walk
 from meshfit._validate import as_surface_points
 from meshfit.errors import InputError
 from meshfit.mesh import Mesh
@@ -37,6 +38,8 @@ _MAX_BISECT = 12
 _MAX_PASSES = 3
 #: a step breaking the sampling rule is split evenly into the fewest k in this range that works
 _K_MIN, _K_MAX = 2, 32
+#: point count from which attraction runs on all cores
+_PARALLEL_MIN = 64
 
 
 def _as_curve(mesh: Mesh, curve: SurfaceCurve, name: str = "curve") -> SurfaceCurve:
@@ -95,7 +98,10 @@ def _attract_few(
     dominates for the few hundred or thousand points of one painted segment.
     """
     indptr, vf = mesh.vertex_faces
-    f, b, _, _, _, _ = _curves.attract_points_serial(
+    # many points: the parallel kernel (threads sleep between kernels, so starting them
+    # costs microseconds); a few: the serial one
+    kernel = _walk.attract_points if len(face) >= _PARALLEL_MIN else _curves.attract_points_serial
+    f, b, _, _, _, _ = kernel(
         mesh.vertices,
         _i8(mesh.faces),
         _i8(mesh.face_neighbors),
