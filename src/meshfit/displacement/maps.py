@@ -344,6 +344,13 @@ def reconstruct(
         Displaced points, model units. At the map's own resolution and from a map made by
         :func:`displacement_map` this is the original grid to float64 round-off.
 
+    Notes
+    -----
+    Each texel's components are turned into a model-space vector with the frame at the
+    texel's own (u, v); the vectors are filtered bilinearly and added to the spline at the
+    output parameters. Filtering vectors rather than frame components keeps two patches
+    whose boundary texels carry the same vectors crack-free at every resolution (sec. 8.2).
+
     References
     ----------
     .. [1] Krishnamurthy 2000, sec. 7.1 (S_disp = S + D), sec. 7.2 (bilinear reconstruction).
@@ -352,12 +359,15 @@ def reconstruct(
     h2, w2 = dmap.shape if shape is None else (int(shape[0]), int(shape[1]))
     if h2 < 2 or w2 < 2:
         raise InputError(f"output shape must be at least 2 x 2, got {(h2, w2)}")
-    if (h2, w2) != dmap.shape:
-        Wu = _bilinear_weights(h2, dmap.shape[0])
-        Wv = _bilinear_weights(w2, dmap.shape[1])
-        comp = _k.dense_sandwich(Wu, np.ascontiguousarray(comp), Wv)
-    S, T, B, N = _grid_frames(surface, h2, w2)
-    return S + comp[..., :1] * T + comp[..., 1:2] * B + comp[..., 2:] * N
+    _, T, B, N = _grid_frames(surface, *dmap.shape)
+    world = comp[..., :1] * T + comp[..., 1:2] * B + comp[..., 2:] * N
+    if (h2, w2) == dmap.shape:
+        S = surface.evaluate_grid(grid_parameters(h2), grid_parameters(w2))
+        return S + world
+    Wu = _bilinear_weights(h2, dmap.shape[0])
+    Wv = _bilinear_weights(w2, dmap.shape[1])
+    world = _k.dense_sandwich(Wu, np.ascontiguousarray(world), Wv)
+    return surface.evaluate_grid(grid_parameters(h2), grid_parameters(w2)) + world
 
 
 def bump_normals(
