@@ -81,3 +81,8 @@ LAYOUT_FEATURE_INSIDE = 1e-6
 #: the gridded fit uses the normal equations when samples >= this times controls per
 #: direction (collocation condition number below ~10 there), else the QR pseudo-inverse
 BSPLINE_GRAM_RATIO = 1.25
+#: two grid sides are one shared boundary when their end points agree within this, times the
+#: network's bbox diagonal
+STITCH_MATCH = 1e-7
+#: after C0 stitching shared boundaries agree within this, times the bbox diagonal (tests)
+STITCH_GAP = 1e-9
