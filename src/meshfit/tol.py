@@ -86,3 +86,9 @@ BSPLINE_GRAM_RATIO = 1.25
 STITCH_MATCH = 1e-7
 #: after C0 stitching shared boundaries agree within this, times the bbox diagonal (tests)
 STITCH_GAP = 1e-9
+
+# --- meshfit.ui
+#: a painted corner snaps to an existing corner or curve within this, times the bbox diagonal
+UI_SNAP_RADIUS = 0.02
+#: a click picks a curve sample (edit point, control vertex) within this, times the bbox diagonal
+UI_PICK_RADIUS = 0.03
