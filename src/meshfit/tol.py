@@ -92,3 +92,10 @@ STITCH_GAP = 1e-9
 UI_SNAP_RADIUS = 0.02
 #: a click picks a curve sample (edit point, control vertex) within this, times the bbox diagonal
 UI_PICK_RADIUS = 0.03
+
+# --- meshfit.shrinkwrap
+#: a projection ray hit farther than this times the closest-point distance is not trusted
+#: (the closest point is used instead)
+SHRINKWRAP_RAY_TRUST = 3.0
+#: ... plus this, times the level's mean edge length (rays from points already on the surface)
+SHRINKWRAP_RAY_SLACK = 0.1
