@@ -1,5 +1,6 @@
 """Patch layouts: curve networks on a mesh, four-sided patches, and the layout file format."""
 
+from meshfit.layout.cube import cube_layout
 from meshfit.layout.extract import check_layout_topology, extract_patches
 from meshfit.layout.io import layout_from_json, layout_to_json, load_layout, save_layout
 from meshfit.layout.layout import Layout, check_layout, layout_from_curves, mesh_fingerprint
@@ -10,6 +11,7 @@ __all__ = [
     "Patch",
     "check_layout",
     "check_layout_topology",
+    "cube_layout",
     "extract_patches",
     "layout_from_curves",
     "layout_from_json",

@@ -23,6 +23,8 @@ Method
 from __future__ import annotations
 
 import itertools
+import threading
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -51,7 +53,27 @@ class _Region:
     corner_pos: list[int]  # positions in ``loop`` of corners 0..3
 
 
+#: the last partition computed, for the mesh and layout objects it was computed for (both are
+#: immutable): ``load_layout`` checks a layout by partitioning the mesh, and the
+#: ``extract_patches`` call that usually follows reuses that work
+_LAST: list = [None]
+_LAST_LOCK = threading.Lock()
+
+
 def _partition(
+    mesh: Mesh, layout: Layout, progress: Callable[[int, int], None] | None
+) -> tuple[NetworkCutResult, list[_Region]]:
+    with _LAST_LOCK:
+        last = _LAST[0]
+        if last is not None and last[0]() is mesh and last[1]() is layout:
+            return last[2], last[3]
+    res, regions = _compute_partition(mesh, layout, progress)
+    with _LAST_LOCK:
+        _LAST[0] = (weakref.ref(mesh), weakref.ref(layout), res, regions)
+    return res, regions
+
+
+def _compute_partition(
     mesh: Mesh, layout: Layout, progress: Callable[[int, int], None] | None
 ) -> tuple[NetworkCutResult, list[_Region]]:
     check_layout(mesh, layout)
