@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from meshfit import errors
+from meshfit import errors, tol
 from meshfit.shrinkwrap import (
     base_mesh,
     fill_holes,
@@ -78,7 +78,7 @@ def test_levels_have_subdivision_connectivity_and_lie_on_the_input(name):
         assert lv.faces.shape == (nf0 * 4**lv.level, 3)
         assert lv.mesh.is_closed and lv.mesh.genus == 0
         d = mesh.closest_points(lv.vertices).distance
-        assert d.max() <= 1e-9 * mesh.bbox_diagonal
+        assert d.max() <= tol.length(mesh, tol.ON_SURFACE, scale="bbox_diagonal")
         assert_allclose(mesh.xyz(lv.points), lv.vertices)
 
 

@@ -10,7 +10,7 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import NDArray
 
-from meshfit import errors
+from meshfit import errors, tol
 from meshfit.mesh import Mesh
 from meshfit.shrinkwrap import _topo
 from meshfit.shrinkwrap.base import BaseMesh, base_mesh, cell_areas
@@ -23,10 +23,6 @@ from meshfit.shrinkwrap.sphere import (
 from meshfit.types import SurfacePoints
 
 __all__ = ["WrapLevel", "WrapResult", "level_metrics", "shrink_wrap"]
-
-#: a ray hit farther than this many times the closest-point distance (plus a tenth of the
-#: level's mean edge length) is not trusted: the closest point is used instead
-RAY_TRUST = 3.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -171,7 +167,9 @@ def _project(mesh: Mesh, x, nrm, mel):
     k = np.argmin(t, axis=0)
     idx = k * n + np.arange(n)
     tt = t[k, np.arange(n)]
-    ok = np.isfinite(tt) & (tt <= RAY_TRUST * cp.distance + 0.1 * mel)
+    ok = np.isfinite(tt) & (
+        tt <= tol.SHRINKWRAP_RAY_TRUST * cp.distance + tol.SHRINKWRAP_RAY_SLACK * mel
+    )
     face = np.where(ok, hits.face[idx], cp.points.face)
     bary = np.where(ok[:, None], hits.bary[idx], cp.points.bary)
     return SurfacePoints(face, bary), float(ok.mean())
@@ -231,7 +229,7 @@ def shrink_wrap(
     - **surface phase**: eq. 1 in space with edge-length densities and damping fading from
       ``alpha`` to 0, alternated with projection onto the input along the vertex normals (first
       hit on the AABB tree; closest point when the ray misses or lands more than
-      ``RAY_TRUST`` times farther than the closest point) (sec. 4).
+      ``tol.SHRINKWRAP_RAY_TRUST`` times farther than the closest point) (sec. 4).
 
     Switching rule: after the parameter phase of level ``i >= min_switch_level``, if the 95th
     percentile of the distance from the face centroids of ``M_i`` to the input is at most
