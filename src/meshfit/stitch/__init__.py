@@ -1,0 +1,40 @@
+"""Inter-patch continuity of B-spline networks and their displacement maps (thesis ch. 8).
+
+:func:`network_from_grids` finds shared boundaries and corners; :func:`control_classes`
+makes control counts consistent (equal-count classes, user counts per class);
+:func:`stitch_surfaces` enforces C0 or G1 per boundary and G1 at corners of any valence;
+:func:`stitch_displacements` closes displacement seams; :func:`seam_report` and
+:func:`displacement_seam_gaps` measure gaps and normal jumps before and after.
+"""
+
+from meshfit.stitch.network import (
+    SIDES,
+    ControlClasses,
+    Network,
+    SharedBoundary,
+    control_classes,
+    network_from_grids,
+    side_row,
+)
+from meshfit.stitch.stitch import (
+    SeamReport,
+    displacement_seam_gaps,
+    seam_report,
+    stitch_displacements,
+    stitch_surfaces,
+)
+
+__all__ = [
+    "SIDES",
+    "ControlClasses",
+    "Network",
+    "SeamReport",
+    "SharedBoundary",
+    "control_classes",
+    "displacement_seam_gaps",
+    "network_from_grids",
+    "seam_report",
+    "side_row",
+    "stitch_displacements",
+    "stitch_surfaces",
+]

@@ -1,0 +1,182 @@
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from meshfit import tol
+from meshfit.bspline import BSplineSurface, fit_bspline
+from meshfit.displacement import displacement_map, reconstruct
+from meshfit.errors import InputError
+from meshfit.stitch import (
+    control_classes,
+    displacement_seam_gaps,
+    network_from_grids,
+    seam_report,
+    stitch_displacements,
+    stitch_surfaces,
+)
+from tests.bspline.grids import scan_grid
+from tests.stitch.networks import cube_sphere, height_field, split_grid
+
+
+def _flip(g):
+    return np.ascontiguousarray(g[::-1, ::-1])  # reverses every side, keeps the orientation
+
+
+def _layouts():
+    hf = split_grid(height_field(61), [30], [30])
+    sphere = cube_sphere(33)
+    sphere[2] = _flip(sphere[2])
+    scan = split_grid(np.asarray(scan_grid("nefertiti", 61, 61)), [30], [20, 40])
+    return {"height_field_2x2": hf, "cube_sphere": sphere, "nefertiti_2x3": scan}
+
+
+LAYOUTS = _layouts()
+
+
+def _fit(grids, net, m=8):
+    cc = control_classes(net, default=m, grid_shapes=[g.shape[:2] for g in grids])
+    return [fit_bspline(g, controls=c) for g, c in zip(grids, cc.controls, strict=True)]
+
+
+def _diag(grids):
+    p = np.concatenate([g.reshape(-1, 3) for g in grids])
+    return float(np.linalg.norm(np.ptp(p, axis=0)))
+
+
+def test_network_detection():
+    hf = network_from_grids(LAYOUTS["height_field_2x2"])
+    assert len(hf.boundaries) == 4
+    assert sorted(len(c) for c in hf.corners) == [1, 1, 1, 1, 2, 2, 2, 2, 4]
+    sph = network_from_grids(LAYOUTS["cube_sphere"])
+    assert len(sph.boundaries) == 12
+    assert [len(c) for c in sph.corners] == [3] * 8
+    # the flipped face's four boundaries run against their neighbours
+    assert sum(b.reversed for b in sph.boundaries) == 4
+    assert all(b.reversed == (2 in (b.a, b.b)) for b in sph.boundaries)
+
+
+def test_control_classes():
+    grids = split_grid(height_field(61), [], [20, 40])  # three patches in a row along v
+    net = network_from_grids(grids)
+    cc = control_classes(net, default=[(6, 5), (9, 7), (7, 8)])
+    # the shared sides run along u: one class of u counts, three separate v classes
+    assert len(cc.counts) == 4
+    assert [c[0] for c in cc.controls] == [9, 9, 9]
+    assert [c[1] for c in cc.controls] == [5, 7, 8]
+    cls_u = int(cc.labels[0, 0])
+    cc2 = control_classes(net, default=6, counts={cls_u: 12})
+    assert [c[0] for c in cc2.controls] == [12, 12, 12]
+    sph = control_classes(network_from_grids(LAYOUTS["cube_sphere"]), default=7)
+    assert len(sph.counts) == 3  # the cube's three edge directions
+    capped = control_classes(net, default=50, grid_shapes=[g.shape[:2] for g in grids])
+    assert capped.controls[0] == (50 if grids[0].shape[0] >= 50 else grids[0].shape[0], 21)
+    with pytest.raises(InputError, match="class 9"):
+        control_classes(net, counts={9: 5})
+    with pytest.raises(InputError, match="needs 4"):
+        control_classes(net, default=3)
+
+
+@pytest.mark.parametrize("name", list(LAYOUTS))
+def test_g1_stitching_meets_targets(name):
+    grids = LAYOUTS[name]
+    net = network_from_grids(grids)
+    surfaces = _fit(grids, net)
+    before = seam_report(surfaces, net)
+    after = seam_report(stitch_surfaces(surfaces, net), net)
+    diag = _diag(grids)
+    assert before.gap.max() > tol.STITCH_GAP * diag  # independent fits do not meet
+    assert after.gap.max() <= tol.STITCH_GAP * diag
+    assert after.angle_deg.max() <= 0.5
+    assert after.angle_corner_deg.max() <= 2.0
+    assert after.angle_deg.max() < before.angle_deg.max()
+
+
+@pytest.mark.parametrize("name", ["height_field_2x2", "cube_sphere"])
+def test_c0_and_per_boundary_choice(name):
+    grids = LAYOUTS[name]
+    net = network_from_grids(grids)
+    surfaces = _fit(grids, net)
+    diag = _diag(grids)
+    c0 = seam_report(stitch_surfaces(surfaces, net.with_continuity("C0")), net)
+    assert c0.gap.max() <= tol.STITCH_GAP * diag
+    assert c0.angle_deg.max() > 0.01  # C0 leaves the creases of the independent fits
+    mixed = net.with_continuity({0: "C0"})
+    r = seam_report(stitch_surfaces(surfaces, mixed), mixed)
+    assert r.gap.max() <= tol.STITCH_GAP * diag
+    assert r.angle_deg[0] > 0.01
+    assert r.angle_deg[1:].max() <= 0.5
+    with pytest.raises(InputError, match="continuity"):
+        net.with_continuity("C2")
+
+
+def test_stitching_moves_only_boundary_and_corner_rows():
+    grids = LAYOUTS["cube_sphere"]
+    net = network_from_grids(grids)
+    surfaces = _fit(grids, net)
+    stitched = stitch_surfaces(surfaces, net)
+    for s, t in zip(surfaces, stitched, strict=True):
+        np.testing.assert_array_equal(t.control_points[2:-2, 2:-2], s.control_points[2:-2, 2:-2])
+        # the tangent rows move only next to the corners
+        np.testing.assert_array_equal(t.control_points[1, 2:-2], s.control_points[1, 2:-2])
+    # every patch meeting at a corner has the same tangent plane there
+    for slots in net.corners:
+        normals = [
+            stitched[k].normals(np.array([float(i == -1)]), np.array([float(j == -1)]))[0]
+            for k, i, j in slots
+        ]
+        for n in normals[1:]:
+            assert_allclose(n, normals[0], atol=1e-12)
+
+
+def test_stitch_rejects_inconsistent_counts():
+    grids = LAYOUTS["height_field_2x2"]
+    net = network_from_grids(grids)
+    surfaces = [fit_bspline(g, controls=(6 + k, 6)) for k, g in enumerate(grids)]
+    with pytest.raises(InputError, match="control points"):
+        stitch_surfaces(surfaces, net)
+    with pytest.raises(InputError, match="surfaces for a network"):
+        stitch_surfaces(surfaces[:2], net)
+    bad = BSplineSurface(surfaces[0].control_points, np.r_[0, 0, 0, 0, 0.2, 0.3, 1, 1, 1, 1])
+    with pytest.raises(InputError, match="uniform"):
+        stitch_surfaces([bad, *surfaces[1:]], net)
+
+
+def test_displacement_seams_become_crack_free():
+    # faces of different (nested) resolutions: 33 on face 0, 17 elsewhere
+    grids = cube_sphere(17, resolutions={0: 33})
+    net = network_from_grids(grids)
+    surfaces = stitch_surfaces(_fit(grids, net, m=6), net)
+    maps = [displacement_map(s, g) for s, g in zip(surfaces, grids, strict=True)]
+    diag = _diag(grids)
+    before = displacement_seam_gaps(surfaces, maps, net)
+    fixed = stitch_displacements(surfaces, maps, net)
+    after = displacement_seam_gaps(surfaces, fixed, net)
+    assert before.max() > 1e-6 * diag  # T-joints of the finer face open cracks
+    assert after.max() <= tol.STITCH_GAP * diag
+    # equal-resolution seams were already closed and interiors are untouched
+    for g, s, m in zip(grids, surfaces, fixed, strict=True):
+        assert_allclose(reconstruct(s, m)[1:-1, 1:-1], g[1:-1, 1:-1], atol=1e-12 * diag)
+    # crack-free at another output resolution too: compare the displaced boundary rows
+    b = next(b for b in net.boundaries if 0 in (b.a, b.b))
+    ra = reconstruct(surfaces[b.a], fixed[b.a], shape=(65, 65))
+    rb = reconstruct(surfaces[b.b], fixed[b.b], shape=(65, 65))
+    from meshfit.stitch import side_row
+
+    row_b = side_row(rb, b.side_b)
+    row_b = row_b[::-1] if b.reversed else row_b
+    assert_allclose(side_row(ra, b.side_a), row_b, atol=tol.STITCH_GAP * diag)
+    with pytest.raises(InputError, match="vector"):
+        stitch_displacements(
+            surfaces, [displacement_map(surfaces[0], grids[0], kind="normal")] * 6, net
+        )
+
+
+@pytest.mark.parametrize("name", ["height_field_2x2", "nefertiti_2x3"])
+def test_valence_two_and_four_corners_are_g1_to_the_end(name):
+    """Border corners of valence 2 and interior corners of valence 4 get collinear, equally
+    spaced rows at the corner too, so the normals agree along the whole boundary."""
+    grids = LAYOUTS[name]
+    net = network_from_grids(grids)
+    assert {len(c) for c in net.corners} <= {1, 2, 4}
+    r = seam_report(stitch_surfaces(_fit(grids, net), net), net)
+    assert r.angle_corner_deg.max() <= 1e-5  # arccos resolution near 0 is ~1e-6 degree
