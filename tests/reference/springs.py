@@ -9,20 +9,31 @@ from meshfit.surface import walk_points
 from meshfit.types import SurfacePoints
 
 
-def spring_force(X, nv, p, w_arc, w_fair):
+def spring_force(X, nv, p, w_arc, w_fair, nrm=None):
     """Eq. 5.1 (per direction: toward the farther neighbour by the length difference) and
-    the fairness sum (sec. 5.5.2), both over 4; returns (force (3,), mean spring length)."""
+    the fairness sum (sec. 5.5.2), both over 4; returns (force (3,), mean spring length).
+    With a unit normal ``nrm`` every spring vector is first turned into its tangent plane,
+    keeping its length."""
+
+    def vec(q):
+        d = X[q] - X[p]
+        if nrm is None:
+            return d
+        t = d - (d @ nrm) * nrm
+        n = np.linalg.norm(t)
+        return t * (np.linalg.norm(d) / n) if n > 0 else t
+
     arc = np.zeros(3)
     lengths = []
     for a, b in ((p - nv, p + nv), (p - 1, p + 1)):
-        fa, fb = X[a] - X[p], X[b] - X[p]
+        fa, fb = vec(a), vec(b)
         la, lb = np.linalg.norm(fa), np.linalg.norm(fb)
         lengths += [la, lb]
         if la > lb:
             arc += (la - lb) * fa / la
         elif lb > la:
             arc += (lb - la) * fb / lb
-    fair = X[p - nv] + X[p + nv] + X[p - 1] + X[p + 1] - 4 * X[p]
+    fair = vec(p - nv) + vec(p + nv) + vec(p - 1) + vec(p + 1)
     return 0.25 * (w_fair * fair + w_arc * arc), float(np.mean(lengths))
 
 
@@ -43,6 +54,7 @@ def relax_sweeps(
     nu,
     nv,
     movable,
+    tangent,
     alpha,
     prev,
     n_sweeps,
@@ -68,8 +80,8 @@ def relax_sweeps(
         for p in order:
             if not movable[p]:
                 continue
-            force, h = spring_force(X, nv, p, 1.0 - w_fair, w_fair)
             n = mesh.face_normals[face[p]]
+            force, h = spring_force(X, nv, p, 1.0 - w_fair, w_fair, n if tangent else None)
             step = force - (force @ n) * n
             total = np.linalg.norm(step)
             if total <= 0:

@@ -24,8 +24,9 @@ def patches():
     }
 
 
+@pytest.mark.parametrize("tangent", [False, True])
 @pytest.mark.parametrize("name", ["cap", "spot"])
-def test_relax_sweeps_matches_oracle(patches, name, rng):
+def test_relax_sweeps_matches_oracle(patches, name, tangent, rng):
     patch = patches[name]
     mesh = patch.mesh
     sm = resample_patch(patch, level=1, max_iter=1, metrics=False).final
@@ -35,9 +36,12 @@ def test_relax_sweeps_matches_oracle(patches, name, rng):
     bary = sm.points.bary.copy()
     alpha = np.ones(nu * nv)
     prev = np.zeros((nu * nv, 3))
-    want = ref.relax_sweeps(mesh, face, bary, nu, nv, movable, alpha, prev, 5, 0, 3, 0.5, 1.0, 0.0)
+    want = ref.relax_sweeps(
+        mesh, face, bary, nu, nv, movable, tangent, alpha, prev, 5, 0, 3, 0.5, 1.0, 0.0
+    )
     done, worst, rms = K.relax_sweeps(
-        mesh.vertices, mesh.faces, mesh.face_neighbors, face, bary, nu, nv, movable, alpha, prev,
+        mesh.vertices, mesh.faces, mesh.face_neighbors, face, bary, nu, nv, movable, tangent,
+        alpha, prev,
         5, 0, 3, 0.5, 1.0, 0.0, tol.BARY_EPS, 10_000,
     )  # fmt: skip
     got = mesh.xyz(SurfacePoints(face, bary))
@@ -50,12 +54,14 @@ def test_relax_sweeps_matches_oracle(patches, name, rng):
 def test_spring_force_matches_oracle(rng):
     X = rng.normal(size=(12, 3))
     nv = 4
+    nrm = np.array([0.6, 0.0, 0.8])
     for p in (5, 6):
-        out = np.empty(3)
-        h = K.spring_force(X, nv, p, 0.7, 0.3, out)
-        want, wh = ref.spring_force(X, nv, p, 0.7, 0.3)
-        assert_allclose(out, want, atol=1e-14)
-        assert_allclose(h, wh)
+        for tangent in (False, True):
+            out = np.empty(3)
+            h = K.spring_force(X, nv, p, 0.7, 0.3, nrm, tangent, out)
+            want, wh = ref.spring_force(X, nv, p, 0.7, 0.3, nrm if tangent else None)
+            assert_allclose(out, want, atol=1e-14)
+            assert_allclose(h, wh)
 
 
 @pytest.mark.parametrize("name", ["cap", "spot"])

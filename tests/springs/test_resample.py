@@ -100,42 +100,28 @@ def _polyline_distance(P, Q):
     """Distance from each point of P (n, 3) to the polyline Q (m, 3)."""
     a, b = Q[:-1], Q[1:]
     d = b - a
-    t = np.clip(np.einsum("pmk,mk->pm", P[:, None] - a, d) / np.einsum("mk,mk->m", d, d), 0, 1)
+    dd = np.einsum("mk,mk->m", d, d)
+    t = np.einsum("pmk,mk->pm", P[:, None] - a, d) / np.where(dd > 0, dd, 1.0)
+    t = np.clip(t, 0, 1)
     q = a + t[..., None] * d
     return np.linalg.norm(P[:, None] - q, axis=2).min(axis=1)
 
 
-def _surface_polyline(mesh, pts: SurfacePoints) -> np.ndarray:
-    """The face-point curve as a 3-D polyline that follows the surface: between points on
-    edge-adjacent faces the crossing of the shared edge (faces unfolded) is inserted, between
-    faces sharing only a vertex that vertex."""
-    X = mesh.xyz(pts)
-    V = mesh.vertices
-    out = [X[0]]
-    for i in range(len(X) - 1):
-        f, g = int(pts.face[i]), int(pts.face[i + 1])
-        shared = np.intersect1d(mesh.faces[f], mesh.faces[g])
-        if f != g and shared.size == 2:
-            a, b = V[shared[0]], V[shared[1]]
-            e = (b - a) / np.linalg.norm(b - a)
-            # unfold q about the edge into f's plane
-            nf = mesh.face_normals[f]
-            w = np.cross(nf, e)  # in f's plane, perpendicular to the edge
-            other = V[np.setdiff1d(mesh.faces[f], shared)[0]]
-            if (other - a) @ w > 0:
-                w = -w  # w points away from f, into g's side
-            q = X[i + 1] - a
-            q_un = a + (q @ e) * e + np.linalg.norm(q - (q @ e) * e) * w
-            p = X[i]
-            # intersect p -> q_un with the edge line a + t e (both in f's plane)
-            d = q_un - p
-            A = np.stack([d, -e], axis=1)
-            sol, *_ = np.linalg.lstsq(A, a - p, rcond=None)
-            out.append(a + sol[1] * e)
-        elif f != g and shared.size == 1:
-            out.append(V[shared[0]])
-        out.append(X[i + 1])
-    return np.asarray(out)
+def curve_distance(mesh, curve: SurfaceCurve, P, n: int = 200_000):
+    """Distance from points P (k, 3) to a face-point curve, with its resolution.
+
+    The curve is sampled at ``n + 1`` equally spaced arc lengths with
+    :func:`meshfit.surface.move_along_curve` (exactly on its surface segments); a point on
+    the curve is within half a sample spacing of a sample. Returns (distances, spacing).
+    """
+    from scipy.spatial import cKDTree
+
+    from meshfit.surface import curve_arc_lengths, move_along_curve
+
+    total = curve_arc_lengths(mesh, curve)[-1]
+    dense = mesh.xyz(move_along_curve(mesh, curve, np.linspace(0, total, n + 1), 0.0).points)
+    d, _ = cKDTree(dense).query(np.asarray(P).reshape(-1, 3))
+    return d, total / n
 
 
 @pytest.mark.parametrize("shape", ["plane", "cylinder", "cap"])
@@ -146,17 +132,16 @@ def test_feature_curves_are_interpolated_exactly(shape):
     sm = res.final
     assert sm.u_lines.tolist() == [2 * 2**sm.level, 4 * 2**sm.level]
     assert sm.v_lines.tolist() == [2 * 2**sm.level]
-    eps = 1e-9 * patch.mesh.bbox_diagonal
     for k, col in enumerate(sm.u_lines):
-        curve = _surface_polyline(patch.mesh, patch.features[k].points)
-        # curve points and anchors exactly; the ends are side points (the side's resampling
-        # at the feature's end, within tol.FEATURE_END_ON_SIDE of it)
-        assert _polyline_distance(sm.xyz[col, 1:-1], curve).max() <= eps
-        ends = _polyline_distance(sm.xyz[col, [0, -1]], curve).max()
-        assert ends <= tol.length(patch.mesh, tol.FEATURE_END_ON_SIDE)
+        # curve points and anchors on the curve (within the check's resolution); the ends
+        # are side points (the side's resampling at the feature's end, within
+        # tol.FEATURE_END_ON_SIDE of it)
+        d, res_ = curve_distance(patch.mesh, patch.features[k], sm.xyz[col])
+        assert d[1:-1].max() <= res_
+        assert d[[0, -1]].max() <= tol.length(patch.mesh, tol.FEATURE_END_ON_SIDE)
         assert (sm.kind[col, 1:-1] != FREE).all()
-    curve = _surface_polyline(patch.mesh, patch.features[2].points)
-    assert _polyline_distance(sm.xyz[1:-1, sm.v_lines[0]], curve).max() <= eps
+    d, res_ = curve_distance(patch.mesh, patch.features[2], sm.xyz[:, sm.v_lines[0]])
+    assert d[1:-1].max() <= res_
     assert (sm.kind[np.ix_(sm.u_lines, sm.v_lines)] == ANCHOR).all()
     assert (sm.kind == CURVE).sum() > 0
     for lvl, m in zip(res.levels, res.metrics, strict=True):

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from meshfit._kernels.walk import DONE, _start_direction, _walk_one
+from meshfit._kernels.walk import DONE, _face_normal, _start_direction, _walk_one
 
 #: spring point kinds (``SpringMesh.kind``)
 BOUNDARY = 0
@@ -64,45 +64,52 @@ def walk_inside(V, F, FN, f, b, u, total, max_faces, bary_eps, tries, b0, u0):
 
 
 @njit(cache=True, nogil=True, fastmath=False)
-def _pair_arc(X, p, a, b, out):
-    """Add the arc-length force (eq. 5.1) of neighbours ``a`` and ``b`` on point ``p`` to out."""
-    ax = X[a, 0] - X[p, 0]
-    ay = X[a, 1] - X[p, 1]
-    az = X[a, 2] - X[p, 2]
-    bx = X[b, 0] - X[p, 0]
-    by = X[b, 1] - X[p, 1]
-    bz = X[b, 2] - X[p, 2]
-    la = np.sqrt(ax * ax + ay * ay + az * az)
-    lb = np.sqrt(bx * bx + by * by + bz * bz)
+def _pair_arc(D, a, b, out):
+    """Add the arc-length force (eq. 5.1) of spring vectors ``D[a]``, ``D[b]`` to ``out``:
+    toward the farther neighbour by the difference of the lengths."""
+    la = np.sqrt(D[a, 0] ** 2 + D[a, 1] ** 2 + D[a, 2] ** 2)
+    lb = np.sqrt(D[b, 0] ** 2 + D[b, 1] ** 2 + D[b, 2] ** 2)
     if la > lb and la > 0.0:
         s = (la - lb) / la
-        out[0] += s * ax
-        out[1] += s * ay
-        out[2] += s * az
+        for c in range(3):
+            out[c] += s * D[a, c]
     elif lb > la and lb > 0.0:
         s = (lb - la) / lb
-        out[0] += s * bx
-        out[1] += s * by
-        out[2] += s * bz
+        for c in range(3):
+            out[c] += s * D[b, c]
     return la + lb
 
 
 @njit(cache=True, nogil=True, fastmath=False)
-def spring_force(X, nv, p, w_arc, w_fair, out):
+def spring_force(X, nv, p, w_arc, w_fair, nrm, tangent, out):
     """Resultant force (eq. 5.4) on interior grid point ``p``; returns its mean spring length.
 
-    ``out`` (3,) receives ``w_fair * F_fair / 4 + w_arc * F_arc / 4`` (a Gauss-Seidel step:
-    the fairness part alone moves the point to the centroid of its four neighbours).
+    The spring vectors to the four neighbours are the Euclidean ones (sec. 5.5); with
+    ``tangent`` each is turned into the tangent plane of unit normal ``nrm`` (3,) keeping its
+    length, a first-order stand-in for the geodesic forces of sec. 5.5.3. ``out`` (3,)
+    receives ``w_fair * F_fair / 4 + w_arc * F_arc / 4`` (a Gauss-Seidel step: the fairness
+    part alone moves the point to the centroid of its four neighbours).
     """
-    left = p - nv
-    right = p + nv
-    down = p - 1
-    up = p + 1
+    D = np.empty((4, 3))
+    nb = (p - nv, p + nv, p - 1, p + 1)  # left, right, down, up
+    for k in range(4):
+        q = nb[k]
+        for c in range(3):
+            D[k, c] = X[q, c] - X[p, c]
+        if tangent:
+            dn = D[k, 0] * nrm[0] + D[k, 1] * nrm[1] + D[k, 2] * nrm[2]
+            full = np.sqrt(D[k, 0] ** 2 + D[k, 1] ** 2 + D[k, 2] ** 2)
+            for c in range(3):
+                D[k, c] -= dn * nrm[c]
+            flat = np.sqrt(D[k, 0] ** 2 + D[k, 1] ** 2 + D[k, 2] ** 2)
+            if flat > 0.0:
+                for c in range(3):
+                    D[k, c] *= full / flat
     arc = np.zeros(3)
-    h = _pair_arc(X, p, left, right, arc)
-    h += _pair_arc(X, p, down, up, arc)
+    h = _pair_arc(D, 0, 1, arc)
+    h += _pair_arc(D, 2, 3, arc)
     for c in range(3):
-        fair = X[left, c] + X[right, c] + X[down, c] + X[up, c] - 4.0 * X[p, c]
+        fair = D[0, c] + D[1, c] + D[2, c] + D[3, c]
         out[c] = 0.25 * (w_fair * fair + w_arc * arc[c])
     return 0.25 * h
 
@@ -117,6 +124,7 @@ def relax_sweeps(
     nu,
     nv,
     movable,
+    tangent,
     alpha,
     prev,
     n_sweeps,
@@ -131,7 +139,8 @@ def relax_sweeps(
     """Gauss-Seidel relaxation sweeps of the free spring points, in place.
 
     V (nv, 3) f8; F, FN (nf, 3) i8; face (n,) i8 and bary (n, 3) f8 (updated in place);
-    movable (n,) bool; alpha (n,) f8 per-point step factors and prev (n, 3) f8 previous moves
+    movable (n,) bool; tangent bool (spring vectors turned into the tangent plane, see
+    `spring_force`); alpha (n,) f8 per-point step factors and prev (n, 3) f8 previous moves
     (both updated in place: a point whose step turns back halves its factor, otherwise the
     factor grows back towards 1, so points that overshoot on curved parts settle). The
     fairness weight ramps linearly from 0 at sweep 0 to ``w_fair_end`` at sweep ``ramp``
@@ -147,6 +156,7 @@ def relax_sweeps(
     u = np.empty(3)
     s0 = np.empty(3)
     s1 = np.empty(3)
+    nrm = np.zeros(3)
     worst = 0.0
     done = 0
     for k in range(n_sweeps):
@@ -162,7 +172,9 @@ def relax_sweeps(
             p = q if forward else n - 1 - q
             if not movable[p]:
                 continue
-            h = spring_force(X, nv, p, w_arc, w_fair, step)
+            if tangent:
+                _face_normal(V, F, face[p], nrm)
+            h = spring_force(X, nv, p, w_arc, w_fair, nrm, tangent, step)
             total = _start_direction(V, F, face[p], step, u)
             if total <= 0.0:
                 continue

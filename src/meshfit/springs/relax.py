@@ -67,6 +67,7 @@ def relax(
     omega: float,
     start: int = 0,
     eps: float = tol.SPRING_CONVERGED,
+    tangent: bool = True,
 ) -> tuple[int, float]:
     """Relax the spring mesh of ``state`` at its current level, in place.
 
@@ -75,7 +76,9 @@ def relax(
     points slide along their feature curve (eq. 5.17); boundary points and anchors stay.
     The fairness weight ramps from 0 to ``fairness`` over ``ramp`` sweeps (arc length first),
     counted from sweep ``start`` of the schedule (``start >= ramp``: final weights at once).
-    Sweeps stop when the root-mean-square move is below ``eps`` of the spring lengths.
+    Sweeps stop when the root-mean-square move is below ``eps`` of the spring lengths. With
+    ``tangent`` the spring vectors are turned into each point's tangent plane keeping their
+    lengths (see `meshfit._kernels.springs.spring_force`), else they are Euclidean.
 
     Returns
     -------
@@ -99,6 +102,7 @@ def relax(
             state.nu,
             state.nv,
             movable,
+            tangent,
             alpha,
             prev,
             max_iter,
@@ -120,6 +124,7 @@ def relax(
             state.nu,
             state.nv,
             movable,
+            tangent,
             alpha,
             prev,
             1,
@@ -158,7 +163,7 @@ def folded_cells(state: State) -> np.ndarray:
     return (np.einsum("ijk,ijk->ij", n1, s1) <= 0) | (np.einsum("ijk,ijk->ij", n2, s2) <= 0)
 
 
-def untangle(state: State, *, rounds: int, sweeps: int, reach: int) -> int:
+def untangle(state: State, *, rounds: int, sweeps: int, reach: int, tangent: bool = True) -> int:
     """Smooth the free points around folded cells with the fairness force alone, in place.
 
     The fairness force moves a point to the centroid of its neighbours (a discrete harmonic
@@ -183,7 +188,7 @@ def untangle(state: State, *, rounds: int, sweeps: int, reach: int) -> int:
         n = state.nu * state.nv
         _k.relax_sweeps(
             mesh.vertices, mesh.faces, mesh.face_neighbors, state.face, state.bary,
-            state.nu, state.nv, near.ravel(), np.ones(n), np.zeros((n, 3)), sweeps, 1, 1,
+            state.nu, state.nv, near.ravel(), tangent, np.ones(n), np.zeros((n, 3)), sweeps, 1, 1,
             1.0, 1.0, 0.0, tol.BARY_EPS, _MAX_FACES,
         )  # fmt: skip
         folds = folded_cells(state)

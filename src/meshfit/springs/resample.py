@@ -195,6 +195,7 @@ def resample_patch(
     omega: float = 1.0,
     n_fair: int = 2,
     untangle_rounds: int = 3,
+    forces: str = "euclidean",
     metrics: bool = True,
     fidelity: bool = True,
     scale: float | None = None,
@@ -237,6 +238,10 @@ def resample_patch(
         Over-relaxation factor of the Gauss-Seidel sweeps, in (0, 2) (default 1).
     n_fair : int, keyword-only
         Local fairness moves after each FindMidPoint guess (default 2).
+    forces : {"euclidean", "tangent"}, keyword-only
+        Spring vectors between neighbours: Euclidean (default, sec. 5.5), or turned into the
+        moving point's tangent plane keeping their length (a first-order stand-in for the
+        geodesic forces of sec. 5.5.3; on the test layouts it does about as well).
     untangle_rounds : int, keyword-only
         After each level's relaxation, rounds of fairness-only sweeps around folded cells
         (default 3; 0 turns it off).
@@ -268,6 +273,8 @@ def resample_patch(
     """
     if not 0.0 <= fairness <= 1.0:
         raise InputError(f"fairness must be in [0, 1], got {fairness}")
+    if forces not in ("tangent", "euclidean"):
+        raise InputError(f"forces must be 'tangent' or 'euclidean', got {forces!r}")
     if not 0.0 < omega < 2.0:
         raise InputError(f"omega must be in (0, 2), got {omega}")
     if int(init_intervals) < 1:
@@ -318,9 +325,16 @@ def resample_patch(
             omega=omega,
             start=0 if k == 0 else ramp,
             eps=tol.SPRING_CONVERGED * (1.0 if k else COARSE_EPS),
+            tangent=forces == "tangent",
         )
         if untangle_rounds:
-            untangle(state, rounds=untangle_rounds, sweeps=max_iter, reach=2)
+            untangle(
+                state,
+                rounds=untangle_rounds,
+                sweeps=max_iter,
+                reach=2,
+                tangent=forces == "tangent",
+            )
         seconds["relax"] += time.perf_counter() - t
         sweeps.append(done)
         snap = state.snapshot()

@@ -1,0 +1,119 @@
+"""Spring meshes of every patch of the test layouts (examples/layouts/*.json).
+
+Each layout's spring meshes are computed once per module. Targets of the issue that the
+spring mesh does not meet on these layouts are strict xfails stating the measured figures.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+
+import pytest
+from numpy.testing import assert_allclose
+
+from meshfit import tol
+from meshfit.layout import extract_patches, load_layout
+from meshfit.springs import FREE, resample_patch, spring_metrics
+
+from ..conftest import ROOT, real_mesh
+from .test_resample import curve_distance
+
+pytestmark = pytest.mark.slow
+
+LAYOUTS = ("igea", "nefertiti", "spot")
+
+
+@cache
+def layout_springs(name: str):
+    mesh = real_mesh(name)
+    patches = extract_patches(
+        mesh, load_layout(ROOT / "examples" / "layouts" / f"{name}.json", mesh)
+    )
+    out = []
+    for patch in patches:
+        res = resample_patch(patch, fidelity=False)
+        final = spring_metrics(patch.mesh, res.final, scale=mesh.bbox_diagonal)
+        out.append((patch, res, final))
+    return out
+
+
+#: measured on this machine's run of the layouts (max over patches and levels)
+KNOWN = {
+    "folds": {},
+    "arc_cv": {},
+    "aspect": {},
+    "fidelity": {},
+}
+
+
+def _xfail(request, what: str, name: str) -> None:
+    reason = KNOWN[what].get(name)
+    if reason:
+        request.applymarker(pytest.mark.xfail(strict=True, reason=reason))
+
+
+@pytest.mark.parametrize("name", LAYOUTS)
+def test_spring_points_lie_on_their_patch(name):
+    for patch, res, _ in layout_springs(name):
+        for lvl in res.levels:
+            f, b = lvl.points.face, lvl.points.bary
+            assert f.min() >= 0 and f.max() < patch.mesh.n_faces
+            assert (b >= -tol.BARY_EPS).all()
+            assert_allclose(b.sum(axis=1), 1.0, atol=1e-12)
+            assert lvl.patch == patch.index
+        # every level doubles the intervals; the last one is comparable to the vertex count
+        n = res.final.n_points / patch.mesh.n_vertices
+        assert 0.35 <= n <= 3.0, f"patch {patch.index}: {res.final.shape}"
+
+
+@pytest.mark.parametrize("name", LAYOUTS)
+def test_no_folded_cells(name, request):
+    _xfail(request, "folds", name)
+    folded = {p.index: [m["folded"] for m in res.metrics] for p, res, _ in layout_springs(name)}
+    assert all(sum(v) == 0 for v in folded.values()), folded
+
+
+@pytest.mark.parametrize("name", LAYOUTS)
+def test_arc_length_uniformity(name, request):
+    _xfail(request, "arc_cv", name)
+    worst = {
+        p.index: max(m["arc_cv_max"] for m in res.metrics) for p, res, _ in layout_springs(name)
+    }
+    assert max(worst.values()) <= 0.15, worst
+
+
+@pytest.mark.parametrize("name", LAYOUTS)
+def test_cell_aspect_ratio(name, request):
+    _xfail(request, "aspect", name)
+    worst = {
+        p.index: max(m["aspect_median"] for m in res.metrics) for p, res, _ in layout_springs(name)
+    }
+    assert max(worst.values()) <= 1.5, worst
+
+
+@pytest.mark.parametrize("name", LAYOUTS)
+def test_fidelity_at_the_final_level(name, request):
+    _xfail(request, "fidelity", name)
+    worst = {p.index: final["fidelity_max"] for p, _, final in layout_springs(name)}
+    assert max(worst.values()) <= 5e-4, worst
+
+
+def test_feature_curves_of_the_igea_layout_are_interpolated():
+    with_features = [(p, res) for p, res, _ in layout_springs("igea") if p.features]
+    assert with_features, "the igea layout has a patch with feature curves"
+    for patch, res in with_features:
+        sm = res.final
+        assert len(sm.u_lines) + len(sm.v_lines) == len(patch.features)
+        lines = [sm.xyz[c, 1:-1] for c in sm.u_lines] + [sm.xyz[1:-1, c] for c in sm.v_lines]
+        for pts in lines:
+            # each feature grid line lies on one of the feature curves (within the check's
+            # resolution, ~1e-7 of the curve's length)
+            best = min(
+                (
+                    d.max() - r
+                    for d, r in (curve_distance(patch.mesh, c, pts) for c in patch.features)
+                )
+            )
+            assert best <= 0.0
+        kind = sm.kind
+        assert (kind[sm.u_lines, 1:-1] != FREE).all() and (kind[1:-1, sm.v_lines] != FREE).all()
