@@ -26,6 +26,7 @@ EXIT_ERROR = 2
 _COMMAND_MODULES: tuple[str, ...] = (
     "meshfit.layout.cli",
     "meshfit.shrinkwrap.cli",
+    "meshfit.springs.cli",
 )
 
 
