@@ -467,3 +467,17 @@ def test_feature_between_adjacent_sides_raises():
     feats[0] = [paint_curve(mesh, SurfacePoints.concatenate([a, b]), kind="feature")]
     with pytest.raises(LayoutError, match="patch 0 feature 0 runs from side 0 to side 1"):
         extract_patches(mesh, _rebuild(mesh, layout, features=feats))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("n", [1, 3])
+def test_randomly_turned_cube_layouts_extract(seed, n):
+    from scipy.spatial.transform import Rotation
+
+    mesh = sphere()
+    frame = Rotation.random(random_state=seed).as_matrix()
+    patches = extract_patches(mesh, cube_layout(mesh, n=n, frame=frame, picks_per_curve=4))
+    assert len(patches) == 6 * n * n
+    for p in patches:
+        _assert_patch_is_disk_with_four_sides(p)
+    assert_allclose(sum(p.mesh.area for p in patches), mesh.area, rtol=tol.LAYOUT_AREA_RTOL)
