@@ -20,7 +20,8 @@ is timed on the same grid for a sweep of resolutions, cold.
 Whole-layout figures (fit + displacement + stitch for every patch of igea and nefertiti at
 8 x 8 and 16 x 16 controls) need the spring meshes of ``meshfit.springs`` on a layout; the
 hook is :func:`layout_figures`, which takes the patch grids and reports ``pending`` until a
-layout's grids are passed to it.
+layout's grids are passed to it. Meanwhile :func:`synthetic_network_figures` times the same
+stages on 104 patches (the thesis' count) cut from one synthetic height field.
 
 Run: ``python benchmarks/fit.py [--repeats 5]``. Prints JSON and writes
 ``benchmarks/results/fit.json`` atomically.
@@ -144,6 +145,60 @@ def layout_figures(grids_by_layout: dict | None = None, controls=(8, 16)) -> dic
     return out
 
 
+def synthetic_network_figures(controls=(8, 16), repeats: int = 3) -> dict:
+    """Stand-in for the layout figures until spring meshes exist: 104 patches (8 x 13) of
+    33 x 33 grids cut from one bumpy height field; network detection + control classes +
+    fit + stitch + displacement maps + seam stitching, timed end to end."""
+    from meshfit.stitch import (
+        control_classes,
+        network_from_grids,
+        seam_report,
+        stitch_displacements,
+        stitch_surfaces,
+    )
+
+    nu, nv = 8 * 32 + 1, 13 * 32 + 1
+    x, y = np.linspace(0, 8, nu), np.linspace(0, 13, nv)
+    U, V = np.meshgrid(x, y, indexing="ij")
+    Z = 0.3 * np.sin(1.7 * U) * np.cos(1.3 * V) + 0.05 * np.sin(7 * U + 3 * V)
+    X = np.stack([U, V, Z], axis=-1)
+    grids = [
+        np.ascontiguousarray(X[32 * a : 32 * a + 33, 32 * b : 32 * b + 33])
+        for a in range(8)
+        for b in range(13)
+    ]
+    out = {"patches": len(grids), "grid_per_patch": [33, 33]}
+    t0 = time.perf_counter()
+    net = network_from_grids(grids)
+    out["network_s"] = time.perf_counter() - t0
+    for m in controls:
+        res = {}
+
+        def run(m=m, res=res):
+            t = time.perf_counter()
+            cc = control_classes(net, default=m)
+            surfaces = [fit_bspline(g, controls=c) for g, c in zip(grids, cc.controls)]
+            res["fit_s"] = time.perf_counter() - t
+            t = time.perf_counter()
+            res["stitched"] = stitch_surfaces(surfaces, net)
+            res["stitch_s"] = time.perf_counter() - t
+            t = time.perf_counter()
+            maps = [displacement_map(s, g) for s, g in zip(res["stitched"], grids)]
+            stitch_displacements(res["stitched"], maps, net)
+            res["maps_and_seams_s"] = time.perf_counter() - t
+
+        total, _ = median_time(run, repeats)
+        rep = seam_report(res["stitched"], net).summary()
+        out[f"{m}x{m}"] = {
+            "total_s": total,
+            "fit_s": res["fit_s"],
+            "stitch_s": res["stitch_s"],
+            "maps_and_seams_s": res["maps_and_seams_s"],
+            "after_stitch": rep,
+        }
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5, help="timed runs (median reported)")
@@ -181,6 +236,7 @@ def main() -> None:
         "refit_target_s": 0.020,
         "refit_max_s": max(refit.values()),
         "layouts": layout_figures(),
+        "synthetic_network_104_patches": synthetic_network_figures(repeats=args.repeats),
         "repeats": args.repeats,
         "machine": {
             "python": platform.python_version(),
