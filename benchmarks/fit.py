@@ -177,13 +177,13 @@ def synthetic_network_figures(controls=(8, 16), repeats: int = 3) -> dict:
         def run(m=m, res=res):
             t = time.perf_counter()
             cc = control_classes(net, default=m)
-            surfaces = [fit_bspline(g, controls=c) for g, c in zip(grids, cc.controls)]
+            surfaces = [fit_bspline(g, controls=c) for g, c in zip(grids, cc.controls, strict=True)]
             res["fit_s"] = time.perf_counter() - t
             t = time.perf_counter()
             res["stitched"] = stitch_surfaces(surfaces, net)
             res["stitch_s"] = time.perf_counter() - t
             t = time.perf_counter()
-            maps = [displacement_map(s, g) for s, g in zip(res["stitched"], grids)]
+            maps = [displacement_map(s, g) for s, g in zip(res["stitched"], grids, strict=True)]
             stitch_displacements(res["stitched"], maps, net)
             res["maps_and_seams_s"] = time.perf_counter() - t
 
