@@ -1,0 +1,924 @@
+"""The whole fit from one call: layout -> cut -> spring meshes -> B-spline fit -> displacement
+-> stitch -> exports -> errors -> report.
+
+:func:`run_fit` wires the stages of the product together (``DESIGN.md``, "How the fit pipeline
+flows"). Every stage's output is saved under ``<out>/stages/`` as ``.npz`` or JSON named by a
+content hash of its inputs and options, so ``resume=True`` re-uses the stages already done;
+patches are processed in parallel on threads between the cut and the stitch (the spring-mesh
+and fitting kernels release the GIL); every file is written atomically; the summary
+``summary.json`` holds per-stage timings, per-patch metrics and the error of the spline-only
+and the displaced reconstructions against the input, as fractions of its bbox diagonal.
+
+Stitching
+---------
+With ``continuity="c0"`` the shared boundaries are made identical at the fitting step: every
+layout curve gets one cubic B-spline curve, least-squares fitted to the spring-mesh side that
+follows it (end points pinned to the layout corners), and every patch using the curve pins
+its boundary row of control points to that curve's control points (Krishnamurthy 2000,
+sec. 8.1.3: boundary constraints at the fitting step). Control counts are unified across
+curves so that patches sharing a curve agree. ``continuity="g1"`` additionally calls
+:mod:`meshfit.stitch` when that package is installed; otherwise the run records that only C0
+was achieved. The seams are measured either way (gap and normal jump across each curve).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import os
+import time
+import zipfile
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from meshfit import __version__
+from meshfit._atomic import atomic_write, write_text
+from meshfit.errors import InputError, LayoutError
+from meshfit.mesh import Mesh
+
+__all__ = [
+    "FORMATS",
+    "STAGES",
+    "FitOptions",
+    "PatchFit",
+    "load_fit",
+    "mesh_hash",
+    "run_fit",
+]
+
+#: pipeline stages in order (keys of the summary's ``stages``)
+STAGES = (
+    "validate",
+    "layout",
+    "cut",
+    "springs",
+    "fit",
+    "displacement",
+    "stitch",
+    "exports",
+    "errors",
+    "report",
+)
+#: output formats of ``FitOptions.formats``
+FORMATS = ("usd", "3dm", "iges", "obj", "glb", "exr", "png")
+#: version of the stage files and the summary
+PIPELINE_FORMAT = 1
+
+Progress = Callable[[str, int, int], None]
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """Options of :func:`run_fit` (all have defaults).
+
+    Attributes
+    ----------
+    controls : (int, int)
+        Requested control resolution ``(mu, mv)`` per patch (default 16 x 16). A patch never
+        gets more controls than its spring grid has points; with C0 stitching the counts along
+        each shared curve are unified (the smallest wins).
+    continuity : {"c0", "g1"}
+        Continuity across shared boundaries (default ``"c0"``; see the module notes).
+    formats : tuple of str
+        Outputs among :data:`FORMATS` (default usd, obj, glb, exr, png).
+    patches : int, optional
+        Patch count asked of the automatic layout (``layout="auto"``).
+    spring_level : int, optional
+        Final spring-mesh level (default: the level whose point count is closest to the
+        patch's vertex count, :func:`meshfit.springs.resample_patch`).
+    spring_max_points : int, optional
+        Upper bound on a patch's final spring-mesh point count.
+    map_kind : {"vector", "normal"}
+        Displacement map kind (default ``"vector"``: exact reconstruction of the grid).
+    workers : int, optional
+        Threads for the per-patch stages (default: all cores).
+    report : bool
+        Write ``report.html`` with its images (default True).
+    image_size : int
+        Width and height of the report's renders, pixels (default 640).
+    """
+
+    controls: tuple[int, int] = (16, 16)
+    continuity: str = "c0"
+    formats: tuple[str, ...] = ("usd", "obj", "glb", "exr", "png")
+    patches: int | None = None
+    spring_level: int | None = None
+    spring_max_points: int | None = None
+    map_kind: str = "vector"
+    workers: int | None = None
+    report: bool = True
+    image_size: int = 640
+
+    def __post_init__(self) -> None:
+        try:
+            mu, mv = (int(c) for c in self.controls)
+        except (TypeError, ValueError):
+            raise InputError(f"controls must be two integers, got {self.controls!r}") from None
+        if mu < 4 or mv < 4:
+            raise InputError(f"controls must be at least 4 x 4, got {mu} x {mv}")
+        object.__setattr__(self, "controls", (mu, mv))
+        if self.continuity not in ("c0", "g1"):
+            raise InputError(f"continuity must be 'c0' or 'g1', got {self.continuity!r}")
+        fm = tuple(str(f).strip().lower() for f in self.formats if str(f).strip())
+        bad = [f for f in fm if f not in FORMATS]
+        if bad:
+            raise InputError(f"unknown output format {bad[0]!r}: choose from {', '.join(FORMATS)}")
+        object.__setattr__(self, "formats", fm)
+        if self.map_kind not in ("vector", "normal"):
+            raise InputError(f"map_kind must be 'vector' or 'normal', got {self.map_kind!r}")
+        if self.workers is not None and int(self.workers) < 1:
+            raise InputError(f"workers must be >= 1, got {self.workers}")
+        if self.patches is not None and int(self.patches) < 1:
+            raise InputError(f"patches must be >= 1, got {self.patches}")
+        if int(self.image_size) < 16:
+            raise InputError(f"image_size must be >= 16 pixels, got {self.image_size}")
+
+    def key(self, *names: str) -> dict[str, Any]:
+        d = asdict(self)
+        return {k: d[k] for k in names}
+
+
+@dataclass(frozen=True, eq=False)
+class PatchFit:
+    """Everything the pipeline keeps of one patch.
+
+    Attributes
+    ----------
+    index : int
+    grid : (nu, nv, 3) float64
+        The finest spring mesh, model units.
+    surface : BSplineSurface
+    displacement : DisplacementMap
+    metrics : dict
+        Spring-mesh metrics of the finest level, fit errors, control counts.
+    """
+
+    index: int
+    grid: NDArray[np.float64]
+    surface: Any
+    displacement: Any
+    metrics: dict = field(default_factory=dict)
+
+
+# ---------------------------------------------------------------------------- small helpers
+def mesh_hash(mesh: Mesh) -> str:
+    """SHA-256 of a mesh's vertex and face arrays (the content key of every stage)."""
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(mesh.vertices, dtype="<f8").tobytes())
+    h.update(np.ascontiguousarray(mesh.faces, dtype="<i8").tobytes())
+    return h.hexdigest()
+
+
+def _key(*parts: Any) -> str:
+    text = json.dumps([PIPELINE_FORMAT, __version__, *parts], sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:20]
+
+
+def _save_npz(path: Path, arrays: dict[str, NDArray]) -> Path:
+    """A deterministic ``.npz`` (fixed zip timestamps), written atomically."""
+
+    def write(tmp: str) -> None:
+        with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+            for name in sorted(arrays):
+                buf = io.BytesIO()
+                np.lib.format.write_array(buf, np.ascontiguousarray(arrays[name]))
+                info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+                info.compress_type = zipfile.ZIP_DEFLATED
+                info.external_attr = 0o644 << 16
+                zf.writestr(info, buf.getvalue())
+
+    return atomic_write(path, write)
+
+
+def _load_npz(path: Path) -> dict[str, NDArray]:
+    with np.load(path, allow_pickle=False) as z:
+        return {k: z[k] for k in z.files}
+
+
+def _as_bytes(data: Any) -> NDArray[np.uint8]:
+    """JSON text as a uint8 array (stored in stage ``.npz`` files without pickling)."""
+    return np.frombuffer(json.dumps(data, default=_json_default).encode(), dtype=np.uint8)
+
+
+def _from_bytes(a: NDArray[np.uint8]) -> Any:
+    return json.loads(np.asarray(a, dtype=np.uint8).tobytes().decode())
+
+
+def _write_json(path: Path, data: Any) -> Path:
+    return write_text(path, json.dumps(data, indent=2, default=_json_default) + "\n")
+
+
+def _json_default(o: Any) -> Any:
+    if isinstance(o, np.integer):
+        return int(o)
+    if isinstance(o, np.floating):
+        return float(o)
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+def _sha_file(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+class _Stages:
+    """Stage bookkeeping: cache files, timings, progress."""
+
+    def __init__(self, out: Path, resume: bool, progress: Progress | None) -> None:
+        self.dir = out / "stages"
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self.resume = resume
+        self.progress = progress
+        self.info: dict[str, dict[str, Any]] = {}
+
+    def path(self, stage: str, key: str, suffix: str) -> Path:
+        return self.dir / f"{stage}-{key}{suffix}"
+
+    def cached(self, stage: str, key: str, suffix: str) -> Path | None:
+        p = self.path(stage, key, suffix)
+        return p if self.resume and p.is_file() else None
+
+    def start(self, stage: str) -> float:
+        return time.perf_counter()
+
+    def done(self, stage: str, t0: float, *, cached: bool, **extra: Any) -> None:
+        self.info[stage] = {
+            "seconds": round(time.perf_counter() - t0, 4),
+            "cached": bool(cached),
+            **extra,
+        }
+        self.tick(stage, 1, 1)
+
+    def tick(self, stage: str, done: int, total: int) -> None:
+        if self.progress is not None:
+            self.progress(stage, done, total)
+
+
+def _parallel(fn, items: Sequence, workers: int, stage: str, st: _Stages) -> list:
+    """``[fn(x) for x in items]`` on threads, results in order, progress per item."""
+    n = len(items)
+    st.tick(stage, 0, n)
+    if workers <= 1 or n <= 1:
+        out = []
+        for i, x in enumerate(items):
+            out.append(fn(x))
+            st.tick(stage, i + 1, n)
+        return out
+    out = [None] * n
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        futures = {pool.submit(fn, x): i for i, x in enumerate(items)}
+        done = 0
+        from concurrent.futures import as_completed
+
+        for fut in as_completed(futures):
+            out[futures[fut]] = fut.result()
+            done += 1
+            st.tick(stage, done, n)
+    return out
+
+
+# ---------------------------------------------------------------------------- C0 boundaries
+def _side_row(grid: NDArray[np.float64], s: int) -> NDArray[np.float64]:
+    """Grid points along side ``s``, from corner ``s`` to corner ``s + 1``."""
+    if s == 0:
+        return grid[:, 0]
+    if s == 1:
+        return grid[-1, :]
+    if s == 2:
+        return grid[::-1, -1]
+    return grid[0, ::-1]
+
+
+def _unified_counts(layout, shapes: list[tuple[int, int]], controls: tuple[int, int]):
+    """Control counts per patch direction, equal along every shared curve.
+
+    Direction 0 (u) of patch p holds sides 0 and 2, direction 1 (v) sides 1 and 3; classes
+    sharing a curve are merged and get the smallest requested count that fits every member's
+    grid.
+    """
+    n = len(shapes)
+    parent = list(range(2 * n))
+
+    def find(a: int) -> int:
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    first: dict[int, int] = {}
+    for p in range(n):
+        for s in range(4):
+            c = int(layout.patch_curves[p, s])
+            node = 2 * p + (s % 2)
+            if c in first:
+                ra, rb = find(first[c]), find(node)
+                if ra != rb:
+                    parent[ra] = rb
+            else:
+                first[c] = node
+    limit: dict[int, int] = {}
+    for p in range(n):
+        for d in (0, 1):
+            r = find(2 * p + d)
+            want = min(controls[d], shapes[p][d])
+            limit[r] = min(limit.get(r, want), want)
+    return [(limit[find(2 * p)], limit[find(2 * p + 1)]) for p in range(n)]
+
+
+def _fit_curve(
+    samples: NDArray[np.float64], m: int, a: NDArray[np.float64], b: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Control points ``(m, 3)`` of a clamped cubic curve through ``samples`` (uniform
+    parameters), least squares with the end points pinned to ``a`` and ``b``."""
+    from meshfit.bspline import basis_matrix, clamped_knots
+
+    t = np.linspace(0.0, 1.0, samples.shape[0])
+    B = basis_matrix(t, clamped_knots(m))
+    rhs = samples - np.outer(B[:, 0], a) - np.outer(B[:, -1], b)
+    inner, *_ = np.linalg.lstsq(B[:, 1:-1], rhs, rcond=None)
+    return np.vstack([a[None], inner, b[None]])
+
+
+def _boundary_pins(layout, corner_xyz, grids, counts) -> list[dict[str, NDArray]]:
+    """Pinned boundary control rows of every patch (``fit_bspline``'s ``pin_boundary``)."""
+    curve_ctrl: dict[int, NDArray[np.float64]] = {}
+    ends = layout.curve_ends
+    for p, grid in enumerate(grids):
+        for s in range(4):
+            c = int(layout.patch_curves[p, s])
+            if c in curve_ctrl:
+                continue
+            row = _side_row(grid, s)
+            if bool(layout.patch_reversed[p, s]):
+                row = row[::-1]
+            m = counts[p][s % 2]
+            a, b = corner_xyz[int(ends[c, 0])], corner_xyz[int(ends[c, 1])]
+            curve_ctrl[c] = _fit_curve(row, m, a, b)
+    pins = []
+    for p in range(len(grids)):
+        sides = []
+        for s in range(4):
+            c = int(layout.patch_curves[p, s])
+            ctrl = curve_ctrl[c]
+            if bool(layout.patch_reversed[p, s]):
+                ctrl = ctrl[::-1]
+            sides.append(ctrl)
+        # side rows run corner s -> s + 1; pin rows run in increasing parameter
+        pins.append(
+            {
+                "v0": sides[0],
+                "u1": sides[1],
+                "v1": sides[2][::-1].copy(),
+                "u0": sides[3][::-1].copy(),
+            }
+        )
+    return pins
+
+
+def _seam_metrics(layout, surfaces, grids_displaced, diag: float, samples: int = 33) -> dict:
+    """Gap and normal jump across every curve shared by two patches."""
+    t = np.linspace(0.0, 1.0, samples)
+    users: dict[int, list[tuple[int, int, bool]]] = {}
+    for p in range(len(surfaces)):
+        for s in range(4):
+            users.setdefault(int(layout.patch_curves[p, s]), []).append(
+                (p, s, bool(layout.patch_reversed[p, s]))
+            )
+
+    def side_params(s: int, along: NDArray[np.float64]):
+        if s == 0:
+            return along, np.zeros_like(along)
+        if s == 1:
+            return np.ones_like(along), along
+        if s == 2:
+            return 1.0 - along, np.ones_like(along)
+        return np.zeros_like(along), 1.0 - along
+
+    gap = 0.0
+    angle = 0.0
+    disp_gap = 0.0
+    shared = 0
+    for uses in users.values():
+        if len(uses) != 2:
+            continue
+        shared += 1
+        pts, nrm = [], []
+        for p, s, rev in uses:
+            along = t[::-1] if rev else t  # both in the curve's own direction
+            u, v = side_params(s, along)
+            pts.append(surfaces[p].evaluate(u, v))
+            nrm.append(surfaces[p].normals(u, v))
+        gap = max(gap, float(np.linalg.norm(pts[0] - pts[1], axis=1).max()))
+        cos = np.clip((nrm[0] * nrm[1]).sum(axis=1), -1.0, 1.0)
+        angle = max(angle, float(np.degrees(np.arccos(cos)).max()))
+        rows = []
+        for p, s, rev in uses:
+            row = _side_row(grids_displaced[p], s)
+            rows.append(row[::-1] if rev else row)
+        # displaced boundaries: distance of each row's points to the other row's polyline
+        disp_gap = max(disp_gap, _polyline_gap(rows[0], rows[1]), _polyline_gap(rows[1], rows[0]))
+    return {
+        "shared_curves": shared,
+        "spline_gap_max": gap / diag,
+        "spline_normal_jump_max_deg": angle,
+        "displaced_gap_max": disp_gap / diag,
+    }
+
+
+def _polyline_gap(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
+    """Largest distance from the points ``a`` to the polyline ``b``."""
+    p0, p1 = b[:-1], b[1:]
+    d = p1 - p0
+    ln2 = np.maximum((d * d).sum(axis=1), 1e-300)
+    w = a[:, None, :] - p0[None]
+    s = np.clip((w * d[None]).sum(axis=2) / ln2[None], 0.0, 1.0)
+    q = p0[None] + s[..., None] * d[None]
+    return float(np.linalg.norm(a[:, None, :] - q, axis=2).min(axis=1).max())
+
+
+# ---------------------------------------------------------------------------- errors
+def _surface_distance(
+    mesh: Mesh, V: NDArray[np.float64], F: NDArray[np.int64]
+) -> tuple[NDArray, NDArray]:
+    """Two-sided distances: reconstruction vertices to the input, input vertices to the
+    reconstruction (a triangle soup ``V, F``)."""
+    import igl
+
+    to_input = mesh.closest_points(V).distance
+    sq, _, _ = igl.point_mesh_squared_distance(
+        np.ascontiguousarray(mesh.vertices), np.ascontiguousarray(V), np.ascontiguousarray(F)
+    )
+    return to_input, np.sqrt(np.maximum(np.asarray(sq), 0.0))
+
+
+def _error_figures(mesh: Mesh, V, F) -> dict[str, float]:
+    a, b = _surface_distance(mesh, V, F)
+    diag = mesh.bbox_diagonal
+    both = np.concatenate([a, b])
+    return {
+        "rms": float(np.sqrt(np.mean(both**2)) / diag),
+        "hausdorff": float(both.max() / diag),
+        "mean": float(both.mean() / diag),
+        "to_input_max": float(a.max() / diag),
+        "from_input_max": float(b.max() / diag),
+    }
+
+
+def _soup(arrays: list[NDArray[np.float64]]) -> tuple[NDArray, NDArray]:
+    from meshfit.springs import grid_triangles
+
+    Vs, Fs, base = [], [], 0
+    for X in arrays:
+        nu, nv = X.shape[:2]
+        Vs.append(X.reshape(-1, 3))
+        Fs.append(grid_triangles(nu, nv) + base)
+        base += nu * nv
+    return np.vstack(Vs), np.vstack(Fs)
+
+
+# ---------------------------------------------------------------------------- the run
+def _resolve_layout(mesh: Mesh, layout, options: FitOptions):
+    """(layout source key, loader) for a Layout, a path, ``"auto"`` or None."""
+    from meshfit.layout import Layout, layout_to_json, load_layout
+
+    if isinstance(layout, Layout):
+        text = layout_to_json(layout)
+        return hashlib.sha256(text.encode()).hexdigest(), lambda: layout
+    if layout is None or (isinstance(layout, str) and layout == "auto"):
+
+        def make():
+            from meshfit.layout.auto import auto_layout
+
+            return auto_layout(mesh, patches=options.patches)
+
+        return f"auto:{options.patches}", make
+    path = Path(layout)
+    if not path.is_file():
+        raise LayoutError(f"{path}: no such layout file")
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    return digest, lambda: load_layout(path, mesh)
+
+
+def run_fit(
+    mesh: Mesh | str | os.PathLike,
+    out: str | os.PathLike,
+    *,
+    layout=None,
+    options: FitOptions | None = None,
+    resume: bool = False,
+    progress: Progress | None = None,
+) -> dict[str, Any]:
+    """Fit B-spline patches with displacement maps to a mesh and write every output.
+
+    Parameters
+    ----------
+    mesh : Mesh or path
+        The input; a path is loaded (and validated) with :func:`meshfit.load_mesh`.
+    out : path
+        Output folder (created): ``layout.json``, ``summary.json``, the exports, the report
+        and ``stages/`` (the cache of every stage).
+    layout : Layout, path, ``"auto"`` or None, keyword-only
+        The patch layout: an object, a layout file, or the automatic layout for a closed
+        genus-0 mesh (``"auto"``, also the default).
+    options : FitOptions, keyword-only, optional
+        Default ``FitOptions()``.
+    resume : bool, keyword-only
+        Re-use stage files in ``out/stages`` whose content hash matches (default False:
+        everything is recomputed and the stage files are overwritten).
+    progress : callable(stage, done, total), keyword-only, optional
+        Called as each stage advances.
+
+    Returns
+    -------
+    dict
+        The summary also written to ``out/summary.json``: ``stages`` (seconds, cached),
+        ``patches`` (per-patch metrics), ``errors`` (``spline_only`` and ``displaced``:
+        two-sided RMS and Hausdorff distance to the input over its bbox diagonal),
+        ``seams``, ``outputs``.
+
+    Raises
+    ------
+    meshfit.errors.MeshfitError
+        Bad input (mesh, layout, options).
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 1.3 (the fitting pipeline), ch. 5 (spring meshes), ch. 6
+       (B-spline fitting), ch. 7 (displacement maps), sec. 8.1 (continuity).
+    """
+    from meshfit.bspline import BSplineSurface, fit_bspline, fit_errors
+    from meshfit.displacement import DisplacementMap, displacement_map, reconstruct
+    from meshfit.layout import extract_patches, save_layout
+
+    options = options or FitOptions()
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    st = _Stages(out, resume, progress)
+    workers = int(options.workers or os.cpu_count() or 1)
+    t_all = time.perf_counter()
+
+    # ---- validate
+    t0 = st.start("validate")
+    if not isinstance(mesh, Mesh):
+        from meshfit.mesh import load_mesh
+
+        mesh = load_mesh(mesh)
+    mhash = mesh_hash(mesh)
+    diag = float(mesh.bbox_diagonal)
+    st.done("validate", t0, cached=False)
+
+    # ---- layout
+    t0 = st.start("layout")
+    source, make_layout = _resolve_layout(mesh, layout, options)
+    k_layout = _key("layout", mhash, source)
+    cached = st.cached("layout", k_layout, ".json")
+    if cached is not None:
+        from meshfit.layout import load_layout
+
+        lay = load_layout(cached, mesh, check_topology=False)
+    else:
+        lay = make_layout()
+        save_layout(lay, st.path("layout", k_layout, ".json"), mesh=mesh)
+    save_layout(lay, out / "layout.json", mesh=mesh)
+    n_patches = int(lay.n_patches)
+    st.done("layout", t0, cached=cached is not None, patches=n_patches)
+
+    # ---- cut (only run when a later stage needs the patches)
+    k_cut = _key("cut", k_layout)
+    patches_cache: list = []
+
+    def patches():
+        if not patches_cache:
+            t = time.perf_counter()
+            ps = extract_patches(mesh, lay)
+            face_patch = np.full(mesh.n_faces, -1, dtype=np.int64)
+            for p in ps:
+                face_patch[p.face_parent] = p.index
+            _save_npz(
+                st.path("cut", k_cut, ".npz"),
+                {
+                    "face_patch": face_patch,
+                    "n_faces": np.array([p.mesh.n_faces for p in ps], dtype=np.int64),
+                    "n_vertices": np.array([p.mesh.n_vertices for p in ps], dtype=np.int64),
+                },
+            )
+            patches_cache.append(ps)
+            st.info["cut"] = {"seconds": round(time.perf_counter() - t, 4), "cached": False}
+            st.tick("cut", 1, 1)
+        return patches_cache[0]
+
+    # ---- springs
+    t0 = st.start("springs")
+    spring_opts = options.key("spring_level", "spring_max_points")
+    k_springs = _key("springs", k_cut, spring_opts)
+    cached = st.cached("springs", k_springs, ".npz")
+    if cached is not None:
+        z = _load_npz(cached)
+        grids = [z[f"grid_{p}"] for p in range(n_patches)]
+        spring_info = _from_bytes(z["info"])
+    else:
+        ps = patches()
+        t0 = st.start("springs")
+        from meshfit.springs import resample_patch
+
+        def spring(patch):
+            t = time.perf_counter()
+            res = resample_patch(
+                patch,
+                level=options.spring_level,
+                max_points=options.spring_max_points,
+                fidelity=False,
+            )
+            fin = res.metrics[-1] if res.metrics else {}
+            return res.final.xyz.copy(), {
+                "shape": list(res.final.shape),
+                "levels": len(res.levels),
+                "folded": int(fin.get("folded", 0)),
+                "folded_any_level": int(sum(m.get("folded", 0) for m in res.metrics)),
+                "arc_cv_max": float(fin.get("arc_cv_max", float("nan"))),
+                "aspect_max": float(fin.get("aspect_max", float("nan"))),
+                "area_ratio": float(fin.get("area_ratio", float("nan"))),
+                "sweeps": [int(s) for s in res.sweeps],
+                "seconds": round(time.perf_counter() - t, 4),
+                "patch_faces": int(patch.mesh.n_faces),
+            }
+
+        res = _parallel(spring, ps, workers, "springs", st)
+        grids = [g for g, _ in res]
+        spring_info = [i for _, i in res]
+        arrays = {f"grid_{p}": g for p, g in enumerate(grids)}
+        arrays["info"] = _as_bytes(spring_info)
+        _save_npz(st.path("springs", k_springs, ".npz"), arrays)
+    if "cut" not in st.info:
+        st.info["cut"] = {"seconds": 0.0, "cached": True}
+        st.tick("cut", 1, 1)
+    st.done("springs", t0, cached=cached is not None)
+
+    # ---- fit (with the C0 boundary pins)
+    t0 = st.start("fit")
+    fit_opts = options.key("controls", "continuity")
+    k_fit = _key("fit", k_springs, fit_opts)
+    cached = st.cached("fit", k_fit, ".npz")
+    corner_xyz = mesh.xyz(lay.corners)
+    if cached is not None:
+        z = _load_npz(cached)
+        surfaces = [BSplineSurface(z[f"ctrl_{p}"]) for p in range(n_patches)]
+        fit_info = _from_bytes(z["info"])
+    else:
+        shapes = [g.shape[:2] for g in grids]
+        counts = _unified_counts(lay, shapes, options.controls)
+        pins = _boundary_pins(lay, corner_xyz, grids, counts)
+
+        def fit(p):
+            t = time.perf_counter()
+            s = fit_bspline(grids[p], controls=counts[p], pin_boundary=pins[p])
+            e = fit_errors(s, grids[p]).as_dict()
+            return s, {
+                "controls": list(counts[p]),
+                **{f"fit_{k}": v / diag for k, v in e.items()},
+                "seconds": round(time.perf_counter() - t, 4),
+            }
+
+        res = _parallel(fit, list(range(n_patches)), workers, "fit", st)
+        surfaces = [s for s, _ in res]
+        fit_info = [i for _, i in res]
+        arrays = {f"ctrl_{p}": s.control_points for p, s in enumerate(surfaces)}
+        arrays["info"] = _as_bytes(fit_info)
+        _save_npz(st.path("fit", k_fit, ".npz"), arrays)
+    st.done("fit", t0, cached=cached is not None)
+
+    # ---- displacement
+    t0 = st.start("displacement")
+    k_disp = _key("displacement", k_fit, options.map_kind)
+    cached = st.cached("displacement", k_disp, ".npz")
+    if cached is not None:
+        z = _load_npz(cached)
+        dmaps = [DisplacementMap(z[f"map_{p}"], options.map_kind) for p in range(n_patches)]
+    else:
+        dmaps = _parallel(
+            lambda p: displacement_map(surfaces[p], grids[p], kind=options.map_kind),
+            list(range(n_patches)),
+            workers,
+            "displacement",
+            st,
+        )
+        _save_npz(
+            st.path("displacement", k_disp, ".npz"),
+            {f"map_{p}": d.values for p, d in enumerate(dmaps)},
+        )
+    st.done("displacement", t0, cached=cached is not None)
+
+    # ---- stitch: C0 is built into the fit; G1 needs meshfit.stitch
+    t0 = st.start("stitch")
+    notes: list[str] = []
+    if options.continuity == "g1":
+        import importlib.util
+
+        if importlib.util.find_spec("meshfit.stitch") is None:
+            notes.append(
+                "continuity g1 asked for, but meshfit.stitch is not installed: C0 boundaries only"
+            )
+        else:
+            notes.append("continuity g1: meshfit.stitch is not wired in yet; C0 only")
+    displaced_cache: list = []
+
+    def displaced_grids() -> list[NDArray[np.float64]]:
+        if not displaced_cache:
+            displaced_cache.append([reconstruct(surfaces[p], dmaps[p]) for p in range(n_patches)])
+        return displaced_cache[0]
+
+    k_stitch = _key("stitch", k_disp)
+    cached = st.cached("stitch", k_stitch, ".json")
+    if cached is not None:
+        seams = json.loads(cached.read_text())
+    else:
+        seams = _seam_metrics(lay, surfaces, displaced_grids(), diag)
+        seams["continuity"] = "c0"
+        _write_json(st.path("stitch", k_stitch, ".json"), seams)
+    st.done("stitch", t0, cached=cached is not None)
+
+    # ---- exports
+    t0 = st.start("exports")
+    names = [f"patch_{p:03d}" for p in range(n_patches)]
+    k_exp = _key("exports", k_disp, options.formats)
+    cached = st.cached("exports", k_exp, ".json")
+    outputs: dict[str, list[str]] = {}
+    if cached is not None:
+        record = json.loads(cached.read_text())
+        ok = all(
+            (out / f).is_file() and _sha_file(out / f) == h for f, h in record["sha256"].items()
+        )
+        if ok:
+            outputs = record["outputs"]
+        else:
+            cached = None
+    if cached is None:
+        outputs = _write_exports(out, names, surfaces, dmaps, options.formats, st)
+        files = [f for fs in outputs.values() for f in fs]
+        _write_json(
+            st.path("exports", k_exp, ".json"),
+            {"outputs": outputs, "sha256": {f: _sha_file(out / f) for f in files}},
+        )
+    st.done("exports", t0, cached=cached is not None)
+
+    # ---- errors against the input
+    t0 = st.start("errors")
+    k_err = _key("errors", k_disp, mhash)
+    cached = st.cached("errors", k_err, ".json")
+    if cached is not None:
+        errors = json.loads(cached.read_text())
+    else:
+        spline_grids = [
+            surfaces[p].evaluate_grid(
+                np.linspace(0.0, 1.0, grids[p].shape[0]), np.linspace(0.0, 1.0, grids[p].shape[1])
+            )
+            for p in range(n_patches)
+        ]
+        errors = {
+            "spline_only": _error_figures(mesh, *_soup(spline_grids)),
+            "displaced": _error_figures(mesh, *_soup(displaced_grids())),
+            "units": "fraction of the input's bbox diagonal",
+        }
+        _write_json(st.path("errors", k_err, ".json"), errors)
+    st.done("errors", t0, cached=cached is not None)
+
+    patch_rows = []
+    for p in range(n_patches):
+        d = dmaps[p].values
+        patch_rows.append(
+            {
+                "patch": p,
+                **spring_info[p],
+                **fit_info[p],
+                "displacement_max": float(np.abs(d).max() / diag),
+            }
+        )
+    summary: dict[str, Any] = {
+        "meshfit_fit": PIPELINE_FORMAT,
+        "version": __version__,
+        "mesh": {
+            "name": mesh.name,
+            "vertices": int(mesh.n_vertices),
+            "faces": int(mesh.n_faces),
+            "bbox_diagonal": diag,
+            "sha256": mhash,
+        },
+        "options": {
+            k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(options).items()
+        },
+        "layout": {"source": source if not source.startswith("auto") else "auto"},
+        "patches_total": n_patches,
+        "stages": st.info,
+        "patches": patch_rows,
+        "errors": errors,
+        "seams": seams,
+        "notes": notes,
+        "outputs": outputs,
+    }
+
+    # ---- report
+    if options.report:
+        t0 = st.start("report")
+        k_rep = _key("report", k_disp, k_layout, options.image_size)
+        cached = st.cached("report", k_rep, ".json")
+        images_ok = False
+        if cached is not None:
+            rec = json.loads(cached.read_text())
+            images_ok = all((out / f).is_file() for f in rec["images"])
+        from meshfit.report import write_report
+
+        rep = write_report(
+            out,
+            mesh=mesh,
+            layout=lay,
+            face_patch=_face_patch(st, k_cut, patches_cache),
+            grids=grids,
+            surfaces=surfaces,
+            displaced=displaced_grids,
+            dmaps=dmaps,
+            summary=summary,
+            image_size=options.image_size,
+            render_images=not images_ok,
+        )
+        if not images_ok:
+            _write_json(st.path("report", k_rep, ".json"), {"images": rep["images"]})
+        st.done("report", t0, cached=images_ok)
+        summary["outputs"]["report"] = ["report.html"]
+    summary["stages"] = st.info
+    summary["seconds_total"] = round(time.perf_counter() - t_all, 4)
+    summary["work_done"] = [s for s, i in st.info.items() if not i["cached"] and s != "validate"]
+    _write_json(out / "summary.json", summary)
+    if options.report:
+        # the report's timing table includes the report stage itself
+        from meshfit.report import write_html
+
+        write_html(out, summary)
+    return summary
+
+
+def _face_patch(st: _Stages, k_cut: str, patches_cache: list) -> NDArray[np.int64] | None:
+    p = st.path("cut", k_cut, ".npz")
+    if p.is_file():
+        return _load_npz(p)["face_patch"]
+    return None
+
+
+def _write_exports(out: Path, names, surfaces, dmaps, formats, st: _Stages) -> dict[str, list[str]]:
+    from meshfit import export
+    from meshfit.displacement import write_exr, write_png
+
+    outputs: dict[str, list[str]] = {}
+    total = len(formats)
+    for i, fmt in enumerate(formats):
+        files: list[str] = []
+        if fmt == "usd":
+            export.export_usd(out / "patches.usda", surfaces, displacements=dmaps, names=names)
+            files = ["patches.usda"] + [
+                f"patches.{n}.{d.kind}.exr" for n, d in zip(names, dmaps, strict=True)
+            ]
+        elif fmt == "3dm":
+            export.export_3dm(out / "patches.3dm", surfaces, names=names)
+            files = ["patches.3dm"]
+        elif fmt == "iges":
+            labels = [f"P{k}" for k in range(len(names))]
+            export.export_iges(out / "patches.igs", surfaces, names=labels)
+            files = ["patches.igs"]
+        elif fmt == "obj":
+            export.export_obj(out / "displaced.obj", surfaces, displacements=dmaps, names=names)
+            export.export_obj(out / "spline.obj", surfaces, names=names)
+            files = ["displaced.obj", "spline.obj"]
+        elif fmt == "glb":
+            export.export_gltf(out / "displaced.glb", surfaces, displacements=dmaps, names=names)
+            files = ["displaced.glb"]
+        elif fmt in ("exr", "png"):
+            folder = out / "maps"
+            folder.mkdir(exist_ok=True)
+            for n, d in zip(names, dmaps, strict=True):
+                f = f"maps/{n}.{d.kind}.{fmt}"
+                (write_exr if fmt == "exr" else write_png)(d, out / f)
+                files.append(f)
+        outputs[fmt] = files
+        st.tick("exports", i + 1, total)
+    return outputs
+
+
+def load_fit(out: str | os.PathLike) -> dict[str, Any]:
+    """The summary of a finished run (``out/summary.json``)."""
+    path = Path(out) / "summary.json"
+    if not path.is_file():
+        raise InputError(f"{path}: no fit summary (run meshfit fit first)")
+    return json.loads(path.read_text())

@@ -1,0 +1,139 @@
+"""The fit pipeline end to end on spot's test layout (coarse spring level, few controls)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+import trimesh
+
+from meshfit import tol
+from meshfit.bspline import BSplineSurface
+from meshfit.displacement import read_exr, read_png
+from meshfit.errors import InputError, LayoutError
+from meshfit.pipeline import FORMATS, STAGES, FitOptions, _load_npz, load_fit, run_fit
+
+from .conftest import ROOT, real_mesh
+
+LAYOUT = ROOT / "examples" / "layouts" / "spot.json"
+OPTIONS = FitOptions(controls=(6, 6), spring_level=1, formats=FORMATS, report=False, workers=2)
+
+
+@pytest.fixture(scope="module")
+def spot_fit(tmp_path_factory):
+    out = tmp_path_factory.mktemp("fit_spot")
+    mesh = real_mesh("spot")
+    summary = run_fit(mesh, out, layout=LAYOUT, options=OPTIONS)
+    return mesh, out, summary
+
+
+def test_every_patch_is_fitted(spot_fit):
+    _, out, summary = spot_fit
+    assert summary["patches_total"] == 24
+    assert [p["patch"] for p in summary["patches"]] == list(range(24))
+    for p in summary["patches"]:
+        assert p["levels"] == 2
+        assert p["controls"][0] >= 4 and p["controls"][1] >= 4
+        assert np.isfinite(p["fit_normal_rms"])
+        # the spline follows its spring grid to a few percent of the model
+        assert p["fit_normal_max"] < 0.1
+    assert set(summary["stages"]) == set(STAGES) - {"report"}
+    assert all(s["seconds"] >= 0 for s in summary["stages"].values())
+    assert load_fit(out) == json.loads((out / "summary.json").read_text())
+
+
+def test_c0_seams_are_closed(spot_fit):
+    _, _, summary = spot_fit
+    seams = summary["seams"]
+    assert seams["shared_curves"] == 48  # a closed layout: every curve has two patches
+    assert seams["spline_gap_max"] <= tol.STITCH_GAP
+    assert seams["continuity"] == "c0"
+
+
+def test_displaced_reconstruction_is_closer_than_the_spline(spot_fit):
+    _, _, summary = spot_fit
+    err = summary["errors"]
+    # displaced vertices are the spring points: on the input surface to round-off
+    assert err["displaced"]["to_input_max"] < tol.ON_SURFACE
+    assert err["displaced"]["rms"] < err["spline_only"]["rms"]
+    for kind in ("spline_only", "displaced"):
+        assert 0 < err[kind]["rms"] <= err[kind]["hausdorff"]
+
+
+def test_exports_read_back(spot_fit):
+    mesh, out, summary = spot_fit
+    outputs = summary["outputs"]
+    assert set(outputs) == set(FORMATS)
+    for files in outputs.values():
+        for f in files:
+            assert (out / f).is_file(), f
+    assert not list(out.rglob("*.tmp")) and not list(out.rglob(".*.*"))
+    shapes = {p["patch"]: tuple(p["shape"]) for p in summary["patches"]}
+    m = read_exr(out / "maps" / "patch_003.vector.exr")
+    assert m.shape == shapes[3]
+    assert read_png(out / "maps" / "patch_003.vector.png").shape == shapes[3]
+    obj = trimesh.load(out / "displaced.obj", process=False, force="mesh")
+    assert len(obj.vertices) == sum(a * b for a, b in shapes.values())
+    # the displaced OBJ holds the spring points: every vertex lies on the input surface
+    d = mesh.closest_points(np.asarray(obj.vertices)).distance
+    assert d.max() < 1e-9 * mesh.bbox_diagonal
+    assert (out / "layout.json").is_file()
+
+
+def test_stage_files_reload(spot_fit):
+    _, out, summary = spot_fit
+    fits = sorted((out / "stages").glob("fit-*.npz"))
+    assert len(fits) == 1
+    z = _load_npz(fits[0])
+    s = BSplineSurface(z["ctrl_0"])
+    assert list(s.shape) == summary["patches"][0]["controls"]
+
+
+def test_resume_does_no_work(spot_fit, tmp_path):
+    mesh, out, first = spot_fit
+    copy = tmp_path / "again"
+    shutil.copytree(out, copy)
+    before = {p: p.read_bytes() for p in copy.rglob("*") if p.is_file() and p.suffix != ".json"}
+    again = run_fit(mesh, copy, layout=LAYOUT, options=OPTIONS, resume=True)
+    assert again["work_done"] == []
+    assert all(s["cached"] for k, s in again["stages"].items() if k != "validate")
+    assert again["errors"] == first["errors"]
+    assert again["patches"] == first["patches"]
+    after = {p: p.read_bytes() for p in copy.rglob("*") if p.is_file() and p.suffix != ".json"}
+    assert after == before
+    # a changed option re-runs the fit and what follows it, not the spring meshes
+    opts = FitOptions(controls=(5, 5), spring_level=1, formats=("obj",), report=False)
+    third = run_fit(mesh, copy, layout=LAYOUT, options=opts, resume=True)
+    assert third["stages"]["springs"]["cached"]
+    assert not third["stages"]["fit"]["cached"]
+    assert third["patches"][0]["controls"] == [5, 5]
+
+
+def test_progress_reports_every_stage(tmp_path):
+    mesh = real_mesh("spot")
+    seen: dict[str, tuple[int, int]] = {}
+    run_fit(
+        mesh,
+        tmp_path,
+        layout=LAYOUT,
+        options=FitOptions(controls=(4, 4), spring_level=0, formats=(), report=False),
+        progress=lambda stage, done, total: seen.__setitem__(stage, (done, total)),
+    )
+    assert set(seen) == set(STAGES) - {"report"}
+    assert all(d == t for d, t in seen.values())
+
+
+def test_bad_options_and_layouts(tmp_path):
+    with pytest.raises(InputError, match="controls"):
+        FitOptions(controls=(3, 8))
+    with pytest.raises(InputError, match="format"):
+        FitOptions(formats=("stl",))
+    with pytest.raises(InputError, match="continuity"):
+        FitOptions(continuity="c2")
+    mesh = real_mesh("spot")
+    with pytest.raises(LayoutError, match="no such layout"):
+        run_fit(mesh, tmp_path, layout=tmp_path / "missing.json", options=OPTIONS)
+    with pytest.raises(LayoutError):  # the igea layout was made for another mesh
+        run_fit(mesh, tmp_path, layout=ROOT / "examples/layouts/igea.json", options=OPTIONS)
