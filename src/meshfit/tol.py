@@ -99,3 +99,6 @@ UI_PICK_RADIUS = 0.03
 SHRINKWRAP_RAY_TRUST = 3.0
 #: ... plus this, times the level's mean edge length (rays from points already on the surface)
 SHRINKWRAP_RAY_SLACK = 0.1
+#: in a network cut, curve points this close to their end corner, times the mean edge length,
+#: are that corner (painted curves pass through the vertex nearest a corner pick)
+CUT_CORNER_MERGE = 1e-3
