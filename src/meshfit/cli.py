@@ -24,6 +24,7 @@ EXIT_ERROR = 2
 #: its parsers to the ``argparse`` sub-parser action and sets ``func`` on each of them; a
 #: command's ``func(args)`` returns the exit code.
 _COMMAND_MODULES: tuple[str, ...] = (
+    "meshfit.bspline.cli",
     "meshfit.layout.cli",
     "meshfit.shrinkwrap.cli",
     "meshfit.springs.cli",
