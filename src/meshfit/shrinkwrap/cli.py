@@ -59,9 +59,17 @@ def _wrap(args: argparse.Namespace):
     bar, cb = _progress(args.json)
     if bar is not None:
         with bar:
-            res = shrink_wrap(mesh, levels=args.levels, base_faces=args.base_faces, progress=cb)
+            res = shrink_wrap(
+                mesh,
+                levels=args.levels,
+                base_faces=args.base_faces,
+                sphere_method=args.sphere_method,
+                progress=cb,
+            )
     else:
-        res = shrink_wrap(mesh, levels=args.levels, base_faces=args.base_faces)
+        res = shrink_wrap(
+            mesh, levels=args.levels, base_faces=args.base_faces, sphere_method=args.sphere_method
+        )
     return mesh, res
 
 
@@ -181,6 +189,13 @@ def _wrap_args(p: argparse.ArgumentParser) -> None:
         "--fill-holes",
         action="store_true",
         help="close holes (boundary loops of up to 1000 edges) with fans first",
+    )
+    p.add_argument(
+        "--sphere-method",
+        choices=("tutte", "voxel"),
+        default="tutte",
+        help="sphere map: convex disk embeddings (default) or the paper's voxel flow, which "
+        "falls back to tutte when it leaves flipped triangles",
     )
     p.add_argument("--json", action="store_true", help="print JSON")
 

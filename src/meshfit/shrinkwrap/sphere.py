@@ -126,8 +126,9 @@ class SphereMap:
     sphere : (nv, 3) float64
         Image of each mesh vertex on the unit sphere (``F^-1`` at the vertices).
     method : str
-        Which construction ran: ``"tutte"`` (two convex disk embeddings lifted to the
-        hemispheres by inverse stereographic projection).
+        Which construction ran: ``"voxel"`` (the paper's distance-field flow) or
+        ``"tutte"`` (two convex disk embeddings lifted to the hemispheres by inverse
+        stereographic projection).
     flips : int
         Spherical triangles with ``det[a, b, c] <= 0``; 0 for a valid map.
     min_det : float
@@ -451,14 +452,15 @@ def sphere_map(
     ----------
     mesh : Mesh
         Closed, connected genus-0 surface.
-    method : {"tutte"}
+    method : {"tutte", "voxel"}
         ``"tutte"`` (default): split the mesh into two disks of equal surface area, embed
         each in the unit disk with positive mean-value weights and the same boundary
         positions (a strictly convex boundary gives a map without flips, Floater 2003),
         then lift them to the two hemispheres by inverse stereographic projection.
-        The paper's voxel distance-field flow toward a convex shape is not implemented:
-        on the bust scans it would need a flip repair anyway, while the convex embedding
-        is flip-free by construction (up to the lift, which is checked and untangled).
+        ``"voxel"``: the paper's method (:func:`meshfit.shrinkwrap.voxel.voxel_sphere`:
+        distance-field flow toward a convex shape, radial projection), then local
+        untangling; if flipped triangles remain it falls back to ``"tutte"`` and says so in
+        ``notes`` (``method`` records what ran).
     relax_iterations : int
         Flip-guarded area relaxation steps on the sphere after the embedding (default 0).
     relax_step : float
@@ -481,14 +483,29 @@ def sphere_map(
     .. [2] Floater, "Mean value coordinates", CAGD 20, 2003.
     """
     check_genus0(mesh)
-    if method != "tutte":
-        raise errors.InputError(
-            f"method must be 'tutte' (the voxel distance-field flow is not implemented), "
-            f"got {method!r}"
-        )
+    if method not in ("tutte", "voxel"):
+        raise errors.InputError(f"method must be 'tutte' or 'voxel', got {method!r}")
     notes: list[str] = []
     s = None
     used = "tutte"
+    if method == "voxel":
+        from meshfit.shrinkwrap.voxel import voxel_sphere
+
+        s, note = voxel_sphere(mesh, progress=progress)
+        notes.append(note)
+        if s is not None:
+            nflip = int((spherical_orientation(s, mesh.faces) <= 0).sum())
+            if nflip:
+                s = _untangle(mesh, s, _UNTANGLE_ROUNDS)
+                left = int((spherical_orientation(s, mesh.faces) <= 0).sum())
+                notes.append(
+                    f"voxel: {nflip} flipped triangles after projection, {left} after untangling"
+                )
+                if left:
+                    notes.append("voxel: not flip-free, fell back to tutte")
+                    s = None
+        if s is not None:
+            used = "voxel"
     if s is None:
         if progress:
             progress("sphere map (tutte)", 0.0)

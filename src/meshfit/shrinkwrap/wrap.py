@@ -208,6 +208,7 @@ def shrink_wrap(
     base_faces: int = 100,
     smap: SphereMap | None = None,
     base: BaseMesh | None = None,
+    sphere_method: str = "tutte",
     parameter_iterations: int = 6,
     surface_iterations: int = 4,
     alpha: float = 0.5,
@@ -250,6 +251,8 @@ def shrink_wrap(
         Face budget of the base mesh (default 100).
     smap, base : optional
         A sphere map / base mesh computed before (recomputed when omitted).
+    sphere_method : {"tutte", "voxel"}
+        Construction of the sphere map when ``smap`` is omitted (see :func:`sphere_map`).
     parameter_iterations, surface_iterations : int
         Relaxation steps per level in each phase (defaults 6 and 4).
     alpha : float
@@ -278,7 +281,7 @@ def shrink_wrap(
     secs: dict[str, float] = {}
     t0 = time.perf_counter()
     if smap is None:
-        smap = sphere_map(mesh, progress=progress)
+        smap = sphere_map(mesh, method=sphere_method, progress=progress)
     secs["sphere_map"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     if base is None:
