@@ -123,3 +123,20 @@ def test_fill_holes_refuses_large_holes():
 def test_wrap_rejects_a_handle():
     with pytest.raises(errors.TopologyError, match="genus"):
         shrink_wrap(analytic_mesh("torus"), levels=1)
+
+
+def test_wrap_of_a_sphere_is_regular_and_close():
+    sphere = analytic_mesh("icosphere")  # 1,280 faces, radius 1
+    res = shrink_wrap(sphere, levels=3)
+    m = level_metrics(sphere, res.levels[3])
+    assert m["flips"] == 0
+    assert m["min_angle_deg"] >= 20.0
+    assert m["hausdorff"] <= 0.01
+    r = np.linalg.norm(res.levels[3].vertices, axis=1)
+    assert r.max() <= 1.0 + 1e-9 and r.min() >= 0.98  # on the flat-faced icosphere
+
+
+def test_base_mesh_from_the_geodesic_polyhedron():
+    b = base_mesh(smap("nefertiti"), start_subdivisions=1, min_faces=80)
+    assert 80 <= len(b.faces) <= MAX_BASE_FACES
+    assert b.area_ratio <= MAX_CELL_RATIO

@@ -220,6 +220,7 @@ def base_mesh(
     max_faces: int = 100,
     target_ratio: float = 2.0,
     min_faces: int = 20,
+    start_subdivisions: int = 0,
     iterations: int = 20,
     alpha: float = 0.5,
     seed: int = 0,
@@ -246,6 +247,9 @@ def base_mesh(
     min_faces : int
         Keep splitting until the base has at least this many faces (default 20: the
         icosahedron; more base faces give finer levels for the same level count).
+    start_subdivisions : int
+        1-to-4 splits of the icosahedron before the relaxation (default 0: 20 faces; 1: the
+        80-face geodesic polyhedron).
     iterations : int
         Relaxation steps after the start and after every split (default 20).
     alpha : float
@@ -279,6 +283,10 @@ def base_mesh(
         raise errors.InputError(f"relaxation must be 'equalize' or 'umbrella', got {relaxation!r}")
     step = _equalize if relaxation == "equalize" else _relax
     v, f = icosahedron()
+    for _ in range(start_subdivisions):
+        f, e = _topo.subdivide(f, len(v))
+        mid = v[e[:, 0]] + v[e[:, 1]]
+        v = np.vstack([v, mid / np.linalg.norm(mid, axis=1, keepdims=True)])
     v = Rotation.random(random_state=seed).apply(v)
     pts = _face_centroids_on_sphere(smap)
     w = smap.mesh.face_areas
