@@ -44,7 +44,7 @@ def test_paths_outside_are_refused(tmp_path):
 def test_suffix_and_missing_files(tmp_path):
     pol = FilePolicy(tmp_path)
     (tmp_path / "x.txt").write_text("")
-    with pytest.raises(InputError, match="only .json"):
+    with pytest.raises(InputError, match=r"only \.json"):
         pol.check("x.txt", suffixes=(".json",))
     with pytest.raises(InputError, match="no such file"):
         pol.check("missing.json", suffixes=(".json",))
@@ -73,8 +73,8 @@ def test_upload_size_cap():
     ("name", "content", "match"),
     [
         ("a.ply", b"", "empty"),
-        ("a.pkl", b"\x80\x04K\x01.", "only .ply"),
-        ("a.gltf", b"{}", "only .ply"),
+        ("a.pkl", b"\x80\x04K\x01.", r"only \.ply"),
+        ("a.gltf", b"{}", r"only \.ply"),
         ("a.ply", b"ply\nformat ascii 1.0\nelement vertex 3\nend_header\n1 2\n", None),
         ("a.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n", None),
         ("a.stl", bytes(range(256)) + b"solid", None),

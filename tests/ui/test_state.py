@@ -91,7 +91,7 @@ def test_corner_snapping_and_curve_split(painted, spot):
     r = tol.length(spot, tol.UI_SNAP_RADIUS, scale="bbox_diagonal")
     corner = spot.xyz(s.corners)[2]
     # a pick a little away from corner 2 starts at corner 2
-    near = spot.closest_points((corner + [0.3 * r, 0, 0])[None]).points
+    near = spot.closest_points((corner + np.array([0.3 * r, 0.0, 0.0]))[None]).points
     assert s.add_pick(near) == "started"
     assert s.state.stroke.start_corner == 2 and len(s.corners) == 4
     s.cancel_curve()
