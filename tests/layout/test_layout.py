@@ -481,3 +481,15 @@ def test_randomly_turned_cube_layouts_extract(seed, n):
     for p in patches:
         _assert_patch_is_disk_with_four_sides(p)
     assert_allclose(sum(p.mesh.area for p in patches), mesh.area, rtol=tol.LAYOUT_AREA_RTOL)
+
+
+def test_second_component_without_patches_raises():
+    one = sphere()
+    two = Mesh(
+        np.concatenate([one.vertices, one.vertices + np.array([3.0, 0, 0])]),
+        np.concatenate([one.faces, one.faces + one.n_vertices]),
+        name="two spheres",
+    )
+    layout = cube_layout(two, frame=np.eye(3), center=np.zeros(3), picks_per_curve=4)
+    with pytest.raises(LayoutError, match=r"face \d+ lies in a closed piece of the mesh"):
+        extract_patches(two, layout)

@@ -152,6 +152,11 @@ def _compute_partition(
         name = (
             f"patch {cand[0]}" if len(cand) == 1 else f"the region containing face {orig_face(c)}"
         )
+        if not loops:
+            raise LayoutError(
+                f"face {orig_face(c)} lies in a closed piece of the mesh that no curve bounds: "
+                "every face must belong to a four-sided patch"
+            )
         if len(loops) != 1:
             raise LayoutError(
                 f"{name} is not a disk: its region has {len(loops)} boundary loops "

@@ -898,7 +898,9 @@ def cut_mesh_network(
         ``nk`` open curves of face points (sampled as for :func:`cut_mesh`). The first and last
         point of curve ``i`` are replaced by corners ``ends[i, 0]`` and ``ends[i, 1]``.
     corners : SurfacePoints
-        ``nc`` corner points.
+        ``nc`` corner points. A corner within ``tol.CUT_CORNER_MERGE`` mean edge lengths of a
+        mesh vertex is moved onto it, and curve points that close to their end corners are
+        dropped (painted curves pass through the vertex nearest a corner pick).
     ends : (nk, 2) int64
         Corner index at the start and end of each curve.
     split : bool, keyword-only
@@ -932,10 +934,17 @@ def cut_mesh_network(
         raise InputError(f"curve {i}: corner index out of range 0..{nc - 1}: {ends[i].tolist()}")
     cutter = _Cutter(mesh)
     cutter.route_fans = True
+    merge = tol.length(mesh, tol.CUT_CORNER_MERGE)
     corner_cp: list[_CutPoint] = []
     corner_v = np.empty(nc, dtype=np.int64)
     for c in range(nc):
         cp = _classify(cutter, int(corners.face[c]), corners.bary[c], c)
+        if cp.vertex < 0:  # a corner within CUT_CORNER_MERGE of a vertex is that vertex
+            fv = cutter.face(cp.face)
+            dv = [_norm(_sub(cutter.xyz(u), cp.xyz)) for u in fv]
+            k = int(np.argmin(dv))
+            if dv[k] < merge:
+                cp = _vertex_point(cutter, fv[k], c)
         v = cutter.insert(cp, cp.face)
         if v < cutter.nv0:
             cp = _vertex_point(cutter, v, c)
@@ -953,9 +962,16 @@ def cut_mesh_network(
         pts = as_surface_points(mesh, pts, name=f"curve {i}")
         if len(pts) < 2:
             raise InputError(f"curve {i}: needs at least 2 points, got {len(pts)}")
-        cps = [_classify(cutter, int(pts.face[k]), pts.bary[k], k) for k in range(len(pts))]
-        cps[0] = corner_cp[ends[i, 0]]
-        cps[-1] = corner_cp[ends[i, 1]]
+        # points at (within CUT_CORNER_MERGE of) an end corner are that corner
+        xyz = mesh.xyz(pts)
+        first, last = corner_cp[ends[i, 0]], corner_cp[ends[i, 1]]
+        d0 = np.linalg.norm(xyz - np.asarray(first.xyz), axis=1)
+        d1 = np.linalg.norm(xyz - np.asarray(last.xyz), axis=1)
+        inner = np.flatnonzero((d0 > merge) & (d1 > merge))
+        inner = inner[(inner > 0) & (inner < len(pts) - 1)]
+        cps = [first]
+        cps += [_classify(cutter, int(pts.face[k]), pts.bary[k], int(k)) for k in inner]
+        cps.append(last)
         try:
             raw.append(_insert_curve(cutter, cps, False))
         except CutError as exc:

@@ -1,0 +1,194 @@
+"""Automatic four-sided layouts of closed genus-0 meshes from the shrink-wrap base mesh.
+
+Method
+------
+1. Parameterize the mesh over the unit sphere (:func:`meshfit.shrinkwrap.sphere_map`) and
+   build the area-equalised base mesh on it (:func:`meshfit.shrinkwrap.base_mesh`, Kobbelt
+   et al. 1999, sec. 6): spherical triangles covering about equal surface areas.
+2. Split every base triangle into three quads: each corner with the two adjacent edge
+   mid-points and the centroid (mid-points and centroids taken on the sphere, normalised).
+3. Every quad side is a great-circle arc on the sphere; its image under the parameterization
+   is traced onto the surface as a face-point curve (arc samples located in the spherical
+   triangulation, then densified so consecutive points lie on the same or adjacent faces).
+   Distinct arcs meet only at their ends, and the parameterization is a bijection, so the
+   curves cross nowhere but at the corners.
+
+The result is an ordinary :class:`meshfit.layout.Layout`: it can be saved, edited and
+re-used. The relaxation of each traced curve as a surface snake with fixed ends is not done
+here yet (the traced image of the arc is kept).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from meshfit.curves.base import densify_curve
+from meshfit.errors import InputError, TopologyError
+from meshfit.layout.layout import Layout, layout_from_curves
+from meshfit.mesh import Mesh
+from meshfit.types import SurfaceCurve, SurfacePoints
+
+__all__ = ["auto_layout", "quad_network"]
+
+#: patches per base triangle
+PATCHES_PER_TRIANGLE = 3
+#: default patch count (the icosahedron: 20 base triangles)
+DEFAULT_PATCHES = 60
+
+
+def _unit(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    return x / np.linalg.norm(x, axis=-1, keepdims=True)
+
+
+def quad_network(sphere: NDArray[np.float64], faces: NDArray[np.int64]):
+    """Split a spherical triangulation into three quads per triangle.
+
+    Parameters
+    ----------
+    sphere : (nv, 3) float64
+        Unit vectors of the base vertices.
+    faces : (nf, 3) int64
+        Base triangles, counter-clockwise seen from outside.
+
+    Returns
+    -------
+    points : (nv + ne + nf, 3) float64
+        Corners on the sphere: base vertices, edge mid-points, face centroids.
+    ends : (nk, 2) int64
+        Arcs between corners (half edges of the base and centroid-to-mid-point spokes).
+    patches : list of four (arc, reversed) pairs per quad, counter-clockwise.
+    """
+    sphere = np.asarray(sphere, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64)
+    nv = sphere.shape[0]
+    mids: dict[tuple[int, int], int] = {}
+    points = [p for p in sphere]
+    for f in faces.tolist():
+        for k in range(3):
+            a, b = f[k], f[(k + 1) % 3]
+            key = (min(a, b), max(a, b))
+            if key not in mids:
+                mids[key] = len(points)
+                points.append(_unit(sphere[a] + sphere[b]))
+    cent = []
+    for f in faces:
+        cent.append(len(points))
+        points.append(_unit(sphere[f].sum(axis=0)))
+    arcs: dict[tuple[int, int], int] = {}
+    ends: list[tuple[int, int]] = []
+
+    def arc(p: int, q: int) -> tuple[int, bool]:
+        key = (min(p, q), max(p, q))
+        if key not in arcs:
+            arcs[key] = len(ends)
+            ends.append(key)
+        return arcs[key], p > q
+
+    patches = []
+    for fi, f in enumerate(faces.tolist()):
+        c = cent[fi]
+        for k in range(3):
+            v = f[k]
+            nxt, prv = f[(k + 1) % 3], f[(k + 2) % 3]
+            m_next = mids[(min(v, nxt), max(v, nxt))]
+            m_prev = mids[(min(v, prv), max(v, prv))]
+            quad = [v, m_next, c, m_prev]  # counter-clockwise like the triangle
+            patches.append([arc(quad[s], quad[(s + 1) % 4]) for s in range(4)])
+    del nv
+    return np.asarray(points), np.asarray(ends, dtype=np.int64), patches
+
+
+def _trace(mesh: Mesh, smap, a: NDArray, b: NDArray, pa: SurfacePoints, pb: SurfacePoints):
+    """The image of the great-circle arc a -> b as a face-point curve from pa to pb."""
+    w = float(np.arccos(np.clip(a @ b, -1.0, 1.0)))
+    # samples: about one per mean edge length of the traced image
+    t = np.linspace(0.0, 1.0, 17)
+    coarse = smap.evaluate(_slerp(a, b, w, t))
+    length = float(np.linalg.norm(np.diff(coarse, axis=0), axis=1).sum())
+    n = max(2, int(np.ceil(2.0 * length / mesh.mean_edge_length)) + 1)
+    t = np.linspace(0.0, 1.0, n)
+    pts = smap.locate(_slerp(a, b, w, t)[1:-1])
+    pts = SurfacePoints.concatenate([pa, pts, pb])
+    # drop repeated points (dense samples inside one face are kept; exact repeats are not)
+    keep = np.ones(len(pts.face), dtype=bool)
+    same = (pts.face[1:] == pts.face[:-1]) & np.all(pts.bary[1:] == pts.bary[:-1], axis=1)
+    keep[1:] = ~same
+    keep[-1] = True
+    pts = pts[np.flatnonzero(keep)]
+    return densify_curve(mesh, SurfaceCurve(pts, kind="boundary"))
+
+
+def _slerp(a, b, w, t):
+    if w < 1e-12:
+        return np.repeat(a[None], len(t), axis=0)
+    s = np.sin(w)
+    return (np.sin((1.0 - t) * w) / s)[:, None] * a[None] + (np.sin(t * w) / s)[:, None] * b[None]
+
+
+def auto_layout(
+    mesh: Mesh,
+    *,
+    patches: int | None = None,
+    sphere=None,
+    seed: int = 0,
+) -> Layout:
+    """A four-sided layout of a closed genus-0 mesh: three quads per base-mesh triangle.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        A closed, connected genus-0 mesh.
+    patches : int, keyword-only, optional
+        Wanted patch count; the base mesh gets ``round(patches / 3)`` faces (an even number,
+        at least 20), so the result has about ``patches`` patches (default 60).
+    sphere : meshfit.shrinkwrap.SphereMap, keyword-only, optional
+        A ready parameterization of ``mesh`` over the unit sphere; default
+        :func:`meshfit.shrinkwrap.sphere_map`.
+    seed : int, keyword-only
+        Seed of the base mesh's starting rotation.
+
+    Returns
+    -------
+    Layout
+
+    Raises
+    ------
+    meshfit.errors.TopologyError
+        An open mesh, a mesh with holes or of higher genus: a layout file is needed (or
+        ``fill_holes`` first where the holes are small).
+
+    References
+    ----------
+    .. [1] Kobbelt, Vorsatz, Labsik & Seidel 1999, sec. 6 (sphere parameterization and the
+       area-equalised base mesh).
+    .. [2] Krishnamurthy 2000, sec. 1.3 (four-sided patch layouts).
+    """
+    from meshfit.shrinkwrap import base_mesh, sphere_map
+
+    if patches is not None and int(patches) < 1:
+        raise InputError(f"patches must be >= 1, got {patches}")
+    if not mesh.is_closed or mesh.genus != 0 or mesh.n_components != 1:
+        what = (
+            "is open (has boundary loops)"
+            if not mesh.is_closed
+            else f"has genus {mesh.genus}"
+            if mesh.genus != 0
+            else f"has {mesh.n_components} components"
+        )
+        raise TopologyError(
+            f"automatic layout needs one closed genus-0 surface, but {mesh.name or 'the mesh'} "
+            f"{what}: give a layout file (--layout FILE), or fill small holes first "
+            "(--fill-holes / meshfit.shrinkwrap.fill_holes)"
+        )
+    want = DEFAULT_PATCHES if patches is None else int(patches)
+    n_faces = max(20, int(round(want / PATCHES_PER_TRIANGLE)))
+    n_faces += n_faces % 2
+    smap = sphere_map(mesh) if sphere is None else sphere
+    base = base_mesh(smap, max_faces=n_faces, min_faces=n_faces, seed=seed)
+    pts, ends, quads = quad_network(base.sphere, base.faces)
+    corners = smap.locate(pts)
+    curves = []
+    for a, b in ends.tolist():
+        curves.append(_trace(mesh, smap, pts[a], pts[b], corners[a], corners[b]))
+    return layout_from_curves(mesh, corners, curves, ends, quads)
