@@ -54,7 +54,7 @@ def length(mesh: Mesh, rel: float, *, scale: str = "mean_edge_length") -> float:
 FEATURE_END_ON_SIDE = 1e-3
 #: relaxation of a level stops when the root-mean-square move of its points is below this,
 #: times their spring lengths (dimensionless)
-SPRING_CONVERGED = 1e-3
+SPRING_CONVERGED = 5e-3
 
 # --- meshfit.layout
 #: a curve end is at its corner when this close to it, times the mean edge length
