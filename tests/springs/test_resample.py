@@ -46,8 +46,8 @@ def test_plane_gives_the_analytic_grid(plane):
     assert nu * nv == pytest.approx(plane.mesh.n_vertices, rel=1.0)
     u, v = np.meshgrid(np.linspace(0, 2, nu), np.linspace(0, 1, nv), indexing="ij")
     want = np.stack([u, v, np.zeros_like(u)], axis=-1)
-    # relaxation stops when the RMS move is below tol.SPRING_CONVERGED of the spacing
-    assert_allclose(sm.xyz, want, atol=4 * tol.SPRING_CONVERGED * (1.0 / (nv - 1)))
+    # relaxation stops on a small RMS move, not at the exact equilibrium: 0.5% of the spacing
+    assert_allclose(sm.xyz, want, atol=5e-3 / (nv - 1))
     for lvl in res.levels:
         assert_on_patch(plane, lvl)
     m = res.metrics[-1]
@@ -79,7 +79,7 @@ def test_cylinder_gives_the_analytic_grid():
     # the mesh is a polyhedral cylinder: angles are uniform up to its chord error
     assert_allclose(th, np.linspace(0, angle, nu)[:, None] * np.ones(nv), atol=2e-3)
     spacing = height / (nv - 1)
-    assert_allclose(z, np.ones(nu)[:, None] * np.linspace(0, height, nv), atol=2e-3 * spacing)
+    assert_allclose(z, np.ones(nu)[:, None] * np.linspace(0, height, nv), atol=5e-3 * spacing)
 
 
 def test_sphere_cap_is_symmetric_fair_and_unfolded():

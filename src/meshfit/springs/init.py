@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.sparse.csgraph import dijkstra
 
 from meshfit.mesh import Mesh
+from meshfit.surface import astar_path
 from meshfit.types import SurfacePoints
 
 __all__ = ["chain_arc", "chain_points", "closest_approach", "project_on_chain"]
@@ -112,19 +112,10 @@ def closest_approach(
 
 
 def dijkstra_paths(mesh: Mesh, pairs: list[tuple[int, int]]) -> list[NDArray[np.int64]]:
-    """Shortest edge paths (vertex chains) between vertex pairs of the patch mesh."""
-    if not pairs:
-        return []
-    sources = np.array([a for a, _ in pairs], dtype=np.int64)
-    _, pred = dijkstra(mesh.edge_graph, directed=False, indices=sources, return_predecessors=True)
-    out = []
-    for row, (a, b) in enumerate(pairs):
-        path = [b]
-        v = b
-        while v != a:
-            v = int(pred[row, v])
-            if v < 0:
-                raise AssertionError("patch mesh is connected")
-            path.append(v)
-        out.append(np.array(path[::-1], dtype=np.int64))
-    return out
+    """Shortest edge paths (vertex chains) between vertex pairs of the patch mesh.
+
+    Dijkstra's single-source single-destination search (sec. 5.4) run as A* with the
+    straight-line heuristic, which returns a shortest path of the same graph while
+    visiting far fewer vertices.
+    """
+    return [astar_path(mesh, int(a), int(b)).vertices for a, b in pairs]

@@ -23,8 +23,10 @@ __all__ = ["SpringResult", "resample_patch"]
 
 #: level 0 gets this many times ``max_iter`` sweeps ...
 COARSE_SWEEPS = 10
-#: ... and converges to this fraction of tol.SPRING_CONVERGED
+#: ... and converges to this fraction of tol.SPRING_CONVERGED ...
 COARSE_EPS = 0.01
+#: ... with Gauss-Seidel over-relaxed by this factor (its points travel far)
+COARSE_OMEGA = 1.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -190,7 +192,7 @@ def resample_patch(
     sections_v: Sequence[int] | None = None,
     init_intervals: int = 8,
     fairness: float = 0.5,
-    max_iter: int = 30,
+    max_iter: int = 10,
     ramp: int = 8,
     omega: float = 1.0,
     n_fair: int = 2,
@@ -230,12 +232,14 @@ def resample_patch(
         Final weight of the fairness force, in [0, 1]; the arc-length force gets
         ``1 - fairness`` (default 0.5).
     max_iter : int, keyword-only
-        Relaxation sweeps allowed per level (default 30; level 0 gets ten times as many).
+        Relaxation sweeps allowed per level (default 10: new points start near their places;
+        level 0 gets ten times as many).
     ramp : int, keyword-only
         Sweeps of level 0 over which the fairness weight grows from 0 (default 8); later
         levels start from points already in place and use the final weights.
     omega : float, keyword-only
-        Over-relaxation factor of the Gauss-Seidel sweeps, in (0, 2) (default 1).
+        Over-relaxation factor of the Gauss-Seidel sweeps, in (0, 2) (default 1; level 0
+        uses 1.5 times it).
     n_fair : int, keyword-only
         Local fairness moves after each FindMidPoint guess (default 2).
     forces : {"euclidean", "tangent"}, keyword-only
@@ -322,7 +326,7 @@ def resample_patch(
             max_iter=max_iter if k else max_iter * COARSE_SWEEPS,
             ramp=ramp,
             fairness=fairness,
-            omega=omega,
+            omega=omega if k else min(1.9, omega * COARSE_OMEGA),
             start=0 if k == 0 else ramp,
             eps=tol.SPRING_CONVERGED * (1.0 if k else COARSE_EPS),
             tangent=forces == "tangent",
