@@ -182,7 +182,7 @@ def auto_layout(
             "(--fill-holes / meshfit.shrinkwrap.fill_holes)"
         )
     want = DEFAULT_PATCHES if patches is None else int(patches)
-    n_faces = max(20, int(round(want / PATCHES_PER_TRIANGLE)))
+    n_faces = max(20, round(want / PATCHES_PER_TRIANGLE))
     n_faces += n_faces % 2
     smap = sphere_map(mesh) if sphere is None else sphere
     base = base_mesh(smap, max_faces=n_faces, min_faces=n_faces, seed=seed)

@@ -1,0 +1,234 @@
+"""Headless renders for the report: a small numba z-buffer rasteriser and a PNG writer.
+
+Orthographic camera looking along a view direction, a head light with ambient term
+(two-sided Lambert), flat (per-face) or Gouraud (per-vertex) shading, vertex or face colours,
+a checkerboard texture from per-vertex (u, v), and heat-map colours of a scalar. No display,
+no OpenGL context: the triangles are scan-converted by :func:`meshfit._kernels.render.raster`
+(serial, releases the GIL). Output images are 8-bit RGB PNG through pypng, written
+atomically.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from meshfit._atomic import atomic_write
+from meshfit._kernels import render as _k
+from meshfit.errors import InputError
+
+__all__ = [
+    "PALETTE",
+    "camera_frame",
+    "heat_colors",
+    "patch_colors",
+    "render",
+    "write_png_rgb",
+]
+
+#: background colour of renders (RGB in [0, 1])
+BACKGROUND = (1.0, 1.0, 1.0)
+#: ambient share of the head light
+AMBIENT = 0.25
+#: fraction of the image left as margin around the model
+MARGIN = 0.06
+#: distinct patch colours (cycled)
+PALETTE = np.array(
+    [
+        [0.894, 0.102, 0.110],
+        [0.216, 0.494, 0.722],
+        [0.302, 0.686, 0.290],
+        [0.596, 0.306, 0.639],
+        [1.000, 0.498, 0.000],
+        [0.651, 0.337, 0.157],
+        [0.969, 0.506, 0.749],
+        [0.400, 0.761, 0.647],
+        [0.988, 0.553, 0.384],
+        [0.553, 0.627, 0.796],
+        [0.906, 0.541, 0.765],
+        [0.651, 0.847, 0.329],
+        [1.000, 0.851, 0.184],
+        [0.898, 0.769, 0.580],
+    ]
+)
+
+
+def camera_frame(view: ArrayLike, up: ArrayLike = (0.0, 0.0, 1.0)) -> NDArray[np.float64]:
+    """Rows: screen right, screen up, towards the viewer, for a camera looking along ``view``."""
+    d = np.asarray(view, dtype=np.float64)
+    d = d / np.linalg.norm(d)
+    back = -d
+    u = np.asarray(up, dtype=np.float64)
+    if abs(u @ back) > 0.99 * np.linalg.norm(u):
+        u = np.array([0.0, 1.0, 0.0]) if abs(back[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    right = np.cross(u, back)
+    right /= np.linalg.norm(right)
+    upv = np.cross(back, right)
+    return np.stack([right, upv, back])
+
+
+def patch_colors(index: ArrayLike) -> NDArray[np.float64]:
+    """Palette colours ``(n, 3)`` for patch indices (``-1``: grey)."""
+    idx = np.asarray(index, dtype=np.int64)
+    out = PALETTE[np.mod(idx, len(PALETTE))]
+    out[idx < 0] = 0.6
+    return out
+
+
+def heat_colors(values: ArrayLike, vmax: float | None = None) -> NDArray[np.float64]:
+    """Heat-map colours ``(n, 3)``: 0 dark blue, through cyan, yellow, to red at ``vmax``."""
+    v = np.asarray(values, dtype=np.float64)
+    top = float(np.max(v)) if vmax is None else float(vmax)
+    t = np.clip(v / top, 0.0, 1.0) if top > 0 else np.zeros_like(v)
+    stops = np.array([0.0, 0.33, 0.66, 1.0])
+    cols = np.array(
+        [[0.05, 0.10, 0.55], [0.10, 0.75, 0.85], [0.98, 0.90, 0.15], [0.85, 0.05, 0.05]]
+    )
+    return np.stack([np.interp(t, stops, cols[:, c]) for c in range(3)], axis=-1)
+
+
+def render(
+    vertices: ArrayLike,
+    faces: ArrayLike,
+    *,
+    size: tuple[int, int] = (640, 640),
+    view: ArrayLike = (0.0, 1.0, 0.0),
+    up: ArrayLike = (0.0, 0.0, 1.0),
+    vertex_colors: ArrayLike | None = None,
+    face_colors: ArrayLike | None = None,
+    uv: ArrayLike | None = None,
+    checker: float = 0.0,
+    shading: str = "gouraud",
+    bounds: ArrayLike | None = None,
+) -> NDArray[np.uint8]:
+    """Render a triangle mesh to an RGB image.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+        Model units.
+    faces : (m, 3) int64
+    size : (int, int)
+        Image width and height, pixels (default 640 x 640).
+    view : (3,) float64
+        Viewing direction (from the camera into the scene); default +y.
+    up : (3,) float64
+        Direction shown upwards (default +z).
+    vertex_colors : (n, 3) float64 in [0, 1] or uint8, optional
+        Interpolated across faces; default light grey.
+    face_colors : (m, 3) float64 in [0, 1] or uint8, optional
+        One colour per face (overrides ``vertex_colors``).
+    uv : (n, 2) float64, optional
+        Per-vertex parameters of the checkerboard texture.
+    checker : float
+        Checker squares per unit of ``uv`` (default 0: no texture).
+    shading : {"gouraud", "flat"}
+        Light per vertex (normals averaged over faces) interpolated, or per face.
+    bounds : (k, 3) float64, optional
+        Points framed by the camera (default the vertices; ``k = 2`` is a box given by its
+        two extreme corners), so several renders of one model share a framing.
+
+    Returns
+    -------
+    (h, w, 3) uint8
+    """
+    V = np.ascontiguousarray(vertices, dtype=np.float64)
+    F = np.ascontiguousarray(faces, dtype=np.int64)
+    if V.ndim != 2 or V.shape[1] != 3 or F.ndim != 2 or F.shape[1] != 3:
+        raise InputError(f"render needs vertices (n, 3) and faces (m, 3), got {V.shape}, {F.shape}")
+    if F.size and (F.min() < 0 or F.max() >= V.shape[0]):
+        raise InputError("render: a face index is out of range")
+    if shading not in ("gouraud", "flat"):
+        raise InputError(f"shading must be 'gouraud' or 'flat', got {shading!r}")
+    w, h = (int(s) for s in size)
+    if w < 1 or h < 1:
+        raise InputError(f"image size must be positive, got {size}")
+    R = camera_frame(view, up)
+    pts = np.asarray(bounds, dtype=np.float64) if bounds is not None else V
+    if pts.shape[0] == 2:  # a box: frame its eight corners
+        pts = np.array(
+            [[pts[i][0], pts[j][1], pts[k][2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)]
+        )
+    corners = pts if pts.size else np.zeros((1, 3))
+    cs = corners @ R.T
+    lo, hi = cs.min(axis=0), cs.max(axis=0)
+    extent = max(hi[0] - lo[0], hi[1] - lo[1], 1e-300)
+    scale = (1.0 - 2.0 * MARGIN) * min(w, h) / extent
+    mid = 0.5 * (lo + hi)
+    S = V @ R.T
+    X = np.empty_like(S)
+    X[:, 0] = (S[:, 0] - mid[0]) * scale + 0.5 * w
+    X[:, 1] = 0.5 * h - (S[:, 1] - mid[1]) * scale
+    X[:, 2] = S[:, 2]
+    # normals and light (head light along the view)
+    fn = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    if shading == "flat":
+        n = fn / np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
+        lit = AMBIENT + (1.0 - AMBIENT) * np.abs(n @ R[2])
+        shade = np.repeat(lit[:, None], 3, axis=1)
+    else:
+        vn = np.zeros_like(V)
+        for k in range(3):
+            np.add.at(vn, F[:, k], fn)
+        vn /= np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
+        lit = AMBIENT + (1.0 - AMBIENT) * np.abs(vn @ R[2])
+        shade = lit[F]
+    if face_colors is not None:
+        fc = _as_colors(face_colors, F.shape[0], "face_colors")
+        color = np.repeat(fc[:, None, :], 3, axis=1)
+    elif vertex_colors is not None:
+        color = _as_colors(vertex_colors, V.shape[0], "vertex_colors")[F]
+    else:
+        color = np.full((F.shape[0], 3, 3), 0.82)
+    if uv is not None and checker > 0:
+        UV = np.asarray(uv, dtype=np.float64)
+        if UV.shape != (V.shape[0], 2):
+            raise InputError(f"uv must have shape ({V.shape[0]}, 2), got {UV.shape}")
+        cuv = UV[F]
+    else:
+        cuv = np.zeros((F.shape[0], 3, 2))
+        checker = 0.0
+    image = np.empty((h, w, 3))
+    image[:] = BACKGROUND
+    depth = np.full((h, w), -np.inf)
+    _k.raster(
+        np.ascontiguousarray(X[F]),
+        np.ascontiguousarray(color),
+        np.ascontiguousarray(shade),
+        np.ascontiguousarray(cuv),
+        float(checker),
+        image,
+        depth,
+    )
+    return np.rint(image * 255.0).astype(np.uint8)
+
+
+def _as_colors(c: ArrayLike, n: int, name: str) -> NDArray[np.float64]:
+    a = np.asarray(c)
+    if a.ndim != 2 or a.shape[0] != n or a.shape[1] not in (3, 4):
+        raise InputError(f"{name} must have shape ({n}, 3), got {a.shape}")
+    a = a[:, :3]
+    return a.astype(np.float64) / 255.0 if a.dtype == np.uint8 else a.astype(np.float64)
+
+
+def write_png_rgb(path: str | os.PathLike, image: ArrayLike) -> Path:
+    """Write an ``(h, w, 3) uint8`` (or ``(h, w)`` grey) image as an 8-bit PNG, atomically."""
+    import png
+
+    img = np.asarray(image)
+    if img.dtype != np.uint8:
+        raise InputError(f"image must be uint8, got {img.dtype}")
+    grey = img.ndim == 2
+    if not grey and (img.ndim != 3 or img.shape[2] != 3):
+        raise InputError(f"image must be (h, w, 3) or (h, w), got {img.shape}")
+    h, w = img.shape[:2]
+    rows = img.reshape(h, -1)
+
+    def write(tmp: str) -> None:
+        with open(tmp, "wb") as fh:
+            png.Writer(w, h, greyscale=grey, bitdepth=8, compression=6).write(fh, rows)
+
+    return atomic_write(path, write)

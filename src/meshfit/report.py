@@ -1,0 +1,271 @@
+"""The fit report: ``report.html`` with headless renders and tables of metrics and timings.
+
+Images (8-bit PNG, :mod:`meshfit.render`) in ``<out>/report/``: the patch layout on the input
+model, the spring meshes as a checkerboard (one square per grid cell), the spline-only
+surface, the displaced surface, a heat map of the spline-only surface's distance to the
+input, and each patch's displacement map (T, B, N components as R, G, B, mid-grey = 0).
+"""
+
+from __future__ import annotations
+
+import html
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from meshfit._atomic import write_text
+from meshfit.render import heat_colors, patch_colors, render, write_png_rgb
+
+__all__ = ["REPORT_IMAGES", "model_view", "write_html", "write_report"]
+
+#: the model renders of the report, in order: (file stem, caption)
+REPORT_IMAGES = (
+    ("layout", "patch layout on the input mesh"),
+    ("springs", "spring meshes (checkerboard: one square per grid cell)"),
+    ("spline", "spline-only surface"),
+    ("displaced", "displaced surface (spline + displacement maps)"),
+    ("error", "distance of the spline-only surface to the input (heat map)"),
+)
+
+
+def model_view(vertices: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
+    """View direction and up vector: look along the axis of least spread, longest axis up."""
+    x = vertices - vertices.mean(axis=0)
+    _, vecs = np.linalg.eigh(x.T @ x)
+    up = vecs[:, 2]
+    view = vecs[:, 0]
+    # a slightly oblique view shows relief better than a straight one
+    view = view + 0.35 * vecs[:, 1]
+    return view, up
+
+
+def _grid_soup(grids: list[NDArray[np.float64]]):
+    from meshfit.springs import grid_triangles
+
+    V, F, P, UV, base = [], [], [], [], 0
+    for p, X in enumerate(grids):
+        nu, nv = X.shape[:2]
+        V.append(X.reshape(-1, 3))
+        f = grid_triangles(nu, nv)
+        F.append(f + base)
+        P.append(np.full(f.shape[0], p))
+        i, j = np.meshgrid(np.arange(nu), np.arange(nv), indexing="ij")
+        UV.append(np.stack([i.ravel() + 0.01, j.ravel() + 0.01], axis=1).astype(np.float64))
+        base += nu * nv
+    return np.vstack(V), np.vstack(F), np.concatenate(P), np.vstack(UV)
+
+
+def _map_image(values: NDArray[np.float64], scale: float) -> NDArray[np.uint8]:
+    """A displacement map as an 8-bit RGB image, 0 at mid-grey, +-scale at the ends."""
+    c = values if values.shape[2] == 3 else np.repeat(values, 3, axis=2)
+    t = 0.5 + 0.5 * np.clip(c / scale, -1.0, 1.0) if scale > 0 else np.full(c.shape, 0.5)
+    return np.rint(t * 255.0).astype(np.uint8)
+
+
+def write_report(
+    out: str | os.PathLike,
+    *,
+    mesh,
+    layout,
+    face_patch: NDArray[np.int64] | None,
+    grids: list[NDArray[np.float64]],
+    surfaces: list,
+    displaced: Callable[[], list[NDArray[np.float64]]] | list[NDArray[np.float64]],
+    dmaps: list,
+    summary: dict[str, Any],
+    image_size: int = 640,
+    render_images: bool = True,
+) -> dict[str, Any]:
+    """Render the report images and write ``report.html``.
+
+    Parameters
+    ----------
+    out : path
+        The fit's output folder; images go to ``out/report/``.
+    mesh : Mesh
+        The input.
+    layout : Layout
+    face_patch : (nf,) int64 or None
+        Patch of each input face (from the cut); None paints the layout curves' faces only.
+    grids : list of (nu, nv, 3) float64
+        Spring meshes.
+    surfaces : list of BSplineSurface
+    displaced : list of (nu, nv, 3) float64, or a callable returning it
+        Displaced reconstructions.
+    dmaps : list of DisplacementMap
+    summary : dict
+        The fit summary (tables); ``report_images`` is added to it.
+    image_size : int
+        Width and height of the model renders, pixels.
+    render_images : bool
+        False re-uses images already in ``out/report`` (resume) and only rewrites the page.
+
+    Returns
+    -------
+    dict
+        ``images``: paths of the images relative to ``out``.
+    """
+    out = Path(out)
+    folder = out / "report"
+    folder.mkdir(parents=True, exist_ok=True)
+    n = len(grids)
+    images = [f"report/{stem}.png" for stem, _ in REPORT_IMAGES]
+    images += [f"report/map_{p:03d}.png" for p in range(n)]
+    if render_images:
+        size = (int(image_size), int(image_size))
+        view, up = model_view(mesh.vertices)
+        frame = mesh.vertices[:: max(1, mesh.n_vertices // 20000)]
+        kw = {"size": size, "view": view, "up": up, "bounds": frame}
+        # layout: input faces coloured by patch
+        if face_patch is None:
+            face_patch = np.full(mesh.n_faces, -1, dtype=np.int64)
+        img = render(
+            mesh.vertices, mesh.faces, face_colors=patch_colors(face_patch), shading="flat", **kw
+        )
+        write_png_rgb(folder / "layout.png", img)
+        V, F, P, UV = _grid_soup(grids)
+        cols = patch_colors(P)
+        vcol = np.zeros((V.shape[0], 3))
+        vcol[F[:, 0]] = cols
+        vcol[F[:, 1]] = cols
+        vcol[F[:, 2]] = cols
+        img = render(V, F, vertex_colors=vcol, uv=UV, checker=1.0, shading="flat", **kw)
+        write_png_rgb(folder / "springs.png", img)
+        spline = [
+            s.evaluate_grid(np.linspace(0, 1, g.shape[0]), np.linspace(0, 1, g.shape[1]))
+            for s, g in zip(surfaces, grids, strict=True)
+        ]
+        Vs, Fs, _, _ = _grid_soup(spline)
+        write_png_rgb(folder / "spline.png", render(Vs, Fs, **kw))
+        disp = displaced() if callable(displaced) else displaced
+        Vd, Fd, _, _ = _grid_soup(disp)
+        write_png_rgb(folder / "displaced.png", render(Vd, Fd, **kw))
+        dist = mesh.closest_points(Vs).distance
+        vmax = float(np.quantile(dist, 0.99)) if dist.size else 0.0
+        summary["error_map_max"] = vmax / mesh.bbox_diagonal
+        write_png_rgb(
+            folder / "error.png", render(Vs, Fs, vertex_colors=heat_colors(dist, vmax), **kw)
+        )
+        scale = max(float(np.abs(d.values).max()) for d in dmaps) if dmaps else 0.0
+        for p, d in enumerate(dmaps):
+            img = _map_image(d.values, scale)
+            # rows along v, columns along u, magnified to at least 128 pixels
+            img = np.transpose(img, (1, 0, 2))[::-1]
+            k = max(1, 128 // max(img.shape[:2]))
+            img = np.repeat(np.repeat(img, k, axis=0), k, axis=1)
+            write_png_rgb(folder / f"map_{p:03d}.png", img)
+        summary["map_scale"] = scale / mesh.bbox_diagonal
+    summary["report_images"] = images
+    write_html(out, summary)
+    return {"images": images}
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    if isinstance(v, list):
+        return " x ".join(_fmt(x) for x in v) if len(v) <= 3 else f"[{len(v)} values]"
+    return html.escape(str(v))
+
+
+def _table(rows: list[dict[str, Any]], columns: list[str] | None = None) -> str:
+    if not rows:
+        return "<p>none</p>"
+    columns = columns or list(rows[0])
+    head = "".join(f"<th>{html.escape(c.replace('_', ' '))}</th>" for c in columns)
+    body = "".join(
+        "<tr>" + "".join(f"<td>{_fmt(r.get(c, ''))}</td>" for c in columns) + "</tr>" for r in rows
+    )
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def write_html(out: str | os.PathLike, summary: dict[str, Any]) -> Path:
+    """Write ``out/report.html`` from a fit summary (images listed in ``report_images``)."""
+    out = Path(out)
+    s = summary
+    m = s["mesh"]
+    e = s["errors"]
+    images = s.get("report_images", [])
+    parts = [
+        "<!doctype html><html><head><meta charset='utf-8'>",
+        f"<title>meshfit report: {html.escape(str(m['name']))}</title>",
+        "<style>body{font-family:sans-serif;margin:2em;max-width:1400px}"
+        "table{border-collapse:collapse;margin:1em 0;font-size:13px}"
+        "td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}"
+        "figure{display:inline-block;margin:0.5em;vertical-align:top}"
+        "figcaption{font-size:13px;max-width:420px}"
+        ".maps img{image-rendering:pixelated;width:128px}</style></head><body>",
+        f"<h1>meshfit fit of {html.escape(str(m['name']))}</h1>",
+        f"<p>{m['vertices']:,} vertices, {m['faces']:,} triangles, bbox diagonal "
+        f"{m['bbox_diagonal']:.6g}; {s['patches_total']} patches; meshfit {s['version']}.</p>",
+        "<h2>Errors against the input</h2>",
+        "<p>Two-sided distances (reconstruction vertices to the input and input vertices to "
+        "the reconstruction) as fractions of the input's bbox diagonal.</p>",
+        _table(
+            [
+                {"surface": k.replace("_", " "), **{kk: vv for kk, vv in e[k].items()}}
+                for k in ("spline_only", "displaced")
+            ]
+        ),
+        "<h2>Seams</h2>",
+        _table([s["seams"]]),
+    ]
+    if s.get("notes"):
+        parts.append("<ul>" + "".join(f"<li>{html.escape(x)}</li>" for x in s["notes"]) + "</ul>")
+    captions = dict(REPORT_IMAGES)
+    parts.append("<h2>Renders</h2>")
+    for img in images:
+        stem = Path(img).stem
+        if stem in captions:
+            cap = captions[stem]
+            if stem == "error" and "error_map_max" in s:
+                cap += f" (red: {100 * s['error_map_max']:.3g}% of the bbox diagonal and above)"
+            parts.append(
+                f"<figure><img src='{html.escape(img)}' width='420'>"
+                f"<figcaption>{html.escape(cap)}</figcaption></figure>"
+            )
+    maps = [img for img in images if Path(img).stem.startswith("map_")]
+    if maps:
+        scale = s.get("map_scale")
+        note = f" (full scale +-{100 * scale:.3g}% of the bbox diagonal)" if scale else ""
+        parts.append(
+            "<h2>Displacement maps</h2><p>T, B, N components as red, green, blue; mid-grey is "
+            f"no displacement{html.escape(note)}; u to the right, v upwards.</p><div class='maps'>"
+        )
+        for img in maps:
+            parts.append(
+                f"<figure><img src='{html.escape(img)}'><figcaption>patch "
+                f"{int(Path(img).stem[4:])}</figcaption></figure>"
+            )
+        parts.append("</div>")
+    parts.append("<h2>Stage timings (seconds)</h2>")
+    parts.append(
+        _table(
+            [
+                {"stage": k, "seconds": v["seconds"], "cached": v["cached"]}
+                for k, v in s["stages"].items()
+            ]
+        )
+    )
+    parts.append("<h2>Patches</h2>")
+    cols = [
+        "patch",
+        "shape",
+        "levels",
+        "folded",
+        "arc_cv_max",
+        "aspect_max",
+        "controls",
+        "fit_normal_rms",
+        "fit_normal_max",
+        "displacement_max",
+        "seconds",
+    ]
+    parts.append("<p>Fit errors and displacements as fractions of the bbox diagonal.</p>")
+    parts.append(_table(s["patches"], cols))
+    parts.append("</body></html>\n")
+    return write_text(out / "report.html", "\n".join(parts))
