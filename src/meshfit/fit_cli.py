@@ -1,0 +1,239 @@
+"""Command-line shell of the fit pipeline: ``meshfit fit`` and ``meshfit batch``."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from meshfit.errors import InputError
+
+__all__ = ["add_commands", "cmd_batch", "cmd_fit", "parse_controls", "stage_progress"]
+
+
+def parse_controls(text: str) -> tuple[int, int]:
+    """``"16x12"`` -> ``(16, 12)``; ``"16"`` -> ``(16, 16)``."""
+    parts = str(text).lower().replace("*", "x").split("x")
+    try:
+        vals = [int(p) for p in parts]
+    except ValueError:
+        raise InputError(f"--cv must look like MUxMV (e.g. 16x16), got {text!r}") from None
+    if len(vals) == 1:
+        vals = vals * 2
+    if len(vals) != 2:
+        raise InputError(f"--cv must look like MUxMV (e.g. 16x16), got {text!r}")
+    return vals[0], vals[1]
+
+
+def _formats(text: str) -> tuple[str, ...]:
+    return tuple(f.strip().lower() for f in str(text).split(",") if f.strip())
+
+
+class stage_progress:
+    """A rich progress display with one bar per pipeline stage (stderr; silent if quiet)."""
+
+    def __init__(self, quiet: bool = False) -> None:
+        from rich.console import Console
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
+
+        self.console = Console(stderr=True, quiet=quiet)
+        self.bar = Progress(
+            "[bold]{task.description:<13}",
+            BarColumn(),
+            MofNCompleteColumn(),
+            TimeElapsedColumn(),
+            console=self.console,
+            transient=False,
+            disable=quiet,
+        )
+        self.tasks: dict[str, int] = {}
+
+    def __enter__(self):
+        self.bar.__enter__()
+        return self
+
+    def __exit__(self, *exc):
+        return self.bar.__exit__(*exc)
+
+    def __call__(self, stage: str, done: int, total: int) -> None:
+        if stage not in self.tasks:
+            self.tasks[stage] = self.bar.add_task(stage, total=max(total, 1))
+        self.bar.update(self.tasks[stage], completed=done, total=max(total, 1))
+
+
+def _options(args: argparse.Namespace):
+    from meshfit.pipeline import FitOptions
+
+    return FitOptions(
+        controls=parse_controls(args.cv),
+        continuity=args.continuity,
+        formats=_formats(args.formats),
+        patches=args.patches,
+        spring_level=args.level,
+        workers=args.workers,
+        report=not args.no_report,
+    )
+
+
+def _short_summary(summary: dict) -> dict:
+    e = summary["errors"]
+    return {
+        "mesh": summary["mesh"]["name"],
+        "faces": summary["mesh"]["faces"],
+        "patches": summary["patches_total"],
+        "spline_rms": e["spline_only"]["rms"],
+        "spline_hausdorff": e["spline_only"]["hausdorff"],
+        "displaced_rms": e["displaced"]["rms"],
+        "displaced_hausdorff": e["displaced"]["hausdorff"],
+        "seam_gap": summary["seams"]["spline_gap_max"],
+        "folded_cells": sum(p["folded"] for p in summary["patches"]),
+        "seconds": summary["seconds_total"],
+        "stages_reused": [s for s, i in summary["stages"].items() if i["cached"]],
+    }
+
+
+def cmd_fit(args: argparse.Namespace) -> int:
+    """Fit B-spline patches with displacement maps to one mesh."""
+    from meshfit.cli import EXIT_OK, print_json, print_table
+    from meshfit.mesh import load_mesh
+    from meshfit.pipeline import run_fit
+
+    options = _options(args)
+    mesh = load_mesh(args.mesh, repair=args.repair)
+    out = Path(args.out) if args.out else Path(Path(args.mesh).stem + "-fit")
+    with stage_progress(quiet=args.json) as prog:
+        summary = run_fit(
+            mesh, out, layout=args.layout, options=options, resume=args.resume, progress=prog
+        )
+    if args.json:
+        print_json(summary)
+    else:
+        print_table(
+            f"fit of {args.mesh} (errors as fractions of the bbox diagonal)",
+            _short_summary(summary),
+        )
+        for note in summary["notes"]:
+            print(f"note: {note}")
+        print(f"summary: {out / 'summary.json'}")
+        if options.report:
+            print(f"report: {out / 'report.html'}")
+    return EXIT_OK
+
+
+def cmd_batch(args: argparse.Namespace) -> int:
+    """Fit every mesh matching a glob on a Dask cluster."""
+    from meshfit.batch import run_batch
+    from meshfit.cli import EXIT_ERROR, EXIT_OK, print_json, print_table
+
+    summary = run_batch(
+        args.glob,
+        args.out,
+        layout=args.layout,
+        options=_options(args),
+        scheduler=args.scheduler,
+        n_workers=args.n_workers,
+        quiet=args.json,
+    )
+    if args.json:
+        print_json(summary)
+    else:
+        print_table(
+            f"batch {args.glob}",
+            {k: v for k, v in summary.items() if k in ("meshes", "done", "skipped", "failed")},
+        )
+        for name, rec in summary["results"].items():
+            if rec["status"] == "failed":
+                print(f"failed: {name}: {rec['error']}")
+        print(f"summary: {Path(args.out) / 'batch.json'}")
+    return EXIT_OK if not summary["failed"] else EXIT_ERROR
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--layout",
+        default="auto",
+        help="layout file (.json), or 'auto' for closed genus-0 meshes (default: %(default)s)",
+    )
+    p.add_argument("--patches", type=int, default=None, help="patch count of the automatic layout")
+    p.add_argument(
+        "--cv", default="16x16", help="control points per patch, MUxMV (default: %(default)s)"
+    )
+    p.add_argument(
+        "--continuity", choices=("c0", "g1"), default="c0", help="across patches (default: c0)"
+    )
+    p.add_argument(
+        "--formats",
+        default="usd,obj,glb,exr,png",
+        help="outputs among usd,3dm,iges,obj,glb,exr,png (default: %(default)s)",
+    )
+    p.add_argument(
+        "--level", type=int, default=None, help="final spring-mesh level (default: auto)"
+    )
+    p.add_argument("--no-report", action="store_true", help="skip report.html and its images")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+
+
+def _take_over(sub, name: str):
+    """Remove an already registered sub-command ``name``; return its ``func`` (or None)."""
+    parser = sub.choices.pop(name, None)
+    if parser is None:
+        return None
+    sub._choices_actions[:] = [a for a in sub._choices_actions if a.dest != name]
+    return parser.get_default("func")
+
+
+def _fit_grids(grid_func, args: argparse.Namespace) -> int:
+    """``meshfit fit GRID.npz ...``: the grid command of meshfit.bspline.cli."""
+    mu, mv = parse_controls(args.cv)
+    ns = argparse.Namespace(
+        grids=args.mesh,
+        controls=[mu, mv],
+        continuity=args.continuity.upper(),
+        out=args.out,
+        formats=",".join(f for f in _formats(args.formats) if f != "png") if args.out else "",
+        json=args.json,
+    )
+    return grid_func(ns)
+
+
+def add_commands(sub) -> None:
+    # meshfit.bspline.cli registers ``fit`` for spring-mesh grids; ``meshfit fit`` takes a
+    # mesh (the whole pipeline) or, when every input is a .npz grid, runs that command
+    grid_func = _take_over(sub, "fit")
+
+    def fit(args: argparse.Namespace) -> int:
+        if grid_func is not None and all(str(m).endswith(".npz") for m in args.mesh):
+            return _fit_grids(grid_func, args)
+        if len(args.mesh) != 1:
+            raise InputError(f"meshfit fit takes one mesh file, got {len(args.mesh)} inputs")
+        args.mesh = args.mesh[0]
+        return cmd_fit(args)
+
+    p = sub.add_parser("fit", help="fit B-spline patches and displacement maps to a mesh")
+    p.add_argument(
+        "mesh",
+        nargs="+",
+        help="mesh file (.ply .obj .stl .off .glb .gltf); or spring-mesh .npz grids",
+    )
+    p.add_argument("--out", default=None, help="output folder (default: <mesh name>-fit)")
+    _common(p)
+    p.add_argument("--resume", action="store_true", help="re-use finished stages in --out")
+    p.add_argument("--workers", type=int, default=None, help="threads (default: all cores)")
+    p.add_argument("--repair", action="store_true", help="repair the mesh where possible")
+    p.set_defaults(func=fit)
+
+    p = sub.add_parser("batch", help="fit every mesh matching a glob on a Dask cluster")
+    p.add_argument("glob", help="mesh files, e.g. 'scans/*.ply' (quote it)")
+    p.add_argument("--out", required=True, help="output folder: one sub-folder per mesh")
+    _common(p)
+    p.add_argument(
+        "--scheduler", default=None, help="Dask scheduler address (default: a LocalCluster)"
+    )
+    p.add_argument(
+        "--n-workers",
+        "--workers",
+        dest="n_workers",
+        type=int,
+        default=None,
+        help="LocalCluster worker processes (default: 2)",
+    )
+    p.set_defaults(func=cmd_batch, workers=1)
