@@ -28,6 +28,7 @@ _COMMAND_MODULES: tuple[str, ...] = (
     "meshfit.layout.cli",
     "meshfit.shrinkwrap.cli",
     "meshfit.springs.cli",
+    "meshfit.fit_cli",
 )
 
 
