@@ -313,6 +313,22 @@ def _pair_ok(F, FN, VF_ptr, VF, f, ba, g, bb, eps, fa_r, ba_r, fb_r, bb_r):
 
 
 @njit(cache=True, nogil=True)
+def _scratch(VF_ptr):
+    """Buffers for the representations of two face points, sized by the largest valence."""
+    m = 1
+    for v in range(VF_ptr.size - 1):
+        d = VF_ptr[v + 1] - VF_ptr[v]
+        if d > m:
+            m = d
+    return (
+        np.empty(m + 1, dtype=np.int64),
+        np.empty((m + 1, 3)),
+        np.empty(m + 1, dtype=np.int64),
+        np.empty((m + 1, 3)),
+    )
+
+
+@njit(cache=True, nogil=True)
 def revert_jumps(V, F, FN, VF_ptr, VF, face, bary, gface, gbary, keep, max_gap, eps):
     """Clear ``keep`` (n,) bool in place until no consecutive pair jumps; returns rounds.
 
@@ -323,15 +339,7 @@ def revert_jumps(V, F, FN, VF_ptr, VF, face, bary, gface, gbary, keep, max_gap, 
     `meshfit.curves.paint.paint_curve`.
     """
     n = face.size
-    m = 1
-    for v in range(VF_ptr.size - 1):
-        d = VF_ptr[v + 1] - VF_ptr[v]
-        if d > m:
-            m = d
-    fa_r = np.empty(m + 1, dtype=np.int64)
-    fb_r = np.empty(m + 1, dtype=np.int64)
-    ba_r = np.empty((m + 1, 3))
-    bb_r = np.empty((m + 1, 3))
+    fa_r, ba_r, fb_r, bb_r = _scratch(VF_ptr)
     reverts = 0
     i = 0
     while i < n - 1:
@@ -396,15 +404,7 @@ def subdivide_steps(
     """
     n = a.size
     out = np.zeros(n, dtype=np.int64)
-    m = 1
-    for v in range(VF_ptr.size - 1):
-        d = VF_ptr[v + 1] - VF_ptr[v]
-        if d > m:
-            m = d
-    fa_r = np.empty(m + 1, dtype=np.int64)
-    fb_r = np.empty(m + 1, dtype=np.int64)
-    ba_r = np.empty((m + 1, 3))
-    bb_r = np.empty((m + 1, 3))
+    fa_r, ba_r, fb_r, bb_r = _scratch(VF_ptr)
     prev = np.empty(3)
     cur = np.empty(3)
     for i in range(n):
