@@ -805,6 +805,25 @@ class Session:
         m = float(np.abs(img).max()) or 1.0
         return np.clip((img / m * 0.5 + 0.5) * 255.0, 0, 255).astype(np.uint8)
 
+    def export(
+        self,
+        folder: str | os.PathLike,
+        *,
+        controls: tuple[int, int] = (16, 16),
+        formats: tuple[str, ...] | None = None,
+        progress: Callable[[str, int, int], None] | None = None,
+    ) -> list[Path]:
+        """Fit the painted layout and write everything ``meshfit fit`` writes into ``folder``
+        (:func:`meshfit.pipeline.run_fit` with this layout); returns the files written."""
+        from meshfit.pipeline import FitOptions, run_fit
+
+        folder = Path(folder)
+        before = set(folder.rglob("*")) if folder.is_dir() else set()
+        kw = {} if formats is None else {"formats": tuple(formats)}
+        opts = FitOptions(controls=(int(controls[0]), int(controls[1])), **kw)
+        run_fit(self._need_mesh(), folder, layout=self.layout(), options=opts, progress=progress)
+        return sorted(p for p in folder.rglob("*") if p.is_file() and p not in before)
+
     # ------------------------------------------------------------------------ session file
     def to_json(self) -> str:
         """The whole editable state as versioned JSON (the autosave format)."""

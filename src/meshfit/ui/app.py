@@ -1,0 +1,598 @@
+"""The browser side of ``meshfit ui``: viser scene and panels, thin glue over :class:`Session`.
+
+Every panel control calls one :class:`meshfit.ui.state.Session` method and redraws; all
+geometry work happens there. viser serves its three.js client from the installed wheel; the
+server binds to 127.0.0.1 unless told otherwise.
+"""
+
+from __future__ import annotations
+
+import threading
+import traceback
+from pathlib import Path
+
+import numpy as np
+
+from meshfit.errors import MeshfitError
+from meshfit.mesh import Mesh
+from meshfit.ui.files import LAYOUT_SUFFIXES, FilePolicy, mesh_from_upload
+from meshfit.ui.state import Session
+
+__all__ = ["App"]
+
+_REGION_OK = (80, 190, 110)
+_REGION_BAD = (225, 80, 70)
+_BOUNDARY = (20, 20, 230)
+_FEATURE = (230, 120, 20)
+_SELECTED = (250, 220, 0)
+_STROKE = (240, 40, 200)
+
+#: what :meth:`App._run` returns when the action was refused
+FAILED = object()
+
+
+def _error_colors(err: np.ndarray) -> np.ndarray:
+    """Blue (0) to red (max) per value, ``(n, 3) uint8``."""
+    m = float(err.max()) if err.size else 0.0
+    t = err / m if m > 0 else np.zeros_like(err)
+    return np.stack([255 * t, 80 * (1 - np.abs(2 * t - 1)), 255 * (1 - t)], axis=1).astype(np.uint8)
+
+
+class App:
+    """A running ``meshfit ui`` server.
+
+    Parameters
+    ----------
+    session : Session
+        The controller (holds the mesh, if one is open).
+    policy : FilePolicy
+        Which files the app may read and write.
+    host : str
+        Interface to bind; 127.0.0.1 (this machine only) by default.
+    port : int
+        TCP port; 0 picks a free one.
+    layout_path : path, optional
+        Default file of the layout save/load controls.
+    """
+
+    def __init__(
+        self,
+        session: Session,
+        policy: FilePolicy,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 8080,
+        layout_path: str | Path | None = None,
+    ) -> None:
+        import viser
+
+        self.session = session
+        self.policy = policy
+        self.lock = threading.RLock()
+        self.server = viser.ViserServer(host=host, port=port, verbose=False)
+        self.messages: list[str] = []
+        self.selected: int | None = None
+        self.edit_point: int | None = None
+        self._gizmos: list = []
+        self._pause = threading.Event()
+        self._levels_thread: threading.Thread | None = None
+        self.preview_level = -1
+        self._nodes: dict[str, list] = {}
+        self._build_gui(layout_path)
+        self.server.scene.on_click()(self._on_click)
+        self.redraw(mesh=True)
+
+    # ------------------------------------------------------------------------ plumbing
+    @property
+    def port(self) -> int:
+        return int(self.server.get_port())
+
+    def stop(self) -> None:
+        self._pause.set()
+        self.server.stop()
+
+    def say(self, text: str) -> None:
+        """Show a message in the status line (and keep it for tests)."""
+        self.messages.append(text)
+        self.gui_message.content = text
+
+    def _run(self, action, *args, redraw: bool = True, mesh: bool = False, **kw):
+        """Call a session action; a meshfit error becomes a message, never a crash."""
+        with self.lock:
+            try:
+                out = action(*args, **kw)
+            except MeshfitError as exc:
+                self.say(f"**refused:** {exc}")
+                return FAILED
+            except Exception as exc:  # keep the server alive; show what broke
+                traceback.print_exc()
+                self.say(f"**error:** {type(exc).__name__}: {exc}")
+                return FAILED
+            if redraw:
+                self.redraw(mesh=mesh)
+            return out
+
+    # ------------------------------------------------------------------------ panels
+    def _build_gui(self, layout_path) -> None:
+        gui = self.server.gui
+        s = self.session
+        self.gui_message = gui.add_markdown("Open a mesh, then click on it to paint curves.")
+
+        with gui.add_folder("Paint"):
+            self.gui_mode = gui.add_dropdown(
+                "Click mode", ("boundary", "feature", "edit", "view"), initial_value="boundary"
+            )
+            gui.add_button("Finish curve").on_click(
+                lambda _: self._run(s.finish_curve) is not FAILED and self.say("curve finished")
+            )
+            gui.add_button("Cancel curve").on_click(lambda _: self._run(s.cancel_curve))
+            gui.add_button("Undo").on_click(lambda _: self._run(s.undo))
+            gui.add_button("Redo").on_click(lambda _: self._run(s.redo))
+            self.gui_curve = gui.add_number("Selected curve", initial_value=-1, step=1)
+            self.gui_curve.on_update(lambda _: self._select(int(self.gui_curve.value)))
+            gui.add_button("Delete curve").on_click(lambda _: self._on_delete())
+
+        with gui.add_folder("Edit"):
+            self.gui_section = gui.add_slider(
+                "Edit section", min=2, max=60, step=1, initial_value=8
+            )
+            self.gui_fair = gui.add_slider(
+                "Fairness", min=0.0, max=4.0, step=0.1, initial_value=1.0
+            )
+            self.gui_curv = gui.add_slider(
+                "Curvature", min=0.0, max=4.0, step=0.1, initial_value=0.0
+            )
+            self.gui_iters = gui.add_slider(
+                "Iterations", min=1, max=2000, step=1, initial_value=200
+            )
+            gui.add_button("Smooth curve").on_click(lambda _: self._on_curve_action("smooth"))
+            gui.add_button("Snake step").on_click(lambda _: self._on_curve_action("step"))
+            self.gui_ncontrol = gui.add_slider(
+                "Control vertices", min=4, max=30, step=1, initial_value=8
+            )
+            gui.add_button("Fit space curve").on_click(lambda _: self._on_curve_action("space"))
+            self.gui_color = gui.add_checkbox("Colour attraction", initial_value=False)
+            self.gui_color_weight = gui.add_slider(
+                "Colour weight", min=0.0, max=5.0, step=0.1, initial_value=1.0
+            )
+            self.gui_field = gui.add_dropdown(
+                "Scalar field",
+                (
+                    "luminance",
+                    "magnitude",
+                    "red",
+                    "green",
+                    "blue",
+                    "gaussian_curvature",
+                    "mean_curvature",
+                ),
+                initial_value="luminance",
+            )
+            self.gui_sign = gui.add_dropdown("Attract to", ("high", "low"), initial_value="high")
+            for h in (self.gui_color, self.gui_color_weight, self.gui_field, self.gui_sign):
+                h.on_update(lambda _: self._on_color())
+
+        with gui.add_folder("Layout"):
+            gui.add_button("Check layout").on_click(lambda _: self._show_status())
+            gui.add_button("Automatic layout").on_click(
+                lambda _: self._run(s.auto_layout) is not FAILED and self._show_status()
+            )
+            self.gui_regions = gui.add_checkbox("Colour regions", initial_value=False)
+            self.gui_regions.on_update(lambda _: self.redraw(mesh=True))
+            self.gui_status = gui.add_markdown("")
+
+        with gui.add_folder("Preview"):
+            self.gui_patch = gui.add_number("Patch", initial_value=0, min=0, step=1)
+            self.gui_level = gui.add_slider("Spring level", min=0, max=4, step=1, initial_value=0)
+            gui.add_button("Spring mesh").on_click(lambda _: self._on_springs())
+            gui.add_button("Run levels").on_click(lambda _: self._on_run_levels())
+            gui.add_button("Pause / continue").on_click(lambda _: self._on_pause())
+            self.gui_cu = gui.add_slider("Controls u", min=4, max=40, step=1, initial_value=8)
+            self.gui_cv = gui.add_slider("Controls v", min=4, max=40, step=1, initial_value=8)
+            self.gui_cu.on_update(lambda _: self._on_fit())
+            self.gui_cv.on_update(lambda _: self._on_fit())
+            gui.add_button("Fit B-spline").on_click(lambda _: self._on_fit())
+            self.gui_fitinfo = gui.add_markdown("")
+            self.gui_image = gui.add_image(np.zeros((8, 8, 3), np.uint8), label="Displacement")
+
+        with gui.add_folder("Files"):
+            default = "" if layout_path is None else str(layout_path)
+            self.gui_layout_path = gui.add_text(
+                "Layout file", initial_value=default or "layout.json"
+            )
+            gui.add_button("Save layout").on_click(lambda _: self._on_save())
+            gui.add_button("Load layout").on_click(lambda _: self._on_load())
+            self.gui_export = gui.add_text("Export folder", initial_value="export")
+            gui.add_button("Export").on_click(lambda _: self._on_export())
+            self.gui_upload = gui.add_upload_button("Open mesh", mime_type="*/*")
+            self.gui_upload.on_upload(lambda _: self._on_upload())
+
+    # ------------------------------------------------------------------------ drawing
+    def _lift(self, xyz: np.ndarray, faces: np.ndarray) -> np.ndarray:
+        """Lift points off the surface along their face normal so curves stay visible."""
+        mesh = self.session.mesh
+        return xyz + mesh.face_normals[faces] * (0.002 * mesh.bbox_diagonal)
+
+    def redraw(self, *, mesh: bool = False) -> None:
+        s = self.session
+        scene = self.server.scene
+        if s.mesh is None:
+            return
+        m = s.mesh
+        if mesh:
+            self._draw_mesh(m)
+        self._clear("/curves")
+        width = 0.004 * m.bbox_diagonal
+        for i, pc in enumerate(s.curves):
+            c = pc.curve.points
+            x = self._lift(m.xyz(c), c.face)
+            if len(x) < 2:
+                continue
+            col = _SELECTED if i == self.selected else (_BOUNDARY if pc.ends else _FEATURE)
+            self._keep(
+                "/curves",
+                scene.add_line_segments(
+                    f"/curves/c{i}", np.stack([x[:-1], x[1:]], axis=1), col, thickness=width
+                ),
+            )
+        st = s.state.stroke
+        if st is not None:
+            pts = st.points()
+            x = self._lift(m.xyz(pts), pts.face)
+            if len(x) >= 2:
+                self._keep(
+                    "/curves",
+                    scene.add_line_segments(
+                        "/curves/stroke",
+                        np.stack([x[:-1], x[1:]], axis=1),
+                        _STROKE,
+                        thickness=width,
+                    ),
+                )
+        if len(s.corners):
+            x = self._lift(m.xyz(s.corners), s.corners.face)
+            self._keep(
+                "/curves",
+                scene.add_point_cloud(
+                    "/curves/corners",
+                    x,
+                    np.full((len(x), 3), 20, np.uint8),
+                    point_size=0.012 * m.bbox_diagonal,
+                ),
+            )
+        self._draw_gizmos()
+        self.gui_curve.value = -1 if self.selected is None else self.selected
+
+    def _clear(self, prefix: str) -> None:
+        for h in self._nodes.pop(prefix, []):
+            h.remove()
+
+    def _keep(self, prefix: str, handle) -> None:
+        self._nodes.setdefault(prefix, []).append(handle)
+
+    def _draw_mesh(self, m: Mesh) -> None:
+        scene = self.server.scene
+        self._clear("/mesh")
+        if self.gui_regions.value and self.session.curves:
+            st = self.session.status()
+            if st.regions:
+                rof = st.region_of_face
+                for r in st.regions:
+                    f = m.faces[rof == r.index]
+                    if f.size:
+                        shade = 0.75 + 0.25 * ((r.index * 7) % 5) / 4
+                        col = np.asarray(_REGION_OK if r.valid else _REGION_BAD) * shade
+                        self._keep(
+                            "/mesh",
+                            scene.add_mesh_simple(
+                                f"/mesh/region{r.index}",
+                                m.vertices,
+                                f,
+                                color=tuple(int(c) for c in col),
+                            ),
+                        )
+                return
+        if m.vertex_colors is not None:
+            import trimesh
+
+            tm = trimesh.Trimesh(
+                m.vertices, m.faces, vertex_colors=m.vertex_colors[:, :3], process=False
+            )
+            self._keep("/mesh", scene.add_mesh_trimesh("/mesh/surface", tm))
+        else:
+            self._keep(
+                "/mesh",
+                scene.add_mesh_simple("/mesh/surface", m.vertices, m.faces, color=(200, 200, 200)),
+            )
+
+    def _draw_gizmos(self) -> None:
+        for g in self._gizmos:
+            g.remove()
+        self._gizmos = []
+        s = self.session
+        if self.selected is None or self.selected >= len(s.curves):
+            return
+        pc = s.curves[self.selected]
+        size = 0.05 * s.mesh.bbox_diagonal
+        if pc.space is not None:
+            for k, p in enumerate(pc.space.control_points):
+                g = self.server.scene.add_transform_controls(
+                    f"/gizmo/cv{k}",
+                    scale=size,
+                    position=tuple(p),
+                    disable_rotations=True,
+                    disable_sliders=True,
+                )
+                g.on_update(self._control_drag(k))
+                self._gizmos.append(g)
+        if self.edit_point is not None and self.edit_point < len(pc.curve):
+            p = s.mesh.xyz(pc.curve.points[self.edit_point])[0]
+            g = self.server.scene.add_transform_controls(
+                "/gizmo/edit",
+                scale=size,
+                position=tuple(p),
+                disable_rotations=True,
+                disable_sliders=True,
+            )
+            g.on_update(self._edit_drag)
+            self._gizmos.append(g)
+
+    # ------------------------------------------------------------------------ events
+    def _on_click(self, event) -> None:
+        s = self.session
+        if s.mesh is None:
+            return
+        mode = self.gui_mode.value
+        o, d = event.ray_origin, event.ray_direction
+        if mode in ("boundary", "feature"):
+            what = self._run(s.click, o, d, kind=mode)
+            if what is not FAILED:
+                self.say(f"{mode} pick: {what} ({len(s.curves)} curves, {len(s.corners)} corners)")
+            return
+        if mode == "edit":
+            with self.lock:
+                hit = s.pick(o, d)
+            if hit is None:
+                return
+            x = s.mesh.xyz(hit)[0]
+            near = s.nearest_sample(x)
+            if near is not None and (self.edit_point is None or near[0] != self.selected):
+                self.selected, self.edit_point = near
+                self.say(f"curve {near[0]}: edit point {near[1]} (click the surface to pull it)")
+                self.redraw()
+            elif self.selected is not None and self.edit_point is not None:
+                self._pull(x)
+
+    def _pull(self, target) -> None:
+        s = self.session
+        ok = self._run(
+            s.edit_curve,
+            self.selected,
+            edit_index=self.edit_point,
+            section=int(self.gui_section.value),
+            target=np.asarray(target, dtype=np.float64),
+            w_fair=float(self.gui_fair.value),
+            w_curv=float(self.gui_curv.value),
+        )
+        if ok is not FAILED:
+            self.say(f"curve {self.selected} edited at point {self.edit_point}")
+
+    def _edit_drag(self, event) -> None:
+        if getattr(event, "phase", "end") != "end":
+            return
+        self._pull(np.asarray(event.target.position, dtype=np.float64))
+
+    def _control_drag(self, k: int):
+        def cb(event) -> None:
+            if getattr(event, "phase", "end") != "end" or self.selected is None:
+                return
+            self._run(
+                self.session.move_control_point,
+                self.selected,
+                k,
+                np.asarray(event.target.position, dtype=np.float64),
+            )
+
+        return cb
+
+    def _select(self, i: int) -> None:
+        n = len(self.session.curves)
+        new = i if 0 <= i < n else None
+        if new != self.selected:
+            self.selected, self.edit_point = new, None
+            self.redraw()
+
+    def _on_delete(self) -> None:
+        if self.selected is None:
+            self.say("select a curve first (edit mode: click it)")
+            return
+        i, self.selected, self.edit_point = self.selected, None, None
+        self._run(self.session.delete_curve, i)
+
+    def _on_curve_action(self, what: str) -> None:
+        s = self.session
+        if self.selected is None:
+            self.say("select a curve first (edit mode: click it)")
+            return
+        kw = dict(w_fair=float(self.gui_fair.value), w_curv=float(self.gui_curv.value))
+        if what == "smooth":
+            it = self._run(s.smooth_curve, self.selected, max_iter=int(self.gui_iters.value), **kw)
+            if it is not FAILED:
+                self.say(f"curve {self.selected} smoothed ({it} iterations)")
+        elif what == "step":
+            self._run(s.snake_step, self.selected, **kw)
+        else:
+            self._run(s.fit_space_curve, self.selected, n_control=int(self.gui_ncontrol.value))
+
+    def _on_color(self) -> None:
+        self._run(
+            self.session.set_color_attraction,
+            enabled=bool(self.gui_color.value),
+            weight=float(self.gui_color_weight.value),
+            field=str(self.gui_field.value),
+            sign=1 if self.gui_sign.value == "high" else -1,
+            redraw=False,
+        )
+
+    def _show_status(self) -> bool:
+        st = self._run(self.session.status, redraw=False)
+        if st is FAILED:
+            return False
+        if st.error:
+            text = f"**not a layout:** {st.error}"
+        else:
+            n_ok = sum(r.valid for r in st.regions)
+            rows = [f"**{n_ok} of {len(st.regions)} regions are four-sided patches**", ""]
+            rows += [
+                f"- region {r.index}: " + ("patch" if r.valid else f"**{r.reason}**")
+                for r in st.regions[:40]
+            ]
+            text = "\n".join(rows)
+        self.gui_status.content = text
+        self.say(text.splitlines()[0])
+        if self.gui_regions.value:
+            self.redraw(mesh=True)
+        return True
+
+    # ------------------------------------------------------------------------ previews
+    def _show_grid(self, grid) -> None:
+        m = self.session.mesh
+        x = np.asarray(grid.xyz)
+        nu, nv = x.shape[:2]
+        a = np.stack([x[:-1, :], x[1:, :]], axis=2).reshape(-1, 2, 3)
+        b = np.stack([x[:, :-1], x[:, 1:]], axis=2).reshape(-1, 2, 3)
+        self._clear("/preview/springs")
+        self._keep(
+            "/preview/springs",
+            self.server.scene.add_line_segments(
+                "/preview/springs",
+                np.concatenate([a, b]),
+                (0, 0, 0),
+                thickness=0.002 * m.bbox_diagonal,
+            ),
+        )
+        self.say(f"patch {grid.patch}: spring mesh level {grid.level}, {nu} x {nv} points")
+
+    def _on_springs(self) -> None:
+        g = self._run(
+            self.session.spring_preview,
+            int(self.gui_patch.value),
+            level=int(self.gui_level.value),
+            redraw=False,
+        )
+        if g is not FAILED:
+            self._show_grid(g)
+            self.preview_level = g.level
+
+    def _on_run_levels(self) -> None:
+        if self._levels_thread is not None and self._levels_thread.is_alive():
+            return
+        self._pause.clear()
+        patch, top = int(self.gui_patch.value), int(self.gui_level.value)
+
+        def work() -> None:
+            for level in range(top + 1):
+                while self._pause.is_set():
+                    self._pause.wait(0.1)
+                g = self._run(self.session.spring_preview, patch, level=level, redraw=False)
+                if g is FAILED:
+                    return
+                self._show_grid(g)
+                self.preview_level = level
+
+        self._levels_thread = threading.Thread(target=work, daemon=True)
+        self._levels_thread.start()
+
+    def _on_pause(self) -> None:
+        if self._pause.is_set():
+            self._pause.clear()
+            self.say("spring levels: continue")
+        else:
+            self._pause.set()
+            self.say("spring levels: paused")
+
+    def _on_fit(self) -> None:
+        s = self.session
+        p = int(self.gui_patch.value)
+        fit = self._run(
+            s.fit_patch,
+            p,
+            controls=(int(self.gui_cu.value), int(self.gui_cv.value)),
+            redraw=False,
+        )
+        if fit is FAILED:
+            return
+        from meshfit.springs import grid_triangles
+
+        nu, nv = fit.spline_xyz.shape[:2]
+        import trimesh
+
+        tm = trimesh.Trimesh(
+            fit.spline_xyz.reshape(-1, 3),
+            grid_triangles(nu, nv),
+            vertex_colors=_error_colors(fit.error.reshape(-1)),
+            process=False,
+        )
+        self._clear("/preview/spline")
+        self._keep("/preview/spline", self.server.scene.add_mesh_trimesh("/preview/spline", tm))
+        img = self._run(s.displacement_image, p, redraw=False)
+        if img is not FAILED:
+            big = np.repeat(
+                np.repeat(img, max(1, 128 // max(img.shape[:2])), 0),
+                max(1, 128 // max(img.shape[:2])),
+                1,
+            )
+            self.gui_image.image = big
+        cp = fit.surface.control_points.shape
+        self.gui_fitinfo.content = (
+            f"patch {p}: {cp[0]} x {cp[1]} controls, RMS {fit.rms:.4g}, max "
+            f"{float(fit.error.max()):.4g} (model units)"
+        )
+        self.say(self.gui_fitinfo.content)
+
+    # ------------------------------------------------------------------------ files
+    def _on_save(self) -> None:
+        def save():
+            p = self.policy.check(self.gui_layout_path.value, suffixes=LAYOUT_SUFFIXES, write=True)
+            return self.session.save_layout(p)
+
+        out = self._run(save, redraw=False)
+        if out is not FAILED:
+            self.say(f"layout saved to {out}")
+
+    def _on_load(self) -> None:
+        def load():
+            p = self.policy.check(self.gui_layout_path.value, suffixes=LAYOUT_SUFFIXES)
+            self.session.load_layout(p)
+            return p
+
+        self.selected = self.edit_point = None
+        out = self._run(load)
+        if out is not FAILED:
+            self.say(f"layout loaded from {out} ({len(self.session.curves)} curves)")
+
+    def _on_export(self) -> None:
+        def export():
+            folder = self.policy.check_folder(self.gui_export.value)
+            return self.session.export(
+                folder, controls=(int(self.gui_cu.value), int(self.gui_cv.value))
+            )
+
+        out = self._run(export, redraw=False)
+        if out is not FAILED:
+            self.say(f"exported {len(out)} files to {self.gui_export.value}")
+
+    def _on_upload(self) -> None:
+        f = self.gui_upload.value
+
+        def open_upload():
+            mesh = mesh_from_upload(f.name, f.content, max_bytes=self.policy.max_upload)
+            self.session.set_mesh(mesh)
+            return mesh
+
+        self.selected = self.edit_point = None
+        mesh = self._run(open_upload, mesh=True)
+        if mesh is not FAILED:
+            self._clear("/preview/springs")
+            self._clear("/preview/spline")
+            self.say(f"opened {mesh.name}: {mesh.n_vertices} vertices, {mesh.n_faces} faces")
