@@ -29,6 +29,7 @@ _COMMAND_MODULES: tuple[str, ...] = (
     "meshfit.shrinkwrap.cli",
     "meshfit.springs.cli",
     "meshfit.fit_cli",
+    "meshfit.ui.cli",
 )
 
 
