@@ -102,3 +102,6 @@ SHRINKWRAP_RAY_SLACK = 0.1
 #: in a network cut, curve points this close to their end corner, times the mean edge length,
 #: are that corner (painted curves pass through the vertex nearest a corner pick)
 CUT_CORNER_MERGE = 1e-3
+#: projection rays start this far behind the point, times the level's mean edge length, so one
+#: ray along the normal finds the surface on either side
+SHRINKWRAP_RAY_BACKOFF = 0.5
