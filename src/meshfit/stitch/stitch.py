@@ -69,15 +69,27 @@ def _corner_geometry(shapes, offs, slot):
     )
 
 
-def _stitch_corner(P, shapes, offs, corner_slot, slots, bound_of, boundaries) -> None:
+def _corner_spokes(shapes, offs, slots, bound_of) -> dict:
+    spokes: dict[int, list] = {}
+    for sl in slots:
+        _, nu_, nv_, _, _, side_u, side_v = _corner_geometry(shapes, offs, sl)
+        for side, q in ((side_u, nu_), (side_v, nv_)):
+            bi = bound_of.get((sl[0], side))
+            if bi is not None:
+                spokes.setdefault(bi, []).append((sl, q))
+    return spokes
+
+
+def _stitch_corner(P, shapes, offs, corner_slot, slots, bound_of, boundaries, lam, exact4) -> None:
     """G1 at one network corner (in place on the flat control array ``P``).
 
-    Valence 2 on the network border (one shared boundary): the corner moves to the midpoint
-    of its two neighbours along the border sides, so that boundary is G1 to its ends.
-    Valence 4 with four G1 boundaries: the four spoke points (the corner's neighbours along
-    the boundaries) are made pairwise symmetric about the corner and the four diagonal
-    points the least change that puts each spoke point at the midpoint of its two
-    diagonals: every row of every boundary is then collinear and equally spaced (exact G1).
+    Valence 2 on the network border (one shared boundary): the corner moves onto the line of
+    its two neighbours along the border sides, in the boundary's spacing ratio, so that
+    boundary is G1 to its ends. Valence 4 with four G1 boundaries (``exact4``; their rows
+    are then equally spaced, ratio 1): the four spoke points (the corner's neighbours along the boundaries)
+    are made pairwise symmetric about the corner and the four diagonal points the least
+    change that puts each spoke point at the midpoint of its two diagonals: every row of
+    every boundary is then collinear and equally spaced (exact G1).
     Any other corner whose shared boundaries are all G1: the neighbours of the corner in
     every patch are projected onto the mean tangent plane (the thesis' rule).
     """
@@ -96,14 +108,15 @@ def _stitch_corner(P, shapes, offs, corner_slot, slots, bound_of, boundaries) ->
     if len(slots) == 2 and len(spokes) == 1 and len(shared) == 1:
         # the two border neighbours: along the side that is not the shared one
         (bi,) = shared
-        others = []
+        other = {}
         for sl in slots:
             _, nu_, nv_, _, _, side_u, side_v = geo[sl]
-            others.append(nv_ if bound_of.get((sl[0], side_u)) == bi else nu_)
-        mid = 0.5 * (P[others[0]] + P[others[1]])
-        P[c_idx] = mid
-        return
-    if len(slots) == 4 and len(shared) == 4 and len(spokes) == 4:
+            other[sl[0]] = nv_ if bound_of.get((sl[0], side_u)) == bi else nu_
+        b = boundaries[bi]
+        lb = (lam or {}).get(bi, 1.0)
+        P[c_idx] = (P[other[b.a]] + lb * P[other[b.b]]) / (1.0 + lb)
+        return None
+    if exact4 and len(slots) == 4 and len(shared) == 4 and len(spokes) == 4:
         # cyclic order of spokes and patches around the corner
         order_s, order_p = [], []
         sl = slots[0]
@@ -120,7 +133,7 @@ def _stitch_corner(P, shapes, offs, corner_slot, slots, bound_of, boundaries) ->
             sl = next(x for x, _ in shared[nxt] if x != sl)
             bi = nxt
         if sorted(order_s) != sorted(shared) or len(set(order_p)) != 4:
-            return _project_corner(P, geo, slots, corner_slot)
+            return _project_corner(P, geo, slots, corner_slot, shared, boundaries, lam)
         c = P[c_idx[0]]
         q_idx = [[q for _, q in shared[bi]] for bi in order_s]  # both copies of each spoke
         q = np.array([P[ix[0]] for ix in q_idx])
@@ -141,26 +154,93 @@ def _stitch_corner(P, shapes, offs, corner_slot, slots, bound_of, boundaries) ->
         r_new = r + np.linalg.pinv(A) @ (target - A @ r)
         P[r_idx] = r_new
         return None
-    return _project_corner(P, geo, slots, corner_slot)
+    return _project_corner(P, geo, slots, corner_slot, spokes, boundaries, lam)
 
 
-def _project_corner(P, geo, slots, corner_slot) -> None:
-    normal = np.zeros(3)
-    ring = []
+def _corner_normals(P, geo, slots) -> list:
+    out = []
+    for sl in slots:
+        c, nu_, nv_, _, sign, _, _ = geo[sl]
+        n = np.cross(P[nu_] - P[c], P[nv_] - P[c]) * sign
+        ln = np.linalg.norm(n)
+        out.append(n / ln if ln > 0 else np.zeros(3))
+    return out
+
+
+def _folded(P, geo, slots, ref) -> bool:
+    """True when a patch corner (its corner quad or its diagonal point) turned over
+    compared with the normals ``ref`` from before the corner rule."""
+    for sl, n0 in zip(slots, ref, strict=True):
+        c, nu_, nv_, diag, sign, _, _ = geo[sl]
+        n = np.cross(P[nu_] - P[c], P[nv_] - P[c]) * sign
+        if n @ n0 <= 0:
+            return True
+        # the diagonal point stays inside the corner's wedge
+        d = P[diag] - P[c]
+        if np.cross(P[nu_] - P[c], d) @ n * sign < 0 or np.cross(d, P[nv_] - P[c]) @ n * sign < 0:
+            return True
+    return False
+
+
+def _rotation(n_from: NDArray, n_to: NDArray) -> NDArray:
+    """Smallest rotation taking unit vector ``n_from`` to ``n_to`` (Rodrigues)."""
+    v = np.cross(n_from, n_to)
+    c = float(n_from @ n_to)
+    sv = float(np.linalg.norm(v))
+    if sv < 1e-15:
+        return np.eye(3) if c > 0 else -np.eye(3)
+    k = v / sv
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + sv * K + (1 - c) * (K @ K)
+
+
+def _project_corner(P, geo, slots, corner_slot, spokes=None, boundaries=(), lam=None) -> None:
+    """Mean-tangent-plane rule at a corner: each patch's corner neighbours are turned about
+    the corner by the smallest rotation taking that patch's corner normal to the mean normal
+    (so no patch corner folds), the diagonal points are put in the plane, and each shared
+    spoke point is placed on its row-1 line between the two diagonal points (in the
+    boundary's spacing ratio), which keeps that row collinear."""
+    c0 = P[corner_slot[slots[0]]].copy()
+    normals = []
     for sl in slots:
         c, nu_, nv_, diag, sign, _, _ = geo[sl]
         n = np.cross(P[nu_] - P[c], P[nv_] - P[c]) * sign
         ln = np.linalg.norm(n)
-        if ln > 0:
-            normal += n / ln
-        ring += [nu_, nv_, diag]
+        normals.append(n / ln if ln > 0 else None)
+    good = [n for n in normals if n is not None]
+    if not good:
+        return
+    normal = np.sum(good, axis=0)
     ln = np.linalg.norm(normal)
     if ln == 0:
         return
     normal /= ln
-    c0 = P[corner_slot[slots[0]]]
-    ring = np.unique(np.array(ring))
-    P[ring] -= ((P[ring] - c0) @ normal)[:, None] * normal
+    moved: dict[int, list] = {}
+    for sl, n in zip(slots, normals, strict=True):
+        c, nu_, nv_, diag, _, _, _ = geo[sl]
+        R = np.eye(3) if n is None else _rotation(n, normal)
+        for ix in (nu_, nv_, diag):
+            moved.setdefault(ix, []).append(c0 + R @ (P[ix] - c0))
+    for ix, vals in moved.items():
+        p = np.mean(vals, axis=0)
+        P[ix] = p - ((p - c0) @ normal) * normal
+    # shared spokes back on their row-1 lines between the (now planar) diagonal points,
+    # or (without spacing ratios) at the mean of their two turned copies
+    for bi, pairs in (spokes or {}).items():
+        if len(pairs) != 2:
+            continue
+        if lam is None or bi not in lam:
+            val = 0.5 * (P[pairs[0][1]] + P[pairs[1][1]])
+            P[pairs[0][1]] = val
+            P[pairs[1][1]] = val
+            continue
+        b = boundaries[bi]
+        diag = {sl[0]: geo[sl][3] for sl, _ in pairs}
+        q = pairs[0][1]
+        val = (P[diag[b.a]] + lam[bi] * P[diag[b.b]]) / (1.0 + lam[bi])
+        for _, qi in pairs:
+            P[qi] = val
+        del q
 
 
 def _slot_rows(shapes, b: SharedBoundary, depth: int):
@@ -251,23 +331,67 @@ def stitch_surfaces(surfaces: Sequence[BSplineSurface], network: Network) -> lis
     cnt = np.bincount(roots, minlength=P.shape[0]).astype(float)
     P = sums[roots] / cnt[roots][:, None]
 
-    # 2. G1 along boundaries (interior rows only)
-    for b in network.boundaries:
-        if b.continuity != "G1":
-            continue
-        ia, ib = _slot_rows(shapes, b, 0)
-        ta, tb = _slot_rows(shapes, b, 1)
-        mid = 0.5 * (P[ta[1:-1]] + P[tb[1:-1]])
-        P[ia[1:-1]] = mid
-        P[ib[1:-1]] = mid
-
-    # 3. G1 at corners
+    # 2. G1 along boundaries: tangent, boundary and tangent points collinear, in the ratio of
+    # the two patches' spacings across the boundary (constant along it: exact G1)
     bound_of = {}
     for bi, b in enumerate(network.boundaries):
         bound_of[(b.a, b.side_a)] = bi
         bound_of[(b.b, b.side_b)] = bi
+    lam = {}
+    for bi, b in enumerate(network.boundaries):
+        if b.continuity == "G1":
+            ia, ib = _slot_rows(shapes, b, 0)
+            ta, tb = _slot_rows(shapes, b, 1)
+            da = np.linalg.norm(P[ia] - P[ta], axis=1).mean()
+            db = np.linalg.norm(P[tb] - P[ib], axis=1).mean()
+            lam[bi] = float(da / db) if db > 0 and da > 0 else 1.0
+    exact4 = []
     for slots in network.corners:
-        _stitch_corner(P, shapes, offs, corner_slot, slots, bound_of, network.boundaries)
+        spokes = _corner_spokes(shapes, offs, slots, bound_of)
+        if (
+            len(slots) == 4
+            and len(spokes) == 4
+            and all(len(v) == 2 and bi in lam for bi, v in spokes.items())
+        ):
+            exact4.append(slots)
+            for bi in spokes:
+                lam[bi] = 1.0
+    for bi, b in enumerate(network.boundaries):
+        if bi not in lam:
+            continue
+        ia, ib = _slot_rows(shapes, b, 0)
+        ta, tb = _slot_rows(shapes, b, 1)
+        c = (P[ta[1:-1]] + lam[bi] * P[tb[1:-1]]) / (1.0 + lam[bi])
+        P[ia[1:-1]] = c
+        P[ib[1:-1]] = c
+
+    # 3. G1 at corners, each rule checked for folds (a patch corner turned over)
+    for slots in network.corners:
+        geo = {sl: _corner_geometry(shapes, offs, sl) for sl in slots}
+        touched = np.unique([ix for sl in slots for ix in geo[sl][:4]])
+        before = P[touched].copy()
+        ref = _corner_normals(P, geo, slots)
+        attempts = [
+            (any(slots == e for e in exact4), True),  # exact valence-4 / valence-2 / plane
+            (False, True),  # plane rule with spoke rows
+        ]
+        for use4, spoke_rows in attempts:
+            P[touched] = before
+            _stitch_corner(
+                P,
+                shapes,
+                offs,
+                corner_slot,
+                slots,
+                bound_of,
+                network.boundaries,
+                lam if spoke_rows else None,
+                use4,
+            )
+            if not _folded(P, geo, slots, ref):
+                break
+        else:
+            P[touched] = before  # leave this corner C0 rather than fold a patch
     return [
         s.with_control_points(P[offs[k] : offs[k + 1]].reshape(*shapes[k], 3))
         for k, s in enumerate(surfaces)
