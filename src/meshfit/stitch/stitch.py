@@ -86,12 +86,12 @@ def _stitch_corner(P, shapes, offs, corner_slot, slots, bound_of, boundaries, la
     Valence 2 on the network border (one shared boundary): the corner moves onto the line of
     its two neighbours along the border sides, in the boundary's spacing ratio, so that
     boundary is G1 to its ends. Valence 4 with four G1 boundaries (``exact4``; their rows
-    are then equally spaced, ratio 1): the four spoke points (the corner's neighbours along the boundaries)
-    are made pairwise symmetric about the corner and the four diagonal points the least
-    change that puts each spoke point at the midpoint of its two diagonals: every row of
-    every boundary is then collinear and equally spaced (exact G1).
-    Any other corner whose shared boundaries are all G1: the neighbours of the corner in
-    every patch are projected onto the mean tangent plane (the thesis' rule).
+    are then equally spaced, ratio 1): the four spoke points (the corner's neighbours along
+    the boundaries) are made pairwise symmetric about the corner and the four diagonal
+    points the least change that puts each spoke point at the midpoint of its two
+    diagonals: every row of every boundary is then collinear and equally spaced (exact G1).
+    Any other corner whose shared boundaries are all G1: the mean-tangent-plane rule of the
+    thesis (see :func:`_project_corner`).
     """
     geo = {sl: _corner_geometry(shapes, offs, sl) for sl in slots}
     spokes: dict[int, list] = {}
