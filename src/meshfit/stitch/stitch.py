@@ -277,21 +277,26 @@ def stitch_surfaces(surfaces: Sequence[BSplineSurface], network: Network) -> lis
        patches; at a corner, the corner point of every patch meeting there, of any valence)
        is replaced by its mean.
     2. G1 along a boundary: each shared boundary control point away from the ends is moved
-       to the midpoint of the two tangent control points beside it, so tangent, boundary and
-       tangent points are collinear and equally spaced; the cross-boundary derivatives of
-       the two patches are then parallel wherever only such rows act (beyond the first knot
-       span from each end).
+       onto the segment between the two tangent control points beside it, so tangent,
+       boundary and tangent points are collinear; the thesis spaces them equally, here they
+       keep the ratio of the two patches' mean spacings across the boundary (equal when the
+       patches are alike), one ratio per boundary, so the cross-boundary derivatives of the
+       two patches are parallel wherever only such rows act (beyond the first knot span
+       from each end) and patches of different sizes move less.
     3. G1 at a corner whose shared boundaries are all G1: the corner's neighbours
        ``P[1,0], P[0,1], P[1,1]`` of every patch meeting there are projected onto the plane
        through the corner point whose normal is the mean of the patches' corner normals (the
        average tangent plane); every patch then has that tangent plane at the corner.
-       Projection is affine, so the midpoints of step 2 survive it. Two cases go further
+       Each patch's corner fan is turned (not projected) onto the plane so no corner
+       folds, and shared spoke points go back onto their row-1 lines. Two cases go further
        and make the rows at the corner collinear and equally spaced as well (G1 to the very
        end of the boundary): a border corner of valence 2 (the corner moves to the midpoint
        of its border neighbours) and an interior corner of valence 4 (spoke points made
        symmetric about the corner, diagonal points the least change that keeps each spoke
        point the midpoint of its diagonals). At valence 3 or 5+ that is impossible in
        general and the normal may still turn within the first knot span of the corner.
+       A corner rule that would turn a patch corner over is abandoned and that corner is
+       left C0 (its boundaries stay G1 beyond the first knot span).
     """
     surfaces = _check(surfaces, network)
     shapes = [s.shape for s in surfaces]
