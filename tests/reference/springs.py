@@ -123,7 +123,7 @@ def _greedy_mid(mesh: Mesh, v1, v2, max_steps):
     return path[k - 1] if half - acc[k - 1] < acc[k] - half else path[k]
 
 
-def find_midpoints(mesh: Mesh, a: SurfacePoints, b: SurfacePoints, n_fair, max_steps):
+def find_midpoints(mesh: Mesh, a: SurfacePoints, b: SurfacePoints, n_fair, max_steps, on_boundary):
     """FindMidPoint (sec. 5.6): greedy path mid vertex, then local fairness walks."""
     xa, xb = mesh.xyz(a), mesh.xyz(b)
     out_f = np.empty(len(a), dtype=np.int64)
@@ -133,13 +133,21 @@ def find_midpoints(mesh: Mesh, a: SurfacePoints, b: SurfacePoints, n_fair, max_s
         v1 = int(mesh.faces[a.face[i], np.argmax(a.bary[i])])
         v2 = int(mesh.faces[b.face[i], np.argmax(b.bary[i])])
         mid = _greedy_mid(mesh, v1, v2, max_steps)
-        if mid >= 0 and mid not in (v1, v2):
-            f = int(vf[indptr[mid]])
+        if mid >= 0 and mid not in (v1, v2) and not on_boundary[mid]:
+            fan = vf[indptr[mid] : indptr[mid + 1]]
+            cen = mesh.vertices[mesh.faces[fan]].mean(axis=1)
+            f = int(fan[np.argmin(np.sum((cen - 0.5 * (xa[i] + xb[i])) ** 2, axis=1))])
             bb = (mesh.faces[f] == mid).astype(float)
         else:
-            f, bb = int(a.face[i]), a.bary[i].copy()
+            fn = mesh.face_neighbors
+            on_edge = any(
+                fn[a.face[i], k] < 0 and a.bary[i, (k + 2) % 3] <= 1e-12 for k in range(3)
+            )
+            if not on_edge:
+                f, bb, step = int(a.face[i]), a.bary[i].copy(), 0.5 * (xb[i] - xa[i])
+            else:
+                f, bb, step = int(b.face[i]), b.bary[i].copy(), 0.5 * (xa[i] - xb[i])
             n = mesh.face_normals[f]
-            step = 0.5 * (xb[i] - xa[i])
             step = step - (step @ n) * n
             if np.linalg.norm(step) > 0:
                 f, bb, _ = _walk_inside(mesh, f, bb, step)

@@ -73,11 +73,14 @@ def test_find_midpoints_matches_oracle(patches, name, rng):
     b = SurfacePoints(a.face[::-1].copy(), a.bary[::-1].copy())
     vfp, vf = mesh.vertex_faces
     indptr, indices = mesh.vertex_adjacency
+    on_boundary = np.zeros(mesh.n_vertices, dtype=bool)
+    for loop in mesh.boundary_loops:
+        on_boundary[loop] = True
     f, bb = K.find_midpoints(
-        mesh.vertices, mesh.faces, mesh.face_neighbors, vfp, vf, indptr, indices,
+        mesh.vertices, mesh.faces, mesh.face_neighbors, vfp, vf, indptr, indices, on_boundary,
         a.face, a.bary, b.face, b.bary, 3, 2000, tol.BARY_EPS, 10_000,
     )  # fmt: skip
-    wf, wb = ref.find_midpoints(mesh, a, b, 3, 2000)
+    wf, wb = ref.find_midpoints(mesh, a, b, 3, 2000, on_boundary)
     assert_allclose(
         mesh.xyz(SurfacePoints(f, bb)),
         mesh.xyz(SurfacePoints(wf, wb)),

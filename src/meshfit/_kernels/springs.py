@@ -208,6 +208,15 @@ def relax_sweeps(
 
 
 @njit(cache=True, nogil=True, fastmath=False)
+def _on_boundary_edge(FN, f, b, eps):
+    """Whether face point (f, b) lies on a boundary edge of its face."""
+    for k in range(3):
+        if FN[f, k] < 0 and b[(k + 2) % 3] <= eps:
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True, fastmath=False)
 def _greedy_mid(V, indptr, indices, v1, v2, max_steps, path):
     """Mid vertex (by length) of a greedy graph path v1 -> v2, or -1 if the descent sticks;
     ``path`` (max_steps + 1,) i8 is scratch."""
@@ -258,12 +267,29 @@ def _greedy_mid(V, indptr, indices, v1, v2, max_steps, path):
 
 @njit(cache=True, nogil=True, fastmath=False)
 def find_midpoints(
-    V, F, FN, VFp, VF, indptr, indices, fa, ba, fb, bb, n_fair, max_steps, bary_eps, max_faces
+    V,
+    F,
+    FN,
+    VFp,
+    VF,
+    indptr,
+    indices,
+    on_boundary,
+    fa,
+    ba,
+    fb,
+    bb,
+    n_fair,
+    max_steps,
+    bary_eps,
+    max_faces,
 ):
     """FindMidPoint (sec. 5.6) for n pairs of face points; fa, fb (n,) i8, ba, bb (n, 3) f8.
 
     The mid vertex of a greedy graph path between the pair's nearest vertices is the first
-    guess (half a chord walked from the first point when the descent sticks); ``n_fair``
+    guess (half a chord walked from the first point, or the second when the first is on the
+    boundary, if the descent sticks or the vertex is on the boundary, ``on_boundary (nv,)
+    bool``); ``n_fair``
     local fairness moves (Force(P1, Pmid) + Force(P2, Pmid), walked on the surface) follow.
     Returns face (n,) i8, bary (n, 3) f8. Kernel of `meshfit.springs.subdivide`.
     """
@@ -293,16 +319,31 @@ def find_midpoints(
         v2 = F[fb[i], np.argmax(bb[i])]
         mid = _greedy_mid(V, indptr, indices, v1, v2, max_steps, path)
         b = out_b[i]
-        if mid >= 0 and mid != v1 and mid != v2:
+        if mid >= 0 and mid != v1 and mid != v2 and not on_boundary[mid]:
+            # the vertex as a point of the face around it nearest the chord's mid-point, so
+            # the fairness moves start into the right face
             f = VF[VFp[mid]]
+            best = np.inf
+            for e in range(VFp[mid], VFp[mid + 1]):
+                g = VF[e]
+                d = 0.0
+                for c in range(3):
+                    m = (V[F[g, 0], c] + V[F[g, 1], c] + V[F[g, 2], c]) / 3.0
+                    d += (m - 0.5 * (xa[c] + xb[c])) ** 2
+                if d < best:
+                    best = d
+                    f = g
             for c in range(3):
                 b[c] = 1.0 if F[f, c] == mid else 0.0
         else:
-            f = fa[i]
+            # walk half the chord from the pair's first point, or from the second when the
+            # first lies on the boundary (a walk from there may leave at once)
+            first = not _on_boundary_edge(FN, fa[i], ba[i], bary_eps)
+            f = fa[i] if first else fb[i]
             for c in range(3):
-                b[c] = ba[i, c]
+                b[c] = ba[i, c] if first else bb[i, c]
             for c in range(3):
-                step[c] = 0.5 * (xb[c] - xa[c])
+                step[c] = 0.5 * (xb[c] - xa[c]) if first else 0.5 * (xa[c] - xb[c])
             total = _start_direction(V, F, f, step, u)
             if total > 0.0:
                 f, _m = walk_inside(V, F, FN, f, b, u, total, max_faces, bary_eps, 6, s0, s1)

@@ -39,6 +39,14 @@ class State:
     s_v: list[NDArray[np.float64]] = field(default_factory=list)  # (nu,) per v feature
 
     @property
+    def on_boundary(self) -> NDArray[np.bool_]:
+        """(n_vertices,) bool: vertices of the patch mesh on its boundary."""
+        mask = np.zeros(self.mesh.n_vertices, dtype=bool)
+        for chain in self.sides.chains.values():
+            mask[chain] = True
+        return mask
+
+    @property
     def nu(self) -> int:
         return sum(self.counts_u) + 1
 

@@ -27,6 +27,7 @@ def _mid(state: State, a: np.ndarray, b: np.ndarray, n_fair: int):
         vf,
         indptr,
         indices,
+        state.on_boundary,
         state.face[a],
         state.bary[a],
         state.face[b],
