@@ -253,3 +253,24 @@ def test_barycentric_projects_and_extrapolates():
     assert_allclose(b[0], [1 / 3, 1 / 3, 1 / 3], atol=1e-12)
     assert_allclose(b[1], [-1.0, 2.0, 0.0], atol=1e-12)
     assert_allclose(b.sum(axis=1), 1.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("scale", [1e-4, 1.0, 1e4])
+def test_rays_hit_whatever_the_model_scale(scale, rng):
+    """libigl's ray-triangle test has an absolute epsilon: tiny faces must still be hit."""
+    from meshfit.mesh import Mesh
+
+    ico = shapes.icosphere(5)  # 20,480 faces
+    mesh = Mesh(ico.vertices * scale, ico.faces)
+    d = rng.normal(size=(500, 3)) * scale
+    hits = ray_first_hit(mesh, np.zeros((500, 3)), d)
+    assert hits.hit.all()
+    radius = np.linalg.norm(hits.t[:, None] * d, axis=1)
+    assert_allclose(radius, scale, rtol=1e-3)  # inside the sphere, on the chords of its faces
+
+
+def test_rays_from_the_centre_of_igea_hit():
+    mesh = real_mesh("igea")
+    d = np.random.default_rng(0).normal(size=(300, 3))
+    hits = ray_first_hit(mesh, np.repeat(mesh.vertices.mean(0)[None], 300, 0), d)
+    assert hits.hit.mean() > 0.99

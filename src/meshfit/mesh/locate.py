@@ -152,11 +152,20 @@ def ray_first_hit(mesh: Mesh, origins: ArrayLike, directions: ArrayLike) -> RayH
     d = as_vectors(directions, n=o.shape[0], name="directions")
     if o.shape[0] == 0:
         return RayHits(np.zeros(0, bool), np.zeros(0), np.zeros(0, np.int64), np.zeros((0, 3)))
-    face, t, uv = mesh.aabb.intersect_ray_first(mesh.vertices, mesh.faces, o, d)
+    # libigl rejects a triangle when d . (e1 x e2) is below an absolute 1e-6 (Moeller's
+    # EPSILON), which misses every triangle of a finely tessellated small model (igea's faces
+    # have areas near 1e-7). The query uses unit directions scaled by 1 / (2 median face
+    # area), so that product is near |cos| for a typical face whatever the model's scale;
+    # t is recomputed below for the caller's directions.
+    dn = np.linalg.norm(d, axis=1, keepdims=True)
+    scale = 1.0 / (2.0 * float(np.median(mesh.face_areas)))
+    dq = np.where(dn > 0, d / np.where(dn > 0, dn, 1.0) * scale, 0.0)
+    face, t, uv = mesh.aabb.intersect_ray_first(mesh.vertices, mesh.faces, o, dq)
     face = np.asarray(face, dtype=np.int64)
     hit = face >= 0
     t = np.asarray(t, dtype=np.float64)
     uv = np.where(hit[:, None], np.asarray(uv, dtype=np.float64), 0.0)
+    t = t * np.where(dn[:, 0] > 0, scale / np.where(dn[:, 0] > 0, dn[:, 0], 1.0), 0.0)
     if hit.any():  # libigl returns t and uv rounded to float32: recompute them in float64
         t[hit], uv[hit] = _ray_face(mesh, face[hit], o[hit], d[hit], t[hit], uv[hit])
     bary = np.stack([1.0 - uv[:, 0] - uv[:, 1], uv[:, 0], uv[:, 1]], axis=1)
