@@ -1,6 +1,6 @@
 """Primitives on the surface: sampling face points, walking, graph paths, cutting."""
 
-from meshfit.surface.cut import CutResult, cut_mesh
+from meshfit.surface.cut import CutResult, NetworkCutResult, cut_mesh, cut_mesh_network
 from meshfit.surface.paths import (
     GraphPath,
     ShortestPaths,
@@ -25,6 +25,7 @@ __all__ = [
     "CurveMoveResult",
     "CutResult",
     "GraphPath",
+    "NetworkCutResult",
     "ShortestPaths",
     "WalkResult",
     "astar_path",
@@ -32,6 +33,7 @@ __all__ = [
     "closest_surface_points",
     "curve_arc_lengths",
     "cut_mesh",
+    "cut_mesh_network",
     "greedy_path",
     "move_along_curve",
     "path_to_surface_points",
