@@ -17,11 +17,12 @@ Newton closest-point code; meshfit's parametric error (eq. 6.1) is reported too.
 Re-fitting one patch at a new control resolution (the interactive case; target <= 20 ms)
 is timed on the same grid for a sweep of resolutions, cold.
 
-Whole-layout figures (fit + displacement + stitch for every patch of igea and nefertiti at
-8 x 8 and 16 x 16 controls) need the spring meshes of ``meshfit.springs`` on a layout; the
-hook is :func:`layout_figures`, which takes the patch grids and reports ``pending`` until a
-layout's grids are passed to it. Meanwhile :func:`synthetic_network_figures` times the same
-stages on 104 patches (the thesis' count) cut from one synthetic height field.
+Whole layouts (:func:`layout_figures`): a 2 x 2 cube layout (24 patches) of igea and
+nefertiti from ``meshfit.layout.cube_layout``, spring meshes at level 2 from
+``meshfit.springs``, then fit + stitch + displacement maps + seam closing at 8 x 8 and
+16 x 16 controls, with the seam gaps and normal jumps before and after stitching; a layout
+that cannot be built is reported with its error. :func:`synthetic_network_figures` times
+the same stages on 104 patches (the thesis' count) cut from one synthetic height field.
 
 Run: ``python benchmarks/fit.py [--repeats 5]``. Prints JSON and writes
 ``benchmarks/results/fit.json`` atomically.
@@ -124,24 +125,79 @@ def bench_occ(X, m, repeats):
     return {"available": False, "reason": "OCP present but the OCC runner is not written yet"}
 
 
-def layout_figures(grids_by_layout: dict | None = None, controls=(8, 16)) -> dict:
-    """Hook for whole layouts: ``{layout name: [patch grids (nu, nv, 3)]}`` -> fit + map time.
+def layout_grids(name: str, n: int = 2, level: int = 2) -> tuple[list, dict]:
+    """Spring-mesh grids of an ``n x n`` cube layout of a real scan (meshfit.layout +
+    meshfit.springs), or ([], reason) when a stage fails."""
+    from meshfit.layout import cube_layout, extract_patches
+    from meshfit.springs import resample_patch
 
-    Stitch time is added when ``meshfit.stitch`` runs on spring-mesh layouts.
-    """
+    info = {}
+    try:
+        t0 = time.perf_counter()
+        mesh = load_mesh(mesh_path(name))
+        patches = extract_patches(mesh, cube_layout(mesh, n=n))
+        info["layout_and_cut_s"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        grids = [
+            resample_patch(p, level=level, metrics=False, fidelity=False).final.xyz for p in patches
+        ]
+        info["springs_s"] = time.perf_counter() - t0
+    except Exception as exc:  # report, do not hide: the figure says why it is missing
+        return [], {"error": f"{type(exc).__name__}: {exc}"}
+    info["patches"] = len(grids)
+    info["grid_points"] = int(sum(g.shape[0] * g.shape[1] for g in grids))
+    return grids, info
+
+
+def layout_figures(grids_by_layout: dict | None = None, controls=(8, 16)) -> dict:
+    """Whole layouts: ``{name: (patch grids, info)}`` -> time of fit + stitch + displacement
+    maps + seam closing per control resolution, and the seams before / after stitching."""
+    from meshfit.stitch import (
+        control_classes,
+        network_from_grids,
+        seam_report,
+        stitch_displacements,
+        stitch_surfaces,
+    )
+
     if not grids_by_layout:
-        return {"status": "pending: needs spring meshes of igea / nefertiti layouts"}
+        return {"status": "pending: no layout grids given"}
     out = {}
-    for name, grids in grids_by_layout.items():
+    for name, (grids, info) in grids_by_layout.items():
+        res = dict(info)
+        if not grids:
+            out[name] = res
+            continue
+        t0 = time.perf_counter()
+        net = network_from_grids(grids)
+        res["network_s"] = time.perf_counter() - t0
+        res["shared_boundaries"] = len(net.boundaries)
+        res["corner_valences"] = sorted({len(c) for c in net.corners})
         for m in controls:
             t0 = time.perf_counter()
-            for X in grids:
-                s = fit_bspline(X, controls=(min(m, X.shape[0]), min(m, X.shape[1])))
-                displacement_map(s, X)
-            out[f"{name}_{m}x{m}"] = {
-                "patches": len(grids),
-                "fit_and_map_s": time.perf_counter() - t0,
+            cc = control_classes(net, default=m, grid_shapes=[g.shape[:2] for g in grids])
+            surfaces = [fit_bspline(g, controls=c) for g, c in zip(grids, cc.controls, strict=True)]
+            t_fit = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            stitched = stitch_surfaces(surfaces, net)
+            t_stitch = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            maps = [displacement_map(s, g) for s, g in zip(stitched, grids, strict=True)]
+            stitch_displacements(stitched, maps, net)
+            t_maps = time.perf_counter() - t0
+            before = seam_report(surfaces, net)
+            after = seam_report(stitched, net)
+            res[f"{m}x{m}"] = {
+                "fit_s": t_fit,
+                "stitch_s": t_stitch,
+                "maps_and_seams_s": t_maps,
+                "total_s": t_fit + t_stitch + t_maps,
+                "seams_before": before.summary(),
+                "seams_after": after.summary(),
+                "corner_zones_over_2deg_after": int((after.angle_corner_deg > 2.0).sum()),
+                "boundaries": len(net.boundaries),
             }
+        out[name] = res
     return out
 
 
@@ -235,7 +291,9 @@ def main() -> None:
         "refit_one_patch_s_cold": refit,
         "refit_target_s": 0.020,
         "refit_max_s": max(refit.values()),
-        "layouts": layout_figures(),
+        "layouts": layout_figures(
+            {f"{name}_cube2": layout_grids(name) for name in ("igea", "nefertiti")}
+        ),
         "synthetic_network_104_patches": synthetic_network_figures(repeats=args.repeats),
         "repeats": args.repeats,
         "machine": {
