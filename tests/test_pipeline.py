@@ -36,9 +36,9 @@ def test_every_patch_is_fitted(spot_fit):
     for p in summary["patches"]:
         assert p["levels"] == 2
         assert p["controls"][0] >= 4 and p["controls"][1] >= 4
-        assert np.isfinite(p["fit_normal_rms"])
+        assert np.isfinite(p["fit_parametric_rms"])
         # the spline follows its spring grid to a few percent of the model
-        assert p["fit_normal_max"] < 0.1
+        assert p["fit_parametric_max"] < 0.1
     assert set(summary["stages"]) == set(STAGES) - {"report"}
     assert all(s["seconds"] >= 0 for s in summary["stages"].values())
     assert load_fit(out) == json.loads((out / "summary.json").read_text())

@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from meshfit.errors import InputError
 from meshfit.mesh import Mesh
 
-__all__ = ["demo_mesh", "run_demo"]
+__all__ = ["demo_mesh", "demo_sphere_map", "run_demo"]
 
 
 def _sphere_points(n: int, rng: np.random.Generator) -> NDArray[np.float64]:
@@ -104,39 +104,71 @@ def _write_json(path: Path, data: dict[str, Any]) -> None:
     os.replace(tmp, path)
 
 
-def run_demo(out: Path, *, faces: int = 200_000, quiet: bool = False) -> dict[str, Any]:
-    """Generate the default input, report its statistics and demonstrate walking on it.
+def demo_sphere_map(mesh: Mesh):
+    """The exact sphere parameterization of a :func:`demo_mesh`: radial projection.
 
-    Writes ``demo_scan.ply``, ``info.json`` and ``demo.json`` into ``out``.
+    The demo surface is ``r(d) d`` over unit directions ``d``, so its vertices normalised are
+    a flip-free map onto the unit sphere (no embedding needs to be solved).
+    """
+    from meshfit.shrinkwrap import SphereMap
+    from meshfit.shrinkwrap.sphere import spherical_orientation
+
+    s = mesh.vertices / np.linalg.norm(mesh.vertices, axis=1, keepdims=True)
+    det = spherical_orientation(s, mesh.faces)
+    flips = int((det <= 0).sum())
+    return SphereMap(mesh, s, "radial", flips, float(det.min()), float("nan"))
+
+
+def run_demo(
+    out: Path,
+    *,
+    faces: int = 200_000,
+    patches: int = 60,
+    quiet: bool = False,
+    options=None,
+) -> dict[str, Any]:
+    """Fit the embedded default input end to end and write the report.
+
+    Generates :func:`demo_mesh`, lays out about ``patches`` four-sided patches automatically
+    (:func:`meshfit.layout.auto.auto_layout` over the demo's exact radial sphere map), and
+    runs :func:`meshfit.pipeline.run_fit`: spring meshes, B-spline fit, displacement maps,
+    stitching, exports and ``report.html``. Writes ``demo_scan.ply``, ``info.json`` and the
+    fit outputs into ``out``.
 
     Parameters
     ----------
     out : Path
         Output folder (created).
     faces : int
-        Approximate triangle count of the generated mesh.
+        Approximate triangle count of the generated mesh (default 200,000).
+    patches : int
+        Patch count asked of the automatic layout (default 60).
     quiet : bool
         No progress output (for ``--json``).
+    options : meshfit.pipeline.FitOptions, optional
+        Fit options (default: 12 x 12 controls, usd/obj/exr/png outputs and the report).
 
     Returns
     -------
     dict
-        The summary written to ``demo.json``.
+        The fit summary (``summary.json``) with ``statistics`` of the mesh and ``report``,
+        the report's path.
     """
     from rich.console import Console
 
+    from meshfit.fit_cli import stage_progress
+    from meshfit.layout.auto import auto_layout
     from meshfit.mesh import save_mesh
     from meshfit.mesh.measures import mesh_statistics
-    from meshfit.surface import random_surface_points, walk_points
+    from meshfit.pipeline import FitOptions, run_fit
 
     console = Console(quiet=quiet, stderr=True)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    summary: dict[str, Any] = {}
     with console.status("generating the default scan-like mesh"):
         t0 = time.perf_counter()
         mesh = demo_mesh(faces)
-        summary["generate_seconds"] = round(time.perf_counter() - t0, 3)
+        generate = time.perf_counter() - t0
     mesh_path = save_mesh(mesh, out / "demo_scan.ply")
     stats = mesh_statistics(mesh)
     _write_json(out / "info.json", {"file": str(mesh_path), **stats})
@@ -145,45 +177,28 @@ def run_demo(out: Path, *, faces: int = 200_000, quiet: bool = False) -> dict[st
         f"{stats['faces']:,} faces, genus {stats['genus']}, "
         f"{'closed' if stats['closed'] else 'open'}"
     )
-
-    with console.status("walking 100,000 face points 5 edge lengths across the surface"):
-        rng = np.random.default_rng(1)
-        n = 100_000
-        start = random_surface_points(mesh, n, rng)
-        normals = mesh.face_normals[start.face]
-        direction = rng.normal(size=(n, 3))
-        direction -= np.einsum("ij,ij->i", direction, normals)[:, None] * normals
-        direction /= np.linalg.norm(direction, axis=1, keepdims=True)
-        step = direction * (5.0 * mesh.mean_edge_length)
-        walk_points(mesh, start[:10], step[:10])  # compile / load the kernel
+    with console.status(f"automatic layout of about {patches} patches"):
         t0 = time.perf_counter()
-        result = walk_points(mesh, start, step)
-        seconds = time.perf_counter() - t0
-    off = mesh.closest_points(mesh.xyz(result.end)).distance
-    summary.update(
-        {
-            "mesh": str(mesh_path),
-            "statistics": stats,
-            "walk": {
-                "points": n,
-                "step_mean_edge_lengths": 5.0,
-                "seconds": round(seconds, 4),
-                "steps_per_second": round(n / seconds),
-                "max_length_error": float(
-                    np.abs(result.length - 5.0 * mesh.mean_edge_length).max()
-                ),
-                "max_distance_off_surface": float(off.max()),
-                "hit_boundary": int(result.hit_boundary.sum()),
-            },
-        }
-    )
-    _write_json(out / "demo.json", summary)
-    w = summary["walk"]
+        layout = auto_layout(mesh, patches=patches, sphere=demo_sphere_map(mesh))
+        t_layout = time.perf_counter() - t0
+    console.print(f"[bold]layout[/] {layout.n_patches} patches in {t_layout:.1f} s")
+    if options is None:
+        options = FitOptions(controls=(12, 12), formats=("usd", "obj", "exr", "png"))
+    with stage_progress(quiet=quiet) as prog:
+        summary = run_fit(mesh, out, layout=layout, options=options, progress=prog)
+    summary["statistics"] = stats
+    summary["generate_seconds"] = round(generate, 3)
+    summary["layout_seconds"] = round(t_layout, 3)
+    report = out / "report.html"
+    summary["report"] = str(report) if report.is_file() else None
+    e = summary["errors"]
     console.print(
-        f"[bold]walk[/] {n:,} points x 5 mean edge lengths in {w['seconds']:.3f} s "
-        f"({w['steps_per_second']:,} points/s); largest length error "
-        f"{w['max_length_error']:.2e}, largest distance off the surface "
-        f"{w['max_distance_off_surface']:.2e}"
+        f"[bold]fit[/] {layout.n_patches} patches in {summary['seconds_total']:.1f} s; "
+        f"displaced surface RMS {100 * e['displaced']['rms']:.3f}% and Hausdorff "
+        f"{100 * e['displaced']['hausdorff']:.3f}% of the bbox diagonal "
+        f"(spline only: {100 * e['spline_only']['rms']:.3f}%, "
+        f"{100 * e['spline_only']['hausdorff']:.3f}%)"
     )
-    console.print(f"[bold]summary[/] {out / 'demo.json'}")
+    if not quiet and summary["report"]:
+        print(summary["report"])
     return summary

@@ -260,8 +260,8 @@ def write_html(out: str | os.PathLike, summary: dict[str, Any]) -> Path:
         "arc_cv_max",
         "aspect_max",
         "controls",
-        "fit_normal_rms",
-        "fit_normal_max",
+        "fit_parametric_rms",
+        "fit_parametric_max",
         "displacement_max",
         "seconds",
     ]

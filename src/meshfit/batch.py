@@ -1,0 +1,209 @@
+"""Batch fits over many meshes on dask.distributed.
+
+One task per mesh, each running :func:`meshfit.pipeline.run_fit` into ``<out>/<mesh stem>/``
+with ``resume=True``. A LocalCluster on 127.0.0.1 is started by default; any scheduler address
+reaches a real cluster. Robustness:
+
+- a worker killed mid-run: the scheduler re-runs its tasks elsewhere (``retries``); stage
+  files are written atomically and keyed by content, so the re-run picks up the finished
+  stages and the final outputs are the same bytes as an undisturbed run (only the timings in
+  ``summary.json`` and ``report.html`` differ);
+- a malformed or crashing mesh fails alone: its error is recorded in ``batch.json``;
+- re-running skips meshes whose ``done.json`` matches the input file and the options.
+"""
+
+from __future__ import annotations
+
+import glob as _glob
+import hashlib
+import json
+import os
+import time
+import traceback
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+from meshfit._atomic import write_text
+from meshfit.errors import InputError, MeshfitError
+
+__all__ = ["fit_one", "run_batch"]
+
+#: version of ``batch.json`` and ``done.json``
+BATCH_FORMAT = 1
+
+
+def _job_key(path: Path, layout: str | None, options: dict[str, Any]) -> str:
+    h = hashlib.sha256()
+    h.update(path.read_bytes())
+    lay = layout or "auto"
+    if lay != "auto" and Path(lay).is_file():
+        h.update(Path(lay).read_bytes())
+    else:
+        h.update(str(lay).encode())
+    h.update(json.dumps(options, sort_keys=True, default=list).encode())
+    return h.hexdigest()
+
+
+def fit_one(path: str, out: str, layout: str | None, options: dict[str, Any], key: str) -> dict:
+    """Fit one mesh file into ``out`` (the task body; runs on a worker).
+
+    Returns a record ``{"status": "done" | "failed", ...}``; never raises for bad input.
+    """
+    from meshfit.mesh import load_mesh
+    from meshfit.pipeline import FitOptions, run_fit
+
+    t0 = time.perf_counter()
+    folder = Path(out)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        opts = FitOptions(**{k: tuple(v) if isinstance(v, list) else v for k, v in options.items()})
+        mesh = load_mesh(path)
+        summary = run_fit(mesh, folder, layout=layout or "auto", options=opts, resume=True)
+    except MeshfitError as exc:
+        return {"status": "failed", "error": f"{type(exc).__name__}: {exc}".splitlines()[0]}
+    except Exception as exc:  # a crash in one mesh must not stop the batch
+        tb = traceback.format_exception_only(type(exc), exc)[-1].strip()
+        return {"status": "failed", "error": f"crash: {tb}"}
+    record = {
+        "status": "done",
+        "key": key,
+        "meshfit_batch": BATCH_FORMAT,
+        "patches": summary["patches_total"],
+        "errors": {k: summary["errors"][k] for k in ("spline_only", "displaced")},
+        "seconds": round(time.perf_counter() - t0, 3),
+    }
+    write_text(folder / "done.json", json.dumps(record, indent=2) + "\n")
+    return record
+
+
+def run_batch(
+    pattern: str | list[str],
+    out: str | os.PathLike,
+    *,
+    layout: str | None = None,
+    options=None,
+    scheduler: str | None = None,
+    n_workers: int | None = None,
+    retries: int = 3,
+    quiet: bool = False,
+    client=None,
+) -> dict[str, Any]:
+    """Fit every mesh matching ``pattern`` on a Dask cluster.
+
+    Parameters
+    ----------
+    pattern : str or list of str
+        A glob (``"scans/*.ply"``) or a list of files.
+    out : path
+        Output folder: one sub-folder per mesh (its file stem) and ``batch.json``.
+    layout : str, optional
+        A layout file for every mesh, or ``"auto"`` (default).
+    options : meshfit.pipeline.FitOptions, optional
+        Fit options (``workers`` defaults to 1 per task: the cluster parallelises meshes).
+    scheduler : str, optional
+        Address of a running Dask scheduler; default a LocalCluster on 127.0.0.1.
+    n_workers : int, optional
+        Worker processes of the LocalCluster (default 2).
+    retries : int
+        Extra attempts of a task whose worker died (default 3).
+    quiet : bool
+        No progress output.
+    client : distributed.Client, optional
+        Use this client (tests); ``scheduler`` and ``n_workers`` are then ignored.
+
+    Returns
+    -------
+    dict
+        Written to ``out/batch.json``: ``meshes``, ``done``, ``skipped``, ``failed`` and
+        ``results`` per mesh file name (status, error, seconds, errors of the fit).
+    """
+    from meshfit.pipeline import FitOptions
+
+    files = sorted(pattern) if isinstance(pattern, list) else sorted(_glob.glob(str(pattern)))
+    if not files:
+        raise InputError(f"no mesh file matches {pattern!r}")
+    stems = [Path(f).stem for f in files]
+    if len(set(stems)) != len(stems):
+        raise InputError("two input meshes have the same file name stem; outputs would collide")
+    if options is None:
+        options = FitOptions(workers=1)
+    elif options.workers is None:
+        options = FitOptions(**{**asdict(options), "workers": 1})
+    opts = asdict(options)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    results: dict[str, dict[str, Any]] = {}
+    todo = []
+    for f in files:
+        path = Path(f)
+        key = _job_key(path, layout, opts)
+        done = out / path.stem / "done.json"
+        if done.is_file():
+            try:
+                rec = json.loads(done.read_text())
+            except ValueError:
+                rec = {}
+            if rec.get("key") == key and rec.get("status") == "done":
+                results[path.name] = {**rec, "status": "skipped"}
+                continue
+        todo.append((path, key))
+
+    if todo:
+        own = None
+        if client is None:
+            from distributed import Client, LocalCluster
+
+            if scheduler:
+                client = Client(scheduler)
+            else:
+                own = LocalCluster(
+                    n_workers=int(n_workers or 2),
+                    threads_per_worker=1,
+                    host="127.0.0.1",
+                    dashboard_address=None,
+                    processes=True,
+                )
+                client = Client(own)
+        try:
+            futures = {
+                client.submit(
+                    fit_one,
+                    str(path),
+                    str(out / path.stem),
+                    layout,
+                    opts,
+                    key,
+                    key=f"meshfit-fit-{path.stem}-{key[:12]}",
+                    retries=retries,
+                    pure=False,
+                ): path
+                for path, key in todo
+            }
+            from distributed import as_completed
+
+            for fut in as_completed(list(futures)):
+                path = futures[fut]
+                try:
+                    rec = fut.result()
+                except Exception as exc:  # the task failed on every attempt (workers died)
+                    rec = {"status": "failed", "error": f"{type(exc).__name__}: {exc}"}
+                results[path.name] = rec
+                if not quiet:
+                    print(f"{rec['status']}: {path.name}", flush=True)
+        finally:
+            if own is not None:
+                client.close()
+                own.close()
+    summary = {
+        "meshfit_batch": BATCH_FORMAT,
+        "meshes": len(files),
+        "done": sum(r["status"] == "done" for r in results.values()),
+        "skipped": sum(r["status"] == "skipped" for r in results.values()),
+        "failed": sum(r["status"] == "failed" for r in results.values()),
+        "seconds": round(time.perf_counter() - t0, 3),
+        "results": {Path(f).name: results[Path(f).name] for f in files},
+    }
+    write_text(out / "batch.json", json.dumps(summary, indent=2) + "\n")
+    return summary
