@@ -96,7 +96,13 @@ class WrapResult:
         return [lv.mesh for lv in self.levels]
 
 
+#: the switching rule's tightness is estimated from at most this many face centroids
+_TIGHTNESS_SAMPLES = 20_000
+
+
 def _tightness(mesh: Mesh, x: NDArray, faces: NDArray) -> float:
+    if len(faces) > _TIGHTNESS_SAMPLES:  # a fixed, evenly spread subset of the faces
+        faces = faces[:: len(faces) // _TIGHTNESS_SAMPLES]
     c = x[faces].mean(axis=1)
     d = mesh.closest_points(c).distance
     e, _ = _topo.unique_edges(faces)
@@ -152,26 +158,28 @@ def _param_relax(smap, s, loc, faces, iterations, alpha, density, centroids, cel
 
 def _vertex_normals(x, faces):
     fn = np.cross(x[faces[:, 1]] - x[faces[:, 0]], x[faces[:, 2]] - x[faces[:, 0]])
-    vn = np.zeros_like(x)
-    for k in range(3):
-        np.add.at(vn, faces[:, k], fn)
+    flat = faces.reshape(-1)
+    vn = np.stack(
+        [np.bincount(flat, weights=np.repeat(fn[:, j], 3), minlength=len(x)) for j in range(3)],
+        axis=1,
+    )
     return vn / np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
 
 
 def _project(mesh: Mesh, x, nrm, mel):
-    """Ray along +-normal, first hit; closest point when the ray misses or lands far."""
-    n = len(x)
+    """Ray along the normal, first hit; closest point when the ray misses or lands far.
+
+    One ray per point, started ``tol.SHRINKWRAP_RAY_BACKOFF`` mean edge lengths behind it,
+    finds the surface on either side of a point that is already close to it."""
     cp = mesh.closest_points(x)
-    hits = mesh.ray_first_hit(np.vstack([x, x]), np.vstack([nrm, -nrm]))
-    t = hits.t.reshape(2, n)
-    k = np.argmin(t, axis=0)
-    idx = k * n + np.arange(n)
-    tt = t[k, np.arange(n)]
-    ok = np.isfinite(tt) & (
-        tt <= tol.SHRINKWRAP_RAY_TRUST * cp.distance + tol.SHRINKWRAP_RAY_SLACK * mel
+    back = tol.SHRINKWRAP_RAY_BACKOFF * mel
+    hits = mesh.ray_first_hit(x - back * nrm, nrm)
+    dist = np.abs(hits.t - back)
+    ok = hits.hit & (
+        dist <= tol.SHRINKWRAP_RAY_TRUST * cp.distance + tol.SHRINKWRAP_RAY_SLACK * mel
     )
-    face = np.where(ok, hits.face[idx], cp.points.face)
-    bary = np.where(ok[:, None], hits.bary[idx], cp.points.bary)
+    face = np.where(ok, hits.face, cp.points.face)
+    bary = np.where(ok[:, None], hits.bary, cp.points.bary)
     return SurfacePoints(face, bary), float(ok.mean())
 
 
@@ -209,6 +217,7 @@ def shrink_wrap(
     smap: SphereMap | None = None,
     base: BaseMesh | None = None,
     sphere_method: str = "tutte",
+    base_options: dict | None = None,
     parameter_iterations: int = 6,
     surface_iterations: int = 4,
     alpha: float = 0.5,
@@ -229,7 +238,8 @@ def shrink_wrap(
       surface edge lengths (sec. 7);
     - **surface phase**: eq. 1 in space with edge-length densities and damping fading from
       ``alpha`` to 0, alternated with projection onto the input along the vertex normals (first
-      hit on the AABB tree; closest point when the ray misses or lands more than
+      hit on the AABB tree of one ray per vertex started a little behind it; closest point
+      when the ray misses or lands more than
       ``tol.SHRINKWRAP_RAY_TRUST`` times farther than the closest point) (sec. 4).
 
     Switching rule: after the parameter phase of level ``i >= min_switch_level``, if the 95th
@@ -253,6 +263,8 @@ def shrink_wrap(
         A sphere map / base mesh computed before (recomputed when omitted).
     sphere_method : {"tutte", "voxel"}
         Construction of the sphere map when ``smap`` is omitted (see :func:`sphere_map`).
+    base_options : dict, optional
+        Extra keyword arguments of :func:`base_mesh` (e.g. ``start_subdivisions=1``).
     parameter_iterations, surface_iterations : int
         Relaxation steps per level in each phase (defaults 6 and 4).
     alpha : float
@@ -285,7 +297,7 @@ def shrink_wrap(
     secs["sphere_map"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     if base is None:
-        base = base_mesh(smap, max_faces=base_faces, progress=progress)
+        base = base_mesh(smap, max_faces=base_faces, progress=progress, **(base_options or {}))
     secs["base_mesh"] = time.perf_counter() - t0
     s = np.array(base.sphere)
     faces = np.array(base.faces)
