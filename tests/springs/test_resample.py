@@ -258,8 +258,8 @@ def test_scan_patch_fidelity(scan_result, request):
         request.applymarker(
             pytest.mark.xfail(
                 strict=True,
-                reason="nefertiti cut patch: two-sided max distance 0.105% of the bbox "
-                "diagonal at the final level (33 x 49 points for 1669 vertices)",
+                reason="nefertiti cut patch: two-sided max distance 0.098% of the bbox "
+                "diagonal at the final level (33 x 41 points for 1669 vertices)",
             )
         )
     assert res.metrics[-1]["fidelity_max"] <= 5e-4
