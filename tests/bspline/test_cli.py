@@ -1,9 +1,10 @@
+import argparse
 import json
 
 import numpy as np
 import pytest
 
-from meshfit.bspline.cli import load_grid
+from meshfit.bspline.cli import add_commands, load_grid
 from meshfit.cli import main
 from meshfit.errors import InputError
 from tests.stitch.networks import height_field, split_grid
@@ -19,10 +20,18 @@ def grid_files(tmp_path):
     return paths
 
 
-def test_fit_command(grid_files, tmp_path, capsys):
+def _own(argv):
+    """This module's ``fit`` parser alone (meshfit.fit_cli wraps it in ``meshfit fit``)."""
+    parser = argparse.ArgumentParser()
+    add_commands(parser.add_subparsers())
+    args = parser.parse_args(argv)
+    return args.func(args)
+
+
+def test_grid_fit_command(grid_files, tmp_path, capsys):
     out = tmp_path / "out"
     argv = ["fit", *grid_files, "--controls", "6", "--out", str(out), "--json"]
-    assert main([*argv, "--formats", "usd,obj,iges,exr,3dm,glb"]) == 0
+    assert _own([*argv, "--formats", "usd,obj,iges,exr,3dm,glb"]) == 0
     res = json.loads(capsys.readouterr().out)
     assert len(res["patches"]) == 4 and res["shared_boundaries"] == 4
     assert res["seams_after"]["gap_max"] <= 1e-12
@@ -31,13 +40,22 @@ def test_fit_command(grid_files, tmp_path, capsys):
     names = ("patches.usda", "displaced.obj", "splines.obj", "patches.igs", "patches.3dm")
     for name in (*names, "preview.glb", "patch_000.vector.exr"):
         assert (out / name).is_file()
-    assert main(["fit", *grid_files, "--controls", "5", "7"]) == 0
+    assert _own(["fit", *grid_files, "--controls", "5", "7"]) == 0
     assert "seams after stitching" in capsys.readouterr().out
 
 
+def test_meshfit_fit_reaches_the_grid_fit(grid_files, tmp_path, capsys):
+    """``meshfit fit *.npz`` (meshfit.fit_cli) hands spring-mesh grids to this command."""
+    rc = main(["fit", *grid_files, "--cv", "6x7", "--continuity", "g1", "--json"])
+    assert rc == 0
+    res = json.loads(capsys.readouterr().out)
+    assert [p["controls"] for p in res["patches"]] == [[6, 7]] * 4
+    assert res["seams_after"]["angle_max_deg"] <= 0.5
+
+
 def test_fit_command_bad_input(grid_files, tmp_path, capsys):
-    assert main(["fit", *grid_files, "--out", str(tmp_path), "--formats", "step"]) == 2
-    assert "unknown export format" in capsys.readouterr().err
+    with pytest.raises(InputError, match="unknown export format"):
+        _own(["fit", *grid_files, "--out", str(tmp_path), "--formats", "step"])
     bad = tmp_path / "bad.npz"
     np.savez(bad, version=np.int64(7), xyz=np.zeros((5, 5, 3)))
     with pytest.raises(InputError, match="version 7"):
@@ -46,3 +64,4 @@ def test_fit_command_bad_input(grid_files, tmp_path, capsys):
         load_grid(tmp_path / "missing.npz")
     (tmp_path / "junk.npz").write_bytes(b"junk")
     assert main(["fit", str(tmp_path / "junk.npz")]) == 2
+    assert "junk.npz" in capsys.readouterr().err
