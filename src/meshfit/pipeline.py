@@ -414,6 +414,7 @@ def _seam_metrics(layout, surfaces, grids_displaced, diag: float, samples: int =
 
     gap = 0.0
     angle = 0.0
+    angle_inner = 0.0
     disp_gap = 0.0
     shared = 0
     for uses in users.values():
@@ -428,7 +429,14 @@ def _seam_metrics(layout, surfaces, grids_displaced, diag: float, samples: int =
             nrm.append(surfaces[p].normals(u, v))
         gap = max(gap, float(np.linalg.norm(pts[0] - pts[1], axis=1).max()))
         cos = np.clip((nrm[0] * nrm[1]).sum(axis=1), -1.0, 1.0)
-        angle = max(angle, float(np.degrees(np.arccos(cos)).max()))
+        a = np.degrees(np.arccos(cos))
+        angle = max(angle, float(a.max()))
+        p0, s0, _ = uses[0]
+        m = surfaces[p0].shape[0 if s0 % 2 == 0 else 1]
+        span = 1.0 / max(m - 3, 1)  # one knot span: the corner zone
+        inner = (t > span) & (t < 1.0 - span)
+        if inner.any():
+            angle_inner = max(angle_inner, float(a[inner].max()))
         rows = []
         for p, s, rev in uses:
             row = _side_row(grids_displaced[p], s)
@@ -439,6 +447,7 @@ def _seam_metrics(layout, surfaces, grids_displaced, diag: float, samples: int =
         "shared_curves": shared,
         "spline_gap_max": gap / diag,
         "spline_normal_jump_max_deg": angle,
+        "spline_normal_jump_inner_max_deg": angle_inner,
         "displaced_gap_max": disp_gap / diag,
     }
 
@@ -572,6 +581,7 @@ def run_fit(
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     st = _Stages(out, resume, progress)
+    notes: list[str] = []
     workers = int(options.workers or os.cpu_count() or 1)
     t_all = time.perf_counter()
 
@@ -709,6 +719,8 @@ def run_fit(
         res = _parallel(fit, list(range(n_patches)), workers, "fit", st)
         surfaces = [s for s, _ in res]
         fit_info = [i for _, i in res]
+        if options.continuity == "g1":
+            surfaces = _stitch_g1(grids, surfaces, notes)
         arrays = {f"ctrl_{p}": s.control_points for p, s in enumerate(surfaces)}
         arrays["info"] = _as_bytes(fit_info)
         _save_npz(st.path("fit", k_fit, ".npz"), arrays)
@@ -735,18 +747,19 @@ def run_fit(
         )
     st.done("displacement", t0, cached=cached is not None)
 
-    # ---- stitch: C0 is built into the fit; G1 needs meshfit.stitch
+    # ---- stitch: C0 is built into the fit (pinned boundaries), G1 by meshfit.stitch; here
+    # the displacement seams are closed and the seams measured
     t0 = st.start("stitch")
-    notes: list[str] = []
-    if options.continuity == "g1":
-        import importlib.util
-
-        if importlib.util.find_spec("meshfit.stitch") is None:
-            notes.append(
-                "continuity g1 asked for, but meshfit.stitch is not installed: C0 boundaries only"
-            )
-        else:
-            notes.append("continuity g1: meshfit.stitch is not wired in yet; C0 only")
+    k_stitch = _key("stitch", k_disp)
+    cached = st.cached("stitch", k_stitch, ".npz")
+    if cached is not None:
+        z = _load_npz(cached)
+        dmaps = [DisplacementMap(z[f"map_{p}"], options.map_kind) for p in range(n_patches)]
+        seams = _from_bytes(z["seams"])
+    else:
+        if options.map_kind == "vector":
+            dmaps = _stitch_maps(grids, surfaces, dmaps, notes)
+    displaced_cache: list = []
     displaced_cache: list = []
 
     def displaced_grids() -> list[NDArray[np.float64]]:
@@ -754,20 +767,18 @@ def run_fit(
             displaced_cache.append([reconstruct(surfaces[p], dmaps[p]) for p in range(n_patches)])
         return displaced_cache[0]
 
-    k_stitch = _key("stitch", k_disp)
-    cached = st.cached("stitch", k_stitch, ".json")
-    if cached is not None:
-        seams = json.loads(cached.read_text())
-    else:
+    if cached is None:
         seams = _seam_metrics(lay, surfaces, displaced_grids(), diag)
-        seams["continuity"] = "c0"
-        _write_json(st.path("stitch", k_stitch, ".json"), seams)
+        seams["continuity"] = options.continuity
+        arrays = {f"map_{p}": d.values for p, d in enumerate(dmaps)}
+        arrays["seams"] = _as_bytes(seams)
+        _save_npz(st.path("stitch", k_stitch, ".npz"), arrays)
     st.done("stitch", t0, cached=cached is not None)
 
     # ---- exports
     t0 = st.start("exports")
     names = [f"patch_{p:03d}" for p in range(n_patches)]
-    k_exp = _key("exports", k_disp, options.formats)
+    k_exp = _key("exports", k_stitch, options.formats)
     cached = st.cached("exports", k_exp, ".json")
     outputs: dict[str, list[str]] = {}
     if cached is not None:
@@ -790,7 +801,7 @@ def run_fit(
 
     # ---- errors against the input
     t0 = st.start("errors")
-    k_err = _key("errors", k_disp, mhash)
+    k_err = _key("errors", k_stitch, mhash)
     cached = st.cached("errors", k_err, ".json")
     if cached is not None:
         errors = json.loads(cached.read_text())
@@ -846,7 +857,7 @@ def run_fit(
     # ---- report
     if options.report:
         t0 = st.start("report")
-        k_rep = _key("report", k_disp, k_layout, options.image_size)
+        k_rep = _key("report", k_stitch, k_layout, options.image_size)
         cached = st.cached("report", k_rep, ".json")
         images_ok = False
         if cached is not None:
@@ -881,6 +892,28 @@ def run_fit(
 
         write_html(out, summary)
     return summary
+
+
+def _stitch_g1(grids, surfaces, notes: list[str]) -> list:
+    """G1 across shared boundaries and at corners with :mod:`meshfit.stitch`."""
+    try:
+        from meshfit.stitch import network_from_grids, stitch_surfaces
+    except ImportError:
+        notes.append("continuity g1 needs meshfit.stitch, which is not installed: C0 only")
+        return surfaces
+    net = network_from_grids(grids, continuity="G1")
+    return stitch_surfaces(surfaces, net)
+
+
+def _stitch_maps(grids, surfaces, dmaps, notes: list[str]) -> list:
+    """Crack-free displacement seams with :mod:`meshfit.stitch` (unchanged without it)."""
+    try:
+        from meshfit.stitch import network_from_grids, stitch_displacements
+    except ImportError:
+        notes.append("meshfit.stitch is not installed: displacement seams left open")
+        return dmaps
+    net = network_from_grids(grids, continuity="C0")
+    return stitch_displacements(surfaces, dmaps, net)
 
 
 def _face_patch(st: _Stages, k_cut: str, patches_cache: list) -> NDArray[np.int64] | None:
