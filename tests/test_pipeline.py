@@ -138,3 +138,17 @@ def test_bad_options_and_layouts(tmp_path):
         run_fit(mesh, tmp_path, layout=tmp_path / "missing.json", options=OPTIONS)
     with pytest.raises(LayoutError):  # the igea layout was made for another mesh
         run_fit(mesh, tmp_path, layout=ROOT / "examples/layouts/igea.json", options=OPTIONS)
+
+
+def test_g1_continuity_through_stitch(spot_fit, tmp_path):
+    mesh, out, first = spot_fit
+    copy = tmp_path / "g1"
+    shutil.copytree(out, copy)
+    opts = FitOptions(controls=(6, 6), spring_level=1, formats=(), report=False, continuity="g1")
+    g1 = run_fit(mesh, copy, layout=LAYOUT, options=opts, resume=True)
+    assert g1["stages"]["springs"]["cached"]
+    assert g1["seams"]["continuity"] == "g1"
+    assert g1["seams"]["spline_gap_max"] <= tol.STITCH_GAP
+    # away from the corner zones the normals agree across every shared boundary
+    assert g1["seams"]["spline_normal_jump_inner_max_deg"] < 1e-3
+    assert first["seams"]["spline_normal_jump_inner_max_deg"] > 1.0

@@ -1,0 +1,101 @@
+"""Headless renders: the rasteriser kernel against its oracle, framing, depth, colours, PNG."""
+
+from __future__ import annotations
+
+import numpy as np
+import png
+import pytest
+
+from meshfit._kernels import render as kernel
+from meshfit.errors import InputError
+from meshfit.render import camera_frame, heat_colors, patch_colors, render, write_png_rgb
+
+from .conftest import real_mesh
+from .reference import render as oracle
+
+
+def _random_scene(rng, m=12, size=24):
+    P = rng.uniform(-4, size + 4, size=(m, 3, 3))
+    P[:, :, 2] = rng.uniform(-1, 1, size=(m, 3))
+    color = rng.uniform(0, 1, size=(m, 3, 3))
+    shade = rng.uniform(0.2, 1, size=(m, 3))
+    uv = rng.uniform(0, 3, size=(m, 3, 2))
+    return P, color, shade, uv
+
+
+@pytest.mark.parametrize("checker", [0.0, 2.0])
+def test_kernel_matches_oracle(rng, checker):
+    P, color, shade, uv = _random_scene(rng)
+    out = []
+    for fn in (kernel.raster, oracle.raster):
+        image = np.ones((24, 24, 3))
+        depth = np.full((24, 24), -np.inf)
+        fn(P, color, shade, uv, checker, image, depth)
+        out.append((image, depth))
+    np.testing.assert_allclose(out[0][0], out[1][0], atol=1e-12)
+    np.testing.assert_allclose(out[0][1], out[1][1], atol=1e-12)
+
+
+def _square(z=0.0):
+    V = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], dtype=float)
+    V[:, 1] = z
+    return V, np.array([[0, 1, 2], [0, 2, 3]])
+
+
+def test_square_fills_the_frame_and_keeps_colours():
+    V, F = _square()
+    img = render(V, F, size=(50, 50), view=(0, 1, 0), vertex_colors=np.full((4, 3), 0.5))
+    covered = (img != 255).any(axis=2)
+    # the square seen head-on fills the frame less the 6% margin on each side
+    assert covered[3:47, 3:47].all()
+    assert not covered[:2].any() and not covered[:, :2].any()
+    assert (np.abs(img[covered].astype(int) - 128) <= 1).all()  # lit head-on: the colour
+    face = render(V, F, size=(50, 50), face_colors=[[1, 0, 0], [0, 0, 1]], shading="flat")
+    colours = {tuple(c) for c in face.reshape(-1, 3).tolist()}
+    assert {(255, 0, 0), (0, 0, 255)} <= colours
+
+
+def test_nearer_surface_hides_the_farther():
+    V1, F1 = _square(0.0)
+    V2, F2 = _square(-1.0)  # nearer to a camera looking along +y (it sits at smaller y)
+    V = np.vstack([V1, V2 * [0.5, 1, 0.5]])
+    F = np.vstack([F1, F2 + 4])
+    cols = np.vstack([np.tile([1.0, 0, 0], (4, 1)), np.tile([0, 0, 1.0], (4, 1))])
+    img = render(V, F, size=(40, 40), view=(0, 1, 0), vertex_colors=cols, bounds=V1)
+    assert tuple(img[20, 20]) == (0, 0, 255)
+    assert tuple(img[5, 5]) == (255, 0, 0)
+
+
+def test_checkerboard_alternates():
+    V, F = _square()
+    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
+    img = render(V, F, size=(80, 80), view=(0, 1, 0), uv=uv, checker=2.0)
+    a, b = img[25, 25, 0], img[25, 55, 0]
+    assert a != b and img[55, 55, 0] == a
+
+
+def test_real_mesh_render_and_png(tmp_path):
+    mesh = real_mesh("spot")
+    img = render(mesh.vertices, mesh.faces, size=(64, 48), view=(1, 0, 0), up=(0, 1, 0))
+    assert img.shape == (48, 64, 3) and img.dtype == np.uint8
+    covered = (img < 250).any(axis=2).mean()
+    assert 0.1 < covered < 0.9
+    path = write_png_rgb(tmp_path / "spot.png", img)
+    w, h, rows, _ = png.Reader(bytes=path.read_bytes()).asRGB8()
+    back = np.vstack([np.asarray(r, np.uint8) for r in rows]).reshape(h, w, 3)
+    np.testing.assert_array_equal(back, img)
+
+
+def test_helpers_and_errors():
+    R = camera_frame((0, 0, -1))
+    np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
+    h = heat_colors([0.0, 1.0, 2.0], vmax=1.0)
+    np.testing.assert_allclose(h[1], h[2])
+    assert patch_colors([-1])[0].tolist() == [0.6, 0.6, 0.6]
+    V, F = _square()
+    with pytest.raises(InputError):
+        render(V, F + 10)
+    with pytest.raises(InputError):
+        render(V, F, shading="phong")
+    with pytest.raises(InputError):
+        write_png_rgb("x.png", np.zeros((4, 4, 3)))
