@@ -94,3 +94,24 @@ def test_grid_xyz_is_mesh_xyz(patches, rng):
     mesh = patches["spot"].mesh
     sp = random_surface_points(mesh, 50, rng=rng)
     assert_allclose(K.grid_xyz(mesh.vertices, mesh.faces, sp.face, sp.bary), mesh.xyz(sp))
+
+
+def test_folded_cells_kernel_matches_the_metric(patches, rng):
+    from meshfit.springs import grid_metrics
+
+    patch = patches["spot"]
+    mesh = patch.mesh
+    sm = resample_patch(patch, level=2, metrics=False).final
+    face = sm.points.face.copy()
+    bary = sm.points.bary.copy()
+    # scramble some interior points to make folds
+    nu, nv = sm.shape
+    idx = np.arange(nu * nv).reshape(nu, nv)[2:-2, 2:-2].ravel()
+    pick = rng.choice(idx, size=6, replace=False)
+    face[pick] = face[pick[::-1]]
+    bary[pick] = bary[pick[::-1]]
+    got = K.folded_cells(mesh.vertices, mesh.faces, face, bary, nu, nv)
+    X = mesh.xyz(SurfacePoints(face, bary)).reshape(nu, nv, 3)
+    N = mesh.face_normals[face].reshape(nu, nv, 3)
+    want = grid_metrics(mesh, X, N, fidelity=False)["folded"]
+    assert got.sum() == want > 0

@@ -357,3 +357,42 @@ def find_midpoints(
             f, _m = walk_inside(V, F, FN, f, b, u, total, max_faces, bary_eps, 6, s0, s1)
         out_f[i] = f
     return out_f, out_b
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def folded_cells(V, F, face, bary, nu, nv):
+    """Cells of an (nu, nv) grid of face points with a triangle whose normal points against
+    the summed face normals at its corners; -> (nu - 1, nv - 1) bool. Kernel of
+    `meshfit.springs.relax.folded_cells` (the test of `meshfit.springs.grid_metrics`)."""
+    X = grid_xyz(V, F, face, bary)
+    n = face.shape[0]
+    N = np.empty((n, 3))
+    nrm = np.empty(3)
+    for i in range(n):
+        _face_normal(V, F, face[i], nrm)
+        for c in range(3):
+            N[i, c] = nrm[c]
+    out = np.zeros((nu - 1, nv - 1), dtype=np.bool_)
+    for i in range(nu - 1):
+        for j in range(nv - 1):
+            a = i * nv + j
+            b = (i + 1) * nv + j
+            c_ = (i + 1) * nv + j + 1
+            d = i * nv + j + 1
+            for t in range(2):
+                p, q, r = (a, b, c_) if t == 0 else (a, c_, d)
+                ux = X[q, 0] - X[p, 0]
+                uy = X[q, 1] - X[p, 1]
+                uz = X[q, 2] - X[p, 2]
+                wx = X[r, 0] - X[p, 0]
+                wy = X[r, 1] - X[p, 1]
+                wz = X[r, 2] - X[p, 2]
+                cx = uy * wz - uz * wy
+                cy = uz * wx - ux * wz
+                cz = ux * wy - uy * wx
+                sx = N[p, 0] + N[q, 0] + N[r, 0]
+                sy = N[p, 1] + N[q, 1] + N[r, 1]
+                sz = N[p, 2] + N[q, 2] + N[r, 2]
+                if cx * sx + cy * sy + cz * sz <= 0.0:
+                    out[i, j] = True
+    return out

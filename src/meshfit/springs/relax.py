@@ -151,16 +151,7 @@ def folded_cells(state: State) -> np.ndarray:
     """(nu - 1, nv - 1) bool: cells with a triangle whose normal points against the surface
     normals at its corners (the `grid_metrics` fold test)."""
     mesh = state.mesh
-    X = _k.grid_xyz(mesh.vertices, mesh.faces, state.face, state.bary).reshape(
-        state.nu, state.nv, 3
-    )
-    N = mesh.face_normals[state.face].reshape(state.nu, state.nv, 3)
-    p00, p10, p11, p01 = X[:-1, :-1], X[1:, :-1], X[1:, 1:], X[:-1, 1:]
-    n1 = np.cross(p10 - p00, p11 - p00)
-    n2 = np.cross(p11 - p00, p01 - p00)
-    s1 = N[:-1, :-1] + N[1:, :-1] + N[1:, 1:]
-    s2 = N[:-1, :-1] + N[1:, 1:] + N[:-1, 1:]
-    return (np.einsum("ijk,ijk->ij", n1, s1) <= 0) | (np.einsum("ijk,ijk->ij", n2, s2) <= 0)
+    return _k.folded_cells(mesh.vertices, mesh.faces, state.face, state.bary, state.nu, state.nv)
 
 
 def untangle(state: State, *, rounds: int, sweeps: int, reach: int, tangent: bool = True) -> int:

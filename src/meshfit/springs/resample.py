@@ -129,6 +129,10 @@ def _initialize(state: State) -> None:
     su = dict(zip(ucol, state.s_u, strict=True))
     sv = dict(zip(vrow, state.s_v, strict=True))
     V = mesh.vertices
+    # position of each vertex along each u path (-1: not on it); paths are loop-free
+    upos = np.full((nu, mesh.n_vertices), -1, dtype=np.int64)
+    for i, path in upath.items():
+        upos[i, path] = np.arange(len(path))
     for i in range(1, nu - 1):
         for j in range(1, nv - 1):
             fu: FeatureLine | None = ucol.get(i)
@@ -145,7 +149,9 @@ def _initialize(state: State) -> None:
                 sv[j][i] = intersect_lines(mesh, fv, V[p], p)[0]
             else:
                 pu, pv = upath[i], vpath[j]
-                common, iu, iv = np.intersect1d(pu, pv, return_indices=True)
+                iv = np.flatnonzero(upos[i, pv] >= 0)  # shared vertices, along pv
+                iu = upos[i, pv[iv]]
+                common = pv[iv]
                 if common.size:
                     cost = np.abs(iu / max(len(pu) - 1, 1) - j / (nv - 1)) + np.abs(
                         iv / max(len(pv) - 1, 1) - i / (nu - 1)
