@@ -48,6 +48,8 @@ def test_gaps_close_and_boundaries_are_g1(igea_layout):
     assert before.gap.max() > 1e-4 * diag
     assert after.gap.max() <= tol.STITCH_GAP * diag
     assert after.angle_deg.max() <= 0.5  # away from the corners
+    # at the corner points themselves: every corner whose rule did not fold a patch
+    assert (after.corner_point_deg <= 1e-5).mean() >= 0.9
 
 
 @pytest.mark.xfail(

@@ -88,6 +88,7 @@ def test_g1_stitching_meets_targets(name):
     assert after.gap.max() <= tol.STITCH_GAP * diag
     assert after.angle_deg.max() <= 0.5
     assert after.angle_corner_deg.max() <= 2.0
+    assert after.corner_point_deg.max() <= 1e-5  # one tangent plane at every corner
     assert after.angle_deg.max() < before.angle_deg.max()
 
 

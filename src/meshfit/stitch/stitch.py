@@ -417,11 +417,15 @@ class SeamReport:
         (beyond one knot span of the boundary's ends).
     angle_corner_deg : (n_boundaries,) float64
         Largest angle within one knot span of the ends (corner zones), degrees.
+    corner_point_deg : (n_corners,) float64
+        Largest angle between the normals of the patches meeting at each network corner, at
+        the corner point itself, degrees (0 for a corner of one patch).
     """
 
     gap: NDArray[np.float64]
     angle_deg: NDArray[np.float64]
     angle_corner_deg: NDArray[np.float64]
+    corner_point_deg: NDArray[np.float64]
 
     def summary(self) -> dict[str, float]:
         def mx(a):
@@ -431,6 +435,7 @@ class SeamReport:
             "gap_max": mx(self.gap),
             "angle_max_deg": mx(self.angle_deg),
             "angle_corner_max_deg": mx(self.angle_corner_deg),
+            "corner_point_max_deg": mx(self.corner_point_deg),
         }
 
 
@@ -458,7 +463,19 @@ def seam_report(
         inner = (t > span) & (t < 1 - span)
         ang.append(float(a[inner].max()) if inner.any() else 0.0)
         angc.append(float(a[~inner].max()) if (~inner).any() else 0.0)
-    return SeamReport(np.array(gaps), np.array(ang), np.array(angc))
+    corner = []
+    for slots in network.corners:
+        ns = [
+            surfaces[k].normals(np.array([float(i == -1)]), np.array([float(j == -1)]))[0]
+            for k, i, j in slots
+        ]
+        worst = 0.0
+        for x in range(len(ns)):
+            for y in range(x + 1, len(ns)):
+                c = float(np.clip(ns[x] @ ns[y], -1.0, 1.0))
+                worst = max(worst, float(np.degrees(np.arccos(c))))
+        corner.append(worst)
+    return SeamReport(np.array(gaps), np.array(ang), np.array(angc), np.array(corner))
 
 
 def _row_world(surface: BSplineSurface, dmap: DisplacementMap, side: str):
