@@ -1,0 +1,93 @@
+"""The fit report: renders of every stage, displacement images, tables."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import png
+import pytest
+
+from meshfit.pipeline import FitOptions, run_fit
+from meshfit.report import REPORT_IMAGES
+
+from .conftest import ROOT, real_mesh
+
+
+def _read(path):
+    w, h, rows, _ = png.Reader(bytes=path.read_bytes()).asRGB8()
+    return np.vstack([np.asarray(r, np.uint8) for r in rows]).reshape(h, w, 3)
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory):
+    out = tmp_path_factory.mktemp("report")
+    opts = FitOptions(controls=(6, 6), spring_level=1, formats=(), image_size=160)
+    summary = run_fit(
+        real_mesh("spot"), out, layout=ROOT / "examples/layouts/spot.json", options=opts
+    )
+    return out, summary
+
+
+def test_report_lists_every_image(report):
+    out, summary = report
+    text = (out / "report.html").read_text()
+    srcs = re.findall(r"src='([^']+)'", text)
+    stems = [s for s, _ in REPORT_IMAGES]
+    assert [f"report/{s}.png" for s in stems] == srcs[: len(stems)]
+    assert len(srcs) == len(stems) + summary["patches_total"]
+    for s in srcs:
+        assert (out / s).is_file()
+    # tables of errors, timings and patches
+    for word in ("spline only", "displaced", "springs", "fit parametric rms"):
+        assert word in text
+    assert summary["outputs"]["report"] == ["report.html"]
+    assert not summary["stages"]["report"]["cached"]
+
+
+def test_model_renders_show_the_model(report):
+    out, _ = report
+    layout = _read(out / "report/layout.png")
+    assert layout.shape == (160, 160, 3)
+    model = (layout != 255).any(axis=2)
+    assert 0.1 < model.mean() < 0.9
+    # the layout render shows many patch colours, the spline render grey only
+    colours = {tuple(c) for c in layout[model].tolist()}
+    assert len(colours) > 24
+    spline = _read(out / "report/spline.png")
+    px = spline[(spline != 255).any(axis=2)].astype(int)
+    assert (np.ptp(px, axis=1) <= 1).all()
+    # the spring checkerboard alternates light and dark squares of each patch colour
+    springs = _read(out / "report/springs.png")
+    assert len({tuple(c) for c in springs.reshape(-1, 3).tolist()}) > 50
+    # the heat map runs from blue (near the input) to red (far)
+    heat = _read(out / "report/error.png").astype(int)
+    assert (heat[..., 2] - heat[..., 0] > 100).any() and (heat[..., 0] - heat[..., 2] > 100).any()
+
+
+def test_displacement_images_are_centred_on_grey(report):
+    out, summary = report
+    img = _read(out / "report/map_000.png")
+    assert max(img.shape[:2]) >= 128
+    assert abs(float(np.median(img)) - 128) < 20
+    assert summary["map_scale"] > 0
+
+
+def test_resume_keeps_the_images(report, tmp_path):
+    import shutil
+
+    out, _ = report
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    before = (copy / "report/layout.png").stat().st_mtime_ns
+    opts = FitOptions(controls=(6, 6), spring_level=1, formats=(), image_size=160)
+    again = run_fit(
+        real_mesh("spot"),
+        copy,
+        layout=ROOT / "examples/layouts/spot.json",
+        options=opts,
+        resume=True,
+    )
+    assert again["work_done"] == []
+    assert (copy / "report/layout.png").stat().st_mtime_ns == before
+    assert (copy / "report.html").is_file()
