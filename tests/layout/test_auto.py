@@ -1,0 +1,65 @@
+"""Automatic layouts of closed genus-0 meshes from the shrink-wrap base mesh."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from meshfit.curves.base import check_sampling
+from meshfit.demo import demo_mesh, demo_sphere_map
+from meshfit.errors import InputError, TopologyError
+from meshfit.layout import extract_patches, layout_from_json, layout_to_json
+from meshfit.layout.auto import auto_layout, quad_network
+from meshfit.shrinkwrap import icosahedron
+
+from ..conftest import real_mesh
+from ..shapes import plane, torus
+
+
+def test_quad_network_of_the_icosahedron():
+    v, f = icosahedron()
+    pts, ends, quads = quad_network(v, f)
+    assert len(quads) == 3 * len(f)
+    assert len(pts) == len(v) + 30 + 20  # vertices, edge mid-points, centroids
+    assert len(ends) == 2 * 30 + 3 * 20  # half edges and spokes
+    np.testing.assert_allclose(np.linalg.norm(pts, axis=1), 1.0)
+    # every arc bounds exactly two quads, once in each direction (a closed network)
+    uses = {}
+    for q in quads:
+        for c, rev in q:
+            uses.setdefault(c, []).append(rev)
+    assert all(sorted(r) == [False, True] for r in uses.values())
+
+
+@pytest.mark.parametrize("name", ["spot", "nefertiti"])
+def test_auto_layout_on_real_scans(name):
+    mesh = real_mesh(name)
+    layout = auto_layout(mesh)
+    assert layout.n_patches == 60
+    for c in layout.curves:
+        assert len(check_sampling(mesh, c)) == 0
+    patches = extract_patches(mesh, layout)
+    assert len(patches) == 60
+    area = sum(p.mesh.face_areas.sum() for p in patches)
+    np.testing.assert_allclose(area, mesh.face_areas.sum(), rtol=1e-9)
+    # a layout made automatically is an ordinary one: it survives its JSON
+    again = layout_from_json(layout_to_json(layout))
+    assert again.n_patches == layout.n_patches
+
+
+def test_patch_count_and_demo_sphere():
+    mesh = demo_mesh(6000)
+    smap = demo_sphere_map(mesh)
+    assert smap.flips == 0
+    layout = auto_layout(mesh, patches=120, sphere=smap)
+    assert layout.n_patches == 120
+    assert len(extract_patches(mesh, layout)) == 120
+
+
+def test_open_and_higher_genus_meshes_need_a_layout_file():
+    with pytest.raises(TopologyError, match="layout file"):
+        auto_layout(torus())
+    with pytest.raises(TopologyError, match="fill"):
+        auto_layout(plane(6))
+    with pytest.raises(InputError):
+        auto_layout(demo_mesh(400), patches=0)
