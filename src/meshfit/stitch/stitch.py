@@ -157,11 +157,17 @@ def _stitch_corner(P, shapes, offs, corner_slot, slots, bound_of, boundaries, la
     return _project_corner(P, geo, slots, corner_slot, spokes, boundaries, lam)
 
 
+def _cell_normal(P, g) -> NDArray:
+    """Normal of a patch's corner control cell from its diagonals (robust to a sheared cell
+    whose two edges at the corner are nearly parallel)."""
+    c, nu_, nv_, diag, sign, _, _ = g
+    return np.cross(P[diag] - P[c], P[nv_] - P[nu_]) * sign
+
+
 def _corner_normals(P, geo, slots) -> list:
     out = []
     for sl in slots:
-        c, nu_, nv_, _, sign, _, _ = geo[sl]
-        n = np.cross(P[nu_] - P[c], P[nv_] - P[c]) * sign
+        n = _cell_normal(P, geo[sl])
         ln = np.linalg.norm(n)
         out.append(n / ln if ln > 0 else np.zeros(3))
     return out
@@ -203,8 +209,7 @@ def _project_corner(P, geo, slots, corner_slot, spokes=None, boundaries=(), lam=
     c0 = P[corner_slot[slots[0]]].copy()
     normals = []
     for sl in slots:
-        c, nu_, nv_, diag, sign, _, _ = geo[sl]
-        n = np.cross(P[nu_] - P[c], P[nv_] - P[c]) * sign
+        n = _cell_normal(P, geo[sl])
         ln = np.linalg.norm(n)
         normals.append(n / ln if ln > 0 else None)
     good = [n for n in normals if n is not None]
