@@ -222,7 +222,7 @@ def _project_corner(P, geo, slots, corner_slot, spokes=None, boundaries=(), lam=
     normal /= ln
     moved: dict[int, list] = {}
     for sl, n in zip(slots, normals, strict=True):
-        c, nu_, nv_, diag, _, _, _ = geo[sl]
+        _, nu_, nv_, diag, _, _, _ = geo[sl]
         R = np.eye(3) if n is None else _rotation(n, normal)
         for ix in (nu_, nv_, diag):
             moved.setdefault(ix, []).append(c0 + R @ (P[ix] - c0))
