@@ -22,11 +22,11 @@ from meshfit.springs.subdivide import subdivide
 __all__ = ["SpringResult", "resample_patch"]
 
 #: level 0 gets this many times ``max_iter`` sweeps ...
-COARSE_SWEEPS = 10
+COARSE_SWEEPS = 5
 #: ... and converges to this fraction of tol.SPRING_CONVERGED ...
 COARSE_EPS = 0.01
 #: ... with Gauss-Seidel over-relaxed by this factor (its points travel far)
-COARSE_OMEGA = 1.5
+COARSE_OMEGA = 1.7
 
 
 @dataclass(frozen=True, eq=False)
@@ -245,7 +245,7 @@ def resample_patch(
         levels start from points already in place and use the final weights.
     omega : float, keyword-only
         Over-relaxation factor of the Gauss-Seidel sweeps, in (0, 2) (default 1; level 0
-        uses 1.5 times it).
+        uses 1.7 times it).
     n_fair : int, keyword-only
         Local fairness moves after each FindMidPoint guess (default 2).
     forces : {"euclidean", "tangent"}, keyword-only
