@@ -45,6 +45,13 @@ def _job_key(path: Path, layout: str | None, options: dict[str, Any]) -> str:
     return h.hexdigest()
 
 
+def _remove_leftovers(folder: Path) -> None:
+    """Delete temporary files (``.name.*``) a killed attempt left in a mesh's output folder."""
+    for p in folder.rglob(".*"):
+        if p.is_file():
+            p.unlink(missing_ok=True)
+
+
 def fit_one(path: str, out: str, layout: str | None, options: dict[str, Any], key: str) -> dict:
     """Fit one mesh file into ``out`` (the task body; runs on a worker).
 
@@ -57,6 +64,7 @@ def fit_one(path: str, out: str, layout: str | None, options: dict[str, Any], ke
     folder = Path(out)
     try:
         folder.mkdir(parents=True, exist_ok=True)
+        _remove_leftovers(folder)
         opts = FitOptions(**{k: tuple(v) if isinstance(v, list) else v for k, v in options.items()})
         mesh = load_mesh(path)
         summary = run_fit(mesh, folder, layout=layout or "auto", options=opts, resume=True)
@@ -162,7 +170,7 @@ def run_batch(
                     n_workers=int(n_workers or 2),
                     threads_per_worker=1,
                     host="127.0.0.1",
-                    dashboard_address=None,
+                    dashboard_address="127.0.0.1:0",
                     processes=True,
                 )
                 client = Client(own)

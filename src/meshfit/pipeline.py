@@ -215,6 +215,12 @@ def _from_bytes(a: NDArray[np.uint8]) -> Any:
     return json.loads(np.asarray(a, dtype=np.uint8).tobytes().decode())
 
 
+def _untimed(rows: list[dict]) -> list[dict]:
+    """Rows without wall times: stage files hold only what the inputs determine (the same
+    bytes on every run)."""
+    return [{k: v for k, v in r.items() if k != "seconds"} for r in rows]
+
+
 def _write_json(path: Path, data: Any) -> Path:
     return write_text(path, json.dumps(data, indent=2, default=_json_default) + "\n")
 
@@ -675,7 +681,7 @@ def run_fit(
         grids = [g for g, _ in res]
         spring_info = [i for _, i in res]
         arrays = {f"grid_{p}": g for p, g in enumerate(grids)}
-        arrays["info"] = _as_bytes(spring_info)
+        arrays["info"] = _as_bytes(_untimed(spring_info))
         _save_npz(st.path("springs", k_springs, ".npz"), arrays)
     if "cut" not in st.info:
         st.info["cut"] = {"seconds": 0.0, "cached": True}
@@ -722,7 +728,7 @@ def run_fit(
         if options.continuity == "g1":
             surfaces = _stitch_g1(grids, surfaces, notes)
         arrays = {f"ctrl_{p}": s.control_points for p, s in enumerate(surfaces)}
-        arrays["info"] = _as_bytes(fit_info)
+        arrays["info"] = _as_bytes(_untimed(fit_info))
         _save_npz(st.path("fit", k_fit, ".npz"), arrays)
     st.done("fit", t0, cached=cached is not None)
 
