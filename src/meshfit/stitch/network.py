@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 from meshfit import tol
 from meshfit.errors import InputError
@@ -145,11 +146,15 @@ def network_from_grids(grids: Sequence[NDArray], *, continuity: str = "G1") -> N
             length = float(np.linalg.norm(np.diff(row, axis=0), axis=1).sum())
             mid = _point_at_half_length(row)
             sides.append((k, s, row[0], row[-1], mid, length))
+    starts = np.array([x[2] for x in sides])
+    tree_start = cKDTree(starts)
     boundaries = []
     used: set[tuple[int, str]] = set()
     for x in range(len(sides)):
         ka, sa, a0, a1, am, la = sides[x]
-        for y in range(x + 1, len(sides)):
+        # sides starting where this one starts (same direction) or ends (reversed)
+        cand = set(tree_start.query_ball_point(a0, eps)) | set(tree_start.query_ball_point(a1, eps))
+        for y in sorted(c for c in cand if c > x):
             kb, sb, b0, b1, bm, lb = sides[y]
             if kb == ka:
                 continue
@@ -168,14 +173,16 @@ def network_from_grids(grids: Sequence[NDArray], *, continuity: str = "G1") -> N
     slots = [(k, i, j) for k in range(len(grids)) for i in (0, -1) for j in (0, -1)]
     pos = np.array([grids[k][i, j] for k, i, j in slots])
     label = -np.ones(len(slots), dtype=np.int64)
+    tree = cKDTree(pos)
     n_corners = 0
-    for s in range(len(slots)):
-        if label[s] >= 0:
+    for s_ in range(len(slots)):
+        if label[s_] >= 0:
             continue
-        close = np.linalg.norm(pos - pos[s], axis=1) <= eps
-        label[close & (label < 0)] = n_corners
+        close = np.array(tree.query_ball_point(pos[s_], eps), dtype=np.int64)
+        close = close[label[close] < 0]
+        label[close] = n_corners
         n_corners += 1
-    corners = tuple(tuple(slots[s] for s in np.flatnonzero(label == c)) for c in range(n_corners))
+    corners = tuple(tuple(slots[s_] for s_ in np.flatnonzero(label == c)) for c in range(n_corners))
     return Network(len(grids), tuple(boundaries), corners)
 
 
