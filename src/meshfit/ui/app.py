@@ -80,7 +80,19 @@ class App:
         self._nodes: dict[str, list] = {}
         self._build_gui(layout_path)
         self.server.scene.on_click()(self._on_click)
+        self.server.on_client_connect(self._frame_camera)
         self.redraw(mesh=True)
+
+    def _frame_camera(self, client) -> None:
+        """Look at the mesh from its front (+z), the mesh filling most of the view."""
+        m = self.session.mesh
+        if m is None:
+            return
+        lo, hi = m.bbox
+        c = 0.5 * (lo + hi)
+        client.camera.up_direction = (0.0, 1.0, 0.0)
+        client.camera.position = tuple(c + np.array([0.0, 0.0, 0.9 * m.bbox_diagonal]))
+        client.camera.look_at = tuple(c)  # after the position: keeps looking at the mesh
 
     # ------------------------------------------------------------------------ plumbing
     @property
@@ -125,9 +137,15 @@ class App:
             gui.add_button("Finish curve").on_click(
                 lambda _: self._run(s.finish_curve) is not FAILED and self.say("curve finished")
             )
-            gui.add_button("Cancel curve").on_click(lambda _: self._run(s.cancel_curve))
-            gui.add_button("Undo").on_click(lambda _: self._run(s.undo))
-            gui.add_button("Redo").on_click(lambda _: self._run(s.redo))
+            gui.add_button("Cancel curve").on_click(
+                lambda _: self._run(s.cancel_curve) is not FAILED and self.say("curve cancelled")
+            )
+            gui.add_button("Undo").on_click(
+                lambda _: self.say("undone" if self._run(s.undo) is True else "nothing to undo")
+            )
+            gui.add_button("Redo").on_click(
+                lambda _: self.say("redone" if self._run(s.redo) is True else "nothing to redo")
+            )
             self.gui_curve = gui.add_number("Selected curve", initial_value=-1, step=1)
             self.gui_curve.on_update(lambda _: self._select(int(self.gui_curve.value)))
             gui.add_button("Delete curve").on_click(lambda _: self._on_delete())
@@ -353,6 +371,7 @@ class App:
             with self.lock:
                 hit = s.pick(o, d)
             if hit is None:
+                self.say("edit: the click missed the mesh")
                 return
             x = s.mesh.xyz(hit)[0]
             near = s.nearest_sample(x)
@@ -362,6 +381,10 @@ class App:
                 self.redraw()
             elif self.selected is not None and self.edit_point is not None:
                 self._pull(x)
+            else:
+                self.say("edit: no curve near the click (click on a curve to pick an edit point)")
+            return
+        self.say("view mode: clicks do nothing")
 
     def _pull(self, target) -> None:
         s = self.session
@@ -407,7 +430,8 @@ class App:
             self.say("select a curve first (edit mode: click it)")
             return
         i, self.selected, self.edit_point = self.selected, None, None
-        self._run(self.session.delete_curve, i)
+        if self._run(self.session.delete_curve, i) is not FAILED:
+            self.say(f"curve {i} deleted")
 
     def _on_curve_action(self, what: str) -> None:
         s = self.session
@@ -420,9 +444,13 @@ class App:
             if it is not FAILED:
                 self.say(f"curve {self.selected} smoothed ({it} iterations)")
         elif what == "step":
-            self._run(s.snake_step, self.selected, **kw)
+            move = self._run(s.snake_step, self.selected, **kw)
+            if move is not FAILED:
+                self.say(f"curve {self.selected}: one snake step, largest move {move:.3g}")
         else:
-            self._run(s.fit_space_curve, self.selected, n_control=int(self.gui_ncontrol.value))
+            sp = self._run(s.fit_space_curve, self.selected, n_control=int(self.gui_ncontrol.value))
+            if sp is not FAILED:
+                self.say(f"curve {self.selected}: space curve with {sp.n_control} control vertices")
 
     def _on_color(self) -> None:
         self._run(

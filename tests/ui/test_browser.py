@@ -1,0 +1,212 @@
+"""The web app in a real browser (Debian chromium, headless, Playwright): painting by clicks,
+editing, previews, layout files, fit export, refused uploads and paths.
+
+The tests share one app and one page and run in file order (each builds on the state the
+previous one left). Server-side state is read from the app object in this process.
+"""
+
+from __future__ import annotations
+
+import io
+import time
+
+import numpy as np
+import png
+import pytest
+
+from tests.conftest import mesh_path
+from tests.ui.conftest import VIEWPORT, wait_for
+
+pytestmark = pytest.mark.browser
+
+#: screen points on spot's back (the app frames the mesh from +z in a 1000 x 700 view)
+QUAD = [(465, 330), (535, 330), (535, 430), (465, 430)]
+
+
+def _rotation(wxyz) -> np.ndarray:
+    w, x, y, z = (float(c) for c in wxyz)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def screen_of(app, xyz) -> tuple[int, int]:
+    """Pixel of a 3-D point in the page's view (viser cameras: OpenCV axes, vertical fov)."""
+    (client,) = app.server.get_clients().values()
+    cam = client.camera
+    p = _rotation(cam.wxyz).T @ (np.asarray(xyz, float) - np.asarray(cam.position))
+    w, h = VIEWPORT["width"], VIEWPORT["height"]
+    f = 0.5 * h / np.tan(0.5 * cam.fov)
+    return round(f * p[0] / p[2] + 0.5 * w), round(f * p[1] / p[2] + 0.5 * h)
+
+
+def canvas_pixels(page) -> np.ndarray:
+    shot = page.locator("canvas").nth(1).screenshot()
+    w, h, rows, _ = png.Reader(file=io.BytesIO(shot)).asRGBA8()
+    return np.vstack([np.frombuffer(r, np.uint8) for r in rows]).reshape(h, w, 4)
+
+
+def changed(a: np.ndarray, b: np.ndarray) -> float:
+    """Fraction of canvas pixels that differ."""
+    return float((np.abs(a.astype(int) - b.astype(int)).max(axis=2) > 8).mean())
+
+
+def settle(page, seconds: float = 1.0) -> None:
+    time.sleep(seconds)  # let the software renderer draw the new scene
+
+
+def click_canvas(page, app, xy) -> str:
+    n = len(app.messages)
+    page.mouse.click(*xy)
+    wait_for(lambda: len(app.messages) > n, what=f"a reply to the click at {xy}")
+    return app.messages[-1]
+
+
+def press(page, app, name: str, *, until=None) -> str:
+    """Click a panel button and wait for its reply (every button says something)."""
+    n = len(app.messages)
+    page.get_by_role("button", name=name, exact=True).click()
+    wait_for(lambda: len(app.messages) > n, what=f"the reply to {name!r}")
+    if until is not None:
+        wait_for(until, what=f"the effect of {name!r}")
+    return app.messages[-1]
+
+
+def field(page, label: str):
+    return page.locator(
+        f'xpath=//label[normalize-space()="{label}"]/following::input[not(@type="hidden")][1]'
+    )
+
+
+def type_into(page, handle, label: str, text: str) -> None:
+    box = field(page, label)
+    box.fill(text)
+    box.press("Enter")
+    wait_for(lambda: str(handle.value) == text, what=f"{label} = {text!r}")
+
+
+def choose(page, handle, label: str, option: str) -> None:
+    field(page, label).click()
+    page.get_by_role("option", name=option, exact=True).click()
+    wait_for(lambda: handle.value == option, what=f"{label} = {option!r}")
+
+
+# ------------------------------------------------------------------------------ tests
+def test_paint_closed_curves_by_clicks(page, app):
+    before = canvas_pixels(page)
+    s = app.session
+    for k in range(4):
+        a, b = QUAD[k], QUAD[(k + 1) % 4]
+        assert "started" in click_canvas(page, app, a)
+        said = click_canvas(page, app, b)
+        if k < 3:
+            assert "added" in said
+            press(page, app, "Finish curve", until=lambda k=k: len(s.curves) == k + 1)
+        else:
+            assert "finished" in said  # the last click lands on the first corner
+    assert len(s.curves) == 4 and len(s.corners) == 4
+    press(page, app, "Check layout")
+    assert "2 of 2 regions are four-sided patches" in app.gui_status.content
+    settle(page)
+    assert changed(before, canvas_pixels(page)) > 1e-3  # the curves are drawn
+
+
+def test_edit_point_pull_updates_the_view(page, app):
+    s = app.session
+    choose(page, app.gui_mode, "Click mode", "edit")
+    c0 = s.curves[0].curve
+    mid = screen_of(app, s.mesh.xyz(c0.points[len(c0) // 2])[0])
+    said = click_canvas(page, app, mid)
+    assert "edit point" in said and app.selected is not None
+    i = app.selected
+    old = s.curves[i].curve
+    settle(page)
+    before = canvas_pixels(page)
+    said = click_canvas(page, app, (mid[0], mid[1] - 30))  # pull it up the screen
+    assert "edited" in said, said
+    assert s.curves[i].curve is not old
+    settle(page)
+    assert changed(before, canvas_pixels(page)) > 1e-4
+    press(page, app, "Undo", until=lambda: s.curves[i].curve is old)
+    choose(page, app.gui_mode, "Click mode", "boundary")
+
+
+def test_save_and_reload_layout(page, app, workdir):
+    s = app.session
+    type_into(page, app.gui_layout_path, "Layout file", "quad.json")
+    said = press(page, app, "Save layout")
+    assert "layout saved" in said, said
+    assert (workdir / "quad.json").is_file()
+    press(page, app, "Undo", until=lambda: len(s.curves) == 3)
+    press(page, app, "Load layout", until=lambda: len(s.curves) == 4)
+    assert s.status().complete
+
+
+def test_previews_update_live(page, app):
+    s = app.session
+    said = press(page, app, "Spring mesh")
+    assert "spring mesh level 0" in said, said
+    said = press(page, app, "Fit B-spline")
+    assert "8 x 8 controls" in said, said
+    settle(page)
+    before = canvas_pixels(page)
+    type_into(page, app.gui_cu, "Controls u", "4")
+    wait_for(lambda: "4 x 8 controls" in app.messages[-1], what="the re-fit at 4 x 8")
+    fit = s.fit_patch(0, controls=(4, 8))
+    assert fit.surface.control_points.shape[:2] == (4, 8)
+    settle(page)
+    assert changed(before, canvas_pixels(page)) > 1e-4
+
+
+def test_run_fit_exports(page, app, workdir):
+    type_into(page, app.gui_export, "Export folder", "fit")
+    said = press(page, app, "Export")
+    assert "exported" in said, said
+    assert (workdir / "fit" / "layout.json").is_file()
+    assert any((workdir / "fit").rglob("*.obj")) or any((workdir / "fit").rglob("*.usd*"))
+
+
+def test_refused_uploads(page, app):
+    upload = page.locator("input[type=file]").first
+    app.policy.max_upload = 10_000
+    try:
+        n = len(app.messages)
+        upload.set_input_files(
+            files=[
+                {
+                    "name": "spot.ply",
+                    "mimeType": "application/octet-stream",
+                    "buffer": mesh_path("spot").read_bytes(),
+                }
+            ]
+        )
+        wait_for(lambda: len(app.messages) > n, what="the upload reply")
+        assert "the limit is 10,000 bytes" in app.messages[-1]
+    finally:
+        app.policy.max_upload = 200 * 1024 * 1024
+    n = len(app.messages)
+    upload.set_input_files(
+        files=[
+            {
+                "name": "broken.ply",
+                "mimeType": "application/octet-stream",
+                "buffer": b"ply\nformat ascii 1.0\nelement vertex 3\nend_header\n1 2\n",
+            }
+        ]
+    )
+    wait_for(lambda: len(app.messages) > n, what="the upload reply")
+    assert app.messages[-1].startswith("**refused:**")
+    assert app.session.mesh.name == "spot.ply"  # still the same mesh
+
+
+def test_paths_outside_the_workdir_are_refused(page, app):
+    type_into(page, app.gui_layout_path, "Layout file", "../outside.json")
+    said = press(page, app, "Save layout")
+    assert "outside the allowed folder" in said, said
+    type_into(page, app.gui_layout_path, "Layout file", "/etc/passwd")
+    said = press(page, app, "Load layout")
+    assert "only .json" in said, said
