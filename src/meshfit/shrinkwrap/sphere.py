@@ -408,9 +408,10 @@ def _untangle(mesh: Mesh, s: NDArray[np.float64], rounds: int) -> NDArray[np.flo
 def _relax_area(
     mesh: Mesh, s: NDArray[np.float64], iterations: int, step: float
 ) -> NDArray[np.float64]:
-    """Flip-guarded relaxation of the sphere points toward an area-proportional layout:
-    each vertex moves toward the surface-area-weighted centroid of its adjacent sphere
-    triangles; moves that flip a spherical triangle are undone."""
+    """Flip-guarded smoothing of the sphere points: each vertex moves toward the
+    surface-area-weighted mean of the centroids of its adjacent sphere triangles; moves that
+    flip a spherical triangle are undone. It evens out triangle shapes (spot, 100 steps:
+    level-5 wrap minimum angle 0.5 -> 11 degrees) but does not equalize areas."""
     faces = mesh.faces
     af = mesh.face_areas
     indptr, vf = mesh.vertex_faces
@@ -462,7 +463,8 @@ def sphere_map(
         untangling; if flipped triangles remain it falls back to ``"tutte"`` and says so in
         ``notes`` (``method`` records what ran).
     relax_iterations : int
-        Flip-guarded area relaxation steps on the sphere after the embedding (default 0).
+        Flip-guarded smoothing steps on the sphere after the embedding (default 0; about
+        0.1 s per step on igea).
     relax_step : float
         Step of that relaxation, in (0, 1].
     progress : callable(stage, fraction), optional
