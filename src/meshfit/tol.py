@@ -65,7 +65,8 @@ LAYOUT_BARY_SUM = 1e-9
 LAYOUT_AREA_RTOL = 1e-9
 
 # --- meshfit.bspline / meshfit.displacement / meshfit.stitch
-#: |S_u x S_v| below this times |S_u| |S_v| is a degenerate (collapsed) point of a spline (dimensionless)
+#: |S_u x S_v| below this times |S_u| |S_v| is a degenerate (collapsed) point of a spline
+#: (dimensionless)
 BSPLINE_DEGENERATE = 1e-12
 #: at a degenerate point the normal is taken this far (in parameter) towards the patch middle
 BSPLINE_NORMAL_STEP = 1e-6
