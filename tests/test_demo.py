@@ -3,13 +3,17 @@
 from __future__ import annotations
 
 import json
+import os
 import re
+import subprocess
 
 import numpy as np
+import pytest
 
 from meshfit import cli, tol
 from meshfit.demo import demo_mesh, run_demo
 from meshfit.mesh import load_mesh
+from meshfit.pipeline import FitOptions
 
 from .conftest import ROOT
 
@@ -40,25 +44,48 @@ def test_demo_mesh_default_size_is_scan_like():
     assert cv > 0.15
 
 
-def test_run_demo_writes_outputs(tmp_path):
-    summary = run_demo(tmp_path, faces=3000, quiet=True)
+def test_run_demo_fits_and_reports(tmp_path):
+    opts = FitOptions(controls=(6, 6), spring_level=1, formats=("obj",), image_size=96)
+    summary = run_demo(tmp_path, faces=4000, quiet=True, options=opts)
     mesh = load_mesh(tmp_path / "demo_scan.ply")
     assert mesh.n_faces == summary["statistics"]["faces"]
     assert mesh.vertex_colors is not None
     info = json.loads((tmp_path / "info.json").read_text())
     assert info["genus"] == 0
-    walk = json.loads((tmp_path / "demo.json").read_text())["walk"]
-    assert walk["hit_boundary"] == 0
-    assert walk["max_length_error"] < 1e-9 * mesh.bbox_diagonal
-    assert walk["max_distance_off_surface"] < tol.ON_SURFACE * mesh.bbox_diagonal
-    assert not list(tmp_path.glob("*.tmp"))
+    assert summary["patches_total"] == 60
+    assert summary["report"] == str(tmp_path / "report.html")
+    assert (tmp_path / "report.html").is_file()
+    assert summary["seams"]["spline_gap_max"] <= tol.STITCH_GAP
+    assert sum(p["folded"] for p in summary["patches"]) == 0
+    assert summary["errors"]["displaced"]["rms"] < summary["errors"]["spline_only"]["rms"]
+    assert not list(tmp_path.rglob("*.tmp"))
 
 
 def test_cli_demo_json(tmp_path, capsys):
     assert cli.main(["demo", "--out", str(tmp_path), "--faces", "2000", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["statistics"]["closed"] is True
-    assert out["walk"]["points"] == 100_000
+    assert out["report"] == str(tmp_path / "report.html")
+
+
+@pytest.mark.slow
+def test_demo_command_in_a_fresh_folder(tmp_path):
+    """The installed ``meshfit demo`` runs from an empty folder (no ../shared) and ends with
+    the report's path."""
+    env = {k: v for k, v in os.environ.items() if k != "MESHFIT_DATA"}
+    run = subprocess.run(
+        ["meshfit", "demo", "--faces", "3000", "--out", "out"],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
+    assert run.returncode == 0, run.stderr[-2000:]
+    last = run.stdout.strip().splitlines()[-1]
+    assert last == "out/report.html"
+    assert (tmp_path / last).is_file()
 
 
 def test_readme_python_example_runs():
