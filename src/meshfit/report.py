@@ -155,7 +155,7 @@ def write_report(
             img = _map_image(d.values, scale)
             # rows along v, columns along u, magnified to at least 128 pixels
             img = np.transpose(img, (1, 0, 2))[::-1]
-            k = max(1, 128 // max(img.shape[:2]))
+            k = max(1, -(-128 // max(img.shape[:2])))
             img = np.repeat(np.repeat(img, k, axis=0), k, axis=1)
             write_png_rgb(folder / f"map_{p:03d}.png", img)
         summary["map_scale"] = scale / mesh.bbox_diagonal
