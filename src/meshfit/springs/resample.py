@@ -175,12 +175,13 @@ def _final_level(n_level0: tuple[int, int], n_vertices: int, level, max_points) 
     if level is not None:
         if isinstance(level, bool) or int(level) != level or level < 0:
             raise InputError(f"level must be a non-negative integer, got {level!r}")
-        return int(level)
-    # the level whose point count is closest (by ratio) to the patch's vertex count: "spring
-    # points comparable to the number of mesh vertices" (sec. 5.6)
-    k = 0
-    while count(k + 1) <= n_vertices or count(k + 1) / n_vertices < n_vertices / count(k):
-        k += 1
+        k = int(level)
+    else:
+        # the level whose point count is closest (by ratio) to the patch's vertex count:
+        # "spring points comparable to the number of mesh vertices" (sec. 5.6)
+        k = 0
+        while count(k + 1) <= n_vertices or count(k + 1) / n_vertices < n_vertices / count(k):
+            k += 1
     if max_points is not None:
         if int(max_points) < count(0):
             raise InputError(f"max_points={max_points} is below the level-0 grid ({count(0)})")
