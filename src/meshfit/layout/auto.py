@@ -14,8 +14,11 @@ Method
    curves cross nowhere but at the corners.
 
 The result is an ordinary :class:`meshfit.layout.Layout`: it can be saved, edited and
-re-used. The relaxation of each traced curve as a surface snake with fixed ends is not done
-here yet (the traced image of the arc is kept).
+re-used.
+4. Each traced curve is relaxed as a surface snake with fixed ends (a tight, evenly sampled
+   curve on the surface instead of the image of an arc, which follows the parameterization's
+   distortion); if the relaxed network no longer cuts the mesh into disks the traced curves
+   are kept.
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from meshfit.curves.base import densify_curve
-from meshfit.errors import InputError, TopologyError
+from meshfit.errors import InputError, MeshfitError, TopologyError
 from meshfit.layout.layout import Layout, layout_from_curves
 from meshfit.mesh import Mesh
 from meshfit.types import SurfaceCurve, SurfacePoints
@@ -132,6 +135,8 @@ def auto_layout(
     patches: int | None = None,
     sphere=None,
     seed: int = 0,
+    relax: bool = True,
+    relax_iterations: int = 200,
 ) -> Layout:
     """A four-sided layout of a closed genus-0 mesh: three quads per base-mesh triangle.
 
@@ -147,6 +152,12 @@ def auto_layout(
         :func:`meshfit.shrinkwrap.sphere_map`.
     seed : int, keyword-only
         Seed of the base mesh's starting rotation.
+    relax : bool, keyword-only
+        Relax every traced curve as a surface snake with fixed ends (membrane and arc-length
+        forces, :func:`meshfit.curves.relax_snake`; default True). If the relaxed curves
+        cross, the traced images are kept (they never cross).
+    relax_iterations : int, keyword-only
+        Iteration cap of each snake (default 200).
 
     Returns
     -------
@@ -191,4 +202,16 @@ def auto_layout(
     curves = []
     for a, b in ends.tolist():
         curves.append(_trace(mesh, smap, pts[a], pts[b], corners[a], corners[b]))
-    return layout_from_curves(mesh, corners, curves, ends, quads)
+    traced = layout_from_curves(mesh, corners, curves, ends, quads)
+    if not relax:
+        return traced
+    from meshfit.curves import relax_snake
+    from meshfit.layout.extract import check_layout_topology
+
+    relaxed = [relax_snake(mesh, c, max_iter=int(relax_iterations)).curve for c in curves]
+    try:
+        out = layout_from_curves(mesh, corners, relaxed, ends, quads)
+        check_layout_topology(mesh, out)
+    except MeshfitError:
+        return traced
+    return out
