@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from meshfit.curves.base import densify_curve
+from meshfit.curves.base import check_sampling, densify_curve
 from meshfit.errors import InputError, MeshfitError, TopologyError
 from meshfit.layout.layout import Layout, layout_from_curves
 from meshfit.mesh import Mesh
@@ -208,7 +208,12 @@ def auto_layout(
     from meshfit.curves import relax_snake
     from meshfit.layout.extract import check_layout_topology
 
-    relaxed = [relax_snake(mesh, c, max_iter=int(relax_iterations)).curve for c in curves]
+    relaxed = []
+    for c in curves:
+        r = relax_snake(mesh, c, max_iter=int(relax_iterations)).curve
+        if len(check_sampling(mesh, r)):
+            r = densify_curve(mesh, r)
+        relaxed.append(r)
     try:
         out = layout_from_curves(mesh, corners, relaxed, ends, quads)
         check_layout_topology(mesh, out)
