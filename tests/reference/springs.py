@@ -89,6 +89,9 @@ def relax_sweeps(
             alpha[p] = alpha[p] * 0.5 if (step / total) @ prev[p] < 0 else min(1.0, alpha[p] * 1.25)
             step = step * omega * alpha[p]
             face[p], bary[p], moved = _walk_inside(mesh, face[p], bary[p], step)
+            fn = mesh.face_neighbors[face[p]]
+            if moved == 0 and any(fn[k] < 0 and bary[p, (k + 2) % 3] <= 1e-12 for k in range(3)):
+                bary[p] = 0.99 * bary[p] + 0.01 / 3  # stuck on the boundary: step off it
             moves.append(moved / h)
             x = mesh.xyz(SurfacePoints(face[p : p + 1], bary[p : p + 1]))[0]
             prev[p] = x - X[p]

@@ -13,6 +13,9 @@ from numba import njit
 
 from meshfit._kernels.walk import DONE, _face_normal, _start_direction, _walk_one
 
+#: fraction of the way to its face's centre that a point stuck on the boundary is moved
+NUDGE = 1e-2
+
 #: spring point kinds (``SpringMesh.kind``)
 BOUNDARY = 0
 ANCHOR = 1
@@ -187,6 +190,11 @@ def relax_sweeps(
             f, moved = walk_inside(
                 V, F, FN, face[p], bary[p], u, total, max_faces, bary_eps, 6, s0, s1
             )
+            if moved == 0.0 and _on_boundary_edge(FN, f, bary[p], bary_eps):
+                # stuck on the boundary (every walk leaves the patch at once): step off it
+                # toward the face's centre so that later sweeps can move it inward
+                for c in range(3):
+                    bary[p, c] = (1.0 - NUDGE) * bary[p, c] + NUDGE / 3.0
             if h > 0.0:
                 worst = max(worst, moved / h)
                 sq += (moved / h) ** 2
