@@ -40,7 +40,7 @@ def test_app_serves_the_mesh_and_layout(tmp_path):
         # files named on the command line are allowed even outside the working folder
         assert app.policy.check(str(SPOT_LAYOUT), suffixes=(".json",)) == SPOT_LAYOUT.resolve()
         assert s.autosave_path == (tmp_path / "spot.session.json").resolve()
-        assert s.autosave_path.is_file()  # loading the layout was a change
+        assert s.flush() and s.autosave_path.is_file()  # loading the layout was a change
     finally:
         app.stop()
 

@@ -281,11 +281,12 @@ def test_autosave_every_change_and_restore(painted, tmp_path, spot):
     s = Session(spot, autosave=path)
     x = side_picks(spot)[0]
     s.click(*click_ray(spot, x[0]))
+    assert s.flush()
     doc = json.loads(path.read_text())
     assert doc["meshfit_ui_session"] == 1 and doc["stroke"] is not None
-    paint_quad(Session(spot))  # unrelated session: no file
     s.state = painted.state
     s.smooth_curve(2, max_iter=10)  # a change writes the file
+    assert s.flush() and not s.save_errors
     t = Session(spot)
     t.restore(path)
     assert len(t.curves) == 4
@@ -294,6 +295,20 @@ def test_autosave_every_change_and_restore(painted, tmp_path, spot):
         np.testing.assert_array_equal(a.curve.points.bary, b.curve.points.bary)
         assert a.ends == b.ends
     assert t.status().complete
+
+
+def test_background_and_synchronous_autosave_agree(painted, tmp_path, spot):
+    a = Session(spot, autosave=tmp_path / "a.json")
+    b = Session(spot, autosave=tmp_path / "b.json", background_save=False)
+    for s in (a, b):
+        s.state = painted.state
+        s.snake_step(0)  # the same deterministic edit from the same state
+        s.delete_curve(3)
+        s.undo()
+    assert a.flush()
+    text = (tmp_path / "a.json").read_text()
+    assert text == (tmp_path / "b.json").read_text() == a.to_json()
+    assert json.loads(text)["curves"][3]["ends"] == [3, 0]
 
 
 def test_restore_refuses_bad_files(tmp_path, spot):
@@ -308,6 +323,7 @@ def test_restore_refuses_bad_files(tmp_path, spot):
     other = Session(real_mesh("igea").__class__(spot.vertices * 2, spot.faces))
     other.autosave_path = tmp_path / "other.json"
     other.add_pick(SurfacePoints.at_vertices(spot.faces, [3]))
+    other.flush()
     with pytest.raises(InputError, match="another mesh"):
         s.restore(tmp_path / "other.json")
 

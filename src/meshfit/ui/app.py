@@ -101,6 +101,7 @@ class App:
 
     def stop(self) -> None:
         self._pause.set()
+        self.session.flush()
         self.server.stop()
 
     def say(self, text: str) -> None:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import os
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -205,6 +206,10 @@ class Session:
         Sample spacing of painted curves, model units; default half the mean edge length.
     max_history : int
         Undo steps kept.
+    background_save : bool
+        Write the autosave file on a background thread (default True): an action returns
+        without waiting for the disk, the writer always writes the newest state, and
+        :meth:`flush` waits for it. False writes inside every action.
 
     References
     ----------
@@ -221,6 +226,7 @@ class Session:
         autosave: str | os.PathLike | None = None,
         spacing: float | None = None,
         max_history: int = 200,
+        background_save: bool = True,
     ) -> None:
         self.mesh: Mesh | None = None
         self.autosave_path = None if autosave is None else Path(autosave)
@@ -231,6 +237,15 @@ class Session:
         self.undo_stack: list[SessionState] = []
         self.redo_stack: list[SessionState] = []
         self._cache: dict = {}
+        self._fingerprint = ""
+        self._json_parts: dict[int, tuple[object, str]] = {}
+        self._json_lock = threading.Lock()
+        self.background_save = bool(background_save)
+        self._save_cv = threading.Condition()
+        self._pending: tuple | None = None
+        self._writing = False
+        self._writer: threading.Thread | None = None
+        self.save_errors: list[str] = []
         self.listeners: list[Callable[[], None]] = []
         if mesh is not None:
             self.set_mesh(mesh)
@@ -251,15 +266,61 @@ class Session:
     def _set(self, new: SessionState) -> None:
         self.state = new
         self._cache.clear()
-        self.autosave()
+        self._schedule_save()
         for f in list(self.listeners):
             f()
 
+    def _schedule_save(self) -> None:
+        if self.autosave_path is None or self.mesh is None:
+            return
+        job = (self.autosave_path, self.state, self.mesh, self._fingerprint)
+        if not self.background_save:
+            self._write(job)
+            return
+        with self._save_cv:
+            self._pending = job
+            if self._writer is None or not self._writer.is_alive():
+                self._writer = threading.Thread(
+                    target=self._write_loop, name="meshfit-autosave", daemon=True
+                )
+                self._writer.start()
+            self._save_cv.notify_all()
+
+    def _write(self, job: tuple) -> Path:
+        path, state, mesh, fp = job
+        return _atomic.write_text(path, self._json_of(state, mesh, fp))
+
+    def _write_loop(self) -> None:
+        while True:
+            with self._save_cv:
+                while self._pending is None:
+                    if not self._save_cv.wait(timeout=60.0):
+                        self._writer = None  # idle: end; the next change starts a new one
+                        return
+                job, self._pending = self._pending, None
+                self._writing = True
+            try:
+                self._write(job)
+            except OSError as exc:  # keep editing; report the failed write
+                self.save_errors.append(f"autosave to {job[0]} failed: {exc}")
+            finally:
+                with self._save_cv:
+                    self._writing = False
+                    self._save_cv.notify_all()
+
+    def flush(self, timeout: float = 30.0) -> bool:
+        """Wait until the autosave file holds the current state; False on timeout."""
+        with self._save_cv:
+            return self._save_cv.wait_for(
+                lambda: self._pending is None and not self._writing, timeout=timeout
+            )
+
     def autosave(self) -> Path | None:
-        """Write the session file now (every change does this); returns its path."""
+        """Write the session file now, synchronously; returns its path (None when off)."""
         if self.autosave_path is None or self.mesh is None:
             return None
-        return _atomic.write_text(self.autosave_path, self.to_json())
+        self.flush()
+        return self._write((self.autosave_path, self.state, self.mesh, self._fingerprint))
 
     @property
     def can_undo(self) -> bool:
@@ -290,7 +351,12 @@ class Session:
         """Open a mesh: clears curves, history and previews."""
         if not isinstance(mesh, Mesh):
             raise InputError(f"expected a Mesh, got {type(mesh).__name__}")
+        from meshfit.layout import mesh_fingerprint
+
         self.mesh = mesh
+        self._fingerprint = mesh_fingerprint(mesh)  # hashed once: autosave runs every edit
+        with self._json_lock:
+            self._json_parts.clear()
         self.undo_stack.clear()
         self.redo_stack.clear()
         self.color = replace(self.color, enabled=False)
@@ -825,44 +891,61 @@ class Session:
         return sorted(p for p in folder.rglob("*") if p.is_file() and p not in before)
 
     # ------------------------------------------------------------------------ session file
+    def _points_json(self, sp: SurfacePoints) -> str:
+        """JSON of a point set, cached per (immutable) object: an edit re-serialises only the
+        curve it changed."""
+        hit = self._json_parts.get(id(sp))
+        if hit is not None and hit[0] is sp:
+            return hit[1]
+        text = json.dumps(_sp_to_json(sp))
+        self._json_parts[id(sp)] = (sp, text)
+        return text
+
     def to_json(self) -> str:
         """The whole editable state as versioned JSON (the autosave format)."""
-        from meshfit.layout import mesh_fingerprint
+        return self._json_of(self.state, self._need_mesh(), self._fingerprint)
 
-        mesh = self._need_mesh()
-        st = self.state
-        doc = {
+    def _json_of(self, st: SessionState, mesh: Mesh, fingerprint: str) -> str:
+        with self._json_lock:
+            return self._json_unlocked(st, mesh, fingerprint)
+
+    def _json_unlocked(self, st: SessionState, mesh: Mesh, fingerprint: str) -> str:
+        head = {
             "meshfit_ui_session": SESSION_VERSION,
             "mesh": {
                 "name": mesh.name,
-                "fingerprint": mesh_fingerprint(mesh),
+                "fingerprint": fingerprint,
                 "n_vertices": mesh.n_vertices,
                 "n_faces": mesh.n_faces,
             },
-            "corners": _sp_to_json(st.corners),
-            "curves": [
-                {
-                    "kind": pc.kind,
-                    "ends": None if pc.ends is None else list(pc.ends),
-                    **_sp_to_json(pc.curve.points),
-                }
-                for pc in st.curves
-            ],
-            "stroke": None
-            if st.stroke is None
-            else {
-                "kind": st.stroke.kind,
-                "start_corner": st.stroke.start_corner,
-                "picks": _sp_to_json(st.stroke.picks),
-                "pieces": [_sp_to_json(p) for p in st.stroke.pieces],
-            },
         }
-        return json.dumps(doc)
+        used = {id(st.corners)}
+        curves = []
+        for pc in st.curves:
+            pts = pc.curve.points
+            used.add(id(pts))
+            ends = "null" if pc.ends is None else json.dumps(list(pc.ends))
+            body = self._points_json(pts)[1:-1]  # '"face": [...], "bary": [...]'
+            curves.append(f'{{"kind": {json.dumps(pc.kind)}, "ends": {ends}, {body}}}')
+        stroke = "null"
+        if st.stroke is not None:
+            used.update(id(p) for p in (st.stroke.picks, *st.stroke.pieces))
+            pieces = ", ".join(self._points_json(p) for p in st.stroke.pieces)
+            stroke = (
+                f'{{"kind": {json.dumps(st.stroke.kind)}, '
+                f'"start_corner": {json.dumps(st.stroke.start_corner)}, '
+                f'"picks": {self._points_json(st.stroke.picks)}, "pieces": [{pieces}]}}'
+            )
+        if len(self._json_parts) > 4 * (len(used) + 8):  # forget curves no longer in the state
+            self._json_parts = {k: v for k, v in self._json_parts.items() if k in used}
+        return (
+            json.dumps(head)[:-1]
+            + f', "corners": {self._points_json(st.corners)}, "curves": [{", ".join(curves)}]'
+            + f', "stroke": {stroke}}}'
+        )
 
     def restore(self, path: str | os.PathLike) -> None:
         """Load a session file (e.g. the autosave after a crash) for the open mesh; undoable."""
-        from meshfit.layout import mesh_fingerprint
-
         mesh = self._need_mesh()
         p = Path(path)
         try:
@@ -871,7 +954,7 @@ class Session:
             raise InputError(f"{p}: not a readable session file ({exc})") from None
         if not isinstance(doc, dict) or doc.get("meshfit_ui_session") != SESSION_VERSION:
             raise InputError(f"{p}: not a meshfit session file of version {SESSION_VERSION}")
-        if doc.get("mesh", {}).get("fingerprint") != mesh_fingerprint(mesh):
+        if doc.get("mesh", {}).get("fingerprint") != self._fingerprint:
             raise InputError(f"{p}: the session was saved for another mesh")
         corners = _sp_from_json(doc["corners"], f"{p}: corners")
         curves = []
