@@ -1,0 +1,215 @@
+"""Benchmark: server-side latency of the web app's interactive actions on igea.
+
+Every figure times a :class:`meshfit.ui.state.Session` action (what a browser event runs on
+the server: the geometry call plus snapping, the undo snapshot and the autosave file write),
+median of ``--repeats`` runs after a warm-up (numba compile excluded), each against a peer
+timed in the same run:
+
+* ``paint_segment`` (target <= 10 ms): ``Session.add_pick`` of the second pick of a stroke,
+  ``--edges`` (default 50 and 200) mean edge lengths from the first; peer: the raw greedy
+  graph path between the same vertices (:func:`meshfit.surface.greedy_path`, painting's first
+  step); :func:`meshfit.curves.paint_curve` called directly is reported too, so the session's
+  own overhead shows.
+* ``snake_step`` (target <= 5 ms): ``Session.snake_step`` on a 1,000-point curve; peer:
+  :func:`meshfit.curves.relax_snake` with ``max_iter=1`` called directly (no session).
+* ``refit_patch`` (target <= 20 ms): ``Session.fit_patch`` of one patch's cached spring grid at
+  a new control resolution (fit, evaluation on the grid and the error colours); peer:
+  :func:`meshfit.bspline.fit_bspline` alone.
+* ``spring_preview`` (target <= 100 ms): ``Session.spring_preview(level=0)`` of the patch
+  closest to 25,000 vertices of a one-per-cube-face layout of igea (cache cleared each run);
+  peer: one single-source Dijkstra over that patch's edge graph
+  (``scipy.sparse.csgraph.dijkstra``), the unit of work of the level-0 iso-curves.
+
+Run: ``python benchmarks/ui_latency.py [--repeats 9] [--edges 50 200]``. Prints JSON and writes
+``benchmarks/results/ui_latency.json`` atomically.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from _common import median_time, mesh_path, write_result
+from scipy.sparse.csgraph import dijkstra
+
+from meshfit.bspline import fit_bspline
+from meshfit.curves import paint_curve, relax_snake, resample_curve
+from meshfit.layout.cube import cube_layout
+from meshfit.mesh import load_mesh
+from meshfit.surface import greedy_path
+from meshfit.types import SurfaceCurve, SurfacePoints
+from meshfit.ui.state import Session
+
+TARGETS_MS = {"paint_segment": 10, "snake_step": 5, "refit_patch": 20, "spring_preview": 100}
+
+
+def _ms(x: float) -> float:
+    return round(1000 * x, 3)
+
+
+def _figure(name: str, t: float, peer: float, peer_name: str, **extra) -> dict:
+    return {
+        "median_ms": _ms(t),
+        "target_ms": TARGETS_MS[name],
+        "meets_target": bool(1000 * t <= TARGETS_MS[name]),
+        "peer": peer_name,
+        "peer_median_ms": _ms(peer),
+        "ratio_to_peer": round(t / peer, 3) if peer > 0 else None,
+        **extra,
+    }
+
+
+def bench_paint(mesh, session: Session, edges: float, repeats: int) -> dict:
+    v = mesh.vertices
+    a = int(np.argmin(v[:, 1]))
+    d = np.linalg.norm(v - v[a], axis=1)
+    b = int(np.argmin(np.abs(d - edges * mesh.mean_edge_length)))
+    pa = SurfacePoints.at_vertices(mesh.faces, [a])
+    pb = SurfacePoints.at_vertices(mesh.faces, [b])
+    session.add_pick(pa)
+    start = session.state
+
+    def paint():
+        session.state = start
+        session.add_pick(pb)
+
+    paint()  # warm-up
+    t, _ = median_time(paint, repeats)
+    greedy_path(mesh, a, b)
+    peer, _ = median_time(lambda: greedy_path(mesh, a, b), repeats)
+    both = SurfacePoints.concatenate([pa, pb])
+    paint_curve(mesh, both)
+    direct, _ = median_time(lambda: paint_curve(mesh, both), repeats)
+    n = len(session.state.stroke.points())
+    session.state = start
+    session.cancel_curve()
+    return _figure(
+        "paint_segment",
+        t,
+        peer,
+        "greedy_path (raw graph path)",
+        samples=n,
+        chord_edges=round(float(d[b] / mesh.mean_edge_length), 1),
+        paint_curve_direct_ms=_ms(direct),
+        session_overhead_ms=_ms(t - direct),
+    )
+
+
+def bench_snake(mesh, session: Session, repeats: int) -> dict:
+    v = mesh.vertices
+    a = int(np.argmin(v[:, 1]))
+    b = int(np.argmax(v[:, 1]))
+    session.add_pick(SurfacePoints.at_vertices(mesh.faces, [a]))
+    session.add_pick(SurfacePoints.at_vertices(mesh.faces, [b]))
+    session.finish_curve()
+    curve = session.curves[-1].curve
+    if len(curve) < 1000:
+        curve = resample_curve(mesh, curve, n=1000)
+    curve1000 = SurfaceCurve(curve.points[np.arange(1000)], kind="boundary")
+    i = len(session.curves) - 1
+    session._replace_curve(i, curve1000, None)
+    start = session.state
+
+    def step():
+        session.state = start
+        session.snake_step(i)
+
+    step()
+    t, _ = median_time(step, repeats)
+    relax_snake(mesh, curve1000, max_iter=1)
+    peer, _ = median_time(lambda: relax_snake(mesh, curve1000, max_iter=1), repeats)
+    return _figure("snake_step", t, peer, "relax_snake(max_iter=1) direct", points=len(curve1000))
+
+
+def bench_patch(mesh, session: Session, repeats: int) -> tuple[dict, dict]:
+    t0 = time.perf_counter()
+    session.set_layout(cube_layout(mesh, n=1))
+    patches = session.patches()
+    layout_s = time.perf_counter() - t0
+    p = int(np.argmin([abs(q.mesh.n_vertices - 25_000) for q in patches]))
+    nv = patches[p].mesh.n_vertices
+
+    def preview():
+        for k in [k for k in session._cache if isinstance(k, tuple) and k[0] == "springs"]:
+            del session._cache[k]
+        return session.spring_preview(p, level=0)
+
+    grid0 = preview()
+    t_spring, _ = median_time(preview, repeats)
+    pm = patches[p].mesh
+    src = int(patches[p].sides[0][len(patches[p].sides[0]) // 2])
+    graph = pm.edge_graph
+    dijkstra(graph, indices=src)
+    peer_spring, _ = median_time(lambda: dijkstra(graph, indices=src), repeats)
+    spring = _figure(
+        "spring_preview",
+        t_spring,
+        peer_spring,
+        "scipy dijkstra, one source on the patch",
+        patch_vertices=int(nv),
+        grid=list(grid0.shape),
+        layout_and_cut_s=round(layout_s, 2),
+    )
+    grid = session.spring_preview(p, level=3)
+    X = np.asarray(grid.xyz)
+    sizes = [(8, 8), (12, 10), (16, 16), (10, 14)]
+    session.fit_patch(p, controls=sizes[0])
+    fit_bspline(X, controls=sizes[0])
+    k = iter(range(10**9))
+    t_fit, _ = median_time(
+        lambda: session.fit_patch(p, controls=sizes[next(k) % len(sizes)]), repeats
+    )
+    k = iter(range(10**9))
+    peer_fit, _ = median_time(lambda: fit_bspline(X, controls=sizes[next(k) % len(sizes)]), repeats)
+    refit = _figure(
+        "refit_patch",
+        t_fit,
+        peer_fit,
+        "fit_bspline alone",
+        grid=list(X.shape[:2]),
+        controls_cycled=[list(c) for c in sizes],
+    )
+    return spring, refit
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=9)
+    ap.add_argument(
+        "--edges",
+        type=float,
+        nargs="+",
+        default=[50.0, 200.0],
+        help="chord lengths of the painted segment, mean edge lengths (default: 50 200)",
+    )
+    args = ap.parse_args()
+    mesh = load_mesh(mesh_path("igea"))
+    with tempfile.TemporaryDirectory() as tmp:
+        session = Session(mesh, autosave=Path(tmp) / "igea.session.json")
+        paint = {f"{e:g}_edges": bench_paint(mesh, session, e, args.repeats) for e in args.edges}
+        snake = bench_snake(mesh, session, args.repeats)
+        spring, refit = bench_patch(mesh, session, args.repeats)
+    write_result(
+        "ui_latency",
+        {
+            "mesh": "igea",
+            "vertices": mesh.n_vertices,
+            "faces": mesh.n_faces,
+            "repeats": args.repeats,
+            "includes": "session action: geometry call, snapping, undo snapshot, autosave write",
+            "paint_segment": paint,
+            "snake_step": snake,
+            "refit_patch": refit,
+            "spring_preview": spring,
+            "machine": {"cpus": os.cpu_count(), "python": platform.python_version()},
+        },
+    )
+
+
+if __name__ == "__main__":
+    main()
