@@ -47,6 +47,22 @@ def _walk_inside(mesh: Mesh, f, b, vec, tries=6):
     return f, b.copy(), 0.0
 
 
+def _bad_around(X, N, nu, nv, p):
+    """Triangles of the (up to four) cells around grid point p that face against the summed
+    normals at their corners."""
+    i, j = divmod(p, nv)
+    bad = 0
+    for ci in (i - 1, i):
+        for cj in (j - 1, j):
+            if 0 <= ci < nu - 1 and 0 <= cj < nv - 1:
+                a, b = ci * nv + cj, (ci + 1) * nv + cj
+                c, d = b + 1, a + 1
+                for t in ((a, b, c), (a, c, d)):
+                    n = np.cross(X[t[1]] - X[t[0]], X[t[2]] - X[t[0]])
+                    bad += int(n @ N[list(t)].sum(axis=0) <= 0)
+    return bad
+
+
 def relax_sweeps(
     mesh: Mesh,
     face,
@@ -55,6 +71,7 @@ def relax_sweeps(
     nv,
     movable,
     tangent,
+    guard,
     alpha,
     prev,
     n_sweeps,
@@ -70,6 +87,7 @@ def relax_sweeps(
     alpha = alpha.copy()
     prev = prev.copy()
     X = mesh.xyz(SurfacePoints(face, bary))
+    N = mesh.face_normals[face].copy()
     done, worst, rms = 0, 0.0, 0.0
     for k in range(n_sweeps):
         it = it0 + k
@@ -88,14 +106,22 @@ def relax_sweeps(
                 continue
             alpha[p] = alpha[p] * 0.5 if (step / total) @ prev[p] < 0 else min(1.0, alpha[p] * 1.25)
             step = step * omega * alpha[p]
-            face[p], bary[p], moved = _walk_inside(mesh, face[p], bary[p], step)
-            fn = mesh.face_neighbors[face[p]]
-            if moved == 0 and any(fn[k] < 0 and bary[p, (k + 2) % 3] <= 1e-12 for k in range(3)):
-                bary[p] = 0.99 * bary[p] + 0.01 / 3  # stuck on the boundary: step off it
+            before = _bad_around(X, N, nu, nv, p)
+            f0, b0, x0, n0 = face[p], bary[p].copy(), X[p].copy(), N[p].copy()
+            for attempt in range(4):
+                f, b, moved = _walk_inside(mesh, f0, b0.copy(), step / 2.0**attempt)
+                fn = mesh.face_neighbors[f]
+                if moved == 0 and any(fn[e] < 0 and b[(e + 2) % 3] <= 1e-12 for e in range(3)):
+                    b = 0.99 * b + 0.01 / 3  # stuck on the boundary: step off it
+                face[p], bary[p] = f, b
+                X[p] = mesh.xyz(SurfacePoints(face[p : p + 1], bary[p : p + 1]))[0]
+                N[p] = mesh.face_normals[f]
+                if not guard or _bad_around(X, N, nu, nv, p) <= before:
+                    break
+                if attempt == 3:  # every try folds a cell: stay
+                    face[p], bary[p], X[p], N[p], moved = f0, b0, x0, n0, 0.0
+            prev[p] = X[p] - x0
             moves.append(moved / h)
-            x = mesh.xyz(SurfacePoints(face[p : p + 1], bary[p : p + 1]))[0]
-            prev[p] = x - X[p]
-            X[p] = x
         done = k + 1
         worst = max(moves) if moves else 0.0
         rms = float(np.sqrt(np.mean(np.square(moves)))) if moves else 0.0

@@ -118,6 +118,42 @@ def spring_force(X, nv, p, w_arc, w_fair, nrm, tangent, out):
 
 
 @njit(cache=True, nogil=True, fastmath=False)
+def _tri_bad(X, N, p, q, r):
+    """1 if triangle (p, q, r) faces against the summed normals at its corners, else 0."""
+    ux = X[q, 0] - X[p, 0]
+    uy = X[q, 1] - X[p, 1]
+    uz = X[q, 2] - X[p, 2]
+    wx = X[r, 0] - X[p, 0]
+    wy = X[r, 1] - X[p, 1]
+    wz = X[r, 2] - X[p, 2]
+    cx = uy * wz - uz * wy
+    cy = uz * wx - ux * wz
+    cz = ux * wy - uy * wx
+    sx = N[p, 0] + N[q, 0] + N[r, 0]
+    sy = N[p, 1] + N[q, 1] + N[r, 1]
+    sz = N[p, 2] + N[q, 2] + N[r, 2]
+    return 1 if cx * sx + cy * sy + cz * sz <= 0.0 else 0
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _bad_around(X, N, nu, nv, p):
+    """Folded triangles (the `folded_cells` test) in the up to four cells around point p."""
+    i = p // nv
+    j = p % nv
+    bad = 0
+    for ci in range(i - 1, i + 1):
+        for cj in range(j - 1, j + 1):
+            if ci < 0 or cj < 0 or ci >= nu - 1 or cj >= nv - 1:
+                continue
+            a = ci * nv + cj
+            b = (ci + 1) * nv + cj
+            c = (ci + 1) * nv + cj + 1
+            d = ci * nv + cj + 1
+            bad += _tri_bad(X, N, a, b, c) + _tri_bad(X, N, a, c, d)
+    return bad
+
+
+@njit(cache=True, nogil=True, fastmath=False)
 def relax_sweeps(
     V,
     F,
@@ -128,6 +164,7 @@ def relax_sweeps(
     nv,
     movable,
     tangent,
+    guard,
     alpha,
     prev,
     n_sweeps,
@@ -143,7 +180,9 @@ def relax_sweeps(
 
     V (nv, 3) f8; F, FN (nf, 3) i8; face (n,) i8 and bary (n, 3) f8 (updated in place);
     movable (n,) bool; tangent bool (spring vectors turned into the tangent plane, see
-    `spring_force`); alpha (n,) f8 per-point step factors and prev (n, 3) f8 previous moves
+    `spring_force`); guard bool (a move that folds more triangles of the point's four cells
+    than it starts with is halved, up to three times, then dropped); alpha (n,) f8 per-point
+    step factors and prev (n, 3) f8 previous moves
     (both updated in place: a point whose step turns back halves its factor, otherwise the
     factor grows back towards 1, so points that overshoot on curved parts settle). The
     fairness weight ramps linearly from 0 at sweep 0 to ``w_fair_end`` at sweep ``ramp``
@@ -155,11 +194,20 @@ def relax_sweeps(
     """
     n = face.shape[0]
     X = grid_xyz(V, F, face, bary)
+    N = np.empty((n, 3))
+    nrm = np.zeros(3)
+    nrm2 = np.zeros(3)
+    for i in range(n):
+        _face_normal(V, F, face[i], nrm2)
+        for c in range(3):
+            N[i, c] = nrm2[c]
     step = np.empty(3)
     u = np.empty(3)
     s0 = np.empty(3)
     s1 = np.empty(3)
-    nrm = np.zeros(3)
+    sb = np.empty(3)
+    sx = np.empty(3)
+    sn = np.empty(3)
     worst = 0.0
     done = 0
     for k in range(n_sweeps):
@@ -187,27 +235,62 @@ def relax_sweeps(
             else:
                 alpha[p] = min(1.0, alpha[p] * 1.25)
             total *= omega * alpha[p]
-            f, moved = walk_inside(
-                V, F, FN, face[p], bary[p], u, total, max_faces, bary_eps, 6, s0, s1
-            )
-            if moved == 0.0 and _on_boundary_edge(FN, f, bary[p], bary_eps):
-                # stuck on the boundary (every walk leaves the patch at once): step off it
-                # toward the face's centre so that later sweeps can move it inward
+            before = _bad_around(X, N, nu, nv, p) if guard else 0
+            f0 = face[p]
+            for c in range(3):
+                sb[c] = bary[p, c]
+                sx[c] = X[p, c]
+                sn[c] = N[p, c]
+            moved = 0.0
+            f = f0
+            for attempt in range(4):
+                if attempt > 0:  # undo, and try half the step
+                    for c in range(3):
+                        bary[p, c] = sb[c]
+                        X[p, c] = sx[c]
+                        N[p, c] = sn[c]
+                    face[p] = f0
+                    total = (
+                        0.5
+                        * _start_direction(V, F, f0, step, u)
+                        * omega
+                        * alpha[p]
+                        / (2.0 ** (attempt - 1))
+                    )
+                f, moved = walk_inside(
+                    V, F, FN, f0, bary[p], u, total, max_faces, bary_eps, 6, s0, s1
+                )
+                if moved == 0.0 and _on_boundary_edge(FN, f, bary[p], bary_eps):
+                    # stuck on the boundary (every walk leaves the patch at once): step off
+                    # it toward the face's centre so that later sweeps can move it inward
+                    for c in range(3):
+                        bary[p, c] = (1.0 - NUDGE) * bary[p, c] + NUDGE / 3.0
+                face[p] = f
                 for c in range(3):
-                    bary[p, c] = (1.0 - NUDGE) * bary[p, c] + NUDGE / 3.0
+                    X[p, c] = (
+                        bary[p, 0] * V[F[f, 0], c]
+                        + bary[p, 1] * V[F[f, 1], c]
+                        + bary[p, 2] * V[F[f, 2], c]
+                    )
+                _face_normal(V, F, f, nrm2)
+                for c in range(3):
+                    N[p, c] = nrm2[c]
+                if not guard or _bad_around(X, N, nu, nv, p) <= before:
+                    break
+                if attempt == 3:  # every try folds a cell: stay
+                    for c in range(3):
+                        bary[p, c] = sb[c]
+                        X[p, c] = sx[c]
+                        N[p, c] = sn[c]
+                    face[p] = f0
+                    f = f0
+                    moved = 0.0
             if h > 0.0:
                 worst = max(worst, moved / h)
                 sq += (moved / h) ** 2
             count += 1
-            face[p] = f
             for c in range(3):
-                x = (
-                    bary[p, 0] * V[F[f, 0], c]
-                    + bary[p, 1] * V[F[f, 1], c]
-                    + bary[p, 2] * V[F[f, 2], c]
-                )
-                prev[p, c] = x - X[p, c]
-                X[p, c] = x
+                prev[p, c] = X[p, c] - sx[c]
         done = k + 1
         rms = np.sqrt(sq / max(count, 1))
         if it + 1 >= ramp and rms < eps_rel:

@@ -68,6 +68,7 @@ def relax(
     start: int = 0,
     eps: float = tol.SPRING_CONVERGED,
     tangent: bool = True,
+    guard: bool = True,
 ) -> tuple[int, float]:
     """Relax the spring mesh of ``state`` at its current level, in place.
 
@@ -78,7 +79,9 @@ def relax(
     counted from sweep ``start`` of the schedule (``start >= ramp``: final weights at once).
     Sweeps stop when the root-mean-square move is below ``eps`` of the spring lengths. With
     ``tangent`` the spring vectors are turned into each point's tangent plane keeping their
-    lengths (see `meshfit._kernels.springs.spring_force`), else they are Euclidean.
+    lengths (see `meshfit._kernels.springs.spring_force`), else they are Euclidean. With
+    ``guard`` a move that folds more triangles of the point's cells than before is halved
+    (up to three times) or dropped.
 
     Returns
     -------
@@ -103,6 +106,7 @@ def relax(
             state.nv,
             movable,
             tangent,
+            guard,
             alpha,
             prev,
             max_iter,
@@ -125,6 +129,7 @@ def relax(
             state.nv,
             movable,
             tangent,
+            guard,
             alpha,
             prev,
             1,
@@ -154,7 +159,15 @@ def folded_cells(state: State) -> np.ndarray:
     return _k.folded_cells(mesh.vertices, mesh.faces, state.face, state.bary, state.nu, state.nv)
 
 
-def untangle(state: State, *, rounds: int, sweeps: int, reach: int, tangent: bool = True) -> int:
+def untangle(
+    state: State,
+    *,
+    rounds: int,
+    sweeps: int,
+    reach: int,
+    tangent: bool = True,
+    guard: bool = True,
+) -> int:
     """Smooth the free points around folded cells with the fairness force alone, in place.
 
     The fairness force moves a point to the centroid of its neighbours (a discrete harmonic
@@ -179,8 +192,8 @@ def untangle(state: State, *, rounds: int, sweeps: int, reach: int, tangent: boo
         n = state.nu * state.nv
         _k.relax_sweeps(
             mesh.vertices, mesh.faces, mesh.face_neighbors, state.face, state.bary,
-            state.nu, state.nv, near.ravel(), tangent, np.ones(n), np.zeros((n, 3)), sweeps, 1, 1,
-            1.0, 1.0, 0.0, tol.BARY_EPS, _MAX_FACES,
+            state.nu, state.nv, near.ravel(), tangent, guard, np.ones(n), np.zeros((n, 3)),
+            sweeps, 1, 1, 1.0, 1.0, 0.0, tol.BARY_EPS, _MAX_FACES,
         )  # fmt: skip
         folds = folded_cells(state)
     return int(folds.sum())

@@ -205,6 +205,7 @@ def resample_patch(
     n_fair: int = 2,
     untangle_rounds: int = 3,
     forces: str = "euclidean",
+    guard: bool = True,
     metrics: bool = True,
     fidelity: bool = True,
     scale: float | None = None,
@@ -253,6 +254,9 @@ def resample_patch(
         Spring vectors between neighbours: Euclidean (default, sec. 5.5), or turned into the
         moving point's tangent plane keeping their length (a first-order stand-in for the
         geodesic forces of sec. 5.5.3; on the test layouts it does about as well).
+    guard : bool, keyword-only
+        Halve (up to three times) or drop a relaxation move that would fold more triangles
+        of the moving point's four cells than before (default True).
     untangle_rounds : int, keyword-only
         After each level's relaxation, rounds of fairness-only sweeps around folded cells
         (default 3; 0 turns it off).
@@ -337,6 +341,7 @@ def resample_patch(
             start=0 if k == 0 else ramp,
             eps=tol.SPRING_CONVERGED * (1.0 if k else COARSE_EPS),
             tangent=forces == "tangent",
+            guard=guard,
         )
         if untangle_rounds:
             untangle(
@@ -345,6 +350,7 @@ def resample_patch(
                 sweeps=max_iter,
                 reach=2,
                 tangent=forces == "tangent",
+                guard=guard,
             )
         seconds["relax"] += time.perf_counter() - t
         sweeps.append(done)
