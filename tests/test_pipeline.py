@@ -101,7 +101,8 @@ def test_resume_does_no_work(spot_fit, tmp_path):
     assert again["work_done"] == []
     assert all(s["cached"] for k, s in again["stages"].items() if k != "validate")
     assert again["errors"] == first["errors"]
-    assert again["patches"] == first["patches"]
+    untimed = [{k: v for k, v in r.items() if k != "seconds"} for r in first["patches"]]
+    assert again["patches"] == untimed
     after = {p: p.read_bytes() for p in copy.rglob("*") if p.is_file() and p.suffix != ".json"}
     assert after == before
     # a changed option re-runs the fit and what follows it, not the spring meshes
@@ -152,3 +153,28 @@ def test_g1_continuity_through_stitch(spot_fit, tmp_path):
     # away from the corner zones the normals agree across every shared boundary
     assert g1["seams"]["spline_normal_jump_inner_max_deg"] < 1e-3
     assert first["seams"]["spline_normal_jump_inner_max_deg"] > 1.0
+
+
+def test_cli_fit(tmp_path, capsys):
+    from meshfit import cli
+
+    from .conftest import mesh_path
+
+    argv = ["fit", str(mesh_path("spot")), "--layout", str(LAYOUT), "--cv", "5x4"]
+    argv += ["--level", "0", "--formats", "obj", "--out", str(tmp_path), "--no-report"]
+    assert cli.main([*argv, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["patches_total"] == 24
+    assert out["options"]["controls"] == [5, 4]
+    assert (tmp_path / "summary.json").is_file() and (tmp_path / "displaced.obj").is_file()
+    # the second run with --resume re-uses every stage
+    assert cli.main([*argv, "--resume"]) == 0
+    text = capsys.readouterr().out
+    assert "summary:" in text and "stages reused" in text
+    assert load_fit(tmp_path)["work_done"] == []
+    # bad input: one line on stderr, exit code 2
+    assert cli.main(["fit", str(mesh_path("spot")), "--cv", "2x2", "--out", str(tmp_path)]) == 2
+    assert "controls" in capsys.readouterr().err
+    bad = ["fit", str(mesh_path("spot")), "--layout", str(tmp_path / "none.json")]
+    assert cli.main([*bad, "--out", str(tmp_path)]) == 2
+    assert "no such layout" in capsys.readouterr().err

@@ -99,6 +99,10 @@ def cmd_fit(args: argparse.Namespace) -> int:
 
     options = _options(args)
     mesh = load_mesh(args.mesh, repair=args.repair)
+    if args.fill_holes and not mesh.is_closed:
+        from meshfit.shrinkwrap import fill_holes
+
+        mesh = fill_holes(mesh)
     out = Path(args.out) if args.out else Path(Path(args.mesh).stem + "-fit")
     with stage_progress(quiet=args.json) as prog:
         summary = run_fit(
@@ -219,6 +223,11 @@ def add_commands(sub) -> None:
     p.add_argument("--resume", action="store_true", help="re-use finished stages in --out")
     p.add_argument("--workers", type=int, default=None, help="threads (default: all cores)")
     p.add_argument("--repair", action="store_true", help="repair the mesh where possible")
+    p.add_argument(
+        "--fill-holes",
+        action="store_true",
+        help="close small holes (at most 1000 boundary edges each) before the automatic layout",
+    )
     p.set_defaults(func=fit)
 
     p = sub.add_parser("batch", help="fit every mesh matching a glob on a Dask cluster")
