@@ -223,6 +223,7 @@ class App:
             gui.add_button("Load layout").on_click(lambda _: self._on_load())
             self.gui_export = gui.add_text("Export folder", initial_value="export")
             gui.add_button("Export").on_click(lambda _: self._on_export())
+            self.gui_progress = gui.add_progress_bar(0.0, visible=False)
             self.gui_upload = gui.add_upload_button("Open mesh", mime_type="*/*")
             self.gui_upload.on_upload(lambda _: self._on_upload())
 
@@ -604,12 +605,25 @@ class App:
         def export():
             folder = self.policy.check_folder(self.gui_export.value)
             return self.session.export(
-                folder, controls=(int(self.gui_cu.value), int(self.gui_cv.value))
+                folder,
+                controls=(int(self.gui_cu.value), int(self.gui_cv.value)),
+                progress=self._progress,
             )
 
-        out = self._run(export, redraw=False)
+        self.gui_progress.value = 0.0
+        self.gui_progress.visible = True
+        try:
+            out = self._run(export, redraw=False)
+        finally:
+            self.gui_progress.visible = False
         if out is not FAILED:
             self.say(f"exported {len(out)} files to {self.gui_export.value}")
+
+    def _progress(self, stage: str, done: int, total: int) -> None:
+        """Fit progress from :func:`meshfit.pipeline.run_fit` to the progress bar."""
+        frac = done / total if total else 1.0
+        self.gui_progress.value = float(100.0 * min(max(frac, 0.0), 1.0))
+        self.gui_message.content = f"fitting: {stage} {done}/{total}"
 
     def _on_upload(self) -> None:
         f = self.gui_upload.value
