@@ -115,7 +115,7 @@ def test_paint_closed_curves_by_clicks(page, app):
     assert changed(before, canvas_pixels(page)) > 1e-3  # the curves are drawn
 
 
-def test_edit_point_pull_updates_the_view(page, app):
+def test_edit_point_pull_and_drag_update_the_view(page, app):
     s = app.session
     choose(page, app.gui_mode, "Click mode", "edit")
     c0 = s.curves[0].curve
@@ -128,6 +128,25 @@ def test_edit_point_pull_updates_the_view(page, app):
     before = canvas_pixels(page)
     said = click_canvas(page, app, (mid[0], mid[1] - 30))  # pull it up the screen
     assert "edited" in said, said
+    assert s.curves[i].curve is not old
+    settle(page)
+    assert changed(before, canvas_pixels(page)) > 1e-4
+    press(page, app, "Undo", until=lambda: s.curves[i].curve is old)
+    # drag the edit point's handle (the up arrow of its transform gizmo) up the screen
+    settle(page)
+    before = canvas_pixels(page)
+    e = app.edit_point
+    x = s.mesh.xyz(old.points[e])[0]
+    handle = screen_of(app, x + 0.75 * 0.05 * s.mesh.bbox_diagonal * np.array([0.0, 1.0, 0.0]))
+    n = len(app.messages)
+    page.mouse.move(*handle)
+    page.mouse.down()
+    for k in range(1, 11):
+        page.mouse.move(handle[0], handle[1] - 3 * k)
+        time.sleep(0.03)
+    page.mouse.up()
+    wait_for(lambda: len(app.messages) > n, what="the edit from the drag")
+    assert f"edited at point {e}" in app.messages[-1], app.messages[-1]
     assert s.curves[i].curve is not old
     settle(page)
     assert changed(before, canvas_pixels(page)) > 1e-4
