@@ -18,9 +18,11 @@ def chain_arc(mesh: Mesh, chain: NDArray[np.int64]) -> NDArray[np.float64]:
     return np.concatenate([[0.0], np.cumsum(seg)])
 
 
-def chain_edge_faces(mesh: Mesh, chain: NDArray[np.int64]) -> tuple[NDArray, NDArray, NDArray]:
-    """For each edge of a vertex chain along the mesh boundary: the face holding it and the
-    slots of the edge's two vertices in that face; (k - 1,) int64 each."""
+def chain_edge_faces(
+    mesh: Mesh, chains: list[NDArray[np.int64]]
+) -> list[tuple[NDArray, NDArray, NDArray]]:
+    """For each edge of vertex chains along the mesh boundary: the face holding it and the
+    slots of the edge's two vertices in that face; per chain, three (k - 1,) int64 arrays."""
     F = mesh.faces
     f, k = np.nonzero(mesh.face_neighbors < 0)  # boundary edge k of face f
     a, b = F[f, k], F[f, (k + 1) % 3]
@@ -30,12 +32,16 @@ def chain_edge_faces(mesh: Mesh, chain: NDArray[np.int64]) -> tuple[NDArray, NDA
     sa = np.concatenate([k, (k + 1) % 3])
     sb = np.concatenate([(k + 1) % 3, k])
     order = np.argsort(key)
-    want = chain[:-1] * n + chain[1:]
-    pos = np.minimum(np.searchsorted(key[order], want), len(order) - 1)
-    hit = order[pos]
-    if not np.array_equal(key[hit], want):
-        raise AssertionError("side chains follow the patch boundary")
-    return face[hit], sa[hit], sb[hit]
+    skey = key[order]
+    out = []
+    for chain in chains:
+        want = chain[:-1] * n + chain[1:]
+        pos = np.minimum(np.searchsorted(skey, want), len(order) - 1)
+        hit = order[pos]
+        if not np.array_equal(key[hit], want):
+            raise AssertionError("side chains follow the patch boundary")
+        out.append((face[hit], sa[hit], sb[hit]))
+    return out
 
 
 def chain_points(
@@ -47,7 +53,7 @@ def chain_points(
 ) -> SurfacePoints:
     """Face points at arc-length ``positions`` (m,) along a vertex chain (on its edges)."""
     if edge_faces is None:
-        edge_faces = chain_edge_faces(mesh, chain)
+        edge_faces = chain_edge_faces(mesh, [chain])[0]
     ef, ea, eb = edge_faces
     positions = np.clip(np.asarray(positions, dtype=np.float64), 0.0, arc[-1])
     k = np.clip(np.searchsorted(arc, positions, side="right") - 1, 0, len(chain) - 2)

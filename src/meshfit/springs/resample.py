@@ -67,7 +67,7 @@ def _sides(patch) -> Sides:
     return Sides(
         chains,
         {k: chain_arc(mesh, c) for k, c in chains.items()},
-        {k: chain_edge_faces(mesh, c) for k, c in chains.items()},
+        dict(zip(chains, chain_edge_faces(mesh, list(chains.values())), strict=True)),
     )
 
 
@@ -86,12 +86,6 @@ def _as_counts(value, n: int, name: str) -> list[int] | None:
             f"{name} needs {n} positive interval counts (one per section), got {value!r}"
         )
     return counts
-
-
-def _vertex_point(mesh: Mesh, v: int) -> tuple[int, np.ndarray]:
-    vfp, vf = mesh.vertex_faces
-    f = int(vf[vfp[v]])
-    return f, (mesh.faces[f] == v).astype(np.float64)
 
 
 def _nearest_vertex(mesh: Mesh, face: int, bary: np.ndarray) -> int:
@@ -133,6 +127,7 @@ def _initialize(state: State) -> None:
     upos = np.full((nu, mesh.n_vertices), -1, dtype=np.int64)
     for i, path in upath.items():
         upos[i, path] = np.arange(len(path))
+    seats: list[tuple[int, int]] = []  # (grid point, mesh vertex) of path crossings
     for i in range(1, nu - 1):
         for j in range(1, nv - 1):
             fu: FeatureLine | None = ucol.get(i)
@@ -160,7 +155,13 @@ def _initialize(state: State) -> None:
                 else:
                     k, t, _, _, _ = closest_approach(V[pu], V[pv])
                     v = int(pu[k + (1 if t > 0.5 else 0)]) if len(pu) > 1 else int(pu[0])
-                state.face[idx[i, j]], state.bary[idx[i, j]] = _vertex_point(mesh, v)
+                seats.append((idx[i, j], v))
+    if seats:
+        pts, verts = np.array(seats, dtype=np.int64).T
+        vfp, vf = mesh.vertex_faces
+        faces = vf[vfp[verts]]
+        state.face[pts] = faces
+        state.bary[pts] = (mesh.faces[faces] == verts[:, None]).astype(np.float64)
     for s in [*state.s_u, *state.s_v]:
         np.maximum.accumulate(s, out=s)  # keep the order along each feature curve
     state.set_feature_points()

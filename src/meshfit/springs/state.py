@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -56,11 +57,11 @@ class State:
 
     @property
     def u_lines(self) -> NDArray[np.int64]:
-        return np.cumsum(self.counts_u)[:-1].astype(np.int64)
+        return np.array(list(itertools.accumulate(self.counts_u[:-1])), dtype=np.int64)
 
     @property
     def v_lines(self) -> NDArray[np.int64]:
-        return np.cumsum(self.counts_v)[:-1].astype(np.int64)
+        return np.array(list(itertools.accumulate(self.counts_v[:-1])), dtype=np.int64)
 
     def kind(self) -> NDArray[np.uint8]:
         k = np.full((self.nu, self.nv), FREE, dtype=np.uint8)
