@@ -146,7 +146,8 @@ def run_demo(
     quiet : bool
         No progress output (for ``--json``).
     options : meshfit.pipeline.FitOptions, optional
-        Fit options (default: 12 x 12 controls, usd/obj/exr/png outputs and the report).
+        Fit options (default: 12 x 12 controls, G1 stitching, usd/obj/exr/png outputs and
+        the report).
 
     Returns
     -------
@@ -183,7 +184,9 @@ def run_demo(
         t_layout = time.perf_counter() - t0
     console.print(f"[bold]layout[/] {layout.n_patches} patches in {t_layout:.1f} s")
     if options is None:
-        options = FitOptions(controls=(12, 12), formats=("usd", "obj", "exr", "png"))
+        options = FitOptions(
+            controls=(12, 12), continuity="g1", formats=("usd", "obj", "exr", "png")
+        )
     with stage_progress(quiet=quiet) as prog:
         summary = run_fit(mesh, out, layout=layout, options=options, progress=prog)
     summary["statistics"] = stats
