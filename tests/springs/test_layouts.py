@@ -41,14 +41,14 @@ def layout_springs(name: str):
 KNOWN = {
     "folds": {
         "igea": "folded cells on 3 of 24 patches (11 cells over all levels; patch 4: 9)",
-        "nefertiti": "folded cells on 20 of 54 patches (212 cells over all levels; patch 4, "
-        "where the grid slides off a bulge: 124; most others 1-4 cells next to a side)",
-        "spot": "folded cells on 4 of 24 patches (43 cells over all levels; patch 1: 19)",
+        "nefertiti": "folded cells on 19 of 54 patches (182 cells over all levels; patch 4, "
+        "where the grid slides off a bulge: 99; most others 1-4 cells next to a side)",
+        "spot": "folded cells on 4 of 24 patches (40 cells over all levels; patch 1: 19)",
     },
     "arc_cv": {
-        "igea": "arc-length CV > 0.15 on 5 of 24 patches (worst 0.90, patch 4; median 0.087)",
-        "nefertiti": "arc-length CV > 0.15 on 20 of 54 patches (worst 4.4, patch 4; median 0.098)",
-        "spot": "arc-length CV > 0.15 on 10 of 24 patches (worst 1.92, patch 11; median 0.103)",
+        "igea": "arc-length CV > 0.15 on 5 of 24 patches (worst 0.93, patch 4; median 0.087)",
+        "nefertiti": "arc-length CV > 0.15 on 20 of 54 patches (worst 4.5, patch 4; median 0.098)",
+        "spot": "arc-length CV > 0.15 on 10 of 24 patches (worst 1.90, patch 11; median 0.103)",
     },
     "aspect": {
         "nefertiti": "median cell aspect ratio 1.533 on patch 4 (all others <= 1.41)",

@@ -329,6 +329,15 @@ def resample_patch(
         if k > 0:
             t = time.perf_counter()
             subdivide(state, n_fair=n_fair)
+            if untangle_rounds:  # mid-points placed across a fold: smooth them out first
+                untangle(
+                    state,
+                    rounds=untangle_rounds,
+                    sweeps=max_iter,
+                    reach=1,
+                    tangent=forces == "tangent",
+                    guard=guard,
+                )
             seconds["subdivide"] += time.perf_counter() - t
         t = time.perf_counter()
         # level 0 starts from graph paths and must travel far: it is relaxed to a tighter
