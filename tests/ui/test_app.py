@@ -107,3 +107,26 @@ def test_region_colouring_and_status(app):
     app.gui_regions.value = False
     app.redraw(mesh=True)
     assert len(app._nodes["/mesh"]) == 1
+
+
+def test_spring_levels_run_pause_continue(app):
+    from tests.ui.helpers import SPOT_LAYOUT
+
+    s = app.session
+    s.load_layout(SPOT_LAYOUT)
+    app.gui_patch.value = 4
+    app.gui_level.value = 2
+    app._on_pause()  # paused before the run: the run waits at level 0
+    assert "paused" in app.messages[-1]
+    app._on_run_levels()
+    app._levels_thread.join(timeout=0.5)
+    assert app._levels_thread.is_alive() and app.preview_level == -1
+    app._on_pause()
+    assert "continue" in app.messages[-1]
+    app._levels_thread.join(timeout=120)
+    assert not app._levels_thread.is_alive()
+    assert app.preview_level == 2
+    assert "spring mesh level 2" in app.messages[-1]
+    app._on_fit()
+    assert "8 x 8 controls" in app.gui_fitinfo.content
+    assert app.gui_image.image.shape[2] == 3

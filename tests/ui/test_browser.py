@@ -229,3 +229,20 @@ def test_paths_outside_the_workdir_are_refused(page, app):
     type_into(page, app.gui_layout_path, "Layout file", "/etc/passwd")
     said = press(page, app, "Load layout")
     assert "only .json" in said, said
+
+
+def test_upload_opens_a_mesh(page, app):
+    n = len(app.messages)
+    page.locator("input[type=file]").first.set_input_files(
+        files=[
+            {
+                "name": "spot-copy.ply",
+                "mimeType": "application/octet-stream",
+                "buffer": mesh_path("spot").read_bytes(),
+            }
+        ]
+    )
+    wait_for(lambda: len(app.messages) > n, what="the upload reply")
+    assert app.messages[-1].startswith("opened spot-copy.ply: 2930 vertices")
+    assert app.session.mesh.name == "spot-copy.ply" and len(app.session.curves) == 0
+    assert not app.session.can_undo  # a new mesh starts a new history

@@ -8,6 +8,7 @@ server binds to 127.0.0.1 unless told otherwise.
 from __future__ import annotations
 
 import threading
+import time
 import traceback
 from pathlib import Path
 
@@ -75,6 +76,7 @@ class App:
         self.edit_point: int | None = None
         self._gizmos: list = []
         self._pause = threading.Event()
+        self._stopping = False
         self._levels_thread: threading.Thread | None = None
         self.preview_level = -1
         self._nodes: dict[str, list] = {}
@@ -100,7 +102,7 @@ class App:
         return int(self.server.get_port())
 
     def stop(self) -> None:
-        self._pause.set()
+        self._stopping = True
         self.session.flush()
         self.server.stop()
 
@@ -517,13 +519,14 @@ class App:
     def _on_run_levels(self) -> None:
         if self._levels_thread is not None and self._levels_thread.is_alive():
             return
-        self._pause.clear()
         patch, top = int(self.gui_patch.value), int(self.gui_level.value)
 
         def work() -> None:
             for level in range(top + 1):
-                while self._pause.is_set():
-                    self._pause.wait(0.1)
+                while self._pause.is_set() and not self._stopping:
+                    time.sleep(0.05)
+                if self._stopping:
+                    return
                 g = self._run(self.session.spring_preview, patch, level=level, redraw=False)
                 if g is FAILED:
                     return
