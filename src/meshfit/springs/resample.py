@@ -242,7 +242,7 @@ def resample_patch(
         ``1 - fairness`` (default 0.5).
     max_iter : int, keyword-only
         Relaxation sweeps allowed per level (default 10: new points start near their places;
-        level 0 gets ten times as many).
+        level 0 gets five times as many, over-relaxed).
     ramp : int, keyword-only
         Sweeps of level 0 over which the fairness weight grows from 0 (default 8); later
         levels start from points already in place and use the final weights.
@@ -259,8 +259,8 @@ def resample_patch(
         Halve (up to three times) or drop a relaxation move that would fold more triangles
         of the moving point's four cells than before (default True).
     untangle_rounds : int, keyword-only
-        After each level's relaxation, rounds of fairness-only sweeps around folded cells
-        (default 3; 0 turns it off).
+        After each subdivision and each level's relaxation, rounds of fairness-only sweeps
+        around folded cells (default 3; 0 turns it off).
     metrics, fidelity : bool, keyword-only
         Compute :func:`meshfit.springs.grid_metrics` of every level (with the fidelity
         distances).
