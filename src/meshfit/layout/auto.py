@@ -6,7 +6,10 @@ Method
    build the area-equalised base mesh on it (:func:`meshfit.shrinkwrap.base_mesh`, Kobbelt
    et al. 1999, sec. 6): spherical triangles covering about equal surface areas.
 2. Split every base triangle into three quads: each corner with the two adjacent edge
-   mid-points and the centroid (mid-points and centroids taken on the sphere, normalised).
+   mid-points and the centroid. The mid-point of an edge halves the surface length of the
+   edge's image, the centroid is the sphere point at the area-weighted centre of the
+   triangle's image, so the three quads cover similar surface areas where the sphere map
+   is distorted.
 3. Every quad side is a great-circle arc on the sphere; its image under the parameterization
    is traced onto the surface as a face-point curve (arc samples located in the spherical
    triangulation, then densified so consecutive points lie on the same or adjacent faces).
@@ -38,13 +41,23 @@ __all__ = ["auto_layout", "quad_network"]
 PATCHES_PER_TRIANGLE = 3
 #: default patch count (the icosahedron: 20 base triangles)
 DEFAULT_PATCHES = 60
+#: samples of a base edge's image when it is split at half its surface length
+_SPLIT_SAMPLES = 65
+#: a base triangle's image is split n x n ways to find its area centre
+_SPLIT_GRID = 12
 
 
 def _unit(x: NDArray[np.float64]) -> NDArray[np.float64]:
     return x / np.linalg.norm(x, axis=-1, keepdims=True)
 
 
-def quad_network(sphere: NDArray[np.float64], faces: NDArray[np.int64]):
+def quad_network(
+    sphere: NDArray[np.float64],
+    faces: NDArray[np.int64],
+    *,
+    midpoint=None,
+    centroid=None,
+):
     """Split a spherical triangulation into three quads per triangle.
 
     Parameters
@@ -53,6 +66,11 @@ def quad_network(sphere: NDArray[np.float64], faces: NDArray[np.int64]):
         Unit vectors of the base vertices.
     faces : (nf, 3) int64
         Base triangles, counter-clockwise seen from outside.
+    midpoint : callable(a, b) -> (3,) float64, optional
+        Split point of the arc between base vertices ``a`` and ``b`` (default the spherical
+        mid-point).
+    centroid : callable(face) -> (3,) float64, optional
+        Centre of a base triangle (default its normalised vertex mean).
 
     Returns
     -------
@@ -73,11 +91,13 @@ def quad_network(sphere: NDArray[np.float64], faces: NDArray[np.int64]):
             key = (min(a, b), max(a, b))
             if key not in mids:
                 mids[key] = len(points)
-                points.append(_unit(sphere[a] + sphere[b]))
+                m = _unit(sphere[a] + sphere[b]) if midpoint is None else midpoint(*key)
+                points.append(np.asarray(m, dtype=np.float64))
     cent = []
-    for f in faces:
+    for fi, f in enumerate(faces):
         cent.append(len(points))
-        points.append(_unit(sphere[f].sum(axis=0)))
+        c = _unit(sphere[f].sum(axis=0)) if centroid is None else centroid(fi)
+        points.append(np.asarray(c, dtype=np.float64))
     arcs: dict[tuple[int, int], int] = {}
     ends: list[tuple[int, int]] = []
 
@@ -120,6 +140,24 @@ def _trace(mesh: Mesh, smap, a: NDArray, b: NDArray, pa: SurfacePoints, pb: Surf
     keep[-1] = True
     pts = pts[np.flatnonzero(keep)]
     return densify_curve(mesh, SurfaceCurve(pts, kind="boundary"))
+
+
+def _triangle_grid(tri: NDArray[np.float64], n: int):
+    """Points (on the sphere) and small triangles of an ``n``-fold split spherical triangle."""
+    idx = {}
+    pts = []
+    for i in range(n + 1):
+        for j in range(n + 1 - i):
+            idx[(i, j)] = len(pts)
+            k = n - i - j
+            pts.append((i * tri[0] + j * tri[1] + k * tri[2]) / n)
+    tris = []
+    for i in range(n):
+        for j in range(n - i):
+            tris.append((idx[(i, j)], idx[(i + 1, j)], idx[(i, j + 1)]))
+            if i + j < n - 1:
+                tris.append((idx[(i + 1, j)], idx[(i + 1, j + 1)], idx[(i, j + 1)]))
+    return _unit(np.asarray(pts)), np.asarray(tris, dtype=np.int64)
 
 
 def _slerp(a, b, w, t):
@@ -197,7 +235,30 @@ def auto_layout(
     n_faces += n_faces % 2
     smap = sphere_map(mesh) if sphere is None else sphere
     base = base_mesh(smap, max_faces=n_faces, min_faces=n_faces, seed=seed)
-    pts, ends, quads = quad_network(base.sphere, base.faces)
+    S, BF = base.sphere, base.faces
+
+    def midpoint(a: int, b: int) -> NDArray[np.float64]:
+        # the point halving the surface length of the arc's image
+        w = float(np.arccos(np.clip(S[a] @ S[b], -1.0, 1.0)))
+        t = np.linspace(0.0, 1.0, _SPLIT_SAMPLES)
+        x = smap.evaluate(_slerp(S[a], S[b], w, t))
+        cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(x, axis=0), axis=1))])
+        th = float(np.interp(0.5 * cum[-1], cum, t)) if cum[-1] > 0 else 0.5
+        return _slerp(S[a], S[b], w, np.array([th]))[0]
+
+    def centroid(f: int) -> NDArray[np.float64]:
+        # the sphere point at the surface-area-weighted centre of the triangle's image
+        P, T = _triangle_grid(S[BF[f]], _SPLIT_GRID)
+        X = smap.evaluate(P)
+        area = 0.5 * np.linalg.norm(
+            np.cross(X[T[:, 1]] - X[T[:, 0]], X[T[:, 2]] - X[T[:, 0]]), axis=1
+        )
+        mid = P[T].mean(axis=1)
+        if area.sum() <= 0:
+            return _unit(S[BF[f]].sum(axis=0))
+        return _unit((area[:, None] * mid).sum(axis=0))
+
+    pts, ends, quads = quad_network(S, BF, midpoint=midpoint, centroid=centroid)
     corners = smap.locate(pts)
     curves = []
     for a, b in ends.tolist():
