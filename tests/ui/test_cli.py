@@ -59,3 +59,28 @@ def test_bad_arguments(argv, message, capsys, tmp_path, monkeypatch):
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.startswith("meshfit: error:") and message in err
+
+
+def test_restart_resumes_the_autosave(tmp_path):
+    argv = ["ui", str(mesh_path("spot")), "--port", "0", "--workdir", str(tmp_path)]
+    app = build_app(build_parser().parse_args(argv))
+    try:
+        app.session.load_layout(SPOT_LAYOUT)
+        app.session.delete_curve(0)
+        n = len(app.session.curves)
+    finally:
+        app.stop()  # as good as a crash: nothing but the autosave file is kept
+    again = build_app(build_parser().parse_args(argv))
+    try:
+        assert len(again.session.curves) == n
+        assert again.session.can_undo  # the restore itself can be undone
+    finally:
+        again.stop()
+
+
+def test_a_foreign_autosave_is_not_overwritten(tmp_path, capsys):
+    (tmp_path / "spot.session.json").write_text('{"meshfit_ui_session": 1, "mesh": {}}')
+    argv = ["ui", str(mesh_path("spot")), "--port", "0", "--workdir", str(tmp_path)]
+    assert main(argv) == 2
+    assert "not overwriting it" in capsys.readouterr().err
+    assert (tmp_path / "spot.session.json").read_text().startswith('{"meshfit_ui_session": 1,')

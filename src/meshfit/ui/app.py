@@ -633,7 +633,13 @@ class App:
 
         def open_upload():
             mesh = mesh_from_upload(f.name, f.content, max_bytes=self.policy.max_upload)
-            self.session.set_mesh(mesh)
+            s = self.session
+            s.flush()
+            s.autosave_path = None  # the old mesh's session file stays as it is
+            s.set_mesh(mesh)
+            # each mesh autosaves to its own file in the working folder (resumed if present)
+            path = self.policy.workdir / f"{Path(mesh.name).stem}.session.json"
+            s.resume_autosave(self.policy.allow(path))
             return mesh
 
         self.selected = self.edit_point = None

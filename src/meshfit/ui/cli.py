@@ -71,10 +71,15 @@ def build_app(args: argparse.Namespace):
     stem = Path(args.mesh).stem if args.mesh else "untitled"
     autosave = Path(args.autosave) if args.autosave else policy.workdir / f"{stem}.session.json"
     policy.allow(autosave)
-    session = Session(mesh, autosave=autosave)
+    session = Session(mesh)
+    restored = mesh is not None and session.resume_autosave(autosave)
+    if not restored:
+        session.autosave_path = autosave
     if args.layout:
         policy.allow(args.layout)
-        if mesh is not None and Path(args.layout).is_file():
+        if restored:
+            print(f"meshfit ui: resumed the session in {autosave} (not loading {args.layout})")
+        elif mesh is not None and Path(args.layout).is_file():
             session.load_layout(args.layout)
     return App(session, policy, host=args.host, port=args.port, layout_path=args.layout)
 

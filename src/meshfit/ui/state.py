@@ -308,6 +308,30 @@ class Session:
                     self._writing = False
                     self._save_cv.notify_all()
 
+    def resume_autosave(self, path: str | os.PathLike) -> bool:
+        """Autosave to ``path`` from now on, first restoring it when it holds a session of the
+        open mesh (the state a crash left); returns whether it was restored.
+
+        Raises
+        ------
+        meshfit.errors.InputError
+            The file exists but is no session of this mesh: it is not overwritten.
+        """
+        path = Path(path)
+        self.flush()
+        self.autosave_path = None
+        restored = False
+        if path.exists():
+            try:
+                self.restore(path)
+            except InputError as exc:
+                raise InputError(
+                    f"{exc}; not overwriting it: name another autosave file or remove it"
+                ) from None
+            restored = True
+        self.autosave_path = path
+        return restored
+
     def flush(self, timeout: float = 30.0) -> bool:
         """Wait until the autosave file holds the current state; False on timeout."""
         with self._save_cv:
