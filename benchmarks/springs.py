@@ -22,8 +22,6 @@ import argparse
 import os
 import platform
 import statistics
-import time
-from pathlib import Path
 
 import numpy as np
 from _common import ROOT, median_time, mesh_path, write_result
@@ -83,9 +81,9 @@ def harmonic_grid(patch, nu: int, nv: int) -> tuple[np.ndarray, np.ndarray]:
         bary[bad] = 0.0
         bary[np.flatnonzero(bad), np.argmin(d, axis=1)] = 1.0
     V = mesh.vertices
-    xyz = (
-        bary[:, :1] * V[F[:, 0]] + bary[:, 1:2] * V[F[:, 1]] + bary[:, 2:] * V[F[:, 2]]
-    ).reshape(nu, nv, 3)
+    xyz = (bary[:, :1] * V[F[:, 0]] + bary[:, 1:2] * V[F[:, 1]] + bary[:, 2:] * V[F[:, 2]]).reshape(
+        nu, nv, 3
+    )
     return xyz, mesh.face_normals[face].reshape(nu, nv, 3)
 
 
@@ -107,7 +105,7 @@ def run_layout(name: str, repeats: int) -> dict:
         ours, peer = [], []
         for _ in range(repeats):
             ours.append(median_time(lambda p=patch: resample_patch(p, metrics=False), 1)[0])
-            peer.append(median_time(lambda p=patch: harmonic_grid(p, nu, nv), 1)[0])
+            peer.append(median_time(lambda p=patch, a=nu, b=nv: harmonic_grid(p, a, b), 1)[0])
         t_ours, t_peer = statistics.median(ours), statistics.median(peer)
         xyz, nrm = harmonic_grid(patch, nu, nv)
         ours = spring_metrics(patch.mesh, res.final, scale=diag)
