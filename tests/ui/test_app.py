@@ -130,3 +130,9 @@ def test_spring_levels_run_pause_continue(app):
     app._on_fit()
     assert "8 x 8 controls" in app.gui_fitinfo.content
     assert app.gui_image.image.shape[2] == 3
+
+
+def test_share_tunnel_is_refused(app):
+    # the handler of a client's ShareUrlRequest calls server.request_share_url()
+    assert app.server.request_share_url() is None
+    assert "sharing through a public tunnel is turned off" in app.messages[-1]

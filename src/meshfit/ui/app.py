@@ -71,6 +71,11 @@ class App:
         self.policy = policy
         self.lock = threading.RLock()
         self.server = viser.ViserServer(host=host, port=port, verbose=False)
+        # viser can open a public tunnel through its share service when any client asks for
+        # it; the app stays on the interface it was bound to: no share button, and the
+        # request is refused on the server too (its handler looks the method up at call time)
+        self.server.gui.configure_theme(show_share_button=False)
+        self.server.request_share_url = self._refuse_share  # type: ignore[method-assign]
         self.messages: list[str] = []
         self.selected: int | None = None
         self.edit_point: int | None = None
@@ -100,6 +105,10 @@ class App:
     @property
     def port(self) -> int:
         return int(self.server.get_port())
+
+    def _refuse_share(self, verbose: bool = True) -> None:
+        self.say("**refused:** sharing through a public tunnel is turned off in meshfit ui")
+        return None
 
     def stop(self) -> None:
         self._stopping = True
