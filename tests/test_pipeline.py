@@ -178,3 +178,61 @@ def test_cli_fit(tmp_path, capsys):
     bad = ["fit", str(mesh_path("spot")), "--layout", str(tmp_path / "none.json")]
     assert cli.main([*bad, "--out", str(tmp_path)]) == 2
     assert "no such layout" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------- end to end, automatic layout
+#: issue 7 targets of the displaced reconstruction, fractions of the input's bbox diagonal
+DISPLACED_RMS = 5e-4
+DISPLACED_HAUSDORFF = 5e-3
+#: largest normal jump across a G1 boundary away from its corner zones (degrees)
+G1_INNER_DEG = 0.5
+
+#: measured gaps of the automatic layout (strict xfails; remove when fixed)
+E2E_KNOWN = {
+    ("igea", "folds"): "2 folded cells at the finest spring level (4 over all levels)",
+    ("nefertiti", "folds"): "310 folded cells in 13 patches: patches wrap the sharp rim of the "
+    "flat base and the ear (sphere-map distortion)",
+    ("nefertiti", "accuracy"): "displaced RMS 0.082%, Hausdorff 2.4% of the bbox diagonal "
+    "(input vertices at the folded patches by the base rim)",
+}
+
+
+@pytest.fixture(scope="module", params=["igea", "nefertiti"])
+def auto_fit(request, tmp_path_factory):
+    name = request.param
+    mesh = real_mesh(name)
+    out = tmp_path_factory.mktemp(f"auto_{name}")
+    opts = FitOptions(continuity="g1", formats=(), report=False)
+    return name, run_fit(mesh, out, layout="auto", options=opts)
+
+
+def _known(request, name, what):
+    reason = E2E_KNOWN.get((name, what))
+    if reason:
+        request.applymarker(pytest.mark.xfail(strict=True, reason=reason))
+
+
+@pytest.mark.slow
+def test_auto_every_patch_fitted_and_stitched(auto_fit):
+    _, s = auto_fit
+    assert s["patches_total"] == 60
+    assert all(p["controls"][0] >= 4 and np.isfinite(p["fit_parametric_rms"]) for p in s["patches"])
+    assert s["seams"]["spline_gap_max"] <= tol.STITCH_GAP
+    assert s["seams"]["spline_normal_jump_inner_max_deg"] <= G1_INNER_DEG
+
+
+@pytest.mark.slow
+def test_auto_no_folded_spring_cells(auto_fit, request):
+    name, s = auto_fit
+    _known(request, name, "folds")
+    folded = {p["patch"]: p["folded"] for p in s["patches"] if p["folded"]}
+    assert not folded
+
+
+@pytest.mark.slow
+def test_auto_displaced_reconstruction_accuracy(auto_fit, request):
+    name, s = auto_fit
+    _known(request, name, "accuracy")
+    d = s["errors"]["displaced"]
+    assert d["rms"] <= DISPLACED_RMS
+    assert d["hausdorff"] <= DISPLACED_HAUSDORFF
