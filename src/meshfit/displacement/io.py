@@ -14,13 +14,13 @@ from __future__ import annotations
 import io
 import json
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import OpenEXR
 import png
 
+from meshfit._atomic import atomic_write
 from meshfit.displacement.maps import FRAME, KINDS, DisplacementMap
 from meshfit.errors import ImageFileError, InputError
 
@@ -36,19 +36,6 @@ _COMPRESSION = {
     "b44": OpenEXR.B44_COMPRESSION,
     "dwaa": OpenEXR.DWAA_COMPRESSION,
 }
-
-
-def _atomic(path: str | os.PathLike, write) -> None:
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=path.suffix)
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def write_exr(dmap: DisplacementMap, path: str | os.PathLike, *, compression: str = "zip") -> None:
@@ -78,7 +65,7 @@ def write_exr(dmap: DisplacementMap, path: str | os.PathLike, *, compression: st
         with OpenEXR.File(header, channels) as f:
             f.write(tmp)
 
-    _atomic(path, write)
+    atomic_write(path, write)
 
 
 def read_exr(path: str | os.PathLike, *, kind: str | None = None) -> DisplacementMap:
@@ -154,7 +141,7 @@ def write_png(
         with open(tmp, "wb") as fh:
             png.write_chunks(fh, chunks)
 
-    _atomic(path, write)
+    atomic_write(path, write)
 
 
 def read_png(

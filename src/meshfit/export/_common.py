@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
-import os
 import re
-import tempfile
 from collections.abc import Sequence
-from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
+from meshfit._atomic import atomic_write  # noqa: F401  (re-exported for the writers)
 from meshfit.bspline import BSplineSurface, grid_parameters
 from meshfit.displacement import DisplacementMap, reconstruct
 from meshfit.errors import InputError
@@ -119,18 +117,3 @@ def tessellate(
         P = reconstruct(surface, displacement, shape=(h, w))
     U, V = np.meshgrid(grid_parameters(h), grid_parameters(w), indexing="ij")
     return P.reshape(-1, 3), grid_faces(h, w), np.stack([U.ravel(), V.ravel()], axis=1)
-
-
-def atomic_write(path: str | os.PathLike, write) -> Path:
-    """Call ``write(tmp_path)`` then rename the temporary file (same folder, same suffix)."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=path.suffix)
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path

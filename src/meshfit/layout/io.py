@@ -19,12 +19,12 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from meshfit._atomic import write_text
 from meshfit.errors import InputError, LayoutError
 from meshfit.layout.layout import Layout, check_layout, mesh_fingerprint
 from meshfit.mesh import Mesh
@@ -106,15 +106,7 @@ def save_layout(layout: Layout, path: str | os.PathLike, *, mesh: Mesh | None = 
             raise LayoutError("save_layout: the layout was made for another mesh")
         counts = (mesh.n_vertices, mesh.n_faces)
     text = layout_to_json(layout, mesh_counts=counts)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    write_text(path, text)
     return path
 
 
