@@ -120,6 +120,24 @@ def test_killed_worker_gives_the_same_outputs(undisturbed, inputs, cluster, tmp_
         assert _files(out / stem) == _files(ref / stem)
 
 
+def test_per_patch_tasks_give_the_same_outputs(undisturbed, inputs, cluster, tmp_path):
+    ref, _ = undisturbed
+    out = tmp_path / "patch_tasks"
+    summary = run_batch(
+        [str(inputs / "cow_a.ply")],
+        out,
+        layout=LAYOUT,
+        options=OPTIONS,
+        client=cluster,
+        quiet=True,
+        patch_tasks_above=1,
+    )
+    assert summary["done"] == 1
+    fit = json.loads((out / "cow_a" / "summary.json").read_text())
+    assert fit["stages"]["springs"]["patch_tasks"] is True
+    assert _files(out / "cow_a") == _files(ref / "cow_a")
+
+
 def test_cli_batch(inputs, tmp_path, capsys):
     code = cli.main(
         [

@@ -1,6 +1,7 @@
 """Batch fits over many meshes on dask.distributed.
 
-One task per mesh, each running :func:`meshfit.pipeline.run_fit` into ``<out>/<mesh stem>/``
+One task per mesh (and, for large meshes, one task per patch for the spring meshes), each
+running :func:`meshfit.pipeline.run_fit` into ``<out>/<mesh stem>/``
 with ``resume=True``. A LocalCluster on 127.0.0.1 is started by default; any scheduler address
 reaches a real cluster. Robustness:
 
@@ -52,10 +53,28 @@ def _remove_leftovers(folder: Path) -> None:
             p.unlink(missing_ok=True)
 
 
-def fit_one(path: str, out: str, layout: str | None, options: dict[str, Any], key: str) -> dict:
+def _dask_patch_map(fn, items: list) -> list:
+    """Run per-patch tasks on the cluster from inside a task (the task secedes meanwhile)."""
+    from distributed import worker_client
+
+    with worker_client() as client:
+        futures = client.map(fn, items, pure=False, retries=3)
+        return client.gather(futures)
+
+
+def fit_one(
+    path: str,
+    out: str,
+    layout: str | None,
+    options: dict[str, Any],
+    key: str,
+    patch_tasks_above: int | None = None,
+) -> dict:
     """Fit one mesh file into ``out`` (the task body; runs on a worker).
 
-    Returns a record ``{"status": "done" | "failed", ...}``; never raises for bad input.
+    Meshes with at least ``patch_tasks_above`` faces run their spring meshes as one Dask task
+    per patch (when called on a worker). Returns a record ``{"status": "done" | "failed",
+    ...}``; never raises for bad input.
     """
     from meshfit.mesh import load_mesh
     from meshfit.pipeline import FitOptions, run_fit
@@ -67,7 +86,23 @@ def fit_one(path: str, out: str, layout: str | None, options: dict[str, Any], ke
         _remove_leftovers(folder)
         opts = FitOptions(**{k: tuple(v) if isinstance(v, list) else v for k, v in options.items()})
         mesh = load_mesh(path)
-        summary = run_fit(mesh, folder, layout=layout or "auto", options=opts, resume=True)
+        patch_map = None
+        if patch_tasks_above is not None and mesh.n_faces >= patch_tasks_above:
+            from distributed import get_worker
+
+            try:
+                get_worker()
+                patch_map = _dask_patch_map
+            except ValueError:  # not on a worker: threads
+                patch_map = None
+        summary = run_fit(
+            mesh,
+            folder,
+            layout=layout or "auto",
+            options=opts,
+            resume=True,
+            patch_map=patch_map,
+        )
     except MeshfitError as exc:
         return {"status": "failed", "error": f"{type(exc).__name__}: {exc}".splitlines()[0]}
     except Exception as exc:  # a crash in one mesh must not stop the batch
@@ -94,6 +129,7 @@ def run_batch(
     scheduler: str | None = None,
     n_workers: int | None = None,
     retries: int = 3,
+    patch_tasks_above: int | None = 500_000,
     quiet: bool = False,
     client=None,
 ) -> dict[str, Any]:
@@ -115,6 +151,9 @@ def run_batch(
         Worker processes of the LocalCluster (default 2).
     retries : int
         Extra attempts of a task whose worker died (default 3).
+    patch_tasks_above : int, optional
+        Meshes with at least this many faces compute their spring meshes as one task per
+        patch, spread over the cluster (default 500,000; None: never).
     quiet : bool
         No progress output.
     client : distributed.Client, optional
@@ -183,6 +222,7 @@ def run_batch(
                     layout,
                     opts,
                     key,
+                    patch_tasks_above,
                     key=f"meshfit-fit-{path.stem}-{key[:12]}",
                     retries=retries,
                     pure=False,

@@ -540,6 +540,7 @@ def run_fit(
     options: FitOptions | None = None,
     resume: bool = False,
     progress: Progress | None = None,
+    patch_map: Callable | None = None,
 ) -> dict[str, Any]:
     """Fit B-spline patches with displacement maps to a mesh and write every output.
 
@@ -560,6 +561,10 @@ def run_fit(
         everything is recomputed and the stage files are overwritten).
     progress : callable(stage, done, total), keyword-only, optional
         Called as each stage advances.
+    patch_map : callable(fn, items) -> list, keyword-only, optional
+        Runs the spring-mesh stage's per-patch tasks elsewhere (e.g. as Dask tasks, see
+        :mod:`meshfit.batch`): called with :func:`spring_task` and one picklable
+        ``(payload, options)`` pair per patch, returns the results in order. Default: threads.
 
     Returns
     -------
@@ -653,31 +658,11 @@ def run_fit(
     else:
         ps = patches()
         t0 = st.start("springs")
-        from meshfit.springs import resample_patch
-
-        def spring(patch):
-            t = time.perf_counter()
-            res = resample_patch(
-                patch,
-                level=options.spring_level,
-                max_points=options.spring_max_points,
-                fidelity=False,
-            )
-            fin = res.metrics[-1] if res.metrics else {}
-            return res.final.xyz.copy(), {
-                "shape": list(res.final.shape),
-                "levels": len(res.levels),
-                "folded": int(fin.get("folded", 0)),
-                "folded_any_level": int(sum(m.get("folded", 0) for m in res.metrics)),
-                "arc_cv_max": float(fin.get("arc_cv_max", float("nan"))),
-                "aspect_max": float(fin.get("aspect_max", float("nan"))),
-                "area_ratio": float(fin.get("area_ratio", float("nan"))),
-                "sweeps": [int(s) for s in res.sweeps],
-                "seconds": round(time.perf_counter() - t, 4),
-                "patch_faces": int(patch.mesh.n_faces),
-            }
-
-        res = _parallel(spring, ps, workers, "springs", st)
+        spring_kw = {"level": options.spring_level, "max_points": options.spring_max_points}
+        if patch_map is not None:
+            res = patch_map(spring_task, [(patch_payload(p), spring_kw) for p in ps])
+        else:
+            res = _parallel(lambda p: spring_patch(p, **spring_kw), ps, workers, "springs", st)
         grids = [g for g, _ in res]
         spring_info = [i for _, i in res]
         arrays = {f"grid_{p}": g for p, g in enumerate(grids)}
@@ -686,7 +671,7 @@ def run_fit(
     if "cut" not in st.info:
         st.info["cut"] = {"seconds": 0.0, "cached": True}
         st.tick("cut", 1, 1)
-    st.done("springs", t0, cached=cached is not None)
+    st.done("springs", t0, cached=cached is not None, patch_tasks=patch_map is not None)
 
     # ---- fit (with the C0 boundary pins)
     t0 = st.start("fit")
@@ -898,6 +883,64 @@ def run_fit(
 
         write_html(out, summary)
     return summary
+
+
+def spring_patch(patch, *, level=None, max_points=None):
+    """Spring mesh of one patch: ``(xyz (nu, nv, 3) float64, metrics dict)``."""
+    from meshfit.springs import resample_patch
+
+    t = time.perf_counter()
+    res = resample_patch(patch, level=level, max_points=max_points, fidelity=False)
+    fin = res.metrics[-1] if res.metrics else {}
+    return res.final.xyz.copy(), {
+        "shape": list(res.final.shape),
+        "levels": len(res.levels),
+        "folded": int(fin.get("folded", 0)),
+        "folded_any_level": int(sum(m.get("folded", 0) for m in res.metrics)),
+        "arc_cv_max": float(fin.get("arc_cv_max", float("nan"))),
+        "aspect_max": float(fin.get("aspect_max", float("nan"))),
+        "area_ratio": float(fin.get("area_ratio", float("nan"))),
+        "sweeps": [int(s) for s in res.sweeps],
+        "seconds": round(time.perf_counter() - t, 4),
+        "patch_faces": int(patch.mesh.n_faces),
+    }
+
+
+def patch_payload(patch) -> dict[str, Any]:
+    """A patch as plain arrays (picklable, no cached mesh state) for a remote task."""
+    return {
+        "index": int(patch.index),
+        "vertices": np.asarray(patch.mesh.vertices),
+        "faces": np.asarray(patch.mesh.faces),
+        "corners": np.asarray(patch.corners),
+        "sides": [np.asarray(x) for x in patch.sides],
+        "face_parent": np.asarray(patch.face_parent),
+        "source_face": np.asarray(patch.vertex_source.face),
+        "source_bary": np.asarray(patch.vertex_source.bary),
+        "features": [
+            (np.asarray(f.points.face), np.asarray(f.points.bary)) for f in patch.features
+        ],
+        "feature_sides": [tuple(int(x) for x in fs) for fs in patch.feature_sides],
+    }
+
+
+def spring_task(item) -> tuple[NDArray[np.float64], dict]:
+    """Remote body of one spring-mesh task: ``item = (patch_payload(p), options)``."""
+    from meshfit.layout import Patch
+    from meshfit.types import SurfaceCurve, SurfacePoints
+
+    d, kw = item
+    patch = Patch(
+        d["index"],
+        Mesh(d["vertices"], d["faces"]),
+        d["corners"],
+        tuple(d["sides"]),
+        d["face_parent"],
+        SurfacePoints(d["source_face"], d["source_bary"]),
+        tuple(SurfaceCurve(SurfacePoints(f, b), kind="feature") for f, b in d["features"]),
+        tuple(d["feature_sides"]),
+    )
+    return spring_patch(patch, **kw)
 
 
 def _stitch_g1(grids, surfaces, notes: list[str]) -> list:
