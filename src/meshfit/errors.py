@@ -12,7 +12,9 @@ __all__ = [
     "DegenerateFaceError",
     "DuplicateFaceError",
     "EmptyMeshError",
+    "ExportError",
     "FeatureCurveError",
+    "ImageFileError",
     "IndexRangeError",
     "InputError",
     "LayoutError",
@@ -24,6 +26,8 @@ __all__ = [
     "NonManifoldVertexError",
     "OrientationError",
     "PathError",
+    "StreamError",
+    "TopologyError",
     "UnreferencedVertexError",
 ]
 

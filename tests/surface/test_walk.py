@@ -634,3 +634,18 @@ def test_move_along_curve_rejects_bad_input(spot, rng):
         move_along_curve(spot, curve, [0.0, np.nan], 0.0)
     with pytest.raises(InputError, match="no points"):
         curve_arc_lengths(spot, SurfacePoints(np.zeros(0, np.int64), np.zeros((0, 3))))
+
+
+def test_walk_kernel_does_not_divide_by_zero_in_a_zero_area_face():
+    """A sliver left by cutting (collinear corners) must not raise inside the kernel."""
+    from meshfit._kernels import walk as kernels
+
+    V = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0], [1, 1, 0]])
+    F = np.array([[0, 1, 2], [0, 3, 1]], dtype=np.int64)  # face 0 has zero area
+    FN = np.array([[1, -1, -1], [-1, -1, 0]], dtype=np.int64)
+    face = np.array([0], dtype=np.int64)
+    bary = np.array([[0.25, 0.5, 0.25]])
+    step = np.array([[0.0, 0.1, 0.0]])
+    out_face, out_bary, *_ = kernels.walk_points(V, F, FN, face, bary, step, 100, 1e-12, 1e-12)
+    assert np.isfinite(out_bary).all()
+    assert_allclose(out_bary.sum(axis=1), 1.0)

@@ -37,6 +37,11 @@ def _bary_rate(V, F, f, u, out):
     r1 = u[0] * e1x + u[1] * e1y + u[2] * e1z
     r2 = u[0] * e2x + u[1] * e2y + u[2] * e2z
     det = a11 * a22 - a12 * a12
+    if det <= 0.0:  # a face of zero area (a sliver left by cutting): no direction moves in it
+        out[0] = 0.0
+        out[1] = 0.0
+        out[2] = 0.0
+        return
     d1 = (a22 * r1 - a12 * r2) / det
     d2 = (a11 * r2 - a12 * r1) / det
     out[0] = -d1 - d2
