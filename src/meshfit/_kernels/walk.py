@@ -65,6 +65,8 @@ def _face_normal(V, F, f, out):
     ny = e1z * e2x - e1x * e2z
     nz = e1x * e2y - e1y * e2x
     s = np.sqrt(nx * nx + ny * ny + nz * nz)
+    if s == 0.0:  # zero area: no plane, no normal
+        s = 1.0
     out[0] = nx / s
     out[1] = ny / s
     out[2] = nz / s
@@ -155,10 +157,15 @@ def _walk_one(V, F, FN, f, b, u, length, max_faces, bary_eps):
         wy -= t * ey
         wz -= t * ez
         wl = np.sqrt(wx * wx + wy * wy + wz * wz)
+        if wl == 0.0:  # g has zero area: only the along-edge part carries over
+            wl = 1.0
+            perp = 0.0
         u[0] = along * ex + perp * wx / wl
         u[1] = along * ey + perp * wy / wl
         u[2] = along * ez + perp * wz / wl
         ul = np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+        if ul == 0.0:  # heading straight into a zero-area face: it acts as a wall
+            return f, length, BOUNDARY, crossed
         u[0] /= ul
         u[1] /= ul
         u[2] /= ul
