@@ -26,6 +26,9 @@ re-used.
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -269,12 +272,13 @@ def auto_layout(
     from meshfit.curves import relax_snake
     from meshfit.layout.extract import check_layout_topology
 
-    relaxed = []
-    for c in curves:
+    def relax_one(c: SurfaceCurve) -> SurfaceCurve:
         r = relax_snake(mesh, c, max_iter=int(relax_iterations)).curve
-        if len(check_sampling(mesh, r)):
-            r = densify_curve(mesh, r)
-        relaxed.append(r)
+        return densify_curve(mesh, r) if len(check_sampling(mesh, r)) else r
+
+    # curves are independent: threads (the walking kernel releases the GIL)
+    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+        relaxed = list(pool.map(relax_one, curves))
     try:
         out = layout_from_curves(mesh, corners, relaxed, ends, quads)
         check_layout_topology(mesh, out)
