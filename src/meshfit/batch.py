@@ -199,6 +199,7 @@ def run_batch(
 
     if todo:
         own = None
+        own_client = client is None
         if client is None:
             from distributed import Client, LocalCluster
 
@@ -241,8 +242,9 @@ def run_batch(
                 if not quiet:
                     print(f"{rec['status']}: {path.name}", flush=True)
         finally:
-            if own is not None:
+            if own_client:
                 client.close()
+            if own is not None:
                 own.close()
     summary = {
         "meshfit_batch": BATCH_FORMAT,
