@@ -84,3 +84,19 @@ def test_a_foreign_autosave_is_not_overwritten(tmp_path, capsys):
     assert main(argv) == 2
     assert "not overwriting it" in capsys.readouterr().err
     assert (tmp_path / "spot.session.json").read_text().startswith('{"meshfit_ui_session": 1,')
+
+
+def test_restart_of_an_empty_session_resumes_it(tmp_path):
+    """A session with nothing painted yet (no corners) is autosaved and resumed."""
+    argv = ["ui", str(mesh_path("spot")), "--port", "0", "--workdir", str(tmp_path)]
+    app = build_app(build_parser().parse_args(argv))
+    try:
+        app.session.autosave()
+    finally:
+        app.stop()
+    assert (tmp_path / "spot.session.json").is_file()
+    again = build_app(build_parser().parse_args(argv))
+    try:
+        assert len(again.session.curves) == 0
+    finally:
+        again.stop()

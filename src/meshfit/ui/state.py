@@ -188,7 +188,11 @@ def _sp_to_json(sp: SurfacePoints) -> dict:
 
 def _sp_from_json(d: dict, where: str) -> SurfacePoints:
     try:
-        return SurfacePoints(np.asarray(d["face"], dtype=np.int64), np.asarray(d["bary"], float))
+        face = np.asarray(d["face"], dtype=np.int64).reshape(-1)
+        bary = np.asarray(d["bary"], float)
+        if bary.size == 0:  # JSON keeps no shape for an empty list
+            bary = bary.reshape(0, 3)
+        return SurfacePoints(face, bary)
     except (KeyError, TypeError, ValueError) as exc:
         raise InputError(f"{where}: bad face points ({exc})") from None
 
