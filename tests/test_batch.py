@@ -138,10 +138,12 @@ def test_per_patch_tasks_give_the_same_outputs(undisturbed, inputs, cluster, tmp
     assert _files(out / "cow_a") == _files(ref / "cow_a")
 
 
-def test_cli_batch(inputs, tmp_path, capsys):
+def test_cli_batch_on_a_scheduler_address(inputs, cluster, tmp_path, capsys):
     code = cli.main(
         [
             "batch",
+            "--scheduler",
+            cluster.scheduler.address,
             str(inputs / "cow_a.ply"),
             "--out",
             str(tmp_path),
@@ -154,8 +156,6 @@ def test_cli_batch(inputs, tmp_path, capsys):
             "--formats",
             "obj",
             "--no-report",
-            "--workers",
-            "1",
             "--json",
         ]
     )
