@@ -106,3 +106,6 @@ CUT_CORNER_MERGE = 1e-3
 #: projection rays start this far behind the point, times the level's mean edge length, so one
 #: ray along the normal finds the surface on either side
 SHRINKWRAP_RAY_BACKOFF = 0.5
+#: shrink-wrap density of a vertex whose adjacent cells hold no input triangle, times the
+#: largest vertex density of the level
+SHRINKWRAP_DENSITY_FLOOR = 1e-9
