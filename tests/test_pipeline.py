@@ -236,3 +236,22 @@ def test_auto_displaced_reconstruction_accuracy(auto_fit, request):
     d = s["errors"]["displaced"]
     assert d["rms"] <= DISPLACED_RMS
     assert d["hausdorff"] <= DISPLACED_HAUSDORFF
+
+
+def test_cli_fit_mesh_with_a_hole(tmp_path, capsys):
+    from meshfit import cli
+    from meshfit.demo import demo_mesh
+    from meshfit.mesh import Mesh, save_mesh
+
+    d = demo_mesh(3000)
+    keep = np.arange(1, d.n_faces)  # one triangle removed: a small hole
+    path = save_mesh(Mesh(d.vertices, d.faces[keep]), tmp_path / "holey.ply")
+    argv = ["fit", str(path), "--out", str(tmp_path / "out"), "--level", "0", "--cv", "4x4"]
+    argv += ["--formats", "", "--no-report"]
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert "layout file" in err and "--fill-holes" in err
+    assert cli.main([*argv, "--fill-holes", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["patches_total"] == 60
+    assert out["mesh"]["faces"] == d.n_faces + 2  # the hole closed by a fan of three
