@@ -7,7 +7,7 @@ import pytest
 
 from meshfit.curves.base import check_sampling
 from meshfit.demo import demo_mesh, demo_sphere_map
-from meshfit.errors import InputError, TopologyError
+from meshfit.errors import InputError, LayoutError, TopologyError
 from meshfit.layout import extract_patches, layout_from_json, layout_to_json
 from meshfit.layout.auto import auto_layout, quad_network
 from meshfit.shrinkwrap import icosahedron
@@ -63,3 +63,10 @@ def test_open_and_higher_genus_meshes_need_a_layout_file():
         auto_layout(plane(6))
     with pytest.raises(InputError):
         auto_layout(demo_mesh(400), patches=0)
+
+
+@pytest.mark.slow
+def test_crossing_curves_give_a_clear_error():
+    # nefertiti's sphere map squeezes the base corners of a 200-patch layout together
+    with pytest.raises(LayoutError, match="fewer patches"):
+        auto_layout(real_mesh("nefertiti"), patches=200)

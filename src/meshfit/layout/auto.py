@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from meshfit.curves.base import check_sampling, densify_curve
-from meshfit.errors import InputError, MeshfitError, TopologyError
+from meshfit.errors import InputError, LayoutError, MeshfitError, TopologyError
 from meshfit.layout.layout import Layout, layout_from_curves
 from meshfit.mesh import Mesh
 from meshfit.types import SurfaceCurve, SurfacePoints
@@ -209,6 +209,9 @@ def auto_layout(
     meshfit.errors.TopologyError
         An open mesh, a mesh with holes or of higher genus: a layout file is needed (or
         ``fill_holes`` first where the holes are small).
+    meshfit.errors.LayoutError
+        The traced curves cross (where the sphere map squeezes many base corners together,
+        e.g. nefertiti with 200 patches): fewer patches or a layout file are needed.
 
     References
     ----------
@@ -282,6 +285,15 @@ def auto_layout(
     try:
         out = layout_from_curves(mesh, corners, relaxed, ends, quads)
         check_layout_topology(mesh, out)
+        return out
     except MeshfitError:
-        return traced
-    return out
+        pass
+    try:
+        check_layout_topology(mesh, traced)
+    except MeshfitError as exc:
+        raise LayoutError(
+            f"the automatic layout of {traced.n_patches} patches does not cut the mesh into "
+            f"disks ({str(exc).splitlines()[0]}): ask for fewer patches (--patches) or give "
+            "a layout file"
+        ) from None
+    return traced
