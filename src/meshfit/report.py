@@ -212,6 +212,9 @@ def write_html(out: str | os.PathLike, summary: dict[str, Any]) -> Path:
             ]
         ),
         "<h2>Seams</h2>",
+        "<p>Across every curve shared by two patches: gaps as fractions of the bbox diagonal, "
+        "normal jumps in degrees (inner: away from the corner zones, one knot span from each "
+        "end).</p>",
         _table([s["seams"]]),
     ]
     if s.get("notes"):
