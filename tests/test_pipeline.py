@@ -40,6 +40,8 @@ def test_every_patch_is_fitted(spot_fit):
         # the spline follows its spring grid to a few percent of the model
         assert p["fit_parametric_max"] < 0.1
     assert set(summary["stages"]) == set(STAGES) - {"report"}
+    folded = sum(p["folded"] for p in summary["patches"])
+    assert any("folded" in n for n in summary["notes"]) == (folded > 0)
     assert all(s["seconds"] >= 0 for s in summary["stages"].values())
     assert load_fit(out) == json.loads((out / "summary.json").read_text())
 

@@ -822,6 +822,7 @@ def run_fit(
                 "displacement_max": float(np.abs(d).max() / diag),
             }
         )
+    notes.extend(_quality_notes(patch_rows))
     summary: dict[str, Any] = {
         "meshfit_fit": PIPELINE_FORMAT,
         "version": __version__,
@@ -883,6 +884,25 @@ def run_fit(
 
         write_html(out, summary)
     return summary
+
+
+def _quality_notes(rows: list[dict]) -> list[str]:
+    """Warnings about patches whose spring mesh cannot be trusted."""
+    notes = []
+    collapsed = [r["patch"] for r in rows if not np.isfinite(r.get("area_ratio", 1.0))]
+    if collapsed:
+        notes.append(
+            f"spring meshes with collapsed (zero-area) cells in patches {collapsed}: their "
+            "fit does not cover the whole patch; split those patches in the layout"
+        )
+    folded = {r["patch"]: r["folded"] for r in rows if r.get("folded", 0)}
+    if folded:
+        worst = sorted(folded.items(), key=lambda kv: -kv[1])[:5]
+        notes.append(
+            f"{sum(folded.values())} folded spring-mesh cells in {len(folded)} patches "
+            f"(most: {', '.join(f'patch {p}: {n}' for p, n in worst)})"
+        )
+    return notes
 
 
 def spring_patch(patch, *, level=None, max_points=None):
