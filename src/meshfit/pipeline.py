@@ -484,7 +484,8 @@ def _surface_distance(
     return to_input, np.sqrt(np.maximum(np.asarray(sq), 0.0))
 
 
-def _error_figures(mesh: Mesh, V, F) -> dict[str, float]:
+def _error_figures(mesh: Mesh, V, F) -> tuple[dict[str, float], NDArray[np.float64]]:
+    """Error figures over the bbox diagonal, and each reconstruction vertex's distance."""
     a, b = _surface_distance(mesh, V, F)
     diag = mesh.bbox_diagonal
     both = np.concatenate([a, b])
@@ -494,7 +495,7 @@ def _error_figures(mesh: Mesh, V, F) -> dict[str, float]:
         "mean": float(both.mean() / diag),
         "to_input_max": float(a.max() / diag),
         "from_input_max": float(b.max() / diag),
-    }
+    }, a
 
 
 def _soup(arrays: list[NDArray[np.float64]]) -> tuple[NDArray, NDArray]:
@@ -794,8 +795,12 @@ def run_fit(
     t0 = st.start("errors")
     k_err = _key("errors", k_stitch, mhash)
     cached = st.cached("errors", k_err, ".json")
+    spline_distance: list = []
     if cached is not None:
         errors = json.loads(cached.read_text())
+        dist_file = st.path("errors", k_err, ".npz")
+        if dist_file.is_file():
+            spline_distance.append(_load_npz(dist_file)["spline_to_input"])
     else:
         spline_grids = [
             surfaces[p].evaluate_grid(
@@ -803,11 +808,14 @@ def run_fit(
             )
             for p in range(n_patches)
         ]
+        spline_fig, spline_to_input = _error_figures(mesh, *_soup(spline_grids))
         errors = {
-            "spline_only": _error_figures(mesh, *_soup(spline_grids)),
-            "displaced": _error_figures(mesh, *_soup(displaced_grids())),
+            "spline_only": spline_fig,
+            "displaced": _error_figures(mesh, *_soup(displaced_grids()))[0],
             "units": "fraction of the input's bbox diagonal",
         }
+        spline_distance.append(spline_to_input)
+        _save_npz(st.path("errors", k_err, ".npz"), {"spline_to_input": spline_to_input})
         _write_json(st.path("errors", k_err, ".json"), errors)
     st.done("errors", t0, cached=cached is not None)
 
@@ -869,6 +877,7 @@ def run_fit(
             summary=summary,
             image_size=options.image_size,
             render_images=not images_ok,
+            spline_distance=spline_distance[0] if spline_distance else None,
         )
         if not images_ok:
             _write_json(st.path("report", k_rep, ".json"), {"images": rep["images"]})

@@ -79,6 +79,7 @@ def write_report(
     summary: dict[str, Any],
     image_size: int = 640,
     render_images: bool = True,
+    spline_distance: NDArray[np.float64] | None = None,
 ) -> dict[str, Any]:
     """Render the report images and write ``report.html``.
 
@@ -103,6 +104,9 @@ def write_report(
         Width and height of the model renders, pixels.
     render_images : bool
         False re-uses images already in ``out/report`` (resume) and only rewrites the page.
+    spline_distance : (n,) float64, optional
+        Distance of each spline-only grid vertex (patches in order, row-major) to the input,
+        model units, when already measured; default measured here.
 
     Returns
     -------
@@ -144,7 +148,9 @@ def write_report(
         disp = displaced() if callable(displaced) else displaced
         Vd, Fd, _, _ = _grid_soup(disp)
         write_png_rgb(folder / "displaced.png", render(Vd, Fd, **kw))
-        dist = mesh.closest_points(Vs).distance
+        dist = spline_distance
+        if dist is None or len(dist) != len(Vs):
+            dist = mesh.closest_points(Vs).distance
         vmax = float(np.quantile(dist, 0.99)) if dist.size else 0.0
         summary["error_map_max"] = vmax / mesh.bbox_diagonal
         write_png_rgb(
