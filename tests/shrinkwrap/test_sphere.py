@@ -101,3 +101,13 @@ def test_voxel_flow_is_flip_free_on_a_sphere():
     sm = sphere_map(analytic_mesh("icosphere"), method="voxel")
     assert sm.method == "voxel"
     assert sm.flips == 0
+
+
+@pytest.mark.parametrize("name", ["spot", "nefertiti", "igea"])
+def test_sphere_map_aspect_bound_is_reached_without_flips(name):
+    mesh = real_mesh(name)
+    free = smap(name)
+    sm = sphere_map(mesh, max_aspect=10.0)
+    assert sm.flips == 0
+    assert sm.max_aspect <= 10.0 + 1e-6 < free.max_aspect  # measured 9.7, 10.0, 9.9
+    assert any("aspect bound" in n for n in sm.notes)

@@ -255,6 +255,8 @@ _MAX_ANGLE = np.pi * (1 - 1e-6)
 
 #: rounds of local smoothing that remove flips left by the lift to the sphere
 _UNTANGLE_ROUNDS = 100
+#: rounds of flip-guarded smoothing that bound the spherical triangles' aspect ratios
+_ASPECT_ROUNDS = 100
 #: repair rounds of the two-disk split
 _SPLIT_ROUNDS = 200
 
@@ -405,6 +407,47 @@ def _untangle(mesh: Mesh, s: NDArray[np.float64], rounds: int) -> NDArray[np.flo
     return s
 
 
+def _bound_aspect(
+    mesh: Mesh, s: NDArray[np.float64], bound: float, rounds: int
+) -> NDArray[np.float64]:
+    """Flip-guarded local smoothing of the spherical triangles whose aspect ratio exceeds
+    ``bound``: their corners (and, when that is not enough, a widening ring around them)
+    move to the normalised mean of their neighbours; moves that flip a triangle are undone.
+    Returns the configuration with the smallest largest aspect ratio seen."""
+    indptr, indices = mesh.vertex_adjacency
+    faces = mesh.faces
+    owner = np.repeat(np.arange(mesh.n_vertices), np.diff(indptr))
+    best = s
+    worst = float(triangle_quality(s, faces)[1].max())
+    for r in range(rounds):
+        _, asp = triangle_quality(s, faces)
+        bad = asp > bound
+        if not bad.any():
+            break
+        sel = np.zeros(len(s), dtype=bool)
+        sel[faces[bad]] = True
+        for _ in range(min(r // 10, 3)):  # widen the smoothed region if it keeps failing
+            sel[indices[sel[owner]]] = True
+        tgt = np.zeros_like(s)
+        np.add.at(tgt, owner, s[indices])
+        tgt /= np.linalg.norm(tgt, axis=1, keepdims=True)
+        new = s.copy()
+        new[sel] = tgt[sel]
+        for _guard in range(20):
+            flip = spherical_orientation(new, faces) <= 0
+            if not flip.any():
+                break
+            back = np.unique(faces[flip])
+            new[back] = s[back]
+        else:
+            break
+        s = new
+        w = float(triangle_quality(s, faces)[1].max())
+        if w < worst:
+            best, worst = s, w
+    return best
+
+
 def _relax_area(
     mesh: Mesh, s: NDArray[np.float64], iterations: int, step: float
 ) -> NDArray[np.float64]:
@@ -445,6 +488,7 @@ def sphere_map(
     method: str = "tutte",
     relax_iterations: int = 0,
     relax_step: float = 0.5,
+    max_aspect: float | None = None,
     progress: Callable[[str, float], None] | None = None,
 ) -> SphereMap:
     """Parameterize a closed genus-0 mesh over the unit sphere without flipped triangles.
@@ -467,6 +511,16 @@ def sphere_map(
         0.1 s per step on igea).
     relax_step : float
         Step of that relaxation, in (0, 1].
+    max_aspect : float or None
+        Bound on the aspect ratio (1 for an equilateral triangle) of the flat triangles
+        spanned by the sphere points (default ``None``: no bound). The corners of the
+        triangles above it are smoothed on the sphere, flip-guarded, for at most
+        ``_ASPECT_ROUNDS`` rounds; the bound reached is ``SphereMap.max_aspect`` and is noted
+        in ``notes``. With 10, spot goes from 20 to 9.7, nefertiti from 571 to 10.0 (its input
+        triangles reach 612), igea from 60 to 9.9. It is off by default because the local
+        smoothing makes the sphere metric depart from the surface metric: nefertiti's
+        level-5 wrap over base seeds 0-3 gave RMS 0.064 / 0.143 / 0.059 / 0.052 % of the
+        diagonal with the bound against 0.048 / 0.060 / 0.073 / 0.046 % without.
     progress : callable(stage, fraction), optional
 
     Returns
@@ -518,6 +572,12 @@ def sphere_map(
             notes.append(f"tutte: untangled {nflip} triangle(s) flipped by the lift to the sphere")
         if relax_iterations > 0:
             s = _relax_area(mesh, s, relax_iterations, relax_step)
+    if max_aspect is not None:
+        before = float(triangle_quality(s, mesh.faces)[1].max())
+        if before > max_aspect:
+            s = _bound_aspect(mesh, s, max_aspect, _ASPECT_ROUNDS)
+            after = float(triangle_quality(s, mesh.faces)[1].max())
+            notes.append(f"aspect bound {max_aspect:g}: max aspect {before:.4g} -> {after:.4g}")
     dets = spherical_orientation(s, mesh.faces)
     _, aspect = triangle_quality(s, mesh.faces)
     if progress:

@@ -219,6 +219,50 @@ def _surface_relax(smap, s, loc, faces, iterations, alpha0, density, centroids, 
     return s, loc, cell
 
 
+def _fix_thin(smap, s, loc, faces, min_angle, rounds):
+    """Local clean-up of thin triangles (sec. 4's relaxing force, restricted): the corners of
+    triangles with an angle below ``min_angle`` (radians) take uniform umbrella steps in
+    their tangent plane and are projected back onto the input, flip-guarded like the
+    surface phase. Returns the configuration with the largest minimum angle seen."""
+    mesh = smap.mesh
+    n = len(s)
+    adj = _topo.adjacency(faces, n)
+    edges, _ = _topo.unique_edges(faces)
+    val = np.asarray(adj.sum(axis=1)).ravel()
+    x = mesh.xyz(loc)
+    best = None
+    for _ in range(rounds + 1):
+        ang, _ = triangle_quality(x, faces)
+        if best is None or ang.min() > best[0]:
+            best = (ang.min(), s, loc)
+        thin = ang < min_angle
+        if not thin.any():
+            break
+        sel = np.zeros(n, dtype=bool)
+        sel[faces[thin]] = True
+        nrm = _vertex_normals(x, faces)
+        step = (adj @ x) / val[:, None] - x
+        step -= (step * nrm).sum(axis=1, keepdims=True) * nrm
+        y = x.copy()
+        y[sel] += step[sel]
+        mel = float(np.linalg.norm(x[edges[:, 1]] - x[edges[:, 0]], axis=1).mean())
+        new_loc, _ = _project(mesh, y[sel], nrm[sel], mel)
+        new_s = s.copy()
+        new_s[sel] = smap.inverse(new_loc)
+        new_s, back = _guard(s, new_s, faces)
+        keep = sel & ~back
+        face = loc.face.copy()
+        bary = loc.bary.copy()
+        idx = np.flatnonzero(sel)
+        k = keep[idx]
+        face[idx[k]] = new_loc.face[k]
+        bary[idx[k]] = new_loc.bary[k]
+        loc = SurfacePoints(face, bary)
+        s = new_s
+        x = mesh.xyz(loc)
+    return best[1], best[2]
+
+
 def shrink_wrap(
     mesh: Mesh,
     *,
@@ -236,6 +280,8 @@ def shrink_wrap(
     switch_tightness: float = 0.1,
     switch_min_angle_deg: float = 10.0,
     min_switch_level: int = 2,
+    clean_min_angle_deg: float = 10.0,
+    clean_rounds: int = 20,
     progress: Callable[[str, float], None] | None = None,
 ) -> WrapResult:
     """Remesh a closed genus-0 mesh with subdivision connectivity by shrink wrapping.
@@ -302,6 +348,12 @@ def shrink_wrap(
         (default 10): the surface metric then has to take over.
     min_switch_level : int
         No switch before this level (default 2).
+    clean_min_angle_deg, clean_rounds : float, int
+        After the surface phase of each level, the corners of triangles with an angle below
+        ``clean_min_angle_deg`` (default 10) take up to ``clean_rounds`` (default 20; 0: off)
+        uniform umbrella steps in their tangent planes, projected back onto the input and
+        flip-guarded; the configuration with the largest minimum angle is kept (spot,
+        level 5: minimum angle 0.5 -> 5.2 degrees, RMS unchanged).
     progress : callable(stage, fraction), optional
 
     Returns
@@ -355,6 +407,8 @@ def shrink_wrap(
         relax = _param_relax if phase == "parameter" else _surface_relax
         its = parameter_iterations if phase == "parameter" else surface_iterations
         s, loc, cell = relax(smap, s, loc, faces, its, alpha, used, centroids, weights, cell)
+        if phase == "surface" and clean_rounds > 0:
+            s, loc = _fix_thin(smap, s, loc, faces, np.radians(clean_min_angle_deg), clean_rounds)
         x = mesh.xyz(loc)
         tight = _tightness(mesh, x, faces)
         out.append(WrapLevel(lev, x, faces, s, loc, phase, its, used, tight))
