@@ -9,7 +9,8 @@ Binary format, version 1 (little endian)::
 
     header   magic  b"MFSW"            4 bytes
              version          u16      = 1
-             scheme           u8       0 = loop, 1 = butterfly
+             scheme           u8       0 = loop, 1 = butterfly (modified: Zorin's rules at
+                                       vertices of valence != 6)
              value bytes      u8       4 (float32) or 8 (float64) per coefficient component
              levels           u16      number of refinement levels m
              reserved         u16      0
