@@ -40,27 +40,28 @@ def layout_springs(name: str):
 #: measured on this machine's run of the layouts (max over patches and levels)
 KNOWN = {
     "folds": {
-        "igea": "folded cells on 3 of 24 patches (11 cells over all levels; patch 4: 9)",
-        "nefertiti": "folded cells on 19 of 54 patches (182 cells over all levels; patch 4, "
-        "where the grid slides off a bulge: 99; most others 1-4 cells next to a side)",
-        "spot": "folded cells on 4 of 24 patches (40 cells over all levels; patch 1: 19)",
+        "igea": "folded cells on 1 of 24 patches (1 cell over all levels: patch 10, level 3)",
+        "nefertiti": "folded cells on 15 of 54 patches (27 cells over all levels; patch 4, "
+        "a bulge the planar map squeezes: 11; the others 1-2 cells next to a side, "
+        "sheared cells of the boundary row)",
+        "spot": "folded cells on 2 of 24 patches (18 cells over all levels; patches 1 and 3, "
+        "boundary rows)",
     },
     "arc_cv": {
-        "igea": "arc-length CV > 0.15 on 5 of 24 patches (worst 0.93, patch 4; median 0.087)",
-        "nefertiti": "arc-length CV > 0.15 on 20 of 54 patches (worst 4.5, patch 4; median 0.098)",
-        "spot": "arc-length CV > 0.15 on 10 of 24 patches (worst 1.90, patch 11; median 0.103)",
+        "igea": "arc-length CV > 0.15 on 5 of 24 patches (worst 0.24, patch 4; median 0.080)",
+        "nefertiti": "arc-length CV > 0.15 on 13 of 54 patches (worst 2.2, patch 4; median 0.096)",
+        "spot": "arc-length CV > 0.15 on 10 of 24 patches (worst 0.61, patch 3; median 0.105)",
     },
     "aspect": {
-        "nefertiti": "median cell aspect ratio 1.533 on patch 4 (all others <= 1.41)",
-        "spot": "median cell aspect ratio > 1.5 on 3 of 24 patches (worst 1.93, patch 5)",
+        "spot": "median cell aspect ratio > 1.5 on 4 of 24 patches (worst 1.83, patch 5)",
     },
     "fidelity": {
         "igea": "two-sided max distance 0.087% of the bbox diagonal on the median patch, "
-        "0.45% worst (patch 5); RMS <= 0.018%",
-        "nefertiti": "two-sided max distance 0.12% of the bbox diagonal on the median patch, "
-        "30% on patch 4 (grid slid off a bulge)",
+        "0.37% worst (patch 5): at about the vertex count the grid is too coarse for 0.05%",
+        "nefertiti": "two-sided max distance 0.11% of the bbox diagonal on the median patch, "
+        "4.1% on patch 4 (a bulge the grid under-samples)",
         "spot": "two-sided max distance 0.092% of the bbox diagonal on the median patch, "
-        "9.9% worst (patch 10)",
+        "5.7% worst (patch 1)",
     },
 }
 

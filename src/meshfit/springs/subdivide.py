@@ -39,7 +39,14 @@ def _mid(state: State, a: np.ndarray, b: np.ndarray, n_fair: int):
     )
 
 
-def subdivide(state: State, *, n_fair: int = 3) -> None:
+def _mid_mapped(state: State, pmap, a: np.ndarray, b: np.ndarray):
+    """Mid-points in the planar map: the image of the mean of the two points' parameters."""
+    uv = 0.5 * (pmap.uv_of(state.face[a], state.bary[a]) + pmap.uv_of(state.face[b], state.bary[b]))
+    pts = pmap.locate(uv)
+    return pts.face, pts.bary
+
+
+def subdivide(state: State, *, n_fair: int = 3, pmap=None) -> None:
     """Double the spring mesh's intervals in both directions, in place.
 
     Old points keep their places at even grid indices. New points on the sides come from
@@ -82,7 +89,7 @@ def subdivide(state: State, *, n_fair: int = 3) -> None:
         r = 2 * np.array(rows)
         a = idx[0:-1:2][:, r].ravel()
         b = idx[2::2][:, r].ravel()
-        f, bb = _mid(state, a, b, n_fair)
+        f, bb = _mid(state, a, b, n_fair) if pmap is None else _mid_mapped(state, pmap, a, b)
         tgt = idx[1::2][:, r].ravel()
         state.face[tgt], state.bary[tgt] = f, bb
     cols = [i for i in range(1, nu - 1) if i not in old_u_lines]
@@ -90,11 +97,11 @@ def subdivide(state: State, *, n_fair: int = 3) -> None:
         c = 2 * np.array(cols)
         a = idx[c][:, 0:-1:2].ravel()
         b = idx[c][:, 2::2].ravel()
-        f, bb = _mid(state, a, b, n_fair)
+        f, bb = _mid(state, a, b, n_fair) if pmap is None else _mid_mapped(state, pmap, a, b)
         tgt = idx[c][:, 1::2].ravel()
         state.face[tgt], state.bary[tgt] = f, bb
     a = idx[1::2, 0:-1:2].ravel()
     b = idx[1::2, 2::2].ravel()
-    f, bb = _mid(state, a, b, n_fair)
+    f, bb = _mid(state, a, b, n_fair) if pmap is None else _mid_mapped(state, pmap, a, b)
     tgt = idx[1::2, 1::2].ravel()
     state.face[tgt], state.bary[tgt] = f, bb

@@ -1,0 +1,68 @@
+"""The planar (mean-value) map of a patch to the unit square and the mapped spring mesh."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from meshfit.errors import InputError
+from meshfit.springs import resample_patch
+from meshfit.springs.planar import square_map
+from meshfit.springs.resample import _sides
+
+from ..conftest import real_mesh
+from .patches import cap_map, cut_patch, param_patch, plane_map
+
+
+def _signed_areas(uv, faces):
+    a, b, c = uv[faces[:, 0]], uv[faces[:, 1]], uv[faces[:, 2]]
+    return (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+
+
+@pytest.mark.parametrize("which", ["cap", "igea"])
+def test_square_map_is_a_bijection_onto_the_square(which):
+    if which == "cap":
+        patch = param_patch(cap_map(1.0, 0.6), 20, 20)
+    else:
+        patch = cut_patch(real_mesh("igea"), 1000, 0.02)
+    sides = _sides(patch)
+    pmap = square_map(patch.mesh, sides)
+    uv = pmap.uv
+    assert (uv >= -1e-12).all() and (uv <= 1 + 1e-12).all()
+    # the sides lie on the square's sides, corners at its corners
+    assert_allclose(uv[sides.chains["bottom"], 1], 0.0)
+    assert_allclose(uv[sides.chains["top"], 1], 1.0)
+    assert_allclose(uv[sides.chains["left"], 0], 0.0)
+    assert_allclose(uv[sides.chains["right"], 0], 1.0)
+    # no face turned over; only faces with three vertices on one side are flat
+    area = _signed_areas(uv, patch.mesh.faces)
+    assert area.min() >= -1e-15
+    assert_allclose(0.5 * area.sum(), 1.0, rtol=1e-9)  # the faces tile the square once
+
+
+def test_locate_inverts_the_map():
+    patch = param_patch(cap_map(1.0, 0.6), 20, 20)
+    pmap = square_map(patch.mesh, _sides(patch))
+    q = np.random.default_rng(1).uniform(0.0, 1.0, (500, 2))
+    pts = pmap.locate(q)
+    assert (pts.bary >= 0).all()
+    assert_allclose(pmap.uv_of(pts.face, pts.bary), q, atol=1e-12)
+
+
+def test_plane_grid_is_the_same_from_either_start():
+    plane = param_patch(plane_map(2.0, 1.0), 40, 20)
+    a = resample_patch(plane, level=2, fidelity=False)
+    b = resample_patch(plane, level=2, init="dijkstra", midpoints="findmid", fidelity=False)
+    nv = a.final.shape[1]
+    assert a.final.shape == b.final.shape
+    assert_allclose(a.final.xyz, b.final.xyz, atol=1e-2 / (nv - 1))
+    assert all(m["folded"] == 0 for m in a.metrics + b.metrics)
+
+
+def test_start_options_are_checked():
+    plane = param_patch(plane_map(2.0, 1.0), 8, 4)
+    with pytest.raises(InputError, match="init"):
+        resample_patch(plane, init="tutte")
+    with pytest.raises(InputError, match="midpoints"):
+        resample_patch(plane, midpoints="graph")
