@@ -44,6 +44,10 @@ __all__ = ["auto_layout", "quad_network"]
 PATCHES_PER_TRIANGLE = 3
 #: default patch count (the icosahedron: 20 base triangles)
 DEFAULT_PATCHES = 60
+#: aspect-ratio bound of the spherical triangles of the default sphere map: a map that
+#: squeezes triangles gives base cells whose images are very uneven (nefertiti unbounded:
+#: aspect 571, 310 folded spring cells in the fit; bounded: 18)
+SPHERE_MAX_ASPECT = 10.0
 #: samples of a base edge's image when it is split at half its surface length
 _SPLIT_SAMPLES = 65
 #: a base triangle's image is split n x n ways to find its area centre
@@ -178,6 +182,7 @@ def auto_layout(
     seed: int = 0,
     relax: bool = True,
     relax_iterations: int = 200,
+    sphere_max_aspect: float | None = SPHERE_MAX_ASPECT,
 ) -> Layout:
     """A four-sided layout of a closed genus-0 mesh: three quads per base-mesh triangle.
 
@@ -190,7 +195,7 @@ def auto_layout(
         at least 20), so the result has about ``patches`` patches (default 60).
     sphere : meshfit.shrinkwrap.SphereMap, keyword-only, optional
         A ready parameterization of ``mesh`` over the unit sphere; default
-        :func:`meshfit.shrinkwrap.sphere_map`.
+        :func:`meshfit.shrinkwrap.sphere_map` with ``max_aspect=sphere_max_aspect``.
     seed : int, keyword-only
         Seed of the base mesh's starting rotation.
     relax : bool, keyword-only
@@ -199,6 +204,9 @@ def auto_layout(
         cross, the traced images are kept (they never cross).
     relax_iterations : int, keyword-only
         Iteration cap of each snake (default 200).
+    sphere_max_aspect : float or None, keyword-only
+        Aspect-ratio bound of the default sphere map's triangles (default
+        ``SPHERE_MAX_ASPECT`` = 10; None: unbounded).
 
     Returns
     -------
@@ -239,7 +247,7 @@ def auto_layout(
     want = DEFAULT_PATCHES if patches is None else int(patches)
     n_faces = max(20, round(want / PATCHES_PER_TRIANGLE))
     n_faces += n_faces % 2
-    smap = sphere_map(mesh) if sphere is None else sphere
+    smap = sphere_map(mesh, max_aspect=sphere_max_aspect) if sphere is None else sphere
     base = base_mesh(smap, max_faces=n_faces, min_faces=n_faces, seed=seed)
     S, BF = base.sphere, base.faces
 
