@@ -219,6 +219,10 @@ def _surface_relax(smap, s, loc, faces, iterations, alpha0, density, centroids, 
     return s, loc, cell
 
 
+#: step lengths tried, in turn, by the thin-triangle clean-up (fractions of the umbrella step)
+_CLEAN_STEPS = (1.0, 0.5, 0.25, 0.125)
+
+
 def _fix_thin(smap, s, loc, faces, min_angle, rounds):
     """Local clean-up of thin triangles (sec. 4's relaxing force, restricted): the corners of
     triangles with an angle below ``min_angle`` (radians) take uniform umbrella steps in
@@ -243,22 +247,23 @@ def _fix_thin(smap, s, loc, faces, min_angle, rounds):
         nrm = _vertex_normals(x, faces)
         step = (adj @ x) / val[:, None] - x
         step -= (step * nrm).sum(axis=1, keepdims=True) * nrm
-        y = x.copy()
-        y[sel] += step[sel]
         mel = float(np.linalg.norm(x[edges[:, 1]] - x[edges[:, 0]], axis=1).mean())
-        new_loc, _ = _project(mesh, y[sel], nrm[sel], mel)
-        new_s = s.copy()
-        new_s[sel] = smap.inverse(new_loc)
-        new_s, back = _guard(s, new_s, faces)
-        keep = sel & ~back
         face = loc.face.copy()
         bary = loc.bary.copy()
-        idx = np.flatnonzero(sel)
-        k = keep[idx]
-        face[idx[k]] = new_loc.face[k]
-        bary[idx[k]] = new_loc.bary[k]
+        for scale in _CLEAN_STEPS:  # a move that flips is retried shorter
+            idx = np.flatnonzero(sel)
+            if len(idx) == 0:
+                break
+            new_loc, _ = _project(mesh, x[idx] + scale * step[idx], nrm[idx], mel)
+            new_s = s.copy()
+            new_s[idx] = smap.inverse(new_loc)
+            new_s, back = _guard(s, new_s, faces)
+            k = ~back[idx]
+            face[idx[k]] = new_loc.face[k]
+            bary[idx[k]] = new_loc.bary[k]
+            s = new_s
+            sel[idx[k]] = False
         loc = SurfacePoints(face, bary)
-        s = new_s
         x = mesh.xyz(loc)
     return best[1], best[2]
 
