@@ -31,7 +31,7 @@ def test_quad_network_of_the_icosahedron():
     assert all(sorted(r) == [False, True] for r in uses.values())
 
 
-@pytest.mark.parametrize("name", ["spot", "nefertiti"])
+@pytest.mark.parametrize("name", ["spot"])  # nefertiti and igea: tests/test_pipeline.py
 def test_auto_layout_on_real_scans(name):
     mesh = real_mesh(name)
     layout = auto_layout(mesh)
@@ -65,8 +65,7 @@ def test_open_and_higher_genus_meshes_need_a_layout_file():
         auto_layout(demo_mesh(400), patches=0)
 
 
-@pytest.mark.slow
 def test_crossing_curves_give_a_clear_error():
-    # nefertiti's sphere map squeezes the base corners of a 200-patch layout together
+    # spot has about 2,900 vertices: 400 patches put several traced curves through one face
     with pytest.raises(LayoutError, match="fewer patches"):
-        auto_layout(real_mesh("nefertiti"), patches=200)
+        auto_layout(real_mesh("spot"), patches=400, relax=False)

@@ -278,10 +278,11 @@ def auto_layout(
     for a, b in ends.tolist():
         curves.append(_trace(mesh, smap, pts[a], pts[b], corners[a], corners[b]))
     traced = layout_from_curves(mesh, corners, curves, ends, quads)
-    if not relax:
-        return traced
     from meshfit.curves import relax_snake
     from meshfit.layout.extract import check_layout_topology
+
+    if not relax:
+        return _checked(mesh, traced)
 
     def relax_one(c: SurfaceCurve) -> SurfaceCurve:
         r = relax_snake(mesh, c, max_iter=int(relax_iterations)).curve
@@ -296,12 +297,19 @@ def auto_layout(
         return out
     except MeshfitError:
         pass
+    return _checked(mesh, traced)
+
+
+def _checked(mesh: Mesh, layout: Layout) -> Layout:
+    """The layout if it cuts the mesh into disks, else a LayoutError with a hint."""
+    from meshfit.layout.extract import check_layout_topology
+
     try:
-        check_layout_topology(mesh, traced)
+        check_layout_topology(mesh, layout)
     except MeshfitError as exc:
         raise LayoutError(
-            f"the automatic layout of {traced.n_patches} patches does not cut the mesh into "
+            f"the automatic layout of {layout.n_patches} patches does not cut the mesh into "
             f"disks ({str(exc).splitlines()[0]}): ask for fewer patches (--patches) or give "
             "a layout file"
         ) from None
-    return traced
+    return layout
