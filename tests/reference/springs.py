@@ -190,3 +190,24 @@ def find_midpoints(mesh: Mesh, a: SurfacePoints, b: SurfacePoints, n_fair, max_s
             f, bb, _ = _walk_inside(mesh, f, bb, step)
         out_f[i], out_b[i] = f, bb
     return out_f, out_b
+
+
+def locate_uv(uv, F, q):
+    """Point location in a planar triangulation by testing every face: the face in which
+    each query is most inside (largest smallest barycentric), barycentrics clamped to >= 0
+    and renormalised."""
+    face = np.zeros(len(q), dtype=np.int64)
+    bary = np.zeros((len(q), 3))
+    for k, p in enumerate(np.clip(q, 0.0, 1.0)):
+        best = -np.inf
+        for f, (a, b, c) in enumerate(F):
+            M = np.column_stack([uv[b] - uv[a], uv[c] - uv[a]])
+            if abs(np.linalg.det(M)) == 0:
+                continue
+            s, r = np.linalg.solve(M, p - uv[a])
+            w = np.array([1 - s - r, s, r])
+            if w.min() > best:
+                best, face[k], bary[k] = w.min(), f, w
+        bary[k] = np.maximum(bary[k], 0.0)
+        bary[k] /= bary[k].sum()
+    return face, bary

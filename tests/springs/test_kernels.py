@@ -115,3 +115,21 @@ def test_folded_cells_kernel_matches_the_metric(patches, rng):
     N = mesh.face_normals[face].reshape(nu, nv, 3)
     want = grid_metrics(mesh, X, N, fidelity=False)["folded"]
     assert got.sum() == want > 0
+
+
+def test_locate_uv_matches_oracle(patches, rng):
+    from meshfit.springs.planar import square_map
+    from meshfit.springs.resample import _sides
+
+    patch = patches["spot"]
+    pmap = square_map(patch.mesh, _sides(patch))
+    q = np.concatenate([rng.uniform(0.0, 1.0, (60, 2)), [[0, 0], [1, 1], [0.5, 0], [1, 0.3]]])
+    face, bary = K.locate_uv(pmap.uv, patch.mesh.faces, *pmap._buckets, pmap._g, q)
+    f_ref, b_ref = ref.locate_uv(pmap.uv, patch.mesh.faces, q)
+    # a point on an edge may go to either face: compare the located parameters
+    F = patch.mesh.faces
+    got = np.einsum("ij,ijk->ik", bary, pmap.uv[F[face]])
+    want = np.einsum("ij,ijk->ik", b_ref, pmap.uv[F[f_ref]])
+    assert_allclose(got, want, atol=1e-12)
+    assert_allclose(got, q, atol=1e-12)
+    assert (bary >= 0).all() and (face >= 0).all()

@@ -487,3 +487,90 @@ def folded_cells(V, F, face, bary, nu, nv):
                 if cx * sx + cy * sy + cz * sz <= 0.0:
                     out[i, j] = True
     return out
+
+
+# ------------------------------------------------------------ point location in a planar map
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def uv_buckets(uv, F, g):
+    """Faces of a planar triangulation in the unit square sorted into a ``g`` x ``g`` grid of
+    buckets by their bounding boxes (faces of zero area are left out).
+
+    Returns (start (g * g + 1,) int64, items (k,) int64): bucket ``c`` holds
+    ``items[start[c]:start[c + 1]]``.
+    """
+    nf = F.shape[0]
+    lo = np.empty((nf, 2), dtype=np.int64)
+    hi = np.empty((nf, 2), dtype=np.int64)
+    count = np.zeros(g * g + 1, dtype=np.int64)
+    for f in range(nf):
+        a, b, c = F[f, 0], F[f, 1], F[f, 2]
+        area = (uv[b, 0] - uv[a, 0]) * (uv[c, 1] - uv[a, 1]) - (uv[b, 1] - uv[a, 1]) * (
+            uv[c, 0] - uv[a, 0]
+        )
+        if area == 0.0:
+            lo[f, 0] = 1
+            hi[f, 0] = 0
+            continue
+        for d in range(2):
+            mn = min(uv[a, d], min(uv[b, d], uv[c, d]))
+            mx = max(uv[a, d], max(uv[b, d], uv[c, d]))
+            lo[f, d] = min(g - 1, max(0, int(np.floor(mn * g))))
+            hi[f, d] = min(g - 1, max(0, int(np.floor(mx * g))))
+        for i in range(lo[f, 0], hi[f, 0] + 1):
+            for j in range(lo[f, 1], hi[f, 1] + 1):
+                count[i * g + j + 1] += 1
+    start = np.cumsum(count)
+    fill = start[:-1].copy()
+    items = np.empty(start[-1], dtype=np.int64)
+    for f in range(nf):
+        for i in range(lo[f, 0], hi[f, 0] + 1):
+            for j in range(lo[f, 1], hi[f, 1] + 1):
+                items[fill[i * g + j]] = f
+                fill[i * g + j] += 1
+    return start, items
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def locate_uv(uv, F, start, items, g, q):
+    """Face and barycentrics of each query point ``q`` (m, 2) in the unit square: the face of
+    its bucket in which it is most inside (its smallest barycentric largest); barycentrics
+    clamped to >= 0 and renormalised.
+
+    Returns (face (m,) int64, bary (m, 3) float64); face -1 where the bucket is empty.
+    """
+    m = q.shape[0]
+    face = np.full(m, -1, dtype=np.int64)
+    bary = np.zeros((m, 3))
+    for k in range(m):
+        x = min(1.0, max(0.0, q[k, 0]))
+        y = min(1.0, max(0.0, q[k, 1]))
+        cell = min(g - 1, int(x * g)) * g + min(g - 1, int(y * g))
+        best = -np.inf
+        for t in range(start[cell], start[cell + 1]):
+            f = items[t]
+            a, b, c = F[f, 0], F[f, 1], F[f, 2]
+            d1x, d1y = uv[b, 0] - uv[a, 0], uv[b, 1] - uv[a, 1]
+            d2x, d2y = uv[c, 0] - uv[a, 0], uv[c, 1] - uv[a, 1]
+            dqx, dqy = x - uv[a, 0], y - uv[a, 1]
+            den = d1x * d2y - d1y * d2x
+            s = (dqx * d2y - dqy * d2x) / den
+            r = (d1x * dqy - d1y * dqx) / den
+            w = min(1.0 - s - r, min(s, r))
+            if w > best:
+                best = w
+                face[k] = f
+                bary[k, 0] = 1.0 - s - r
+                bary[k, 1] = s
+                bary[k, 2] = r
+            if w >= 0.0:
+                break
+        tot = 0.0
+        for i in range(3):
+            bary[k, i] = max(bary[k, i], 0.0)
+            tot += bary[k, i]
+        if tot > 0.0:
+            for i in range(3):
+                bary[k, i] /= tot
+    return face, bary

@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from meshfit import tol
+from meshfit._kernels import springs as _k
 from meshfit.mesh import Mesh
 from meshfit.springs.features import Sides
 from meshfit.types import SurfacePoints
@@ -55,7 +56,9 @@ class PlanarMap:
     def __init__(self, mesh: Mesh, uv: NDArray[np.float64]):
         self.mesh = mesh
         self.uv = uv
-        self._uv3 = np.ascontiguousarray(np.column_stack([uv, np.zeros(len(uv))]))
+        # about two faces per bucket
+        self._g = max(1, int(np.sqrt(mesh.n_faces / 2.0)))
+        self._buckets = _k.uv_buckets(uv, mesh.faces, self._g)
 
     def uv_of(self, face: NDArray[np.int64], bary: NDArray[np.float64]) -> NDArray[np.float64]:
         """(m, 2) parameters of face points."""
@@ -63,25 +66,9 @@ class PlanarMap:
 
     def locate(self, q: NDArray[np.float64]) -> SurfacePoints:
         """Face points of the patch mesh whose parameters are ``q`` (m, 2), clamped into the
-        square."""
-        import igl
-
-        q = np.clip(np.asarray(q, dtype=np.float64), 0.0, 1.0)
-        q3 = np.ascontiguousarray(np.column_stack([q, np.zeros(len(q))]))
-        _, face, _ = igl.point_mesh_squared_distance(q3, self._uv3, self.mesh.faces)
-        face = np.asarray(face, dtype=np.int64)
-        T = self.uv[self.mesh.faces[face]]  # (m, 3, 2)
-        a, b, c = T[:, 0], T[:, 1], T[:, 2]
-        d1, d2, dq = b - a, c - a, q - a
-        den = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
-        ok = np.abs(den) > 0
-        den = np.where(ok, den, 1.0)
-        s = (dq[:, 0] * d2[:, 1] - dq[:, 1] * d2[:, 0]) / den
-        t = (d1[:, 0] * dq[:, 1] - d1[:, 1] * dq[:, 0]) / den
-        bary = np.column_stack([1.0 - s - t, s, t])
-        bary = np.where(ok[:, None], bary, 1.0 / 3.0)
-        bary = np.clip(bary, 0.0, None)
-        bary /= bary.sum(axis=1, keepdims=True)
+        square (a point on an edge goes to either face)."""
+        q = np.ascontiguousarray(q, dtype=np.float64)
+        face, bary = _k.locate_uv(self.uv, self.mesh.faces, *self._buckets, self._g, q)
         return SurfacePoints(face, bary)
 
 
