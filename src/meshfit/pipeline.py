@@ -31,7 +31,7 @@ import time
 import zipfile
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -47,10 +47,12 @@ __all__ = [
     "FORMATS",
     "STAGES",
     "FitOptions",
-    "PatchFit",
     "load_fit",
     "mesh_hash",
+    "patch_payload",
     "run_fit",
+    "spring_patch",
+    "spring_task",
 ]
 
 #: pipeline stages in order (keys of the summary's ``stages``)
@@ -147,28 +149,6 @@ class FitOptions:
     def key(self, *names: str) -> dict[str, Any]:
         d = asdict(self)
         return {k: d[k] for k in names}
-
-
-@dataclass(frozen=True, eq=False)
-class PatchFit:
-    """Everything the pipeline keeps of one patch.
-
-    Attributes
-    ----------
-    index : int
-    grid : (nu, nv, 3) float64
-        The finest spring mesh, model units.
-    surface : BSplineSurface
-    displacement : DisplacementMap
-    metrics : dict
-        Spring-mesh metrics of the finest level, fit errors, control counts.
-    """
-
-    index: int
-    grid: NDArray[np.float64]
-    surface: Any
-    displacement: Any
-    metrics: dict = field(default_factory=dict)
 
 
 # ---------------------------------------------------------------------------- small helpers
