@@ -11,14 +11,15 @@ and the displaced reconstructions against the input, as fractions of its bbox di
 
 Stitching
 ---------
-With ``continuity="c0"`` the shared boundaries are made identical at the fitting step: every
+With either continuity the shared boundaries are made identical at the fitting step: every
 layout curve gets one cubic B-spline curve, least-squares fitted to the spring-mesh side that
 follows it (end points pinned to the layout corners), and every patch using the curve pins
 its boundary row of control points to that curve's control points (Krishnamurthy 2000,
 sec. 8.1.3: boundary constraints at the fitting step). Control counts are unified across
-curves so that patches sharing a curve agree. ``continuity="g1"`` additionally calls
-:mod:`meshfit.stitch` when that package is installed; otherwise the run records that only C0
-was achieved. The seams are measured either way (gap and normal jump across each curve).
+curves so that patches sharing a curve agree. ``continuity="g1"`` then makes the network G1
+with :func:`meshfit.stitch.stitch_surfaces`; displacement seams are closed with
+:func:`meshfit.stitch.stitch_displacements` (vector maps). The seams are measured either way
+(gap and normal jump across each curve, in ``summary["seams"]``).
 """
 
 from __future__ import annotations
