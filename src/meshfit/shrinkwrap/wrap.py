@@ -221,13 +221,16 @@ def _surface_relax(smap, s, loc, faces, iterations, alpha0, density, centroids, 
 
 #: step lengths tried, in turn, by the thin-triangle clean-up (fractions of the umbrella step)
 _CLEAN_STEPS = (1.0, 0.5, 0.25, 0.125)
+#: the clean-up stops after this many rounds without a larger minimum angle
+_CLEAN_STALL = 5
 
 
 def _fix_thin(smap, s, loc, faces, min_angle, rounds):
     """Local clean-up of thin triangles (sec. 4's relaxing force, restricted): the corners of
     triangles with an angle below ``min_angle`` (radians) take uniform umbrella steps in
     their tangent plane and are projected back onto the input, flip-guarded like the
-    surface phase. Returns the configuration with the largest minimum angle seen."""
+    surface phase. Stops after ``_CLEAN_STALL`` rounds without progress and returns the
+    configuration with the largest minimum angle seen."""
     mesh = smap.mesh
     n = len(s)
     adj = _topo.adjacency(faces, n)
@@ -235,12 +238,15 @@ def _fix_thin(smap, s, loc, faces, min_angle, rounds):
     val = np.asarray(adj.sum(axis=1)).ravel()
     x = mesh.xyz(loc)
     best = None
+    since = 0
     for _ in range(rounds + 1):
         ang, _ = triangle_quality(x, faces)
+        since += 1
         if best is None or ang.min() > best[0]:
             best = (ang.min(), s, loc)
+            since = 0
         thin = ang < min_angle
-        if not thin.any():
+        if not thin.any() or since >= _CLEAN_STALL:
             break
         sel = np.zeros(n, dtype=bool)
         sel[faces[thin]] = True
