@@ -41,27 +41,27 @@ def layout_springs(name: str):
 KNOWN = {
     "folds": {
         "igea": "folded cells on 1 of 24 patches (1 cell over all levels: patch 10, level 3)",
-        "nefertiti": "folded cells on 15 of 54 patches (27 cells over all levels; patch 4, "
-        "a bulge the planar map squeezes: 11; the others 1-2 cells next to a side, "
-        "sheared cells of the boundary row)",
-        "spot": "folded cells on 2 of 24 patches (18 cells over all levels; patches 1 and 3, "
-        "boundary rows)",
+        "nefertiti": "folded cells on 14 of 54 patches (26 cells over all levels; patch 4, "
+        "a bulge the planar map squeezes: 12; the others 1-2 cells on a side that bends "
+        "sharply between two grid points)",
+        "spot": "folded cells on 2 of 24 patches (17 cells over all levels; patch 1: 10, "
+        "patch 3: 7)",
     },
     "arc_cv": {
-        "igea": "arc-length CV > 0.15 on 5 of 24 patches (worst 0.24, patch 4; median 0.080)",
-        "nefertiti": "arc-length CV > 0.15 on 13 of 54 patches (worst 2.2, patch 4; median 0.096)",
-        "spot": "arc-length CV > 0.15 on 10 of 24 patches (worst 0.61, patch 3; median 0.105)",
+        "igea": "arc-length CV > 0.15 on 5 of 24 patches (worst 0.23, patch 4; median 0.074)",
+        "nefertiti": "arc-length CV > 0.15 on 12 of 54 patches (worst 1.6, patch 4; median 0.087)",
+        "spot": "arc-length CV > 0.15 on 10 of 24 patches (worst 0.60, patch 3; median 0.105)",
     },
     "aspect": {
         "spot": "median cell aspect ratio > 1.5 on 4 of 24 patches (worst 1.83, patch 5)",
     },
     "fidelity": {
         "igea": "two-sided max distance 0.087% of the bbox diagonal on the median patch, "
-        "0.37% worst (patch 5): at about the vertex count the grid is too coarse for 0.05%",
+        "0.40% worst (patch 5): at about the vertex count the grid is too coarse for 0.05%",
         "nefertiti": "two-sided max distance 0.11% of the bbox diagonal on the median patch, "
-        "4.1% on patch 4 (a bulge the grid under-samples)",
+        "2.9% on patch 4 (a bulge the grid under-samples)",
         "spot": "two-sided max distance 0.092% of the bbox diagonal on the median patch, "
-        "5.7% worst (patch 1)",
+        "5.6% worst (patch 1)",
     },
 }
 

@@ -66,3 +66,32 @@ def test_start_options_are_checked():
         resample_patch(plane, init="tutte")
     with pytest.raises(InputError, match="midpoints"):
         resample_patch(plane, midpoints="graph")
+
+
+def test_chord_positions_even_out_the_chords_of_a_bent_side():
+    from meshfit.springs.state import chord_positions, section_positions
+
+    # an L-shaped polyline: equal arc lengths put a short chord across the bend
+    t = np.linspace(0.0, 1.0, 201)
+    xyz = np.concatenate([np.column_stack([t, 0 * t, 0 * t]), [[1.0, s, 0.0] for s in t[1:]]])
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(xyz, axis=0), axis=1))])
+    breaks, counts = [0.0, 1.3, 2.0], [5, 2]
+    pos = chord_positions(xyz, arc, breaks, counts, rounds=200)
+    ends = section_positions(breaks, counts)[[0, 5, 7]]
+    assert_allclose(pos[[0, 5, 7]], ends)  # section ends stay
+    P = np.column_stack([np.interp(pos, arc, xyz[:, d]) for d in range(3)])
+    c = np.linalg.norm(np.diff(P, axis=0), axis=1)
+    assert np.ptp(c[:5]) < 1e-6 * c[:5].mean()  # equal within the first section
+    plain = np.column_stack(
+        [np.interp(section_positions(breaks, counts), arc, xyz[:, d]) for d in range(3)]
+    )
+    c0 = np.linalg.norm(np.diff(plain, axis=0), axis=1)
+    assert np.ptp(c0[:5]) > 0.1 * c0[:5].mean()  # the arc-length spacing was uneven
+
+
+def test_side_spacing_option():
+    plane = param_patch(plane_map(2.0, 1.0), 8, 4)
+    with pytest.raises(InputError, match="side_spacing"):
+        resample_patch(plane, side_spacing="even")
+    a = resample_patch(plane, level=1, side_spacing="arc", fidelity=False)
+    assert a.metrics[-1]["folded"] == 0

@@ -17,7 +17,7 @@ from meshfit.springs.init import chain_arc, chain_edge_faces, closest_approach, 
 from meshfit.springs.metrics import spring_metrics
 from meshfit.springs.planar import PlanarMap, square_map
 from meshfit.springs.relax import relax, untangle
-from meshfit.springs.state import State, section_positions
+from meshfit.springs.state import State
 from meshfit.springs.subdivide import subdivide
 
 __all__ = ["SpringResult", "resample_patch"]
@@ -172,14 +172,9 @@ def grid_parameters(state: State) -> np.ndarray:
     """(nu, nv, 2) unit-square parameters of the grid points: along each side the static
     resampling's arc-length fractions, inside blended linearly between opposite sides."""
     frac = {}
-    for name, counts in (
-        ("bottom", state.counts_u),
-        ("top", state.counts_u),
-        ("left", state.counts_v),
-        ("right", state.counts_v),
-    ):
+    for name in ("bottom", "top", "left", "right"):
         length = state.breaks[name][-1]
-        pos = section_positions(state.breaks[name], counts)
+        pos = state.side_positions(name)
         frac[name] = pos / length if length > 0 else np.linspace(0.0, 1.0, len(pos))
     s = np.linspace(0.0, 1.0, state.nu)[:, None]
     t = np.linspace(0.0, 1.0, state.nv)[None, :]
@@ -246,6 +241,7 @@ def resample_patch(
     forces: str = "tangent",
     init: str = "map",
     midpoints: str = "map",
+    side_spacing: str = "chord",
     guard: bool = True,
     metrics: bool = True,
     fidelity: bool = True,
@@ -307,6 +303,13 @@ def resample_patch(
     midpoints : {"map", "findmid"}, keyword-only
         New points of a subdivision: the planar map's image of the mean parameter of their
         neighbours (default), or FindMidPoint (sec. 5.6).
+    side_spacing : {"chord", "arc"}, keyword-only
+        Static resampling of the sides: equal chords within each section while the grid
+        spacing is at least `meshfit.springs.state.CHORD_MIN_EDGES` side edges, equal arc
+        lengths on finer levels (default "chord": where a side bends, equal arc lengths give
+        uneven boundary iso-curves and sheared cells next to the side; on finer levels equal
+        chords would follow the zigzag of the side's edges and cut its corners), or equal
+        arc lengths on every level ("arc", sec. 5.6).
     guard : bool, keyword-only
         Halve (up to three times) or drop a relaxation move that would fold more triangles
         of the moving point's four cells than before (default True).
@@ -345,6 +348,8 @@ def resample_patch(
         raise InputError(f"forces must be 'tangent' or 'euclidean', got {forces!r}")
     if init not in ("map", "dijkstra"):
         raise InputError(f"init must be 'map' or 'dijkstra', got {init!r}")
+    if side_spacing not in ("chord", "arc"):
+        raise InputError(f"side_spacing must be 'chord' or 'arc', got {side_spacing!r}")
     if midpoints not in ("map", "findmid"):
         raise InputError(f"midpoints must be 'map' or 'findmid', got {midpoints!r}")
     if not 0.0 < omega < 2.0:
@@ -377,6 +382,7 @@ def resample_patch(
     counts_u = _as_counts(sections_u, len(us) + 1, "sections_u") or _split_counts(spacing, mid_u)
     counts_v = _as_counts(sections_v, len(vs) + 1, "sections_v") or _split_counts(spacing, mid_v)
     state = State(mesh, patch.index, sides, us, vs, breaks, counts_u, counts_v)
+    state.chords = side_spacing == "chord"
     final = _final_level((sum(counts_u), sum(counts_v)), mesh.n_vertices, level, max_points)
     pmap = square_map(mesh, sides) if "map" in (init, midpoints) else None
     mapped = init == "map" and not (us and vs)

@@ -23,6 +23,43 @@ def section_positions(breaks: list[float], counts: list[int]) -> NDArray[np.floa
     return np.concatenate(out)
 
 
+#: Jacobi rounds that even out the chords between side points (a few per level suffice)
+CHORD_ROUNDS = 30
+#: sides are resampled at equal chords only while the grid spacing is at least this many
+#: times the side's mean edge length; finer, the chords would follow the edges' zigzag
+CHORD_MIN_EDGES = 8.0
+
+
+def chord_positions(
+    xyz: NDArray[np.float64],
+    arc: NDArray[np.float64],
+    breaks: list[float],
+    counts: list[int],
+    rounds: int = CHORD_ROUNDS,
+) -> NDArray[np.float64]:
+    """Arc-length positions along a polyline (points ``xyz`` (k, 3) at cumulative lengths
+    ``arc``) whose consecutive chords are equal within each section: the arc-length
+    positions of :func:`section_positions` moved along the polyline until neighbouring
+    chords agree (section ends stay). Where a side bends, equal arc lengths give unequal
+    chords, i.e. uneven spacing of the grid's boundary iso-curves."""
+    pos = section_positions(breaks, counts)
+    ends = np.cumsum([0, *counts])
+    free = np.ones(len(pos), dtype=bool)
+    free[ends] = False
+    if not free.any():
+        return pos
+    k = np.flatnonzero(free)
+    for _ in range(rounds):
+        P = np.column_stack([np.interp(pos, arc, xyz[:, d]) for d in range(3)])
+        c = np.linalg.norm(np.diff(P, axis=0), axis=1)
+        ca, cb = c[k - 1], c[k]
+        span = pos[k + 1] - pos[k - 1]
+        # move towards the longer chord by half the difference, in arc length
+        step = 0.5 * (cb - ca) * span / np.maximum(ca + cb, 1e-300)
+        pos[k] = np.clip(pos[k] + 0.5 * step, pos[k - 1], pos[k + 1])
+    return pos
+
+
 @dataclass
 class State:
     mesh: Mesh
@@ -38,6 +75,19 @@ class State:
     bary: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
     s_u: list[NDArray[np.float64]] = field(default_factory=list)  # (nv,) per u feature
     s_v: list[NDArray[np.float64]] = field(default_factory=list)  # (nu,) per v feature
+    chords: bool = True  # sides resampled at equal chords (else equal arc lengths)
+
+    def side_positions(self, name: str) -> NDArray[np.float64]:
+        """Arc-length positions of the grid points along side ``name`` at this level."""
+        counts = self.counts_u if name in ("bottom", "top") else self.counts_v
+        chain = self.sides.chains[name]
+        arc = self.sides.arcs[name]
+        coarse = arc[-1] / sum(counts) >= CHORD_MIN_EDGES * arc[-1] / max(len(chain) - 1, 1)
+        if not (self.chords and coarse):
+            return section_positions(self.breaks[name], counts)
+        return chord_positions(
+            self.mesh.vertices[chain], self.sides.arcs[name], self.breaks[name], counts
+        )
 
     @property
     def on_boundary(self) -> NDArray[np.bool_]:
@@ -75,13 +125,8 @@ class State:
     def boundary_points(self) -> dict[str, SurfacePoints]:
         """Static resampling of the four sides at this level (sec. 5.6)."""
         out = {}
-        for name, counts in (
-            ("bottom", self.counts_u),
-            ("top", self.counts_u),
-            ("left", self.counts_v),
-            ("right", self.counts_v),
-        ):
-            pos = section_positions(self.breaks[name], counts)
+        for name in ("bottom", "top", "left", "right"):
+            pos = self.side_positions(name)
             out[name] = chain_points(
                 self.mesh,
                 self.sides.chains[name],
