@@ -95,3 +95,34 @@ def erase_loops(walk: list[int]) -> list[int]:
         else:
             out.append(v)
     return out
+
+
+def weighted_astar(mesh: Mesh, source: int, target: int, weight: float) -> list[int]:
+    """A* with the Euclidean heuristic times ``weight`` (>= 1), one vertex at a time: pop the
+    smallest ``g + weight * h``, relax its open neighbours; the path by predecessors."""
+    adj = adjacency(mesh)
+    g = {source: 0.0}
+    parent: dict[int, int] = {}
+    closed: set[int] = set()
+    heap = [(weight * distance(mesh, source, target), source)]
+    while heap:
+        _, v = heapq.heappop(heap)
+        if v in closed:
+            continue
+        if v == target:
+            break
+        closed.add(v)
+        for u in adj[v]:
+            if u in closed:
+                continue
+            ng = g[v] + distance(mesh, v, u)
+            if ng < g.get(u, math.inf):
+                g[u] = ng
+                parent[u] = v
+                heapq.heappush(heap, (ng + weight * distance(mesh, u, target), u))
+    else:
+        return []
+    path = [target]
+    while path[-1] != source:
+        path.append(parent[path[-1]])
+    return path[::-1]

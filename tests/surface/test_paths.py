@@ -9,6 +9,7 @@ from numpy.testing import assert_allclose
 from meshfit.errors import InputError, PathError
 from meshfit.mesh import Mesh
 from meshfit.surface import (
+    GREEDY_ASTAR_WEIGHT,
     astar_path,
     greedy_path,
     path_to_surface_points,
@@ -131,9 +132,13 @@ def test_greedy_matches_reference_descent(name, rng):
         assert got.used_fallback == stalled
         if stalled:
             n_stalls += 1
-            # the greedy walk to the stall, then A* from there, with loops erased
-            tail = astar_path(mesh, want[-1], t).vertices.tolist()
+            # the greedy walk to the stall, then weighted A* from there, with loops erased
+            tail = reference.weighted_astar(mesh, want[-1], t, GREEDY_ASTAR_WEIGHT)
             assert got.vertices.tolist() == reference.erase_loops(want[:-1] + tail)
+            # the finish is at most the weight times the shortest path from the stall
+            shortest = astar_path(mesh, want[-1], t).length
+            tail_length = np.linalg.norm(np.diff(mesh.vertices[tail], axis=0), axis=1).sum()
+            assert shortest <= tail_length <= GREEDY_ASTAR_WEIGHT * shortest * (1 + 1e-12)
             with pytest.raises(PathError, match=f"stalls at vertex {want[-1]}"):
                 greedy_path(mesh, s, t, fallback=False)
         else:

@@ -176,6 +176,20 @@ class Mesh:
         return _frozen(self._edge_table.halfedge_edge.reshape(-1, 3))
 
     @cached_property
+    def edge_keys(self) -> NDArray[np.int64]:
+        """(ne,) int64: ``a * nv + b`` of each edge (a, b) of :attr:`edges`, ascending (edge
+        ids of vertex pairs by ``searchsorted``)."""
+        e = self.edges
+        return _frozen(e[:, 0] * np.int64(max(self.n_vertices, 1)) + e[:, 1])
+
+    @cached_property
+    def edge_face(self) -> NDArray[np.int64]:
+        """(ne,) int64: one face holding each edge (the highest-numbered one)."""
+        out = np.empty(self.edges.shape[0], dtype=np.int64)
+        out[self.face_edges.reshape(-1)] = np.repeat(np.arange(self.n_faces), 3)
+        return _frozen(out)
+
+    @cached_property
     def edge_face_count(self) -> NDArray[np.int64]:
         """(ne,) int64: 1 on the boundary, 2 inside."""
         return _frozen(self._edge_table.edge_count)

@@ -2,6 +2,7 @@
 
 from meshfit.surface.cut import CutResult, NetworkCutResult, cut_mesh, cut_mesh_network
 from meshfit.surface.paths import (
+    GREEDY_ASTAR_WEIGHT,
     GraphPath,
     ShortestPaths,
     astar_path,
@@ -21,6 +22,7 @@ from meshfit.surface.walk import (
 )
 
 __all__ = [
+    "GREEDY_ASTAR_WEIGHT",
     "AttractResult",
     "CurveMoveResult",
     "CutResult",

@@ -2,8 +2,8 @@
 
 The greedy graph path is how the thesis turns two picked vertices into a first curve
 (Krishnamurthy 2000, sec. 3.2) and how FindMidPoint starts (sec. 5.6). Greedy descent can stall
-in a concave region; :func:`greedy_path` then finishes with A*, so it always connects two vertices
-of the same component.
+in a concave region; :func:`greedy_path` then finishes with weighted A*, so it always connects
+two vertices of the same component.
 """
 
 from __future__ import annotations
@@ -21,7 +21,14 @@ from meshfit.errors import InputError, PathError
 from meshfit.mesh import Mesh
 from meshfit.types import SurfacePoints
 
+#: heuristic weight of the A* that finishes a stalled greedy path: the finish is at most this
+#: many times longer than the shortest path from the stall, and searches far fewer vertices
+#: (igea, a 200-edge segment stalling under the chin: 22,329 vertices at weight 1, 1,036 at 1.5,
+#: a path 1.8 % longer)
+GREEDY_ASTAR_WEIGHT = 1.5
+
 __all__ = [
+    "GREEDY_ASTAR_WEIGHT",
     "GraphPath",
     "ShortestPaths",
     "astar_path",
@@ -124,8 +131,10 @@ def greedy_path(mesh: Mesh, source: int, target: int, *, fallback: bool = True) 
 
     From the current vertex the path steps to the neighbour closest (Euclidean distance) to the
     target. When no neighbour is strictly closer than the current vertex (a local minimum, e.g.
-    across a cavity) the rest of the path is found by A* from that stall vertex, and loops
-    formed by the join are erased.
+    across a cavity) the rest of the path is found from that stall vertex by A* with the
+    Euclidean heuristic weighted by :data:`GREEDY_ASTAR_WEIGHT` (a finish at most that many
+    times the shortest, found in a small fraction of the search), and loops formed by the join
+    are erased. :func:`astar_path` gives shortest paths.
 
     Parameters
     ----------
@@ -157,7 +166,13 @@ def greedy_path(mesh: Mesh, source: int, target: int, *, fallback: bool = True) 
     _check_same_component(mesh, s, t)
     indptr, indices = mesh.vertex_adjacency
     path, used, stall = _paths.greedy_path(
-        mesh.vertices, indptr, indices, np.int64(s), np.int64(t), bool(fallback)
+        mesh.vertices,
+        indptr,
+        indices,
+        np.int64(s),
+        np.int64(t),
+        bool(fallback),
+        float(GREEDY_ASTAR_WEIGHT),
     )
     if path.size == 0:
         raise PathError(
@@ -236,7 +251,7 @@ def astar_path(
                 raise PathError(f"{label} vertex {v} is not in allowed_vertices")
     _check_same_component(mesh, s, t)
     indptr, indices = mesh.vertex_adjacency
-    path = _paths.astar(mesh.vertices, indptr, indices, np.int64(s), np.int64(t), mask)
+    path = _paths.astar(mesh.vertices, indptr, indices, np.int64(s), np.int64(t), mask, 1.0)
     if path.size == 0:
         raise PathError(f"no path from vertex {s} to vertex {t} inside allowed_vertices")
     return GraphPath(path, _path_length(mesh, path), False)
@@ -349,8 +364,7 @@ def shortest_path(
 def _edge_ids(mesh: Mesh, a: NDArray[np.int64], b: NDArray[np.int64]) -> NDArray[np.int64]:
     """Edge id of each vertex pair, -1 where the pair is not an edge."""
     n = np.int64(max(mesh.n_vertices, 1))
-    e = mesh.edges
-    keys = e[:, 0] * n + e[:, 1]
+    keys = mesh.edge_keys
     q = np.minimum(a, b) * n + np.maximum(a, b)
     i = np.minimum(np.searchsorted(keys, q), keys.size - 1)
     return np.where(keys[i] == q, i, -1)
@@ -403,9 +417,7 @@ def path_to_surface_points(mesh: Mesh, vertices: ArrayLike, *, per_edge: int = 0
             f"vertices[{i}] = {int(a[i])} and vertices[{i + 1}] = {int(b[i])} are "
             "not joined by an edge"
         )
-    edge_face = np.empty(mesh.edges.shape[0], dtype=np.int64)
-    edge_face[mesh.face_edges.reshape(-1)] = np.repeat(np.arange(mesh.n_faces), 3)
-    face = edge_face[eid]
+    face = mesh.edge_face[eid]
     tri = mesh.faces[face]
     sa = np.argmax(tri == a[:, None], axis=1)
     sb = np.argmax(tri == b[:, None], axis=1)
