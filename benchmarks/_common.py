@@ -37,6 +37,17 @@ def median_time(fn, repeats: int) -> tuple[float, list[float]]:
     return statistics.median(times), times
 
 
+def median_cpu_time(fn, repeats: int) -> tuple[float, list[float]]:
+    """Median CPU time of this process over ``repeats`` calls of ``fn()`` and all the times
+    (less disturbed than wall time by other jobs on a shared machine; counts every thread)."""
+    times = []
+    for _ in range(repeats):
+        t0 = time.process_time()
+        fn()
+        times.append(time.process_time() - t0)
+    return statistics.median(times), times
+
+
 def write_result(name: str, data: dict) -> None:
     """Print ``data`` as JSON and write it atomically to benchmarks/results/<name>.json."""
     RESULTS.mkdir(parents=True, exist_ok=True)

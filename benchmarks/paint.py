@@ -22,7 +22,7 @@ import platform
 import time
 
 import numpy as np
-from _common import median_time, mesh_path, write_result
+from _common import median_cpu_time, median_time, mesh_path, write_result
 
 from meshfit.curves import check_sampling, paint_curve
 from meshfit.mesh import load_mesh
@@ -40,10 +40,14 @@ def bench_paint_segment(mesh, edges: float, repeats: int) -> dict:
     path = greedy_path(mesh, a, b).vertices
     t_paint, runs_paint = median_time(lambda: paint_curve(mesh, [a, b]), repeats)
     t_path, runs_path = median_time(lambda: greedy_path(mesh, a, b), repeats)
+    c_paint, _ = median_cpu_time(lambda: paint_curve(mesh, [a, b]), repeats)
+    c_path, _ = median_cpu_time(lambda: greedy_path(mesh, a, b), repeats)
+    g = greedy_path(mesh, a, b)
     return {
         "picks": [a, b],
         "chord_mean_edges": float(d[b] / h),
         "graph_path_vertices": len(path),
+        "graph_path_used_astar_finish": bool(g.used_fallback),
         "curve_points": len(curve),
         "sampling_violations": int(check_sampling(mesh, curve).size),
         "repeats": repeats,
@@ -52,6 +56,9 @@ def bench_paint_segment(mesh, edges: float, repeats: int) -> dict:
         "greedy_path_ms_median": 1e3 * t_path,
         "greedy_path_runs_ms": [1e3 * t for t in runs_path],
         "ratio_paint_over_greedy_path": t_paint / t_path,
+        "paint_cpu_ms_median": 1e3 * c_paint,
+        "greedy_path_cpu_ms_median": 1e3 * c_path,
+        "cpu_ratio_paint_over_greedy_path": c_paint / c_path,
         "target_ms": 10.0,
     }
 

@@ -234,3 +234,26 @@ def test_extend_to_the_closest_point_of_a_boundary_curve():
     closed = paint_curve(mesh, [65, 372, 300], closed=True)
     with pytest.raises(InputError, match="needs an open curve"):
         extend_to_curve(mesh, closed, boundary)
+
+
+@pytest.mark.parametrize("name", ["spot", "nefertiti"])
+def test_continuation_attraction_matches_the_reference(name):
+    from meshfit.curves.base import _attract_chain
+    from meshfit.surface import greedy_path, path_to_surface_points
+    from tests.reference import curves as reference
+
+    mesh = real_mesh(name)
+    v = mesh.vertices
+    a, b = int(np.argmin(v[:, 1])), int(np.argmax(v[:, 0]))
+    pts = path_to_surface_points(mesh, greedy_path(mesh, a, b).vertices, per_edge=1)
+    x = mesh.xyz(pts)
+    t = np.linspace(0.0, 1.0, len(pts))[:, None]
+    targets = x[0] + t * (x[-1] - x[0])  # the chord: far under the surface in places
+    got = _attract_chain(mesh, pts.face, pts.bary, targets)
+    face, bary = reference.attract_chain(mesh, pts, targets)
+    assert_array_equal(got.face, face)
+    assert_allclose(got.bary, bary, rtol=0, atol=1e-15)
+    # each point ends no farther from its target than where it started
+    d_start = np.linalg.norm(x - targets, axis=1)
+    d_end = np.linalg.norm(mesh.xyz(got) - targets, axis=1)
+    assert (d_end <= d_start + _atol(mesh)).all()

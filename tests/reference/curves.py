@@ -34,3 +34,24 @@ def bspline_basis(t, knots, degree: int = 3) -> np.ndarray:
     k = U.size - degree - 1
     t = np.atleast_1d(np.asarray(t, dtype=float))
     return np.array([[_n(i, degree, float(tj), U) for i in range(k)] for tj in t])
+
+
+def attract_chain(mesh, points, targets):
+    """CurveAttract by continuation, one point at a time with the public ``attract_points``:
+    point i starts from the nearer (to its target) of its own position and point i - 1's
+    result. Returns ``(face (n,), bary (n, 3))``."""
+    from meshfit.surface import attract_points
+    from meshfit.types import SurfacePoints
+
+    faces, barys = [], []
+    for i in range(len(points)):
+        start = points[i]
+        if i > 0:
+            prev = SurfacePoints(np.array([faces[-1]]), barys[-1][None])
+            own = np.sum((targets[i] - mesh.xyz(start)[0]) ** 2)
+            if np.sum((targets[i] - mesh.xyz(prev)[0]) ** 2) < own:
+                start = prev
+        end = attract_points(mesh, start, targets[i][None]).end
+        faces.append(int(end.face[0]))
+        barys.append(end.bary[0].copy())
+    return np.array(faces), np.array(barys)

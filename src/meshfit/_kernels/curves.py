@@ -22,6 +22,7 @@ from meshfit._kernels.walk import (
     CAPPED,
     DONE,
     _attract_one,
+    _position,
     _start_direction,
     _walk_one,
 )
@@ -248,6 +249,48 @@ def attract_points_serial(
             VFp,
             VF,
             face[i],
+            out_bary[i],
+            targets[i],
+            max_iter,
+            max_faces,
+            eps_len,
+            bary_eps,
+        )
+    return out_face, out_bary, distance, iterations, hit, converged
+
+
+@njit(cache=True, nogil=True)
+def attract_chain(V, F, FN, VFp, VF, face, bary, targets, max_iter, max_faces, eps_len, bary_eps):
+    """Attraction of an ordered curve, each point started from the nearer (to its target) of
+    its own position and the previous point's result; kernel of
+    `meshfit.curves.base._attract_chain`.
+
+    Arguments and results as `meshfit._kernels.walk.attract_points`.
+    """
+    n = face.shape[0]
+    out_face = face.copy()
+    out_bary = bary.copy()
+    distance = np.zeros(n)
+    iterations = np.zeros(n, dtype=np.int64)
+    hit = np.zeros(n, dtype=np.bool_)
+    converged = np.zeros(n, dtype=np.bool_)
+    x = np.empty(3)
+    for i in range(n):
+        if i > 0:
+            _position(V, F, face[i], bary[i], x)
+            own = np.sum((targets[i] - x) ** 2)
+            _position(V, F, out_face[i - 1], out_bary[i - 1], x)
+            prev = np.sum((targets[i] - x) ** 2)
+            if prev < own:
+                out_face[i] = out_face[i - 1]
+                out_bary[i] = out_bary[i - 1]
+        out_face[i], distance[i], iterations[i], hit[i], converged[i] = _attract_one(
+            V,
+            F,
+            FN,
+            VFp,
+            VF,
+            out_face[i],
             out_bary[i],
             targets[i],
             max_iter,

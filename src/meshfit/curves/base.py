@@ -36,6 +36,8 @@ __all__ = ["check_sampling", "curve_length", "densify_curve", "resample_curve"]
 _MAX_BISECT = 12
 #: extra resampling passes that even out the spacing of a jagged input
 _MAX_PASSES = 3
+#: the passes stop once the spacing's coefficient of variation is at most this
+_RESAMPLE_CV = 0.01
 #: a step breaking the sampling rule is split evenly into the fewest k in this range that works
 _K_MIN, _K_MAX = 2, 32
 #: point count from which attraction runs on all cores
@@ -102,6 +104,30 @@ def _attract_few(
     # costs microseconds); a few: the serial one
     kernel = _walk.attract_points if len(face) >= _PARALLEL_MIN else _curves.attract_points_serial
     f, b, _, _, _, _ = kernel(
+        mesh.vertices,
+        _i8(mesh.faces),
+        _i8(mesh.face_neighbors),
+        _i8(indptr),
+        _i8(vf),
+        _i8(face),
+        _clean_bary(bary),
+        np.ascontiguousarray(targets, dtype=np.float64),
+        int(max_iter),
+        10_000,
+        tol.length(mesh, tol.ATTRACT_EPS),
+        tol.BARY_EPS,
+    )
+    return SurfacePoints(f, b)
+
+
+def _attract_chain(
+    mesh: Mesh, face: NDArray, bary: NDArray, targets: NDArray, *, max_iter: int = 200
+) -> SurfacePoints:
+    """CurveAttract of an ordered curve toward close-spaced ordered targets: each point walks
+    from the nearer (to its target) of its own position and the previous point's result, so a
+    curve far from its targets moves there by continuation, a short walk per point."""
+    indptr, vf = mesh.vertex_faces
+    f, b, _, _, _, _ = _curves.attract_chain(
         mesh.vertices,
         _i8(mesh.faces),
         _i8(mesh.face_neighbors),
@@ -337,9 +363,15 @@ def resample_curve(
 
 
 def _resample(
-    mesh: Mesh, curve: SurfaceCurve, *, spacing: float | None, n: int | None
+    mesh: Mesh,
+    curve: SurfaceCurve,
+    *,
+    spacing: float | None,
+    n: int | None,
+    cv: float = _RESAMPLE_CV,
 ) -> tuple[SurfaceCurve, NDArray[np.bool_]]:
-    """:func:`resample_curve` plus a mask of the evenly spaced points (False: inserted)."""
+    """:func:`resample_curve` plus a mask of the evenly spaced points (False: inserted);
+    passes repeat until the spacing's coefficient of variation is at most ``cv``."""
     curve = _as_curve(mesh, curve)
     if spacing is not None and n is not None:
         raise InputError("give spacing or n, not both")
@@ -361,7 +393,7 @@ def _resample(
     # than the arc-length steps taken on the input: repeat on the result (same count) until
     # its steps agree to 1 %
     for _ in range(_MAX_PASSES):
-        if _spacing_cv(mesh, out, regular) <= 0.01:
+        if _spacing_cv(mesh, out, regular) <= cv:
             break
         out, regular = _resample_once(mesh, out, spacing, int(regular.sum()))
     return out, regular
@@ -429,22 +461,25 @@ def _resample_once(
         np.ascontiguousarray(pts.bary, dtype=np.float64),
         tol.BARY_EPS,
     )
-    inserted: dict[int, NDArray] = {}
-    for r in np.flatnonzero(kbest):
-        k = int(kbest[r])
-        inserted[int(bad[r])] = (a[r] + (b[r] - a[r]) * np.arange(k + 1) / k)[1:-1]
-    todo = bad[kbest == 0]
+    # the inserted positions of every broken step, in curve order: k - 1 evenly spaced ones
+    # for a step split into k parts, or the curve's own points inside a step no split fixes
+    counts = np.maximum(kbest - 1, 0)
+    grp = np.repeat(np.arange(bad.size), counts)
+    j = np.arange(grp.size) - np.repeat(np.cumsum(counts) - counts, counts) + 1
+    extra = a[grp] + (b - a)[grp] * j / kbest[grp]
+    at = bad[grp]
     inside = arc[:-1] if curve.closed else arc
-    for i in todo:  # no subdivision works: the curve's own points in this step always do
-        a, b = pos[i], ends[i + 1]
-        inserted[int(i)] = inside[(inside > a) & (inside < b)]
-    order = np.sort(bad)
-    runs = np.split(pos, order + 1)
-    parts, regular = [runs[0]], [np.ones(runs[0].size, dtype=bool)]
-    for i, run in zip(order.tolist(), runs[1:], strict=True):
-        extra = inserted[i]
-        parts += [extra, run]
-        regular += [np.zeros(extra.size, dtype=bool), np.ones(run.size, dtype=bool)]
-    pos2 = np.concatenate(parts)
+    # the curve's own points strictly inside a step always do
+    none = np.flatnonzero(kbest == 0)
+    lo = np.searchsorted(inside, a[none], side="right")
+    hi = np.searchsorted(inside, b[none], side="left")
+    n_own = np.maximum(hi - lo, 0)
+    own = np.repeat(lo - (np.cumsum(n_own) - n_own), n_own) + np.arange(n_own.sum())
+    extra = np.concatenate([extra, inside[own]])
+    at = np.concatenate([at, np.repeat(bad[none], n_own)])
+    order = np.argsort(at, kind="stable")
+    where = at[order] + 1
+    pos2 = np.insert(pos, where, extra[order])
+    regular = np.insert(np.ones(pos.size, dtype=bool), where, False)
     res = _points_at(curve, pieces, pos2)
-    return SurfaceCurve(res, closed=curve.closed, kind=curve.kind), np.concatenate(regular)
+    return SurfaceCurve(res, closed=curve.closed, kind=curve.kind), regular

@@ -19,7 +19,12 @@ from numpy.typing import ArrayLike, NDArray
 from meshfit import tol
 from meshfit._kernels import curves as _curves
 from meshfit._validate import as_points, as_surface_points
-from meshfit.curves.base import _as_curve, _attract_few, resample_curve
+from meshfit.curves.base import (
+    _as_curve,
+    _attract_chain,
+    _resample,
+    resample_curve,
+)
 from meshfit.errors import InputError, PathError
 from meshfit.mesh import Mesh
 from meshfit.surface.paths import greedy_path, path_to_surface_points
@@ -27,6 +32,10 @@ from meshfit.surface.walk import _i8, attract_points
 from meshfit.types import SurfaceCurve, SurfacePoints
 
 __all__ = ["attract_curve", "extend_to_curve", "paint_curve"]
+
+#: a painted segment's spacing is even to this coefficient of variation (one resampling pass
+#: in most cases; :func:`resample_curve` evens a curve to 1 %)
+PAINT_SPACING_CV = 0.05
 
 
 def _as_picks(mesh: Mesh, picks: ArrayLike | SurfacePoints) -> tuple[SurfacePoints, NDArray]:
@@ -76,6 +85,42 @@ def _at_vertices(mesh: Mesh, v: NDArray[np.int64]) -> SurfacePoints:
     return SurfacePoints(face, bary)
 
 
+def _polyline_length(mesh: Mesh, pts: SurfacePoints) -> float:
+    return float(np.linalg.norm(np.diff(mesh.xyz(pts), axis=0), axis=1).sum())
+
+
+def _straighten(
+    mesh: Mesh, pts: SurfacePoints, att: SurfacePoints, spacing: float
+) -> SurfacePoints:
+    """The graph samples ``pts`` with their inner points moved to ``att`` (attracted toward
+    the chord), except where attraction pulled neighbours apart."""
+    m = len(pts)
+    face = np.concatenate([pts.face[:1], att.face, pts.face[-1:]])
+    bary = np.concatenate([pts.bary[:1], att.bary, pts.bary[-1:]])
+    # where attraction pulled neighbours apart (sharp bends, thin parts of the model: faces
+    # sharing no vertex, or a gap over three spacings) revert to the graph-path samples,
+    # growing each reverted stretch until no pair jumps; a pair merely passing a vertex
+    # through a fan of faces is filled in by densify_curve later
+    keep = np.ones(m, dtype=bool)
+    keep[[0, -1]] = False  # the picks are graph samples already
+    indptr, vf = mesh.vertex_faces
+    _curves.revert_jumps(
+        mesh.vertices,
+        _i8(mesh.faces),
+        _i8(mesh.face_neighbors),
+        _i8(indptr),
+        _i8(vf),
+        _i8(face),
+        np.ascontiguousarray(bary),
+        _i8(pts.face),
+        np.ascontiguousarray(pts.bary),
+        keep,
+        3.0 * max(spacing, mesh.mean_edge_length),
+        tol.BARY_EPS,
+    )
+    return SurfacePoints(np.where(keep, face, pts.face), np.where(keep[:, None], bary, pts.bary))
+
+
 def _segment(
     mesh: Mesh, a: SurfacePoints, b: SurfacePoints, va: int, vb: int, spacing: float
 ) -> SurfacePoints:
@@ -98,36 +143,18 @@ def _segment(
     x = mesh.xyz(pts)
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(x, axis=0), axis=1))])
     t = (arc[1:-1] / arc[-1])[:, None] if arc[-1] > 0 else np.zeros((m - 2, 1))
-    xa, xb = x[0], x[-1]
+    targets = x[0] + t * (x[-1] - x[0])
     inner = pts[1 : m - 1]
-    att = _attract_few(mesh, inner.face, inner.bary, xa + t * (xb - xa))
-    face = np.concatenate([pts.face[:1], att.face, pts.face[-1:]])
-    bary = np.concatenate([pts.bary[:1], att.bary, pts.bary[-1:]])
-    # where attraction pulled neighbours apart (sharp bends, thin parts of the model: faces
-    # sharing no vertex, or a gap over three spacings) revert to the graph-path samples,
-    # growing each reverted stretch until no pair jumps; a pair merely passing a vertex
-    # through a fan of faces is filled in by densify_curve below
-    keep = np.ones(m, dtype=bool)
-    keep[[0, -1]] = False  # the picks are graph samples already
-    indptr, vf = mesh.vertex_faces
-    _curves.revert_jumps(
-        mesh.vertices,
-        _i8(mesh.faces),
-        _i8(mesh.face_neighbors),
-        _i8(indptr),
-        _i8(vf),
-        _i8(face),
-        np.ascontiguousarray(bary),
-        _i8(pts.face),
-        np.ascontiguousarray(pts.bary),
-        keep,
-        3.0 * max(spacing, mesh.mean_edge_length),
-        tol.BARY_EPS,
+    # by continuation (each point may start where its predecessor settled: a short walk
+    # each); a straightened curve longer than the graph path (attraction toward a chord deep
+    # under a concave stretch settles on a detour) gives way to the graph path itself
+    straight = _straighten(
+        mesh, pts, _attract_chain(mesh, inner.face, inner.bary, targets), spacing
     )
-    straight = SurfacePoints(
-        np.where(keep, face, pts.face), np.where(keep[:, None], bary, pts.bary)
-    )
-    return resample_curve(mesh, SurfaceCurve(straight), spacing=spacing).points
+    if _polyline_length(mesh, straight) > arc[-1]:
+        straight = pts
+    out, _ = _resample(mesh, SurfaceCurve(straight), spacing=spacing, n=None, cv=PAINT_SPACING_CV)
+    return out.points
 
 
 def paint_curve(
@@ -145,8 +172,11 @@ def paint_curve(
     3-D chord between the picks by CurveAttract (targets evenly spaced on the chord). The
     attracted points only slide on the surface; where attraction pulls neighbours onto
     faces that are neither the same nor adjacent (sharp bends, thin parts of the model) the
-    stretch falls back to the graph-path samples, so the curve never jumps. Each segment is
-    then resampled evenly by arc length.
+    stretch falls back to the graph-path samples, so the curve never jumps; a straightened
+    segment longer than its graph path (a chord deep under a concave stretch) is replaced by
+    the graph path, so painting never lengthens a segment. Attraction runs by continuation:
+    each point may start where its predecessor settled. Each segment is
+    then resampled evenly by arc length (spacing CV at most :data:`PAINT_SPACING_CV`).
 
     Parameters
     ----------
