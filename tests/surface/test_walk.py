@@ -646,6 +646,6 @@ def test_walk_kernel_does_not_divide_by_zero_in_a_zero_area_face():
     face = np.array([0], dtype=np.int64)
     bary = np.array([[0.25, 0.5, 0.25]])
     step = np.array([[0.0, 0.1, 0.0]])
-    out_face, out_bary, *_ = kernels.walk_points(V, F, FN, face, bary, step, 100, 1e-12, 1e-12)
+    _, out_bary, *_ = kernels.walk_points(V, F, FN, face, bary, step, 100, 1e-12, 1e-12)
     assert np.isfinite(out_bary).all()
     assert_allclose(out_bary.sum(axis=1), 1.0)

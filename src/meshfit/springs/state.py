@@ -49,9 +49,14 @@ def chord_positions(
     if not free.any():
         return pos
     k = np.flatnonzero(free)
+    seg = np.diff(arc)
+    last = len(arc) - 2
     for _ in range(rounds):
-        P = np.column_stack([np.interp(pos, arc, xyz[:, d]) for d in range(3)])
-        c = np.linalg.norm(np.diff(P, axis=0), axis=1)
+        e = np.clip(np.searchsorted(arc, pos, side="right") - 1, 0, last)
+        t = np.where(seg[e] > 0, (pos - arc[e]) / np.where(seg[e] > 0, seg[e], 1.0), 0.0)
+        P = xyz[e] + t[:, None] * (xyz[e + 1] - xyz[e])
+        d = P[1:] - P[:-1]
+        c = np.sqrt(np.einsum("ij,ij->i", d, d))
         ca, cb = c[k - 1], c[k]
         span = pos[k + 1] - pos[k - 1]
         # move towards the longer chord by half the difference, in arc length
@@ -76,10 +81,17 @@ class State:
     s_u: list[NDArray[np.float64]] = field(default_factory=list)  # (nv,) per u feature
     s_v: list[NDArray[np.float64]] = field(default_factory=list)  # (nu,) per v feature
     chords: bool = True  # sides resampled at equal chords (else equal arc lengths)
+    _side_cache: dict = field(default_factory=dict)
 
     def side_positions(self, name: str) -> NDArray[np.float64]:
         """Arc-length positions of the grid points along side ``name`` at this level."""
         counts = self.counts_u if name in ("bottom", "top") else self.counts_v
+        key = (name, tuple(counts))
+        if key not in self._side_cache:
+            self._side_cache[key] = self._side_positions(name, counts)
+        return self._side_cache[key].copy()
+
+    def _side_positions(self, name: str, counts: list[int]) -> NDArray[np.float64]:
         chain = self.sides.chains[name]
         arc = self.sides.arcs[name]
         coarse = arc[-1] / sum(counts) >= CHORD_MIN_EDGES * arc[-1] / max(len(chain) - 1, 1)
