@@ -225,29 +225,56 @@ def _graph_bridge(mesh: Mesh, fa: int, ba: NDArray, fb: int, bb: NDArray) -> Sur
     return path_to_surface_points(mesh, path, per_edge=1)
 
 
-def _bridge(mesh: Mesh, fa: int, ba: NDArray, fb: int, bb: NDArray, depth: int) -> list:
-    """Points to insert between a and b so that every consecutive pair shares or borders a face."""
-    if _pairs_ok(mesh, np.array([fa]), ba[None], np.array([fb]), bb[None])[0]:
-        return []
-    V, F = mesh.vertices, mesh.faces
-    xa = ba @ V[F[fa]]
-    xb = bb @ V[F[fb]]
-    gap = np.linalg.norm(xb - xa)
+def _xyz(mesh: Mesh, face: NDArray, bary: NDArray) -> NDArray:
+    c = mesh.vertices[mesh.faces[face]]  # (n, 3, 3)
+    return bary[:, 0, None] * c[:, 0] + bary[:, 1, None] * c[:, 1] + bary[:, 2, None] * c[:, 2]
+
+
+def _bridges(
+    mesh: Mesh, fa: NDArray, ba: NDArray, fb: NDArray, bb: NDArray, depth: int = 0
+) -> list[list]:
+    """Points to insert between each pair (a, b) so that every consecutive pair shares or
+    borders a face: one list of ``(face, bary)`` per pair.
+
+    Every pair still apart is bisected on the surface: a walks halfway towards b, then settles
+    at the surface point closest to the 3-D midpoint (never leaving the surface, so it cannot
+    jump across a thin part). Both halves are bisected further while the midpoint brings the
+    ends closer; a pair that does not come closer, or is still apart after ``_MAX_BISECT``
+    levels, is joined by a greedy graph path. All pairs of one level move in one batch.
+    """
+    out: list[list] = [[] for _ in range(len(fa))]
+    todo = np.flatnonzero(~_pairs_ok(mesh, fa, ba, fb, bb))
+    if todo.size == 0:
+        return out
+    graph = todo
     if depth < _MAX_BISECT:
-        # walk halfway towards b on the surface, then settle at the surface point closest to
-        # the 3-D midpoint: never leaves the surface, so it cannot jump across a thin part
-        half = _walk_few(mesh, np.array([fa]), ba[None], (0.5 * (xb - xa))[None])
-        mid = _attract_few(mesh, half.face, half.bary, (0.5 * (xa + xb))[None], max_iter=50)
-        fm, bm = int(mid.face[0]), mid.bary[0]
-        xm = bm @ V[F[fm]]
-        if max(np.linalg.norm(xm - xa), np.linalg.norm(xb - xm)) < 0.8 * gap:
-            return [
-                *_bridge(mesh, fa, ba, fm, bm, depth + 1),
-                (fm, bm),
-                *_bridge(mesh, fm, bm, fb, bb, depth + 1),
-            ]
-    g = _graph_bridge(mesh, fa, ba, fb, bb)
-    return list(zip(g.face.tolist(), g.bary, strict=True))
+        fa_t, ba_t, fb_t, bb_t = fa[todo], ba[todo], fb[todo], bb[todo]
+        xa, xb = _xyz(mesh, fa_t, ba_t), _xyz(mesh, fb_t, bb_t)
+        gap = np.linalg.norm(xb - xa, axis=1)
+        half = _walk_few(mesh, fa_t, ba_t, 0.5 * (xb - xa))
+        mid = _attract_few(mesh, half.face, half.bary, 0.5 * (xa + xb), max_iter=50)
+        xm = _xyz(mesh, mid.face, mid.bary)
+        closer = (
+            np.maximum(np.linalg.norm(xm - xa, axis=1), np.linalg.norm(xb - xm, axis=1)) < 0.8 * gap
+        )
+        k = int(closer.sum())
+        if k:
+            fm, bm = mid.face[closer], mid.bary[closer]
+            sub = _bridges(
+                mesh,
+                np.concatenate([fa_t[closer], fm]),
+                np.concatenate([ba_t[closer], bm]),
+                np.concatenate([fm, fb_t[closer]]),
+                np.concatenate([bm, bb_t[closer]]),
+                depth + 1,
+            )
+            for j, r in enumerate(todo[closer].tolist()):
+                out[r] = [*sub[j], (int(fm[j]), bm[j]), *sub[k + j]]
+        graph = todo[~closer]
+    for r in graph.tolist():
+        g = _graph_bridge(mesh, int(fa[r]), ba[r], int(fb[r]), bb[r])
+        out[r] = list(zip(g.face.tolist(), g.bary, strict=True))
+    return out
 
 
 def densify_curve(mesh: Mesh, curve: SurfaceCurve) -> SurfaceCurve:
@@ -289,17 +316,22 @@ def densify_curve(mesh: Mesh, curve: SurfaceCurve) -> SurfaceCurve:
         return curve
     p = curve.points
     m = len(p)
+    nxt = (bad + 1) % m
+    fill = dict(
+        zip(
+            bad.tolist(),
+            _bridges(mesh, p.face[bad], p.bary[bad], p.face[nxt], p.bary[nxt]),
+            strict=True,
+        )
+    )
     faces: list[int] = []
     barys: list[NDArray] = []
-    bad_set = set(bad.tolist())
     for i in range(m):
         faces.append(int(p.face[i]))
         barys.append(p.bary[i])
-        if i in bad_set:
-            j = (i + 1) % m
-            for f, b in _bridge(mesh, int(p.face[i]), p.bary[i], int(p.face[j]), p.bary[j], 0):
-                faces.append(int(f))
-                barys.append(np.asarray(b, dtype=np.float64))
+        for f, b in fill.get(i, ()):
+            faces.append(int(f))
+            barys.append(np.asarray(b, dtype=np.float64))
     pts = SurfacePoints(np.asarray(faces, dtype=np.int64), np.asarray(barys))
     return SurfaceCurve(pts, closed=curve.closed, kind=curve.kind)
 
