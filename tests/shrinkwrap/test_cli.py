@@ -4,8 +4,9 @@ import numpy as np
 
 from meshfit.cli import main
 from meshfit.mesh import load_mesh
+from meshfit.mesh.io import save_mesh
 
-from ..conftest import mesh_path
+from ..conftest import analytic_mesh, mesh_path
 
 
 def test_wrap_json_and_outputs(tmp_path, capsys):
@@ -29,6 +30,29 @@ def test_open_mesh_is_a_clear_error_and_fill_holes_fixes_it(capsys):
     rc = main(["wrap", str(mesh_path("bunny")), "--levels", "1", "--fill-holes", "--json"])
     assert rc == 0
     assert json.loads(capsys.readouterr().out)["levels"][1]["flips"] == 0
+
+
+def test_handle_is_a_clear_error(tmp_path, capsys):
+    path = tmp_path / "torus.ply"
+    save_mesh(analytic_mesh("torus"), path)
+    for argv in (["wrap", str(path)], ["stream", "encode", str(path), "-o", str(tmp_path / "t")]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert str(path) in err and "genus 1" in err and "genus-0" in err
+    assert not (tmp_path / "t").exists()
+
+
+def test_wrap_sphere_aspect_bound(capsys):
+    argv = ["wrap", str(mesh_path("spot")), "--levels", "1", "--json"]
+    assert main([*argv, "--sphere-max-aspect", "12"]) == 0
+    sm = json.loads(capsys.readouterr().out)["sphere_map"]
+    assert sm["flips"] == 0
+    assert sm["max_aspect"] <= 12.0  # measured 20 without the bound
+    assert any("aspect bound 12" in n for n in sm["notes"])
+    assert main([*argv, "--sphere-max-aspect", "0.5"]) == 2
+    assert "--sphere-max-aspect must be >= 1" in capsys.readouterr().err
+    assert main([*argv, "--base-faces", "12"]) == 2
+    assert "--base-faces must be at least 20" in capsys.readouterr().err
 
 
 def test_stream_encode_decode(tmp_path, capsys):
@@ -60,6 +84,16 @@ def test_stream_encode_decode(tmp_path, capsys):
     a, b = load_mesh(full), load_mesh(part)
     assert np.array_equal(a.faces, b.faces)
     assert not np.allclose(a.vertices, b.vertices)
+    # a coarser level uses (and counts) only the packets of its levels
+    lvl1 = tmp_path / "l1.ply"
+    capsys.readouterr()
+    assert main(["stream", "decode", str(s), "-o", str(lvl1), "--level", "1", "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert got["level"] == 1
+    assert got["faces"] == 4 * info["base_faces"] == load_mesh(lvl1).n_faces
+    assert 0 < got["coefficients_used"] < info["coefficients"]
+    assert main(["stream", "decode", str(s), "-o", str(lvl1), "--level", "3"]) == 2
+    assert "--level must be in [0, 2]" in capsys.readouterr().err
     bad = tmp_path / "bad.mfsw"
     bad.write_bytes(b"nope")
     assert main(["stream", "decode", str(bad), "-o", str(part)]) == 2

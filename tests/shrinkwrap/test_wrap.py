@@ -1,3 +1,4 @@
+import dataclasses
 import itertools
 
 import numpy as np
@@ -23,6 +24,8 @@ MAX_BASE_FACES = 100
 MAX_CELL_RATIO = 3.0
 MAX_RMS_L5 = 0.0005  # 0.05 % of the bbox diagonal
 MIN_ANGLE_DEG = 5.0
+#: level-5 triangles facing against the input, as a fraction of the faces
+MAX_NORMAL_FLIPS = 1e-3
 
 
 def test_icosahedron_is_outward_and_unit():
@@ -47,7 +50,13 @@ def test_umbrella_base_relaxation_runs_without_flips():
 
 
 _SPOT_RMS = pytest.mark.xfail(
-    strict=True, reason="spot level-5 RMS 0.105% > 0.05% (measured, default options)"
+    strict=True,
+    reason="spot level-5 RMS 0.105% > 0.05% (measured, default options; input-to-wrap 0.105%, "
+    "wrap-to-input 0.027%): the ear and horn tips are sampled about 3x coarser than the mean "
+    "and cut (Hausdorff 0.85%). Tried: 10 / 20 surface iterations 0.090 / 0.081% (min angle "
+    "5.7 / 3.4 deg), area densities at every level 0.081%, projected 3D edge midpoints in the "
+    "surface phase 0.088% (nefertiti 0.048 -> 0.051%), curvature-weighted densities with an "
+    "earlier switch 0.058-0.060% (min angle 1.3-3.1 deg): none meets both targets",
 )
 
 
@@ -66,6 +75,30 @@ def test_level5_has_no_flips_and_no_thin_triangles(name):
     m = level_metrics(real_mesh(name), wrap(name, 5).levels[5])
     assert m["flips"] == 0
     assert m["min_angle_deg"] >= MIN_ANGLE_DEG
+    # in space: measured igea 0, spot 0, nefertiti 12 of 30,720 triangles facing against the
+    # input (it has 294 faces folded by more than 120 deg against a neighbour itself)
+    assert m["normal_flips"] <= MAX_NORMAL_FLIPS * m["faces"]
+
+
+def test_normal_flips_count_triangles_facing_against_the_input():
+    sphere = analytic_mesh("icosphere")
+    res = shrink_wrap(sphere, levels=1)
+    lv = res.levels[1]
+    assert level_metrics(sphere, lv)["normal_flips"] == 0
+    turned = dataclasses.replace(lv, faces=lv.faces[:, ::-1].copy())
+    assert level_metrics(sphere, turned)["normal_flips"] == len(lv.faces)
+
+
+@pytest.mark.parametrize("name", ["nefertiti", "spot"])
+def test_surface_phase_projects_along_the_normals(name):
+    # measured: the first ray hit is taken for > 99.7 % of the projections
+    res = wrap(name, 5)
+    for lv in res.levels:
+        m = level_metrics(real_mesh(name), lv)
+        if lv.phase == "surface":
+            assert m["ray_fraction"] >= 0.95
+        else:
+            assert m["ray_fraction"] is None
 
 
 @pytest.mark.parametrize("name", ["igea", "nefertiti"])
@@ -97,6 +130,10 @@ def test_metrics_report_has_the_issue_figures():
     assert rep["base"]["faces"] <= MAX_BASE_FACES
     assert rep["base"]["cell_area_max"] / rep["base"]["cell_area_min"] <= MAX_CELL_RATIO
     assert [lv["level"] for lv in rep["levels"]] == list(range(6))
+    for lv in rep["levels"]:
+        assert lv["flips"] == 0 and lv["normal_flips"] >= 0
+        assert 0 < lv["min_angle_deg"] < 60 and 1 <= lv["mean_aspect"] <= lv["max_aspect"]
+        assert 0 < lv["rms"] < lv["hausdorff"] < 1
     rms = [lv["rms"] for lv in rep["levels"]]
     assert all(b < a for a, b in itertools.pairwise(rms))
     for sch in ("loop", "butterfly"):
@@ -139,3 +176,19 @@ def test_base_mesh_from_the_geodesic_polyhedron():
     b = base_mesh(smap("nefertiti"), start_subdivisions=1, min_faces=80)
     assert 80 <= len(b.faces) <= MAX_BASE_FACES
     assert b.area_ratio <= MAX_CELL_RATIO
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(
+    strict=True,
+    reason="base seed 1 (32 faces, max/min cell area 2.09): level-5 RMS 0.060%, min angle 0.46 "
+    "deg; the base's smallest angle is 5.9 deg (seed 0: 6.4) but the levels' minimum halves at "
+    "every level (4.4, 2.9, 1.7, 0.8, 0.46 deg; 362 triangles under 5 deg at level 5, 319 of "
+    "them in two neighbouring base faces) and the clean-up does not recover it",
+)
+def test_level5_targets_hold_for_another_base_seed():
+    mesh = real_mesh("nefertiti")
+    res = shrink_wrap(mesh, levels=5, smap=smap("nefertiti"), base_options={"seed": 1})
+    m = level_metrics(mesh, res.levels[5])
+    assert m["rms"] <= MAX_RMS_L5
+    assert m["min_angle_deg"] >= MIN_ANGLE_DEG

@@ -30,14 +30,18 @@ def _progress(quiet: bool):
     return bar, cb
 
 
+#: largest hole closed by ``--fill-holes``, in boundary edges
+_FILL_MAX_EDGES = 1000
+
+
 def _load(path: str, fill: bool):
     from meshfit.mesh import load_mesh
     from meshfit.shrinkwrap import check_genus0, fill_holes
 
     mesh = load_mesh(path, repair=True)
-    if fill and not mesh.is_closed:
-        mesh = fill_holes(mesh)
     try:
+        if fill and not mesh.is_closed:
+            mesh = fill_holes(mesh, max_edges=_FILL_MAX_EDGES)
         check_genus0(mesh)
     except errors.TopologyError as exc:
         raise errors.TopologyError(f"{path}: {exc}") from None
@@ -55,21 +59,29 @@ def _write_json(path: Path, data: dict) -> None:
 def _wrap(args: argparse.Namespace):
     from meshfit.shrinkwrap import shrink_wrap
 
+    if args.levels < 0:
+        raise errors.InputError(f"--levels must be >= 0, got {args.levels}")
+    if args.base_faces < 20:
+        raise errors.InputError(
+            f"--base-faces must be at least 20 (an icosahedron), got {args.base_faces}"
+        )
+    if args.sphere_max_aspect is not None and args.sphere_max_aspect < 1.0:
+        raise errors.InputError(
+            f"--sphere-max-aspect must be >= 1 (equilateral), got {args.sphere_max_aspect}"
+        )
     mesh = _load(args.mesh, args.fill_holes)
+    opts = {
+        "levels": args.levels,
+        "base_faces": args.base_faces,
+        "sphere_method": args.sphere_method,
+        "sphere_max_aspect": args.sphere_max_aspect,
+    }
     bar, cb = _progress(args.json)
     if bar is not None:
         with bar:
-            res = shrink_wrap(
-                mesh,
-                levels=args.levels,
-                base_faces=args.base_faces,
-                sphere_method=args.sphere_method,
-                progress=cb,
-            )
+            res = shrink_wrap(mesh, progress=cb, **opts)
     else:
-        res = shrink_wrap(
-            mesh, levels=args.levels, base_faces=args.base_faces, sphere_method=args.sphere_method
-        )
+        res = shrink_wrap(mesh, **opts)
     return mesh, res
 
 
@@ -79,8 +91,6 @@ def cmd_wrap(args: argparse.Namespace) -> int:
     from meshfit.mesh.io import save_mesh
     from meshfit.shrinkwrap import encode_stream, wrap_report, write_stream
 
-    if args.levels < 0:
-        raise errors.InputError(f"--levels must be >= 0, got {args.levels}")
     _, res = _wrap(args)
     report = wrap_report(res)
     if args.out:
@@ -155,18 +165,23 @@ def cmd_decode(args: argparse.Namespace) -> int:
     st = read_stream(args.stream)
     if not 0.0 <= args.fraction <= 1.0:
         raise errors.InputError(f"--fraction must be in [0, 1], got {args.fraction}")
-    budget = args.fraction * st.n_coefficients
+    level = st.levels if args.level is None else args.level
+    if not 0 <= level <= st.levels:
+        raise errors.InputError(f"--level must be in [0, {st.levels}], got {level}")
+    # packets of finer levels do not enter the reconstruction of this level
+    wanted = [p for p in st.packets if p.level <= level]
+    budget = args.fraction * sum(len(p.values) for p in wanted)
     got, used = [], 0
-    for p in st.packets:
+    for p in wanted:
         if used + len(p.values) > budget:
             break
         got.append(p)
         used += len(p.values)
-    x, f = decode_stream(st, got, level=args.level)
+    x, f = decode_stream(st, got, level=level)
     save_mesh(Mesh(x, f, name=Path(args.output).name), args.output)
     info = {
         "output": str(args.output),
-        "level": st.levels if args.level is None else args.level,
+        "level": level,
         "vertices": len(x),
         "faces": len(f),
         "packets_used": len(got),
@@ -188,7 +203,7 @@ def _wrap_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--fill-holes",
         action="store_true",
-        help="close holes (boundary loops of up to 1000 edges) with fans first",
+        help=f"close holes (boundary loops of up to {_FILL_MAX_EDGES} edges) with fans first",
     )
     p.add_argument(
         "--sphere-method",
@@ -196,6 +211,14 @@ def _wrap_args(p: argparse.ArgumentParser) -> None:
         default="tutte",
         help="sphere map: convex disk embeddings (default) or the paper's voxel flow, which "
         "falls back to tutte when it leaves flipped triangles",
+    )
+    p.add_argument(
+        "--sphere-max-aspect",
+        type=float,
+        default=None,
+        metavar="A",
+        help="bound the aspect ratio of the spherical triangles by A (flip-guarded smoothing "
+        "on the sphere; default: no bound)",
     )
     p.add_argument("--json", action="store_true", help="print JSON")
 
@@ -225,7 +248,8 @@ def add_commands(sub) -> None:
         "--fraction",
         type=float,
         default=1.0,
-        help="use the first fraction of the coefficients in transmission order (default: 1)",
+        help="use the first fraction of the coefficients of levels up to --level, in "
+        "transmission order, whole packets only (default: 1)",
     )
     d.add_argument("--json", action="store_true", help="print JSON")
     d.set_defaults(func=cmd_decode)

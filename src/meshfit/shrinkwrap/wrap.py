@@ -50,6 +50,10 @@ class WrapLevel:
     tightness : float
         95th percentile of the distance of face centroids to the input over the mean edge
         length (the switching rule's figure).
+    ray_fraction : float
+        Surface phase: fraction of the projections of the level's relaxation that took the
+        first ray hit along the normal (the rest took the closest point); ``nan`` for the
+        base and parameter-phase levels, which do not project.
     """
 
     level: int
@@ -61,6 +65,7 @@ class WrapLevel:
     iterations: int
     density: str
     tightness: float
+    ray_fraction: float = float("nan")
 
     @cached_property
     def mesh(self) -> Mesh:
@@ -159,7 +164,7 @@ def _param_relax(smap, s, loc, faces, iterations, alpha, density, centroids, wei
         new, _ = _guard(s, new, faces)
         s = new
         loc = smap.locate(s, start=loc.face)
-    return s, loc, cell
+    return s, loc, cell, float("nan")
 
 
 def _vertex_normals(x, faces):
@@ -199,6 +204,7 @@ def _surface_relax(smap, s, loc, faces, iterations, alpha0, density, centroids, 
     adj = _topo.adjacency(faces, n)
     edges, _ = _topo.unique_edges(faces)
     x = mesh.xyz(loc)
+    rays = []
     for it in range(iterations):
         alpha = alpha0 * (1.0 - it / iterations)
         if density == "area":
@@ -208,7 +214,8 @@ def _surface_relax(smap, s, loc, faces, iterations, alpha0, density, centroids, 
         tgt = (adj @ (x * d[:, None])) / (adj @ d)[:, None]
         y = (1 - alpha) * x + alpha * tgt
         mel = float(np.linalg.norm(x[edges[:, 1]] - x[edges[:, 0]], axis=1).mean())
-        new_loc, _ = _project(mesh, y, _vertex_normals(x, faces), mel)
+        new_loc, ray = _project(mesh, y, _vertex_normals(x, faces), mel)
+        rays.append(ray)
         new_s = smap.inverse(new_loc)
         new_s, back = _guard(s, new_s, faces)
         face = np.where(back, loc.face, new_loc.face)
@@ -216,7 +223,7 @@ def _surface_relax(smap, s, loc, faces, iterations, alpha0, density, centroids, 
         loc = SurfacePoints(face, bary)
         s = new_s
         x = mesh.xyz(loc)
-    return s, loc, cell
+    return s, loc, cell, float(np.mean(rays)) if rays else float("nan")
 
 
 #: step lengths tried, in turn, by the thin-triangle clean-up (fractions of the umbrella step)
@@ -282,6 +289,7 @@ def shrink_wrap(
     smap: SphereMap | None = None,
     base: BaseMesh | None = None,
     sphere_method: str = "tutte",
+    sphere_max_aspect: float | None = None,
     base_options: dict | None = None,
     parameter_iterations: int = 6,
     surface_iterations: int = 4,
@@ -340,6 +348,9 @@ def shrink_wrap(
         A sphere map / base mesh computed before (recomputed when omitted).
     sphere_method : {"tutte", "voxel"}
         Construction of the sphere map when ``smap`` is omitted (see :func:`sphere_map`).
+    sphere_max_aspect : float, optional
+        Aspect-ratio bound of the spherical triangles when ``smap`` is omitted
+        (``sphere_map(max_aspect=...)``; default ``None``: no bound).
     base_options : dict, optional
         Extra keyword arguments of :func:`base_mesh` (e.g. ``start_subdivisions=1``).
     parameter_iterations, surface_iterations : int
@@ -384,7 +395,9 @@ def shrink_wrap(
     secs: dict[str, float] = {}
     t0 = time.perf_counter()
     if smap is None:
-        smap = sphere_map(mesh, method=sphere_method, progress=progress)
+        smap = sphere_map(
+            mesh, method=sphere_method, max_aspect=sphere_max_aspect, progress=progress
+        )
     secs["sphere_map"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     if base is None:
@@ -417,12 +430,12 @@ def shrink_wrap(
         used = "area" if mesh.n_faces >= min_cell_faces * len(faces) else "edge"
         relax = _param_relax if phase == "parameter" else _surface_relax
         its = parameter_iterations if phase == "parameter" else surface_iterations
-        s, loc, cell = relax(smap, s, loc, faces, its, alpha, used, centroids, weights, cell)
+        s, loc, cell, ray = relax(smap, s, loc, faces, its, alpha, used, centroids, weights, cell)
         if phase == "surface" and clean_rounds > 0:
             s, loc = _fix_thin(smap, s, loc, faces, np.radians(clean_min_angle_deg), clean_rounds)
         x = mesh.xyz(loc)
         tight = _tightness(mesh, x, faces)
-        out.append(WrapLevel(lev, x, faces, s, loc, phase, its, used, tight))
+        out.append(WrapLevel(lev, x, faces, s, loc, phase, its, used, tight, ray))
         thin = np.degrees(triangle_quality(x, faces)[0].min()) < switch_min_angle_deg
         if phase == "parameter" and lev >= min_switch_level and (tight <= switch_tightness or thin):
             phase = "surface"
@@ -433,17 +446,22 @@ def shrink_wrap(
     return WrapResult(smap, base, out, switch, secs)
 
 
-def level_metrics(mesh: Mesh, level: WrapLevel, *, samples_per_face: int = 1) -> dict:
+def level_metrics(mesh: Mesh, level: WrapLevel) -> dict:
     """Quality and distance figures of one level.
 
     Returns
     -------
     dict
         ``faces``, ``vertices``, ``flips`` (parameter-domain triangles with
-        ``det <= 0``), ``min_angle_deg``, ``min_angle_p01_deg`` (1st percentile),
-        ``max_aspect``, ``mean_aspect``, ``rms`` and ``hausdorff`` (symmetric, as fractions
-        of the input's bbox diagonal; the wrap is sampled at vertices and face centroids,
-        the input at its vertices), ``rms_to_input``, ``rms_from_input``.
+        ``det <= 0``: the level is no longer a bijective image of the sphere),
+        ``normal_flips`` (triangles whose normal points against the input's face normal at
+        the closest point to their centroid: folds in space; a triangle bridging a sheet
+        thinner than itself may count too), ``min_angle_deg``, ``min_angle_p01_deg`` (1st
+        percentile), ``max_aspect``, ``mean_aspect``, ``rms`` and ``hausdorff`` (symmetric,
+        as fractions of the input's bbox diagonal; the wrap is sampled at vertices and face
+        centroids, the input at its vertices), ``rms_to_input``, ``rms_from_input``,
+        ``tightness`` and ``ray_fraction`` (see :class:`WrapLevel`; ``None`` when the level
+        did not project).
     """
     import igl
 
@@ -452,7 +470,10 @@ def level_metrics(mesh: Mesh, level: WrapLevel, *, samples_per_face: int = 1) ->
     flips = int((spherical_orientation(level.sphere, f) <= 0).sum())
     diag = mesh.bbox_diagonal
     q = np.vstack([x, x[f].mean(axis=1)])
-    d1 = mesh.closest_points(q).distance
+    cp = mesh.closest_points(q)
+    d1 = cp.distance
+    wn = np.cross(x[f[:, 1]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 0]])
+    against = np.einsum("ij,ij->i", wn, mesh.face_normals[cp.points.face[len(x) :]]) < 0
     tree = igl.AABB()
     xc = np.ascontiguousarray(x)
     fc = np.ascontiguousarray(f)
@@ -468,6 +489,7 @@ def level_metrics(mesh: Mesh, level: WrapLevel, *, samples_per_face: int = 1) ->
         "faces": len(f),
         "vertices": len(x),
         "flips": flips,
+        "normal_flips": int(against.sum()),
         "min_angle_deg": float(np.degrees(ang.min())),
         "min_angle_p01_deg": float(np.degrees(np.quantile(ang, 0.01))),
         "max_aspect": float(asp[fin].max()) if fin.any() else float("inf"),
@@ -477,6 +499,7 @@ def level_metrics(mesh: Mesh, level: WrapLevel, *, samples_per_face: int = 1) ->
         "rms_from_input": r2,
         "hausdorff": float(max(d1.max(), d2.max()) / diag),
         "tightness": level.tightness,
+        "ray_fraction": None if np.isnan(level.ray_fraction) else level.ray_fraction,
     }
 
 
@@ -490,8 +513,9 @@ def wrap_report(
 
     Keys: ``input`` (name, faces, bbox diagonal), ``sphere_map`` (method, flips, max aspect,
     notes), ``base`` (faces, max / min cell surface area and their ratio, splits),
-    ``switch_level``, ``levels`` (one :func:`level_metrics` dict per level: flips, min angle,
-    aspect, RMS and Hausdorff as fractions of the bbox diagonal), ``reconstruction`` (per
+    ``switch_level``, ``levels`` (one :func:`level_metrics` dict per level: flips in the parameter
+    domain and in space, min angle, aspect, RMS and Hausdorff as fractions of the bbox
+    diagonal, share of ray hits in the projections), ``reconstruction`` (per
     scheme: RMS vertex error of the finest level after the first 1 %, 3 %, 10 % of the
     detail coefficients, fraction of the bbox diagonal), ``seconds``.
     """
