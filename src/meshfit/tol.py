@@ -109,3 +109,9 @@ SHRINKWRAP_RAY_BACKOFF = 0.5
 #: shrink-wrap density of a vertex whose adjacent cells hold no input triangle, times the
 #: largest vertex density of the level
 SHRINKWRAP_DENSITY_FLOOR = 1e-9
+#: a patch corner made planar by G1 stitching keeps its angle between the two boundaries at
+#: least this far from 0 and from pi (radians), so its normal stays well defined
+STITCH_CORNER_MIN_ANGLE = 0.26
+#: weight of the pull back to the flat fan against the row-0 parallel condition when a corner
+#: of valence other than 4 is made G1 (dimensionless; smaller follows the condition closer)
+STITCH_FAN_PULL = 0.05

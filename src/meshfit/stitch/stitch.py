@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from meshfit import tol
 from meshfit.bspline import BSplineSurface
 from meshfit.displacement import DisplacementMap
 from meshfit.errors import InputError
@@ -80,97 +81,32 @@ def _corner_spokes(shapes, offs, slots, bound_of) -> dict:
     return spokes
 
 
-def _stitch_corner(P, shapes, offs, corner_slot, slots, bound_of, boundaries, lam, exact4) -> None:
-    """G1 at one network corner (in place on the flat control array ``P``).
-
-    Valence 2 on the network border (one shared boundary): the corner moves onto the line of
-    its two neighbours along the border sides, in the boundary's spacing ratio, so that
-    boundary is G1 to its ends. Valence 4 with four G1 boundaries (``exact4``; their rows
-    are then equally spaced, ratio 1): the four spoke points (the corner's neighbours along
-    the boundaries) are made pairwise symmetric about the corner and the four diagonal
-    points the least change that puts each spoke point at the midpoint of its two
-    diagonals: every row of every boundary is then collinear and equally spaced (exact G1).
-    Any other corner whose shared boundaries are all G1: the mean-tangent-plane rule of the
-    thesis (see :func:`_project_corner`).
-    """
+def _border_corner(P, shapes, offs, slots, bound_of, boundaries, lam) -> bool:
+    """G1 at a border corner of valence 2 (one shared G1 boundary), in place: the corner
+    moves onto the line of its two neighbours along the border sides, in the boundary's
+    spacing ratio, so row 0 of the boundary is collinear like the others and the boundary is
+    G1 to its end. Returns whether it was applied (False if it would fold a patch corner)."""
     geo = {sl: _corner_geometry(shapes, offs, sl) for sl in slots}
-    spokes: dict[int, list] = {}
+    ((bi, _),) = _corner_spokes(shapes, offs, slots, bound_of).items()
+    other = {}
     for sl in slots:
-        c, nu_, nv_, _, _, side_u, side_v = geo[sl]
-        for side, q in ((side_u, nu_), (side_v, nv_)):
-            bi = bound_of.get((sl[0], side))
-            if bi is not None:
-                spokes.setdefault(bi, []).append((sl, q))
-    if not spokes or any(boundaries[bi].continuity != "G1" for bi in spokes):
-        return
-    shared = {bi: v for bi, v in spokes.items() if len(v) == 2}
+        _, nu_, nv_, _, _, side_u, _ = geo[sl]
+        other[sl[0]] = nv_ if bound_of.get((sl[0], side_u)) == bi else nu_
+    b = boundaries[bi]
     c_idx = [geo[sl][0] for sl in slots]
-    if len(slots) == 2 and len(spokes) == 1 and len(shared) == 1:
-        # the two border neighbours: along the side that is not the shared one
-        (bi,) = shared
-        other = {}
-        for sl in slots:
-            _, nu_, nv_, _, _, side_u, side_v = geo[sl]
-            other[sl[0]] = nv_ if bound_of.get((sl[0], side_u)) == bi else nu_
-        b = boundaries[bi]
-        lb = (lam or {}).get(bi, 1.0)
-        P[c_idx] = (P[other[b.a]] + lb * P[other[b.b]]) / (1.0 + lb)
-        return None
-    if exact4 and len(slots) == 4 and len(shared) == 4 and len(spokes) == 4:
-        # cyclic order of spokes and patches around the corner
-        order_s, order_p = [], []
-        sl = slots[0]
-        bi = bound_of[(sl[0], geo[sl][5])]
-        for _ in range(4):
-            order_s.append(bi)
-            order_p.append(sl)
-            _, _, _, _, _, side_u, side_v = geo[sl]
-            nxt = (
-                bound_of[(sl[0], side_v)]
-                if bound_of[(sl[0], side_u)] == bi
-                else bound_of[(sl[0], side_u)]
-            )
-            sl = next(x for x, _ in shared[nxt] if x != sl)
-            bi = nxt
-        if sorted(order_s) != sorted(shared) or len(set(order_p)) != 4:
-            return _project_corner(P, geo, slots, corner_slot, shared, boundaries, lam)
-        c = P[c_idx[0]]
-        q_idx = [[q for _, q in shared[bi]] for bi in order_s]  # both copies of each spoke
-        q = np.array([P[ix[0]] for ix in q_idx])
-        for s0, s1 in ((0, 2), (1, 3)):
-            half = 0.5 * (q[s0] - q[s1])
-            q[s0], q[s1] = c + half, c - half
-        for ix, val in zip(q_idx, q, strict=True):
-            P[ix] = val
-        # patch order_p[s] lies between spokes order_s[s] and order_s[s+1]:
-        # spoke s + 1 is the midpoint of diagonals s and s + 1
-        r_idx = [geo[sl][3] for sl in order_p]
-        r = P[r_idx]
-        A = np.zeros((4, 4))
-        for s_ in range(4):
-            A[s_, (s_ - 1) % 4] = 0.5
-            A[s_, s_] = 0.5
-        target = q  # spoke s = mid(diag s-1, diag s)
-        r_new = r + np.linalg.pinv(A) @ (target - A @ r)
-        P[r_idx] = r_new
-        return None
-    return _project_corner(P, geo, slots, corner_slot, spokes, boundaries, lam)
+    before = P[c_idx].copy()
+    ref = [_cell_normal(P, geo[sl]) for sl in slots]
+    P[c_idx] = (P[other[b.a]] + lam[bi] * P[other[b.b]]) / (1.0 + lam[bi])
+    if _folded(P, geo, slots, ref):
+        P[c_idx] = before
+        return False
+    return True
 
 
 def _cell_normal(P, g) -> NDArray:
-    """Normal of a patch's corner control cell from its diagonals (robust to a sheared cell
-    whose two edges at the corner are nearly parallel)."""
+    """Normal of a patch's corner control cell from its diagonals."""
     c, nu_, nv_, diag, sign, _, _ = g
     return np.cross(P[diag] - P[c], P[nv_] - P[nu_]) * sign
-
-
-def _corner_normals(P, geo, slots) -> list:
-    out = []
-    for sl in slots:
-        n = _cell_normal(P, geo[sl])
-        ln = np.linalg.norm(n)
-        out.append(n / ln if ln > 0 else np.zeros(3))
-    return out
 
 
 def _folded(P, geo, slots, ref) -> bool:
@@ -181,71 +117,322 @@ def _folded(P, geo, slots, ref) -> bool:
         n = np.cross(P[nu_] - P[c], P[nv_] - P[c]) * sign
         if n @ n0 <= 0:
             return True
-        # the diagonal point stays inside the corner's wedge
         d = P[diag] - P[c]
         if np.cross(P[nu_] - P[c], d) @ n * sign < 0 or np.cross(d, P[nv_] - P[c]) @ n * sign < 0:
             return True
     return False
 
 
-def _rotation(n_from: NDArray, n_to: NDArray) -> NDArray:
-    """Smallest rotation taking unit vector ``n_from`` to ``n_to`` (Rodrigues)."""
-    v = np.cross(n_from, n_to)
-    c = float(n_from @ n_to)
-    sv = float(np.linalg.norm(v))
-    if sv < 1e-15:
-        return np.eye(3) if c > 0 else -np.eye(3)
-    k = v / sv
-    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + sv * K + (1 - c) * (K @ K)
+@dataclass
+class _Wedge:
+    """One patch's corner at a network corner: its two spokes in counter-clockwise order
+    about the patch normal, and its diagonal (twist) control point."""
+
+    slot: tuple[int, int, int]
+    first: tuple
+    second: tuple
+    diag: int
 
 
-def _project_corner(P, geo, slots, corner_slot, spokes=None, boundaries=(), lam=None) -> None:
-    """Mean-tangent-plane rule at a corner: each patch's corner neighbours are turned about
-    the corner by the smallest rotation taking that patch's corner normal to the mean normal
-    (so no patch corner folds), the diagonal points are put in the plane, and each shared
-    spoke point is placed on its row-1 line between the two diagonal points (in the
-    boundary's spacing ratio), which keeps that row collinear."""
-    c0 = P[corner_slot[slots[0]]].copy()
-    normals = []
+def _spoke_key(bound_of, k: int, side: str) -> tuple:
+    bi = bound_of.get((k, side))
+    return ("b", bi) if bi is not None else ("p", k, side)
+
+
+def _corner_fan(shapes, offs, slots, bound_of):
+    """The patch corners at one network corner in counter-clockwise order.
+
+    Returns ``(corner_index, wedges, spoke_index, cycle)`` or None when the corner is not a
+    simple fan (a patch meeting itself, inconsistent orientations): ``wedges`` in order, each
+    wedge's ``second`` spoke the next one's ``first``; ``spoke_index`` maps each spoke to its
+    flat control indices (two for a shared boundary); ``cycle`` is True for an interior
+    corner (the fan closes), False on the network border.
+    """
+    if len({sl[0] for sl in slots}) != len(slots):
+        return None
+    wedges, spoke_index, corner = [], {}, []
     for sl in slots:
-        n = _cell_normal(P, geo[sl])
-        ln = np.linalg.norm(n)
-        normals.append(n / ln if ln > 0 else None)
-    good = [n for n in normals if n is not None]
-    if not good:
-        return
-    normal = np.sum(good, axis=0)
-    ln = np.linalg.norm(normal)
-    if ln == 0:
-        return
-    normal /= ln
-    moved: dict[int, list] = {}
-    for sl, n in zip(slots, normals, strict=True):
-        _, nu_, nv_, diag, _, _, _ = geo[sl]
-        R = np.eye(3) if n is None else _rotation(n, normal)
-        for ix in (nu_, nv_, diag):
-            moved.setdefault(ix, []).append(c0 + R @ (P[ix] - c0))
-    for ix, vals in moved.items():
-        p = np.mean(vals, axis=0)
-        P[ix] = p - ((p - c0) @ normal) * normal
-    # shared spokes back on their row-1 lines between the (now planar) diagonal points,
-    # or (without spacing ratios) at the mean of their two turned copies
-    for bi, pairs in (spokes or {}).items():
-        if len(pairs) != 2:
+        c, nu_, nv_, diag, sign, side_u, side_v = _corner_geometry(shapes, offs, sl)
+        ku, kv = _spoke_key(bound_of, sl[0], side_u), _spoke_key(bound_of, sl[0], side_v)
+        spoke_index.setdefault(ku, []).append(nu_)
+        spoke_index.setdefault(kv, []).append(nv_)
+        corner.append(c)
+        # S_u x S_v at the corner is sign * (e_u x e_v): counter-clockwise from e_u to e_v
+        # when sign > 0
+        wedges.append(_Wedge(sl, ku, kv, diag) if sign > 0 else _Wedge(sl, kv, ku, diag))
+    by_first = {w.first: w for w in wedges}
+    seconds = {w.second for w in wedges}
+    if len(by_first) != len(wedges) or len(seconds) != len(wedges):
+        return None
+    if any(len(ix) > 2 for ix in spoke_index.values()):
+        return None
+    starts = [w for w in wedges if w.first not in seconds]
+    if len(starts) > 1:
+        return None
+    w = starts[0] if starts else wedges[0]
+    order = []
+    while w is not None and len(order) <= len(wedges):
+        order.append(w)
+        w = by_first.get(w.second)
+        if w is order[0]:
+            break
+    if len(order) != len(wedges) or len({id(x) for x in order}) != len(order):
+        return None
+    return corner, order, spoke_index, not starts
+
+
+def _cross2(a: NDArray, b: NDArray) -> NDArray:
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+def _fan_folded(spokes: dict, wedges: list, diags: NDArray, min_sin: float = 0.0) -> bool:
+    """True when a flat fan turns a patch corner over (the wedge from its first to its second
+    spoke not counter-clockwise, or the diagonal point outside the wedge)."""
+    for w, d in zip(wedges, diags, strict=True):
+        a, b = spokes[w.first], spokes[w.second]
+        la, lb, ld = np.linalg.norm(a), np.linalg.norm(b), np.linalg.norm(d)
+        if min(la, lb, ld) == 0:
+            return True
+        if _cross2(a, b) <= min_sin * la * lb:
+            return True
+        if _cross2(a, d) <= 0 or _cross2(d, b) <= 0:
+            return True
+    return False
+
+
+def _flat_angles(theta: NDArray, cycle: bool) -> NDArray | None:
+    """Wedge angles of the flat fan: the patches' own corner angles scaled to a full turn
+    (interior corner) and kept within ``[CORNER_MIN_ANGLE, pi - CORNER_MIN_ANGLE]``."""
+    lo, hi = tol.STITCH_CORNER_MIN_ANGLE, np.pi - tol.STITCH_CORNER_MIN_ANGLE
+    n = len(theta)
+    if cycle and not n * lo < 2 * np.pi < n * hi:
+        return None
+    th = np.clip(theta, lo, hi)
+    if not cycle:
+        total = min(th.sum(), 2 * np.pi - lo)
+        return np.clip(th * total / th.sum(), lo, hi)
+    fixed = np.zeros(n, dtype=bool)
+    for _ in range(n + 1):  # scale the free angles to the remainder, clamp, repeat
+        free = 2 * np.pi - th[fixed].sum()
+        th[~fixed] *= free / th[~fixed].sum()
+        out = (th < lo) | (th > hi)
+        if not out.any():
+            return th
+        th = np.clip(th, lo, hi)
+        fixed |= out
+    return None
+
+
+def _solve_fan(x0: NDArray, hard: NDArray, soft, scale: float, iters: int = 30) -> NDArray:
+    """The fan nearest ``x0`` on the linear constraints ``hard @ x = 0``, then Gauss-Newton
+    steps within them that drive the soft residuals ``soft(x) -> (r, J)`` towards zero with
+    a small pull back to ``x0`` (weight ``tol.STITCH_FAN_PULL``, lengths over ``scale``)."""
+    if hard.size:
+        x = x0 - np.linalg.lstsq(hard, hard @ x0, rcond=None)[0]
+        _, sv, vt = np.linalg.svd(hard)
+        rank = int((sv > 1e-12 * sv.max()).sum())
+        Z = vt[rank:].T
+    else:
+        x, Z = x0.copy(), np.eye(x0.size)
+    if soft is None or Z.shape[1] == 0:
+        return x
+    w = tol.STITCH_FAN_PULL
+    for _ in range(iters):
+        r, J = soft(x)
+        res = np.concatenate([w * (x - x0) / scale, r])
+        jac = np.vstack([w * Z / scale, J @ Z])
+        step = np.linalg.lstsq(jac, -res, rcond=None)[0]
+        x = x + Z @ step
+        if np.abs(Z @ step).max() <= 1e-15 * scale:
+            break
+    return x
+
+
+def _flatten_row2(P, shapes, c0, normal, keys, spoke_index, boundaries) -> None:
+    """Row 2 from the corner of every shared boundary there (boundary point and both tangent
+    points) translated along ``normal`` so its boundary point lies in the corner's tangent
+    plane: the boundary curves leave the corner without normal curvature, which is what turns
+    the two patches' tangent planes apart within the first knot span when row 0 cannot be
+    collinear. Rows stay collinear (a common translation), so G1 beyond the first span is
+    kept; boundaries with fewer than 6 control points are left alone (row 2 is the other
+    end's too)."""
+    for k in keys:
+        if k[0] != "b":
             continue
-        if lam is None or bi not in lam:
-            val = 0.5 * (P[pairs[0][1]] + P[pairs[1][1]])
-            P[pairs[0][1]] = val
-            P[pairs[1][1]] = val
+        b = boundaries[k[1]]
+        ia, ib = _slot_rows(shapes, b, 0)
+        ta, tb = _slot_rows(shapes, b, 1)
+        n = len(ia)
+        if n < 6:
             continue
-        b = boundaries[bi]
-        diag = {sl[0]: geo[sl][3] for sl, _ in pairs}
-        q = pairs[0][1]
-        val = (P[diag[b.a]] + lam[bi] * P[diag[b.b]]) / (1.0 + lam[bi])
-        for _, qi in pairs:
-            P[qi] = val
-        del q
+        q = 2 if spoke_index[k][0] in (ia[1], ib[1]) else n - 3
+        off = -((P[ia[q]] - c0) @ normal) * normal
+        for ix in (ia[q], ib[q], ta[q], tb[q]):
+            P[ix] += off
+
+
+def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exact: bool):
+    """G1 at one network corner of valence >= 3 (or a border corner of valence >= 3), in
+    place on the flat control array ``P``; returns whether it was applied.
+
+    1. Tangent plane: normal ``N`` the sum of the patches' corner normals
+       ``sign (e_u x e_v) / (|e_u| |e_v|)`` (spokes ``e``: the corner's neighbours along the
+       boundaries; a sheared corner, whose normal is unreliable, weighs less).
+    2. Flat fan: the spokes are laid out in that plane around the corner in the patches'
+       cyclic order, each keeping its length, the wedge angles the patches' own corner angles
+       scaled to a full turn (kept within ``tol.STITCH_CORNER_MIN_ANGLE`` of 0 and pi), the
+       fan turned about ``N`` to fit the old spokes best; each diagonal point keeps its
+       coordinates in its wedge's spoke basis (clamped inside the wedge). No patch corner
+       folds: every wedge is counter-clockwise about ``N``, as every patch's own normal.
+    3. Constraints, solved together as the least change from the flat fan (Gauss-Newton,
+       minimum-norm steps), in the plane:
+       - row 1 of every shared G1 boundary collinear in the boundary's ratio: the spoke along
+         the boundary is ``(d_a + lam d_b) / (1 + lam)`` of the two diagonal points;
+       - row 0, with ``e_a, e_b`` the two patches' other spokes: ``e_a + lam e_b`` parallel to
+         the boundary's spoke (``exact``: equal to 0, the valence-4 case with lam = 1, which
+         makes every row at the corner collinear and G1 exact to the boundary's end). Row 0
+         cannot be collinear at other valences; parallel to the boundary it leaves the two
+         patches' cross-boundary derivatives in the tangent plane of the boundary curve's
+         first control leg, so the normal jump within the first knot span is of the order
+         of the boundary's normal curvature there times the row-0 defect.
+    If the constraints fold a patch corner, only the row-1 constraints are kept; if they
+    fold too (or the corner is not a simple fan) nothing is changed.
+    """
+    fan = _corner_fan(shapes, offs, slots, bound_of)
+    if fan is None:
+        return False
+    corner, wedges, spoke_index, cycle = fan
+    c0 = P[corner[0]].copy()
+    keys = list(dict.fromkeys(k for w in wedges for k in (w.first, w.second)))
+    e3 = {k: P[spoke_index[k][0]] - c0 for k in keys}
+    if any(np.linalg.norm(e3[k]) == 0 for k in keys):
+        return False
+    unit = {k: v / np.linalg.norm(v) for k, v in e3.items()}
+    # the tangent plane: mean unit normal of the patches over their first knot span at the
+    # corner (the corner normals alone follow the fitted spokes, which a rough boundary tilts)
+    normal = np.zeros(3)
+    for k, i, j in slots:
+        mu, mv = shapes[k]
+        su_ = np.linspace(0.0, 1.0 / (mu - 3), 6)
+        sv_ = np.linspace(0.0, 1.0 / (mv - 3), 6)
+        U, V = np.meshgrid(su_ if i == 0 else 1 - su_, sv_ if j == 0 else 1 - sv_, indexing="ij")
+        normal += surfaces[k].normals(U, V).reshape(-1, 3).mean(axis=0)
+    if np.linalg.norm(normal) <= tol.BSPLINE_DEGENERATE:
+        return False
+    normal /= np.linalg.norm(normal)
+    # the plane must face the way every patch does beyond the corner's own control ring
+    for k, i, j in slots:
+        mu, mv = shapes[k]
+        u = 2.0 / (mu - 3) if i == 0 else 1.0 - 2.0 / (mu - 3)
+        v = 2.0 / (mv - 3) if j == 0 else 1.0 - 2.0 / (mv - 3)
+        uv = np.clip([u, v], 0.0, 1.0)
+        n_in = surfaces[k].normals(uv[:1], uv[1:])[0]
+        if n_in @ normal <= 0:
+            return False
+    theta = np.array([np.arccos(np.clip(unit[w.first] @ unit[w.second], -1, 1)) for w in wedges])
+    flat = _flat_angles(theta, cycle)
+    if flat is None:
+        return False
+    # in-plane basis and the flat fan, turned to fit the old spokes
+    x_ax = np.cross(normal, [1.0, 0.0, 0.0])
+    if np.linalg.norm(x_ax) < 0.5:
+        x_ax = np.cross(normal, [0.0, 1.0, 0.0])
+    x_ax /= np.linalg.norm(x_ax)
+    y_ax = np.cross(normal, x_ax)
+    phi = {wedges[0].first: 0.0}
+    for w, t in zip(wedges, flat, strict=True):
+        phi.setdefault(w.second, phi[w.first] + t)
+    length = {k: float(np.linalg.norm(e3[k])) for k in keys}
+    proj = {k: np.array([e3[k] @ x_ax, e3[k] @ y_ax]) for k in keys}
+    beta = {k: np.arctan2(p[1], p[0]) for k, p in proj.items()}
+    wsum = np.array([0.0, 0.0])
+    for k in keys:
+        wgt = length[k] * float(np.linalg.norm(proj[k]))
+        wsum += wgt * np.array([np.cos(beta[k] - phi[k]), np.sin(beta[k] - phi[k])])
+    psi = float(np.arctan2(wsum[1], wsum[0]))
+    # unknowns: spokes (in ``keys`` order) then diagonals, 2 coordinates each
+    ks = {k: n for n, k in enumerate(keys)}
+    nd = len(keys)
+    wi = {w.slot[0]: n for n, w in enumerate(wedges)}
+    rows1, rows0 = [], []
+    for k in keys:
+        if k[0] != "b":
+            continue
+        b = boundaries[k[1]]
+        wa = next(w for w in wedges if w.slot[0] == b.a)
+        wb = next(w for w in wedges if w.slot[0] == b.b)
+        lb = lam[k[1]]
+        rows1.append((ks[k], nd + wi[b.a], nd + wi[b.b], lb))
+        other_a = wa.second if wa.first == k else wa.first
+        other_b = wb.second if wb.first == k else wb.first
+        rows0.append((ks[k], ks[other_a], ks[other_b], lb))
+
+    nx = 2 * (nd + len(wedges))
+    scale = float(np.mean(list(length.values())))
+    hard = []
+    for sp, da, db, lb in rows1:  # row 1 collinear in the boundary's ratio
+        for c in range(2):
+            row = np.zeros(nx)
+            row[2 * sp + c] = 1.0
+            row[2 * da + c] -= 1.0 / (1.0 + lb)
+            row[2 * db + c] -= lb / (1.0 + lb)
+            hard.append(row)
+    if exact:  # row 0 collinear too: e_a + lam e_b = 0
+        for _, ea, eb, lb in rows0:
+            for c in range(2):
+                row = np.zeros(nx)
+                row[2 * ea + c] += 1.0
+                row[2 * eb + c] += lb
+                hard.append(row)
+    hard = np.array(hard).reshape(-1, nx)
+
+    def soft(x):
+        """Row 0: (e_a + lam e_b) x e_s = 0 per boundary, over scale**2."""
+        X = x.reshape(-1, 2)
+        r, J = [], []
+        for sp, ea, eb, lb in rows0:
+            wv, sv = X[ea] + lb * X[eb], X[sp]
+            row = np.zeros(nx)
+            row[2 * ea : 2 * ea + 2] += [sv[1], -sv[0]]
+            row[2 * eb : 2 * eb + 2] += [lb * sv[1], -lb * sv[0]]
+            row[2 * sp : 2 * sp + 2] += [-wv[1], wv[0]]
+            r.append(_cross2(wv, sv))
+            J.append(row)
+        return np.array(r) / scale**2, np.array(J).reshape(-1, nx) / scale**2
+
+    def flat_fan(equal: bool):
+        ln = dict(length)
+        if equal:  # a symmetric start when the patches' own spokes fold the fan
+            mean = float(np.mean(list(length.values())))
+            ln = dict.fromkeys(keys, mean)
+        s2 = {k: ln[k] * np.array([np.cos(phi[k] + psi), np.sin(phi[k] + psi)]) for k in keys}
+        d2 = []
+        for w in wedges:
+            A = np.stack([e3[w.first], e3[w.second]], axis=1)
+            ab = np.linalg.lstsq(A, P[w.diag] - c0, rcond=None)[0]
+            floor = 0.05 * float(np.abs(ab).sum())
+            ab = np.maximum(ab, floor) if floor > 0 else np.array([0.5, 0.5])
+            d2.append(ab[0] * s2[w.first] + ab[1] * s2[w.second])
+        return s2, np.array(d2)
+
+    for equal, with_row0 in ((False, True), (True, True), (False, False), (True, False)):
+        s2, d2 = flat_fan(equal)
+        if _fan_folded(s2, wedges, d2):
+            continue
+        x0 = np.concatenate([np.array([s2[k] for k in keys]).ravel(), d2.ravel()])
+        x = _solve_fan(x0, hard, soft if with_row0 and not exact else None, scale)
+        X = x.reshape(-1, 2)
+        sp = {k: X[ks[k]] for k in keys}
+        if _fan_folded(sp, wedges, X[nd:], np.sin(0.5 * tol.STITCH_CORNER_MIN_ANGLE)):
+            continue
+        for k in keys:
+            P[spoke_index[k]] = c0 + sp[k][0] * x_ax + sp[k][1] * y_ax
+        for w, d in zip(wedges, X[nd:], strict=True):
+            P[w.diag] = c0 + d[0] * x_ax + d[1] * y_ax
+        if not exact:
+            _flatten_row2(P, shapes, c0, normal, keys, spoke_index, boundaries)
+        return True
+    return False
 
 
 def _slot_rows(shapes, b: SharedBoundary, depth: int):
@@ -288,20 +475,28 @@ def stitch_surfaces(surfaces: Sequence[BSplineSurface], network: Network) -> lis
        patches are alike), one ratio per boundary, so the cross-boundary derivatives of the
        two patches are parallel wherever only such rows act (beyond the first knot span
        from each end) and patches of different sizes move less.
-    3. G1 at a corner whose shared boundaries are all G1: the corner's neighbours
-       ``P[1,0], P[0,1], P[1,1]`` of every patch meeting there are projected onto the plane
-       through the corner point whose normal is the mean of the patches' corner normals (the
-       average tangent plane); every patch then has that tangent plane at the corner.
-       Each patch's corner fan is turned (not projected) onto the plane so no corner
-       folds, and shared spoke points go back onto their row-1 lines. Two cases go further
-       and make the rows at the corner collinear and equally spaced as well (G1 to the very
-       end of the boundary): a border corner of valence 2 (the corner moves to the midpoint
-       of its border neighbours) and an interior corner of valence 4 (spoke points made
-       symmetric about the corner, diagonal points the least change that keeps each spoke
-       point the midpoint of its diagonals). At valence 3 or 5+ that is impossible in
-       general and the normal may still turn within the first knot span of the corner.
-       A corner rule that would turn a patch corner over is abandoned and that corner is
-       left C0 (its boundaries stay G1 beyond the first knot span).
+    3. G1 at a corner whose shared boundaries are all G1 (a corner with a C0 boundary is
+       left C0):
+
+       - border corner of valence 2: the corner moves onto the line of its two border
+         neighbours in the boundary's ratio; row 0 is then collinear like the others and
+         the boundary is G1 to its end;
+       - any other valence (see :func:`_g1_corner`): the corner control points (corner,
+         spokes ``P[1,0], P[0,1]``, diagonal ``P[1,1]`` of every patch) are laid into one
+         plane, the patches' mean tangent plane over their first knot span at the corner,
+         as a flat fan that keeps each patch's corner angle (scaled to a full turn) and
+         spoke lengths, so no patch corner folds (every corner keeps the orientation of its
+         patch, at an angle at least ``tol.STITCH_CORNER_MIN_ANGLE`` from 0 and pi); the
+         row-1 collinearity of every boundary there is solved together with it. At an
+         interior corner of valence 4 (its boundaries' ratios set to 1) row 0 is made
+         collinear too, opposite spokes symmetric about the corner: G1 is exact to the
+         boundary's end. At other valences row 0 cannot be collinear (the three spokes of a
+         valence-3 corner cannot be pairwise opposite); the fan is pulled towards ``e_a +
+         lam e_b`` parallel to the boundary's own spoke (``e_a, e_b`` the two patches' other
+         spokes), and row 2 from the corner is translated onto the corner plane, so the
+         boundary curves leave the corner without normal curvature. The normal jump within
+         the first knot span is then small but not zero (uniform bicubic patches cannot be
+         G1 there in general without extra knots). A corner whose fan would fold is left C0.
     """
     surfaces = _check(surfaces, network)
     shapes = [s.shape for s in surfaces]
@@ -375,33 +570,16 @@ def stitch_surfaces(surfaces: Sequence[BSplineSurface], network: Network) -> lis
         P[ia[1:-1]] = c
         P[ib[1:-1]] = c
 
-    # 3. G1 at corners, each rule checked for folds (a patch corner turned over)
+    # 3. G1 at corners of valence 2 (network border) and >= 3 (any), never folding a patch
     for slots in network.corners:
-        geo = {sl: _corner_geometry(shapes, offs, sl) for sl in slots}
-        touched = np.unique([ix for sl in slots for ix in geo[sl][:4]])
-        before = P[touched].copy()
-        ref = _corner_normals(P, geo, slots)
-        attempts = [
-            (any(slots == e for e in exact4), True),  # exact valence-4 / valence-2 / plane
-            (False, True),  # plane rule with spoke rows
-        ]
-        for use4, spoke_rows in attempts:
-            P[touched] = before
-            _stitch_corner(
-                P,
-                shapes,
-                offs,
-                corner_slot,
-                slots,
-                bound_of,
-                network.boundaries,
-                lam if spoke_rows else None,
-                use4,
-            )
-            if not _folded(P, geo, slots, ref):
-                break
-        else:
-            P[touched] = before  # leave this corner C0 rather than fold a patch
+        spokes = _corner_spokes(shapes, offs, slots, bound_of)
+        if not spokes or any(network.boundaries[bi].continuity != "G1" for bi in spokes):
+            continue
+        if len(slots) == 2 and len(spokes) == 1 and all(len(v) == 2 for v in spokes.values()):
+            _border_corner(P, shapes, offs, slots, bound_of, network.boundaries, lam)
+        elif len(slots) >= 2:
+            exact = any(slots == e for e in exact4)
+            _g1_corner(P, shapes, offs, slots, bound_of, network.boundaries, lam, surfaces, exact)
     return [
         s.with_control_points(P[offs[k] : offs[k + 1]].reshape(*shapes[k], 3))
         for k, s in enumerate(surfaces)
@@ -450,7 +628,14 @@ def seam_report(
     """Measure every shared boundary: position gap and normal jump (thesis sec. 8.1.1, fig.
     8.1), the figures before and after :func:`stitch_surfaces`.
 
-    ``samples`` boundary parameters ``t = k / (samples - 1)`` per boundary.
+    ``samples`` boundary parameters ``t = k / (samples - 1)`` per boundary. At each, both
+    patches are evaluated on the boundary itself (side parameter 0 or 1) at the same
+    boundary point: the gap is the distance between the two points, the normal jump the
+    angle between the two unit normals ``S_u x S_v`` (where those vanish, at a collapsed
+    corner, the normal a step ``tol.BSPLINE_NORMAL_STEP`` into the patch). A boundary
+    sample belongs to a corner zone when it lies within one knot span of either end of the
+    boundary (``t <= 1 / (n - 3)`` or ``t >= 1 - 1 / (n - 3)``, ``n`` control points along
+    it): the span where the corner's control points act on the boundary's normals.
     """
     surfaces = list(surfaces)
     t = np.linspace(0.0, 1.0, samples)
@@ -505,6 +690,29 @@ def _interp_rows(t_from: NDArray, rows: NDArray, t_to: NDArray) -> NDArray:
     return np.stack([np.interp(t_to, t_from, rows[:, c]) for c in range(3)], axis=1)
 
 
+def _seam_rows(t_c, x_c, t_f, x_f, x_f_at_c):
+    """World points of a coarse and a fine displaced boundary row that form one polyline.
+
+    The seam polyline ``Q`` has a vertex at every coarse texel: the mean of the two patches'
+    displaced boundaries there (the fine one read between its texels). The coarse row
+    becomes ``Q``; the fine texel nearest each coarse texel in parameter takes that vertex,
+    and the fine texels between two such take points on the straight segment between them,
+    spaced as their parameters. Returns ``(x_c_new, x_f_new)``.
+    """
+    q = 0.5 * (x_c + x_f_at_c)
+    n_f = len(t_f)
+    hit = np.rint(t_c * (n_f - 1)).astype(np.int64)
+    hit[0], hit[-1] = 0, n_f - 1
+    if (np.diff(hit) <= 0).any():  # more coarse than fine texels: not a coarse row
+        raise AssertionError("seam rows out of order")
+    out = np.empty_like(x_f)
+    for i in range(len(t_c) - 1):
+        j0, j1 = hit[i], hit[i + 1]
+        f = (t_f[j0 : j1 + 1] - t_f[j0]) / (t_f[j1] - t_f[j0])
+        out[j0 : j1 + 1] = q[i] + f[:, None] * (q[i + 1] - q[i])
+    return q, out
+
+
 def stitch_displacements(
     surfaces: Sequence[BSplineSurface],
     maps: Sequence[DisplacementMap],
@@ -523,14 +731,29 @@ def stitch_displacements(
     Returns
     -------
     list of DisplacementMap
-        Maps whose boundary texels agree in model space: at every network corner the
-        corner texels take the mean of their model-space vectors; along a shared boundary the
-        coarser row takes the mean of both rows' piecewise-linear displacement at its texels
-        and the finer row is the coarser one's linear interpolation. With nested resolutions
-        (``n_fine - 1`` a multiple of ``n_coarse - 1``, as spring-mesh subdivision gives) the
-        two reconstructions coincide along the seam at every resolution
-        (:func:`meshfit.displacement.reconstruct` filters model-space vectors); otherwise the
-        seam is closed at the coarse texels and off by the interpolation error between them.
+        Same resolutions; only boundary texels change. At every network corner the corner
+        texels take the mean of their model-space vectors. Along a shared boundary:
+
+        - equal texel counts: both rows take the mean model-space vector; the displaced
+          boundaries are then one curve at every output resolution
+          (:func:`meshfit.displacement.reconstruct` filters model-space vectors);
+        - different counts (nested or not): the seam is defined once, as the polyline whose
+          vertices are, at the coarser row's texels, the mean of the two patches' displaced
+          boundaries (the finer one read between its texels): the coarser row reproduces
+          those vertices; in the finer row the texel nearest each vertex in parameter
+          reproduces it and the texels between lie on the straight segment between two
+          vertices, spaced as their parameters (vector maps may move a point along the
+          seam).
+
+    Notes
+    -----
+    Crack-free here means: each patch tessellated at its own map's resolution (the grid of
+    ``reconstruct`` without ``shape``, the displaced mesh the pipeline exports), every
+    displaced boundary vertex of one patch lies on the other's displaced boundary polyline,
+    so the two polylines are one (``displacement_seam_gaps(..., tessellation="texels")``
+    is 0 up to round-off). The seam then carries the coarser row's resolution. With
+    different counts the seams are not closed at other output resolutions (the spline
+    between texels is not straight); with equal counts they are at every resolution.
     """
     surfaces = _check(surfaces, network)
     maps = list(maps)
@@ -561,19 +784,36 @@ def stitch_displacements(
         tb, wb, fb = _row_world(surfaces[b.b], cur[1], b.side_b)
         if b.reversed:
             wb, fb = wb[::-1], tuple(f[::-1] for f in fb)
-        if len(ta) <= len(tb):
-            coarse_t, coarse_w, fine_t, fine_w = ta, wa, tb, wb
+        ua, va = _side_params(b.side_a, ta)
+        sa = surfaces[b.a].evaluate(ua, va)  # the shared boundary curve at a's texels
+        ub, vb = _side_params(b.side_b, tb[::-1] if b.reversed else tb)
+        sb = surfaces[b.b].evaluate(ub, vb)
+        sb = sb[::-1] if b.reversed else sb
+        if len(ta) == len(tb):  # equal rows: the mean vector, crack-free at any resolution
+            new_a = new_b = 0.5 * (wa + wb)
         else:
-            coarse_t, coarse_w, fine_t, fine_w = tb, wb, ta, wa
-        avg = 0.5 * (coarse_w + _interp_rows(fine_t, fine_w, coarse_t))
-        fine_new = _interp_rows(coarse_t, avg, fine_t)
-        new_a = avg if len(ta) <= len(tb) else fine_new
-        new_b = fine_new if len(ta) <= len(tb) else avg
+            a_coarse = len(ta) < len(tb)
+            tc, sc, wc, tf, sf, wf = (
+                (ta, sa, wa, tb, sb, wb) if a_coarse else (tb, sb, wb, ta, sa, wa)
+            )
+            xc, xf = _seam_rows(tc, sc + wc, tf, sf + wf, sc + _interp_rows(tf, wf, tc))
+            new_c, new_f = xc - sc, xf - sf
+            new_a, new_b = (new_c, new_f) if a_coarse else (new_f, new_c)
         _set_row(vals[b.a], b.side_a, new_a, fa)
         if b.reversed:
             new_b, fb = new_b[::-1], tuple(f[::-1] for f in fb)
         _set_row(vals[b.b], b.side_b, new_b, fb)
     return [DisplacementMap(v, "vector") for v in vals]
+
+
+def _polyline_gap(a: NDArray, b: NDArray) -> float:
+    """Largest distance from the points ``a`` to the polyline through the points ``b``."""
+    p0, d = b[:-1], np.diff(b, axis=0)
+    ln2 = np.maximum((d * d).sum(axis=1), np.finfo(float).tiny)
+    w = a[:, None, :] - p0[None]
+    f = np.clip((w * d[None]).sum(axis=2) / ln2[None], 0.0, 1.0)
+    q = p0[None] + f[..., None] * d[None]
+    return float(np.linalg.norm(a[:, None, :] - q, axis=2).min(axis=1).max())
 
 
 def displacement_seam_gaps(
@@ -582,21 +822,40 @@ def displacement_seam_gaps(
     network: Network,
     *,
     samples: int = 401,
+    tessellation: str = "texels",
 ) -> NDArray[np.float64]:
     """Largest gap between displaced boundaries per shared boundary, model units.
 
-    The displaced boundary of a patch at boundary parameter t is the spline point plus the
-    linear interpolation of its boundary texels' model-space vectors (what
-    :func:`meshfit.displacement.reconstruct` produces along a boundary at any resolution).
+    ``tessellation="texels"`` (default): each patch tessellated at its map's own resolution
+    (:func:`meshfit.displacement.reconstruct` without ``shape``, the displaced mesh the
+    pipeline exports); the gap is the largest distance from a displaced boundary vertex of
+    either patch to the other patch's displaced boundary polyline. 0 means the two
+    polylines are one: no crack, T-junctions only on straight segments.
+
+    ``tessellation="continuous"``: the displaced boundary at boundary parameter t is the
+    spline point plus the linear interpolation of the boundary texels' model-space vectors
+    (what ``reconstruct`` gives along a boundary at any resolution); the gap is the largest
+    distance between the two patches' points at equal t over ``samples`` parameters. 0
+    means crack-free at every output resolution.
     """
+    if tessellation not in ("texels", "continuous"):
+        raise InputError(f"tessellation must be 'texels' or 'continuous', got {tessellation!r}")
     t = np.linspace(0.0, 1.0, samples)
     out = []
     for b in network.boundaries:
         pts = []
         for k, side, rev in ((b.a, b.side_a, False), (b.b, b.side_b, b.reversed)):
+            tr, wr, _ = _row_world(surfaces[k], maps[k], side)
+            if tessellation == "texels":
+                u, v = _side_params(side, tr)
+                row = surfaces[k].evaluate(u, v) + wr
+                pts.append(row[::-1] if rev else row)
+                continue
             tt = t[::-1] if rev else t
             u, v = _side_params(side, tt)
-            tr, wr, _ = _row_world(surfaces[k], maps[k], side)
             pts.append(surfaces[k].evaluate(u, v) + _interp_rows(tr, wr, tt))
-        out.append(float(np.linalg.norm(pts[0] - pts[1], axis=1).max()))
+        if tessellation == "texels":
+            out.append(max(_polyline_gap(pts[0], pts[1]), _polyline_gap(pts[1], pts[0])))
+        else:
+            out.append(float(np.linalg.norm(pts[0] - pts[1], axis=1).max()))
     return np.array(out)
