@@ -20,8 +20,11 @@ is timed on the same grid for a sweep of resolutions, cold.
 Whole layouts (:func:`layout_figures`): a 2 x 2 cube layout (24 patches) of igea and
 nefertiti from ``meshfit.layout.cube_layout``, spring meshes at level 2 from
 ``meshfit.springs``, then fit + stitch + displacement maps + seam closing at 8 x 8 and
-16 x 16 controls, with the seam gaps and normal jumps before and after stitching; a layout
-that cannot be built is reported with its error. :func:`synthetic_network_figures` times
+16 x 16 controls, with the seam gaps and normal jumps before and after stitching and the
+displacement crack gaps (``displacement_seam_gaps``: as tessellated at each map's own
+resolution, and read at equal boundary parameters), the same for the igea layout of the
+spring-mesh tests (``examples/layouts/igea.json``); a layout that cannot be built is
+reported with its error. :func:`synthetic_network_figures` times
 the same stages on 104 patches (the thesis' count) cut from one synthetic height field.
 
 Run: ``python benchmarks/fit.py [--repeats 5]``. Prints JSON and writes
@@ -35,6 +38,7 @@ import importlib.util
 import os
 import platform
 import time
+from pathlib import Path
 
 import numpy as np
 from _common import median_time, mesh_path, write_result
@@ -43,6 +47,8 @@ from meshfit.bspline import BSplineSurface, fit_bspline, fit_errors
 from meshfit.bspline.fit import _solver, closest_parameters, grid_parameters
 from meshfit.displacement import displacement_map
 from meshfit.mesh import Mesh, load_mesh
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def scan_grid(name: str, n: int, half: float = 0.15, centre=(0.5, 0.6)) -> np.ndarray:
@@ -125,26 +131,30 @@ def bench_occ(X, m, repeats):
     return {"available": False, "reason": "OCP present but the OCC runner is not written yet"}
 
 
-def layout_grids(name: str, n: int = 2, level: int = 2) -> tuple[list, dict]:
+def layout_grids(
+    name: str, n: int = 2, level: int | None = 2, layout_file: str | None = None
+) -> tuple[list, dict]:
     """Spring-mesh grids of an ``n x n`` cube layout of a real scan (meshfit.layout +
-    meshfit.springs), or ([], reason) when a stage fails."""
-    from meshfit.layout import cube_layout, extract_patches
+    meshfit.springs), or of a layout file (``examples/layouts``) at the springs' default
+    level when ``layout_file`` is given; ([], reason) when a stage fails."""
+    from meshfit.layout import cube_layout, extract_patches, load_layout
     from meshfit.springs import resample_patch
 
     info = {}
     try:
         t0 = time.perf_counter()
         mesh = load_mesh(mesh_path(name))
-        patches = extract_patches(mesh, cube_layout(mesh, n=n))
+        lay = cube_layout(mesh, n=n) if layout_file is None else load_layout(layout_file, mesh)
+        patches = extract_patches(mesh, lay)
         info["layout_and_cut_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        grids = [
-            resample_patch(p, level=level, metrics=False, fidelity=False).final.xyz for p in patches
-        ]
+        kw = {} if level is None else {"level": level}
+        grids = [resample_patch(p, metrics=False, fidelity=False, **kw).final.xyz for p in patches]
         info["springs_s"] = time.perf_counter() - t0
     except Exception as exc:  # report, do not hide: the figure says why it is missing
         return [], {"error": f"{type(exc).__name__}: {exc}"}
     info["patches"] = len(grids)
+    info["bbox_diagonal"] = float(mesh.bbox_diagonal)
     info["grid_points"] = int(sum(g.shape[0] * g.shape[1] for g in grids))
     return grids, info
 
@@ -154,6 +164,7 @@ def layout_figures(grids_by_layout: dict | None = None, controls=(8, 16)) -> dic
     maps + seam closing per control resolution, and the seams before / after stitching."""
     from meshfit.stitch import (
         control_classes,
+        displacement_seam_gaps,
         network_from_grids,
         seam_report,
         stitch_displacements,
@@ -183,10 +194,15 @@ def layout_figures(grids_by_layout: dict | None = None, controls=(8, 16)) -> dic
             t_stitch = time.perf_counter() - t0
             t0 = time.perf_counter()
             maps = [displacement_map(s, g) for s, g in zip(stitched, grids, strict=True)]
-            stitch_displacements(stitched, maps, net)
+            fixed = stitch_displacements(stitched, maps, net)
             t_maps = time.perf_counter() - t0
             before = seam_report(surfaces, net)
             after = seam_report(stitched, net)
+            diag = info["bbox_diagonal"]
+
+            def crack(ms, how, stitched=stitched, net=net):
+                return float(displacement_seam_gaps(stitched, ms, net, tessellation=how).max())
+
             res[f"{m}x{m}"] = {
                 "fit_s": t_fit,
                 "stitch_s": t_stitch,
@@ -196,6 +212,13 @@ def layout_figures(grids_by_layout: dict | None = None, controls=(8, 16)) -> dic
                 "seams_after": after.summary(),
                 "corner_zones_over_2deg_after": int((after.angle_corner_deg > 2.0).sum()),
                 "boundaries": len(net.boundaries),
+                "gap_after_over_diag": float(after.gap.max()) / diag,
+                "crack_gap_over_diag": {
+                    "texels_before": crack(maps, "texels") / diag,
+                    "texels_after": crack(fixed, "texels") / diag,
+                    "continuous_before": crack(maps, "continuous") / diag,
+                    "continuous_after": crack(fixed, "continuous") / diag,
+                },
             }
         out[name] = res
     return out
@@ -292,7 +315,12 @@ def main() -> None:
         "refit_target_s": 0.020,
         "refit_max_s": max(refit.values()),
         "layouts": layout_figures(
-            {f"{name}_cube2": layout_grids(name) for name in ("igea", "nefertiti")}
+            {
+                **{f"{name}_cube2": layout_grids(name) for name in ("igea", "nefertiti")},
+                "igea_test_layout": layout_grids(
+                    "igea", level=None, layout_file=str(ROOT / "examples/layouts/igea.json")
+                ),
+            }
         ),
         "synthetic_network_104_patches": synthetic_network_figures(repeats=args.repeats),
         "repeats": args.repeats,
