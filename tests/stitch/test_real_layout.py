@@ -109,7 +109,7 @@ def test_displacement_seams_close_everywhere(igea_layout):
     strict=True,
     reason="with 33 / 37 / 41 texels along shared sides the seams are closed as tessellated at "
     "each map's own resolution only; read at equal boundary parameters (any output "
-    "resolution) the two displaced boundaries differ by up to 1.9e-3 of the diagonal "
+    "resolution) the two displaced boundaries differ by up to 3.3e-3 of the diagonal "
     "(8 x 8 controls); closing that needs equal texel counts along shared sides",
 )
 def test_displacement_seams_close_at_any_resolution(igea_layout):
