@@ -27,25 +27,21 @@ def mesh_path(name: str) -> Path:
     sys.exit(f"benchmark data not found: {name}.ply (set MESHFIT_DATA)")
 
 
-def median_time(fn, repeats: int) -> tuple[float, list[float]]:
-    """Median wall time of ``repeats`` calls of ``fn()`` and all the times."""
+def median_time(fn, repeats: int, clock=time.perf_counter) -> tuple[float, list[float]]:
+    """Median time of ``repeats`` calls of ``fn()`` and all the times, by ``clock`` (wall time
+    by default)."""
     times = []
     for _ in range(repeats):
-        t0 = time.perf_counter()
+        t0 = clock()
         fn()
-        times.append(time.perf_counter() - t0)
+        times.append(clock() - t0)
     return statistics.median(times), times
 
 
 def median_cpu_time(fn, repeats: int) -> tuple[float, list[float]]:
-    """Median CPU time of this process over ``repeats`` calls of ``fn()`` and all the times
-    (less disturbed than wall time by other jobs on a shared machine; counts every thread)."""
-    times = []
-    for _ in range(repeats):
-        t0 = time.process_time()
-        fn()
-        times.append(time.process_time() - t0)
-    return statistics.median(times), times
+    """Median CPU time of this process (every thread) over ``repeats`` calls of ``fn()``: less
+    disturbed than wall time by other jobs on a shared machine."""
+    return median_time(fn, repeats, clock=time.process_time)
 
 
 def write_result(name: str, data: dict) -> None:

@@ -231,42 +231,11 @@ def walk_points_serial(V, F, FN, face, bary, step, max_faces, eps_len, bary_eps)
 
 @njit(cache=True, nogil=True)
 def attract_points_serial(
-    V, F, FN, VFp, VF, face, bary, targets, max_iter, max_faces, eps_len, bary_eps
+    V, F, FN, VFp, VF, face, bary, targets, max_iter, max_faces, eps_len, bary_eps, chain
 ):
-    """Serial `meshfit._kernels.walk.attract_points` (same arguments and results)."""
-    n = face.shape[0]
-    out_face = face.copy()
-    out_bary = bary.copy()
-    distance = np.zeros(n)
-    iterations = np.zeros(n, dtype=np.int64)
-    hit = np.zeros(n, dtype=np.bool_)
-    converged = np.zeros(n, dtype=np.bool_)
-    for i in range(n):
-        out_face[i], distance[i], iterations[i], hit[i], converged[i] = _attract_one(
-            V,
-            F,
-            FN,
-            VFp,
-            VF,
-            face[i],
-            out_bary[i],
-            targets[i],
-            max_iter,
-            max_faces,
-            eps_len,
-            bary_eps,
-        )
-    return out_face, out_bary, distance, iterations, hit, converged
-
-
-@njit(cache=True, nogil=True)
-def attract_chain(V, F, FN, VFp, VF, face, bary, targets, max_iter, max_faces, eps_len, bary_eps):
-    """Attraction of an ordered curve, each point started from the nearer (to its target) of
-    its own position and the previous point's result; kernel of
-    `meshfit.curves.base._attract_chain`.
-
-    Arguments and results as `meshfit._kernels.walk.attract_points`.
-    """
+    """Serial `meshfit._kernels.walk.attract_points` (same arguments and results); with
+    ``chain`` (an ordered curve) each point starts from the nearer, to its target, of its own
+    position and the previous point's result (attraction by continuation)."""
     n = face.shape[0]
     out_face = face.copy()
     out_bary = bary.copy()
@@ -276,12 +245,11 @@ def attract_chain(V, F, FN, VFp, VF, face, bary, targets, max_iter, max_faces, e
     converged = np.zeros(n, dtype=np.bool_)
     x = np.empty(3)
     for i in range(n):
-        if i > 0:
+        if chain and i > 0:
             _position(V, F, face[i], bary[i], x)
             own = np.sum((targets[i] - x) ** 2)
             _position(V, F, out_face[i - 1], out_bary[i - 1], x)
-            prev = np.sum((targets[i] - x) ** 2)
-            if prev < own:
+            if np.sum((targets[i] - x) ** 2) < own:
                 out_face[i] = out_face[i - 1]
                 out_bary[i] = out_bary[i - 1]
         out_face[i], distance[i], iterations[i], hit[i], converged[i] = _attract_one(

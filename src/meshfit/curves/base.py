@@ -92,18 +92,24 @@ def _walk_few(mesh: Mesh, face: NDArray, bary: NDArray, step: NDArray) -> Surfac
 
 
 def _attract_few(
-    mesh: Mesh, face: NDArray, bary: NDArray, targets: NDArray, *, max_iter: int = 200
+    mesh: Mesh,
+    face: NDArray,
+    bary: NDArray,
+    targets: NDArray,
+    *,
+    max_iter: int = 200,
+    chain: bool = False,
 ) -> SurfacePoints:
-    """:func:`meshfit.surface.attract_points` (default face cap) for trusted inputs, serially.
+    """:func:`meshfit.surface.attract_points` (default face cap) for trusted inputs.
 
-    Same per-point loop as the parallel kernel, without the cost of starting threads, which
-    dominates for the few hundred or thousand points of one painted segment.
+    A few points run serially, without the cost of starting threads, which dominates for the
+    few hundred or thousand points of one painted segment. With ``chain`` (an ordered curve
+    toward close-spaced ordered targets) each point walks from the nearer, to its target, of
+    its own position and the previous point's result, so a curve far from its targets gets
+    there by continuation, a short walk per point (serial by nature).
     """
     indptr, vf = mesh.vertex_faces
-    # many points: the parallel kernel (threads sleep between kernels, so starting them
-    # costs microseconds); a few: the serial one
-    kernel = _walk.attract_points if len(face) >= _PARALLEL_MIN else _curves.attract_points_serial
-    f, b, _, _, _, _ = kernel(
+    args = (
         mesh.vertices,
         _i8(mesh.faces),
         _i8(mesh.face_neighbors),
@@ -117,30 +123,12 @@ def _attract_few(
         tol.length(mesh, tol.ATTRACT_EPS),
         tol.BARY_EPS,
     )
-    return SurfacePoints(f, b)
-
-
-def _attract_chain(
-    mesh: Mesh, face: NDArray, bary: NDArray, targets: NDArray, *, max_iter: int = 200
-) -> SurfacePoints:
-    """CurveAttract of an ordered curve toward close-spaced ordered targets: each point walks
-    from the nearer (to its target) of its own position and the previous point's result, so a
-    curve far from its targets moves there by continuation, a short walk per point."""
-    indptr, vf = mesh.vertex_faces
-    f, b, _, _, _, _ = _curves.attract_chain(
-        mesh.vertices,
-        _i8(mesh.faces),
-        _i8(mesh.face_neighbors),
-        _i8(indptr),
-        _i8(vf),
-        _i8(face),
-        _clean_bary(bary),
-        np.ascontiguousarray(targets, dtype=np.float64),
-        int(max_iter),
-        10_000,
-        tol.length(mesh, tol.ATTRACT_EPS),
-        tol.BARY_EPS,
-    )
+    # many independent points: the parallel kernel (threads sleep between kernels, so
+    # starting them costs microseconds); a few, or a chain: the serial one
+    if chain or len(face) < _PARALLEL_MIN:
+        f, b, _, _, _, _ = _curves.attract_points_serial(*args, chain)
+    else:
+        f, b, _, _, _, _ = _walk.attract_points(*args)
     return SurfacePoints(f, b)
 
 

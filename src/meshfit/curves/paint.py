@@ -21,7 +21,7 @@ from meshfit._kernels import curves as _curves
 from meshfit._validate import as_points, as_surface_points
 from meshfit.curves.base import (
     _as_curve,
-    _attract_chain,
+    _attract_few,
     _resample,
     resample_curve,
 )
@@ -85,10 +85,6 @@ def _at_vertices(mesh: Mesh, v: NDArray[np.int64]) -> SurfacePoints:
     return SurfacePoints(face, bary)
 
 
-def _polyline_length(mesh: Mesh, pts: SurfacePoints) -> float:
-    return float(np.linalg.norm(np.diff(mesh.xyz(pts), axis=0), axis=1).sum())
-
-
 def _straighten(
     mesh: Mesh, pts: SurfacePoints, att: SurfacePoints, spacing: float
 ) -> SurfacePoints:
@@ -145,14 +141,10 @@ def _segment(
     t = (arc[1:-1] / arc[-1])[:, None] if arc[-1] > 0 else np.zeros((m - 2, 1))
     targets = x[0] + t * (x[-1] - x[0])
     inner = pts[1 : m - 1]
-    # by continuation (each point may start where its predecessor settled: a short walk
-    # each); a straightened curve longer than the graph path (attraction toward a chord deep
-    # under a concave stretch settles on a detour) gives way to the graph path itself
+    # by continuation: each point may start where its predecessor settled (a short walk each)
     straight = _straighten(
-        mesh, pts, _attract_chain(mesh, inner.face, inner.bary, targets), spacing
+        mesh, pts, _attract_few(mesh, inner.face, inner.bary, targets, chain=True), spacing
     )
-    if _polyline_length(mesh, straight) > arc[-1]:
-        straight = pts
     out, _ = _resample(mesh, SurfaceCurve(straight), spacing=spacing, n=None, cv=PAINT_SPACING_CV)
     return out.points
 
@@ -172,10 +164,8 @@ def paint_curve(
     3-D chord between the picks by CurveAttract (targets evenly spaced on the chord). The
     attracted points only slide on the surface; where attraction pulls neighbours onto
     faces that are neither the same nor adjacent (sharp bends, thin parts of the model) the
-    stretch falls back to the graph-path samples, so the curve never jumps; a straightened
-    segment longer than its graph path (a chord deep under a concave stretch) is replaced by
-    the graph path, so painting never lengthens a segment. Attraction runs by continuation:
-    each point may start where its predecessor settled. Each segment is
+    stretch falls back to the graph-path samples, so the curve never jumps. Attraction runs
+    by continuation: each point may start where its predecessor settled. Each segment is
     then resampled evenly by arc length (spacing CV at most :data:`PAINT_SPACING_CV`).
 
     Parameters
