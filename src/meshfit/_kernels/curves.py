@@ -18,10 +18,11 @@ import numpy as np
 from numba import njit
 
 from meshfit._kernels.walk import (
+    _ATTRACT_SCRATCH,
     BOUNDARY,
     CAPPED,
     DONE,
-    _attract_one,
+    _attract_one_buf,
     _position,
     _start_direction,
     _walk_one,
@@ -229,6 +230,15 @@ def walk_points_serial(V, F, FN, face, bary, step, max_faces, eps_len, bary_eps)
     return out_face, out_bary, length, hit, capped
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _dist2(t, x):
+    """|t - x|^2 for (3,) arrays, summed in the order of ``np.sum``."""
+    d0 = t[0] - x[0]
+    d1 = t[1] - x[1]
+    d2 = t[2] - x[2]
+    return d0 * d0 + d1 * d1 + d2 * d2
+
+
 @njit(cache=True, nogil=True)
 def attract_points_serial(
     V, F, FN, VFp, VF, face, bary, targets, max_iter, max_faces, eps_len, bary_eps, chain
@@ -244,15 +254,16 @@ def attract_points_serial(
     hit = np.zeros(n, dtype=np.bool_)
     converged = np.zeros(n, dtype=np.bool_)
     x = np.empty(3)
+    buf = np.empty((_ATTRACT_SCRATCH, 3))
     for i in range(n):
         if chain and i > 0:
             _position(V, F, face[i], bary[i], x)
-            own = np.sum((targets[i] - x) ** 2)
+            own = _dist2(targets[i], x)
             _position(V, F, out_face[i - 1], out_bary[i - 1], x)
-            if np.sum((targets[i] - x) ** 2) < own:
+            if _dist2(targets[i], x) < own:
                 out_face[i] = out_face[i - 1]
                 out_bary[i] = out_bary[i - 1]
-        out_face[i], distance[i], iterations[i], hit[i], converged[i] = _attract_one(
+        out_face[i], distance[i], iterations[i], hit[i], converged[i] = _attract_one_buf(
             V,
             F,
             FN,
@@ -265,6 +276,7 @@ def attract_points_serial(
             max_faces,
             eps_len,
             bary_eps,
+            buf,
         )
     return out_face, out_bary, distance, iterations, hit, converged
 

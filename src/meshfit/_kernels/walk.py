@@ -17,11 +17,19 @@ from numba import njit, prange
 DONE = 0
 BOUNDARY = 1
 CAPPED = 2
+#: rows of (3,) scratch that `_attract_one_buf` needs
+_ATTRACT_SCRATCH = 7
 
 
 @njit(cache=True, nogil=True, fastmath=False)
 def _bary_rate(V, F, f, u, out):
     """Barycentric change per unit length along the in-plane vector ``u`` in face ``f``; (3,)."""
+    out[0], out[1], out[2] = _bary_rate3(V, F, f, u)
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _bary_rate3(V, F, f, u):
+    """`_bary_rate` as three scalars (no output array)."""
     a = F[f, 0]
     b = F[f, 1]
     c = F[f, 2]
@@ -38,20 +46,21 @@ def _bary_rate(V, F, f, u, out):
     r2 = u[0] * e2x + u[1] * e2y + u[2] * e2z
     det = a11 * a22 - a12 * a12
     if det <= 0.0:  # a face of zero area (a sliver left by cutting): no direction moves in it
-        out[0] = 0.0
-        out[1] = 0.0
-        out[2] = 0.0
-        return
+        return 0.0, 0.0, 0.0
     d1 = (a22 * r1 - a12 * r2) / det
     d2 = (a11 * r2 - a12 * r1) / det
-    out[0] = -d1 - d2
-    out[1] = d1
-    out[2] = d2
+    return -d1 - d2, d1, d2
 
 
 @njit(cache=True, nogil=True, fastmath=False)
 def _face_normal(V, F, f, out):
     """Unit normal of face ``f`` into ``out`` (3,)."""
+    out[0], out[1], out[2] = _face_normal3(V, F, f)
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _face_normal3(V, F, f):
+    """`_face_normal` as three scalars (no output array)."""
     a = F[f, 0]
     b = F[f, 1]
     c = F[f, 2]
@@ -67,9 +76,7 @@ def _face_normal(V, F, f, out):
     s = np.sqrt(nx * nx + ny * ny + nz * nz)
     if s == 0.0:  # zero area: no plane, no normal
         s = 1.0
-    out[0] = nx / s
-    out[1] = ny / s
-    out[2] = nz / s
+    return nx / s, ny / s, nz / s
 
 
 @njit(cache=True, nogil=True, fastmath=False)
@@ -92,33 +99,35 @@ def _walk_one(V, F, FN, f, b, u, length, max_faces, bary_eps):
     Returns ``(face, remaining_length, status, faces_crossed)``; status is DONE, BOUNDARY or
     CAPPED. Kernel of `meshfit.surface.walk.walk_points`.
     """
-    db = np.empty(3)
     entered = -1  # coordinate that vanishes on the edge just entered through
     crossed = 0
     while True:
-        _bary_rate(V, F, f, u, db)
-        scale = max(abs(db[0]), max(abs(db[1]), abs(db[2])))
+        db0, db1, db2 = _bary_rate3(V, F, f, u)
+        scale = max(abs(db0), max(abs(db1), abs(db2)))
         # exit distance: the first coordinate to reach 0
         s_exit = np.inf
         i_exit = -1
         for j in range(3):
             if j == entered:
                 continue
-            if db[j] >= 0.0:
+            dbj = db0 if j == 0 else (db1 if j == 1 else db2)
+            if dbj >= 0.0:
                 continue
-            if b[j] <= bary_eps and -db[j] <= bary_eps * scale:
+            if b[j] <= bary_eps and -dbj <= bary_eps * scale:
                 continue  # on edge j and running along it: not a crossing
-            s = max(b[j], 0.0) / -db[j]
+            s = max(b[j], 0.0) / -dbj
             if s < s_exit:
                 s_exit = s
                 i_exit = j
         if i_exit < 0 or s_exit >= length:
-            for j in range(3):
-                b[j] += length * db[j]
+            b[0] += length * db0
+            b[1] += length * db1
+            b[2] += length * db2
             _clean_bary(b)
             return f, 0.0, DONE, crossed
-        for j in range(3):
-            b[j] += s_exit * db[j]
+        b[0] += s_exit * db0
+        b[1] += s_exit * db1
+        b[2] += s_exit * db2
         b[i_exit] = 0.0
         _clean_bary(b)
         length -= s_exit
@@ -183,12 +192,11 @@ def _walk_one(V, F, FN, f, b, u, length, max_faces, bary_eps):
 @njit(cache=True, nogil=True, fastmath=False)
 def _start_direction(V, F, f, step, u):
     """Project ``step`` (3,) onto face ``f``'s plane; unit direction into ``u``, returns length."""
-    n = np.empty(3)
-    _face_normal(V, F, f, n)
-    d = step[0] * n[0] + step[1] * n[1] + step[2] * n[2]
-    u[0] = step[0] - d * n[0]
-    u[1] = step[1] - d * n[1]
-    u[2] = step[2] - d * n[2]
+    n0, n1, n2 = _face_normal3(V, F, f)
+    d = step[0] * n0 + step[1] * n1 + step[2] * n2
+    u[0] = step[0] - d * n0
+    u[1] = step[1] - d * n1
+    u[2] = step[2] - d * n2
     length = np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
     if length > 0.0:
         u[0] /= length
@@ -258,29 +266,50 @@ def _clip_at_boundary(V, F, FN, f, b, step, bary_eps):
     return clipped
 
 
+@njit(cache=True, nogil=True, fastmath=False, inline="always")
+def _dist(t, x):
+    """|t - x| for (3,) arrays, summed in the order of ``np.sum``."""
+    d0 = t[0] - x[0]
+    d1 = t[1] - x[1]
+    d2 = t[2] - x[2]
+    return np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+
+
 @njit(cache=True, nogil=True, fastmath=False)
 def _closest_on_face(V, F, f, p, out):
     """Barycentrics ``out`` (3,) of the point of triangle ``f`` closest to ``p`` (3,).
 
     Exact zeros on the clamped coordinates (Ericson, Real-Time Collision Detection, 5.1.5).
+    Scalar arithmetic (no temporaries), sums in the order of ``np.sum``.
     """
-    a = V[F[f, 0]]
-    b = V[F[f, 1]]
-    c = V[F[f, 2]]
-    ab = b - a
-    ac = c - a
-    ap = p - a
-    d1 = np.sum(ab * ap)
-    d2 = np.sum(ac * ap)
+    ia = F[f, 0]
+    ib = F[f, 1]
+    ic = F[f, 2]
+    ax = V[ia, 0]
+    ay = V[ia, 1]
+    az = V[ia, 2]
+    abx = V[ib, 0] - ax
+    aby = V[ib, 1] - ay
+    abz = V[ib, 2] - az
+    acx = V[ic, 0] - ax
+    acy = V[ic, 1] - ay
+    acz = V[ic, 2] - az
+    apx = p[0] - ax
+    apy = p[1] - ay
+    apz = p[2] - az
+    d1 = abx * apx + aby * apy + abz * apz
+    d2 = acx * apx + acy * apy + acz * apz
     out[0] = 0.0
     out[1] = 0.0
     out[2] = 0.0
     if d1 <= 0.0 and d2 <= 0.0:
         out[0] = 1.0
         return
-    bp = p - b
-    d3 = np.sum(ab * bp)
-    d4 = np.sum(ac * bp)
+    bpx = p[0] - V[ib, 0]
+    bpy = p[1] - V[ib, 1]
+    bpz = p[2] - V[ib, 2]
+    d3 = abx * bpx + aby * bpy + abz * bpz
+    d4 = acx * bpx + acy * bpy + acz * bpz
     if d3 >= 0.0 and d4 <= d3:
         out[1] = 1.0
         return
@@ -290,9 +319,11 @@ def _closest_on_face(V, F, f, p, out):
         out[0] = 1.0 - v
         out[1] = v
         return
-    cp = p - c
-    d5 = np.sum(ab * cp)
-    d6 = np.sum(ac * cp)
+    cpx = p[0] - V[ic, 0]
+    cpy = p[1] - V[ic, 1]
+    cpz = p[2] - V[ic, 2]
+    d5 = abx * cpx + aby * cpy + abz * cpz
+    d6 = acx * cpx + acy * cpy + acz * cpz
     if d6 >= 0.0 and d5 <= d6:
         out[2] = 1.0
         return
@@ -317,18 +348,18 @@ def _closest_on_face(V, F, f, p, out):
 
 
 @njit(cache=True, nogil=True, fastmath=False)
-def _descend(V, F, FN, VFp, VF, f, b, tgt, dist, tmp, best):
+def _descend(V, F, FN, VFp, VF, f, b, tgt, dist, tmp, best, x):
     """One exact descent move of a face point toward ``tgt`` without leaving the surface.
 
     Moves to the closest point of the current face if that is closer; otherwise, from that
     closest point (on an edge or at a vertex), to the closest point of the neighbouring face
-    or of the best face of the vertex's fan if one is closer. ``b`` (3,) is updated in place.
-    Returns ``(face, distance, moved)``; ``moved`` False certifies a local minimum.
+    or of the best face of the vertex's fan if one is closer. ``b`` (3,) is updated in place;
+    ``tmp``, ``best``, ``x`` (3,) are scratch. Returns ``(face, distance, moved)``; ``moved``
+    False certifies a local minimum.
     """
-    x = np.empty(3)
     _closest_on_face(V, F, f, tgt, best)
     _position(V, F, f, best, x)
-    dc = np.sqrt(np.sum((tgt - x) ** 2))
+    dc = _dist(tgt, x)
     if dc < dist:
         b[:] = best
         return f, dc, True
@@ -345,7 +376,7 @@ def _descend(V, F, FN, VFp, VF, f, b, tgt, dist, tmp, best):
                 if g >= 0:
                     _closest_on_face(V, F, g, tgt, tmp)
                     _position(V, F, g, tmp, x)
-                    d = np.sqrt(np.sum((tgt - x) ** 2))
+                    d = _dist(tgt, x)
                     if d < best_d:
                         best_d = d
                         best_face = g
@@ -361,7 +392,7 @@ def _descend(V, F, FN, VFp, VF, f, b, tgt, dist, tmp, best):
                 continue
             _closest_on_face(V, F, g, tgt, tmp)
             _position(V, F, g, tmp, x)
-            d = np.sqrt(np.sum((tgt - x) ** 2))
+            d = _dist(tgt, x)
             if d < best_d:
                 best_d = d
                 best_face = g
@@ -379,33 +410,45 @@ def _attract_one(V, F, FN, VFp, VF, f, b, tgt, max_iter, max_faces, eps_len, bar
     Returns ``(face, distance, iterations, hit_boundary, converged)``. Shared by the parallel
     kernel below and the serial one in `meshfit._kernels.curves`.
     """
+    buf = np.empty((_ATTRACT_SCRATCH, 3))
+    return _attract_one_buf(
+        V, F, FN, VFp, VF, f, b, tgt, max_iter, max_faces, eps_len, bary_eps, buf
+    )
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _attract_one_buf(V, F, FN, VFp, VF, f, b, tgt, max_iter, max_faces, eps_len, bary_eps, buf):
+    """`_attract_one` with caller-owned scratch ``buf (_ATTRACT_SCRATCH, 3) f8`` (a serial
+    caller allocates it once for all its points)."""
     hit = False
     conv = False
-    x = np.empty(3)
-    nrm = np.empty(3)
-    step = np.empty(3)
-    u = np.empty(3)
-    cb = np.empty(3)
-    tmp = np.empty(3)
+    x = buf[0]
+    nrm = buf[1]
+    step = buf[2]
+    u = buf[3]
+    cb = buf[4]
+    tmp = buf[5]
+    y = buf[6]
     _position(V, F, f, b, x)
-    dist = np.sqrt(np.sum((tgt - x) ** 2))
+    dist = _dist(tgt, x)
     h = 1.0
     it = 0
     while it < max_iter:
         it += 1
         # the target projected onto the current face's plane, minus the point
-        _face_normal(V, F, f, nrm)
-        off = np.sum((tgt - x) * nrm)
-        for d in range(3):
-            step[d] = h * (tgt[d] - off * nrm[d] - x[d])
+        n0, n1, n2 = _face_normal3(V, F, f)
+        off = (tgt[0] - x[0]) * n0 + (tgt[1] - x[1]) * n1 + (tgt[2] - x[2]) * n2
+        step[0] = h * (tgt[0] - off * n0 - x[0])
+        step[1] = h * (tgt[1] - off * n1 - x[1])
+        step[2] = h * (tgt[2] - off * n2 - x[2])
         _clip_at_boundary(V, F, FN, f, b, step, bary_eps)
         moved = False
-        if np.sqrt(np.sum(step * step)) >= eps_len:
+        if np.sqrt(step[0] * step[0] + step[1] * step[1] + step[2] * step[2]) >= eps_len:
             total = _start_direction(V, F, f, step, u)
             cb[:] = b
             g, _, _, _ = _walk_one(V, F, FN, f, cb, u, total, max_faces, bary_eps)
             _position(V, F, g, cb, nrm)  # nrm reused as the candidate position
-            cand = np.sqrt(np.sum((tgt - nrm) ** 2))
+            cand = _dist(tgt, nrm)
             if cand < dist:
                 f = g
                 b[:] = cb
@@ -417,7 +460,7 @@ def _attract_one(V, F, FN, VFp, VF, f, b, tgt, max_iter, max_faces, eps_len, bar
         if not moved:
             # a short or rejected step: an exact move within the face, across the
             # edge or around the vertex the point sits on, or a certified local minimum
-            f, dist, moved = _descend(V, F, FN, VFp, VF, f, b, tgt, dist, tmp, cb)
+            f, dist, moved = _descend(V, F, FN, VFp, VF, f, b, tgt, dist, tmp, cb, y)
             if not moved:
                 conv = True
                 break
@@ -445,7 +488,8 @@ def attract_points(V, F, FN, VFp, VF, face, bary, targets, max_iter, max_faces, 
     hit = np.zeros(n, dtype=np.bool_)
     converged = np.zeros(n, dtype=np.bool_)
     for i in prange(n):  # iteration i writes row i only
-        out_face[i], distance[i], iterations[i], hit[i], converged[i] = _attract_one(
+        buf = np.empty((_ATTRACT_SCRATCH, 3))
+        out_face[i], distance[i], iterations[i], hit[i], converged[i] = _attract_one_buf(
             V,
             F,
             FN,
@@ -458,5 +502,6 @@ def attract_points(V, F, FN, VFp, VF, face, bary, targets, max_iter, max_faces, 
             max_faces,
             eps_len,
             bary_eps,
+            buf,
         )
     return out_face, out_bary, distance, iterations, hit, converged
