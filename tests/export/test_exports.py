@@ -186,7 +186,114 @@ def test_export_rejects_bad_input(network, tmp_path):
     assert not list(tmp_path.glob(".*"))  # no temporary files left behind
 
 
-@pytest.mark.skipif(step_available(), reason="OCP present: STEP writer still to be written")
-def test_step_needs_the_cad_extra(network, tmp_path):
+def test_step_needs_the_cad_extra(network, tmp_path, monkeypatch):
+    import meshfit.export.step as step
+
+    monkeypatch.setattr(step, "step_available", lambda: False)
     with pytest.raises(ExportError, match=r"meshfit\[cad\]"):
         export_step(tmp_path / "a.step", network[0])
+    assert not list(tmp_path.iterdir())
+
+
+needs_ocp = pytest.mark.skipif(not step_available(), reason="needs meshfit[cad] (cadquery-ocp)")
+
+
+def _read_back(face) -> BSplineSurface:
+    return BSplineSurface(face.control_points, face.knots_u, face.knots_v)
+
+
+@needs_ocp
+def test_step_round_trip(network, tmp_path):
+    from tests.export.step_reader import read_step
+
+    surfaces, _, _ = network
+    path = export_step(tmp_path / "net.step", surfaces, names=["left", "right", "extra"])
+    faces, topo = read_step(path)
+    by_name = {f.name: f for f in faces}
+    assert sorted(by_name) == ["extra", "left", "right"]
+    u, v = _uv()
+    for name, s in zip(["left", "right", "extra"], surfaces, strict=True):
+        f = by_name[name]
+        assert f.degree == (3, 3) and not f.rational
+        scale = np.abs(s.control_points).max()
+        # OpenCASCADE writes 12 significant digits
+        assert_allclose(f.control_points, s.control_points, rtol=0, atol=1e-11 * scale)
+        assert_allclose(f.knots_u, s.knots_u, rtol=0, atol=1e-12)
+        assert_allclose(f.knots_v, s.knots_v, rtol=0, atol=1e-12)
+        assert_allclose(_read_back(f).evaluate(u, v), s.evaluate(u, v), rtol=0, atol=1e-11 * scale)
+    # the three patches do not share boundaries: three separate shells
+    assert topo["shells"] == 3 and topo["closed_shells"] == 0
+
+
+@needs_ocp
+def test_step_sews_a_stitched_network(tmp_path):
+    from meshfit.stitch import control_classes, network_from_grids, stitch_surfaces
+    from tests.export.step_reader import read_step
+    from tests.stitch.networks import cube_sphere
+
+    grids = cube_sphere(33)
+    net = network_from_grids(grids)
+    cc = control_classes(net, default=8, grid_shapes=[g.shape[:2] for g in grids])
+    fitted = [fit_bspline(g, controls=c) for g, c in zip(grids, cc.controls, strict=True)]
+    stitched = stitch_surfaces(fitted, net)
+    names = [f"face_{k}" for k in range(6)]
+
+    faces, topo = read_step(export_step(tmp_path / "closed.step", stitched, names=names))
+    assert topo == {"shells": 1, "closed_shells": 1, "free_edges": 0}  # a closed shell
+    assert sorted(f.name for f in faces) == names
+    for f in faces:
+        s = stitched[names.index(f.name)]
+        assert_allclose(f.control_points, s.control_points, rtol=0, atol=1e-11 * 2)
+
+    # independent fits leave gaps along the 12 shared boundaries: nothing is sewn
+    _, topo = read_step(export_step(tmp_path / "gaps.step", fitted, names=names))
+    assert topo == {"shells": 6, "closed_shells": 0, "free_edges": 24}
+    # and sew=False keeps a stitched network's faces apart
+    _, topo = read_step(export_step(tmp_path / "loose.step", stitched, sew=False))
+    assert topo == {"shells": 6, "closed_shells": 0, "free_edges": 24}
+
+
+@needs_ocp
+@pytest.mark.parametrize(
+    ("units", "declared"),
+    [("MM", "SI_UNIT(.MILLI.,.METRE.)"), ("M", "SI_UNIT($,.METRE.)"), ("ft", "'FOOT'")],
+)
+def test_step_units(network, tmp_path, units, declared):
+    from tests.export.step_reader import read_step
+
+    s = network[0][2]
+    path = export_step(tmp_path / "u.stp", s, units=units)
+    assert declared in path.read_text().replace(" ", "")
+    # the unit is declared, the coordinates are not rescaled
+    from meshfit.export.step import STEP_UNITS
+
+    (face,), _ = read_step(path, STEP_UNITS[units.upper()][1])
+    scale = np.abs(s.control_points).max()
+    assert_allclose(face.control_points, s.control_points, rtol=0, atol=1e-11 * scale)
+
+
+def test_step_rejects_bad_input(network, tmp_path):
+    with pytest.raises(InputError, match="units"):
+        export_step(tmp_path / "a.step", network[0], units="furlong")
+    with pytest.raises(InputError, match="units"):
+        export_step(tmp_path / "a.step", network[0], units="IN")
+    with pytest.raises(InputError, match=r"\.step or \.stp"):
+        export_step(tmp_path / "a.igs", network[0])
+    with pytest.raises(InputError, match="names"):
+        export_step(tmp_path / "a.step", network[0], names=["a", "a", "b"])
+    assert not list(tmp_path.iterdir())
+
+
+@needs_ocp
+def test_occ_surface_conversion_is_exact(network):
+    from meshfit.export.step import step_surface, surface_from_occ
+
+    for s in network[0]:
+        back = surface_from_occ(step_surface(s))
+        np.testing.assert_array_equal(back.control_points, s.control_points)
+        np.testing.assert_array_equal(back.knots_u, s.knots_u)
+        np.testing.assert_array_equal(back.knots_v, s.knots_v)
+    occ = step_surface(network[0][2])
+    occ.IncreaseDegree(4, 3)
+    with pytest.raises(InputError, match="bicubic"):
+        surface_from_occ(occ)
