@@ -25,8 +25,8 @@ nefertiti from ``meshfit.layout.cube_layout``, spring meshes at level 2 from
 ``meshfit.springs``, then fit + stitch + displacement maps + seam closing at 8 x 8 and
 16 x 16 controls, with the seam gaps and normal jumps before and after stitching and the
 displacement crack gaps (``displacement_seam_gaps``: as tessellated at each map's own
-resolution, and read at equal boundary parameters), the same for the igea layout of the
-spring-mesh tests (``examples/layouts/igea.json``); a layout that cannot be built is
+resolution, and read at equal boundary parameters), the same for the igea and nefertiti layouts
+of the spring-mesh tests (``examples/layouts/``); a layout that cannot be built is
 reported with its error. :func:`synthetic_network_figures` times
 the same stages on 104 patches (the thesis' count) cut from one synthetic height field.
 
@@ -403,9 +403,12 @@ def main() -> None:
         "layouts": layout_figures(
             {
                 **{f"{name}_cube2": layout_grids(name) for name in ("igea", "nefertiti")},
-                "igea_test_layout": layout_grids(
-                    "igea", level=None, layout_file=str(ROOT / "examples/layouts/igea.json")
-                ),
+                **{
+                    f"{name}_test_layout": layout_grids(
+                        name, level=None, layout_file=str(ROOT / f"examples/layouts/{name}.json")
+                    )
+                    for name in ("igea", "nefertiti")
+                },
             }
         ),
         "synthetic_network_104_patches": synthetic_network_figures(repeats=args.repeats),
