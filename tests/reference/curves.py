@@ -55,3 +55,184 @@ def attract_chain(mesh, points, targets):
         faces.append(int(end.face[0]))
         barys.append(end.bary[0].copy())
     return np.array(faces), np.array(barys)
+
+
+def _xyz(mesh, face, bary):
+    c = mesh.vertices[mesh.faces[face]]
+    return bary[:, 0, None] * c[:, 0] + bary[:, 1, None] * c[:, 1] + bary[:, 2, None] * c[:, 2]
+
+
+def _pair_ok(mesh, fa, ba, fb, bb) -> bool:
+    """Same or edge-adjacent faces, an edge point on both faces of its edge and a vertex
+    point on every face around it (all representations tried)."""
+    from meshfit.surface.walk import _representations
+
+    for f, _ in _representations(mesh, int(fa), np.asarray(ba)):
+        for g, _ in _representations(mesh, int(fb), np.asarray(bb)):
+            if f == g or g in mesh.face_neighbors[f]:
+                return True
+    return False
+
+
+def _graph_bridge(mesh, fa, ba, fb, bb):
+    from meshfit.surface import greedy_path, path_to_surface_points
+
+    V, F = mesh.vertices, mesh.faces
+    xa = ba @ V[F[fa]]
+    xb = bb @ V[F[fb]]
+    va = int(F[fa][np.argmin(np.linalg.norm(V[F[fa]] - xb, axis=1))])
+    vb = int(F[fb][np.argmin(np.linalg.norm(V[F[fb]] - xa, axis=1))])
+    g = path_to_surface_points(mesh, greedy_path(mesh, va, vb).vertices, per_edge=1)
+    return list(zip(g.face.tolist(), g.bary, strict=True))
+
+
+def bridge(mesh, fa, ba, fb, bb, depth=0, max_depth=12):
+    """Points to insert between face points a and b, one pair at a time and recursively:
+    a walks halfway to b (public ``walk_points``) and is attracted to the 3-D midpoint
+    (public ``attract_points``, 50 steps); both halves are bridged while the midpoint brings
+    the ends closer (both halves under 0.8 of the gap), else a greedy graph path joins them.
+    Returns a list of ``(face, bary)``."""
+    from meshfit.surface import attract_points, walk_points
+    from meshfit.types import SurfacePoints
+
+    if _pair_ok(mesh, fa, ba, fb, bb):
+        return []
+    if depth >= max_depth:
+        return _graph_bridge(mesh, fa, ba, fb, bb)
+    xa = _xyz(mesh, np.array([fa]), np.asarray(ba)[None])[0]
+    xb = _xyz(mesh, np.array([fb]), np.asarray(bb)[None])[0]
+    gap = np.linalg.norm(xb - xa)
+    start = SurfacePoints(np.array([fa]), np.asarray(ba, dtype=float)[None])
+    half = walk_points(mesh, start, (0.5 * (xb - xa))[None]).end
+    mid = attract_points(mesh, half, (0.5 * (xa + xb))[None], max_iter=50).end
+    xm = mesh.xyz(mid)[0]
+    if max(np.linalg.norm(xm - xa), np.linalg.norm(xb - xm)) >= 0.8 * gap:
+        return _graph_bridge(mesh, fa, ba, fb, bb)
+    fm, bm = int(mid.face[0]), mid.bary[0]
+    return [
+        *bridge(mesh, fa, ba, fm, bm, depth + 1, max_depth),
+        (fm, bm),
+        *bridge(mesh, fm, bm, fb, bb, depth + 1, max_depth),
+    ]
+
+
+def densify(mesh, curve):
+    """Every consecutive pair of ``curve`` bridged by :func:`bridge`; returns ``(face (k,),
+    bary (k, 3))`` of the whole densified curve."""
+    p = curve.points
+    m = len(p)
+    faces, barys = [], []
+    for i in range(m):
+        faces.append(int(p.face[i]))
+        barys.append(np.asarray(p.bary[i], dtype=float))
+        if i == m - 1 and not curve.closed:
+            break
+        j = (i + 1) % m
+        for f, b in bridge(mesh, int(p.face[i]), p.bary[i], int(p.face[j]), p.bary[j]):
+            faces.append(int(f))
+            barys.append(np.asarray(b, dtype=float))
+    return np.array(faces, dtype=np.int64), np.array(barys)
+
+
+def curve_pieces(mesh, points, closed: bool):
+    """A face-point polyline as straight pieces, numpy throughout: returns ``(face (2n,),
+    b0 (2n, 3), b1 (2n, 3), start (2n,), length (2n,), total)`` as
+    `meshfit.surface.walk._curve_pieces`; segment i joins points i and i + 1."""
+    from meshfit import tol
+    from meshfit._kernels import curves as _curves
+    from meshfit.surface.walk import _clean_bary
+
+    m = len(points)
+    P = np.arange(m if closed else m - 1)
+    Q = (P + 1) % m
+    pf = np.array(points.face[P], dtype=np.int64)
+    qf = np.array(points.face[Q], dtype=np.int64)
+    pb = _clean_bary(points.bary[P])
+    qb = _clean_bary(points.bary[Q])
+    FN = mesh.face_neighbors
+    indptr, vf = mesh.vertex_faces
+    via = np.empty(P.size, dtype=np.int64)
+    bad = _curves.rewrite_pairs(
+        np.ascontiguousarray(mesh.faces), np.ascontiguousarray(FN), indptr, vf, pf, pb, qf, qb,
+        tol.BARY_EPS, via,
+    )  # fmt: skip
+    assert bad < 0, f"points {bad} and {bad + 1} share nothing"
+    V, F = mesh.vertices, mesh.faces
+    xp = np.einsum("ij,ijk->ik", pb, V[F[pf]])
+    xq = np.einsum("ij,ijk->ik", qb, V[F[qf]])
+    xf_b = qb.copy()
+    xg_b = qb.copy()
+    corner = np.flatnonzero(via >= 0)
+    if corner.size:
+        xf_b[corner] = 0.0
+        xg_b[corner] = 0.0
+        xf_b[corner, np.argmax(F[pf[corner]] == via[corner, None], axis=1)] = 1.0
+        xg_b[corner, np.argmax(F[qf[corner]] == via[corner, None], axis=1)] = 1.0
+    adj = np.flatnonzero((pf != qf) & (via < 0))
+    if adj.size:
+        f, g = pf[adj], qf[adj]
+        k = np.argmax(FN[f] == g[:, None], axis=1)
+        va = F[f, k]
+        vc = F[f, (k + 1) % 3]
+        a = V[va]
+        e = V[vc] - a
+        el = np.linalg.norm(e, axis=1)
+        eh = e / el[:, None]
+        dp = xp[adj] - a
+        dq = xq[adj] - a
+        along_p = np.einsum("ij,ij->i", dp, eh)
+        along_q = np.einsum("ij,ij->i", dq, eh)
+        h_p = np.linalg.norm(dp - along_p[:, None] * eh, axis=1)
+        h_q = np.linalg.norm(dq - along_q[:, None] * eh, axis=1)
+        hs = h_p + h_q
+        t = np.divide(h_p, hs, out=np.ones_like(hs), where=hs > 0)
+        mu = np.clip((along_p + t * (along_q - along_p)) / el, 0.0, 1.0)
+        r = np.arange(adj.size)
+        bf = np.zeros((adj.size, 3))
+        bf[r, k] = 1.0 - mu
+        bf[r, (k + 1) % 3] = mu
+        slot_c = np.argmax(F[g] == vc[:, None], axis=1)
+        slot_a = np.argmax(F[g] == va[:, None], axis=1)
+        bg = np.zeros((adj.size, 3))
+        bg[r, slot_a] = 1.0 - mu
+        bg[r, slot_c] = mu
+        xf_b[adj] = bf
+        xg_b[adj] = bg
+    xx = np.einsum("ij,ijk->ik", xf_b, V[F[pf]])
+    face = np.stack([pf, qf], axis=1).reshape(-1)
+    b0 = np.stack([pb, xg_b], axis=1).reshape(-1, 3)
+    b1 = np.stack([xf_b, qb], axis=1).reshape(-1, 3)
+    length = np.stack(
+        [np.linalg.norm(xx - xp, axis=1), np.linalg.norm(xq - xx, axis=1)], axis=1
+    ).reshape(-1)
+    start = np.concatenate([[0.0], np.cumsum(length)])
+    return face, b0, b1, start[:-1], length, float(start[-1])
+
+
+def place_on_pieces(points, closed: bool, pieces, s):
+    """Face points at arc lengths ``s`` on ``pieces`` (the tuple of :func:`curve_pieces`),
+    one at a time: ``(face (k,), bary (k, 3), segment (k,))``."""
+    face_p, b0, b1, start, length, total = pieces
+    arc = np.append(start[0::2], total)
+    m = len(points)
+    faces, barys, segs = [], [], []
+    for si in np.asarray(s, dtype=float):
+        j = int(np.clip(np.searchsorted(start, si, side="right") - 1, 0, face_p.size - 1))
+        t = (si - start[j]) / length[j] if length[j] > 0 else 1.0
+        t = min(max(t, 0.0), 1.0)
+        f, b, seg = int(face_p[j]), (1.0 - t) * b0[j] + t * b1[j], j // 2
+        at = int(min(np.searchsorted(arc, si), arc.size - 1))
+        if arc[at] == si:  # exactly on a curve point: that point
+            at = at % m if closed else at
+            f, b, seg = (
+                int(points.face[at]),
+                np.array(points.bary[at]),
+                min(at, face_p.size // 2 - 1),
+            )
+        if (b < 0).any():
+            b = np.clip(b, 0.0, None)
+            b = b / b.sum()
+        faces.append(f)
+        barys.append(b)
+        segs.append(seg)
+    return np.array(faces, dtype=np.int64), np.array(barys), np.array(segs, dtype=np.int64)

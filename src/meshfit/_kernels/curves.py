@@ -488,3 +488,344 @@ def subdivide_steps(
                 out[i] = k
                 break
     return out
+
+
+# ----------------------------------------------------------------- a curve as straight pieces
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _point_in(V, F, f, b, out):
+    """Position of barycentrics ``b`` (3,) in face ``f`` into ``out`` (3,)."""
+    for d in range(3):
+        out[d] = b[0] * V[F[f, 0], d] + b[1] * V[F[f, 1], d] + b[2] * V[F[f, 2], d]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _norm3(x0, x1, x2):
+    return np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+
+
+@njit(cache=True, nogil=True)
+def curve_pieces(V, F, FN, VF_ptr, VF, pf, pb, qf, qb, eps):
+    """Split each segment (p[i], q[i]) of a face-point polyline into two straight pieces.
+
+    pf, qf (n,) i8 and pb, qb (n, 3) f8 (barycentrics >= 0) are rewritten in place as
+    `rewrite_pairs` does. Returns ``(bad, face (2n,) i8, b0 (2n, 3), b1 (2n, 3), start
+    (2n + 1,), length (2n,))``: piece 2i runs in p's face from p to the crossing X of the
+    shared edge (the unfolded straight segment's, clamped to the edge; the shared vertex
+    when the faces share only that; X = q on a shared face), piece 2i + 1 in q's face from X
+    to q; ``start`` is the cumulative length (``start[-1]`` the total). ``bad`` is the first
+    pair on faces sharing nothing, or -1 (the other outputs are then undefined). Kernel of
+    `meshfit.surface.walk._curve_pieces`.
+    """
+    n = pf.size
+    via = np.empty(n, dtype=np.int64)
+    face = np.empty(2 * n, dtype=np.int64)
+    b0 = np.empty((2 * n, 3))
+    b1 = np.empty((2 * n, 3))
+    start = np.zeros(2 * n + 1)
+    length = np.empty(2 * n)
+    bad = rewrite_pairs(F, FN, VF_ptr, VF, pf, pb, qf, qb, eps, via)
+    if bad >= 0:
+        return bad, face, b0, b1, start, length
+    xp = np.empty(3)
+    xq = np.empty(3)
+    xx = np.empty(3)
+    xf = np.empty(3)
+    xg = np.empty(3)
+    for i in range(n):
+        f = pf[i]
+        g = qf[i]
+        _point_in(V, F, f, pb[i], xp)
+        _point_in(V, F, g, qb[i], xq)
+        for c in range(3):
+            xf[c] = qb[i, c]
+            xg[c] = qb[i, c]
+        if via[i] >= 0:  # faces sharing only a vertex: through that vertex
+            v = via[i]
+            xf[:] = 0.0
+            xg[:] = 0.0
+            for c in range(3):
+                if F[f, c] == v:
+                    xf[c] = 1.0
+                    break
+            for c in range(3):
+                if F[g, c] == v:
+                    xg[c] = 1.0
+                    break
+        elif f != g:  # adjacent faces: where the unfolded straight segment meets the edge
+            k = 0
+            for c in range(3):
+                if FN[f, c] == g:
+                    k = c
+                    break
+            va = F[f, k]
+            vc = F[f, (k + 1) % 3]
+            e0 = V[vc, 0] - V[va, 0]
+            e1 = V[vc, 1] - V[va, 1]
+            e2 = V[vc, 2] - V[va, 2]
+            el = _norm3(e0, e1, e2)
+            h0 = e0 / el
+            h1 = e1 / el
+            h2 = e2 / el
+            p0 = xp[0] - V[va, 0]
+            p1 = xp[1] - V[va, 1]
+            p2 = xp[2] - V[va, 2]
+            q0 = xq[0] - V[va, 0]
+            q1 = xq[1] - V[va, 1]
+            q2 = xq[2] - V[va, 2]
+            # (0 + 2) + 1: the order numpy's einsum sums three products in
+            along_p = (p0 * h0 + p2 * h2) + p1 * h1
+            along_q = (q0 * h0 + q2 * h2) + q1 * h1
+            h_p = _norm3(p0 - along_p * h0, p1 - along_p * h1, p2 - along_p * h2)
+            h_q = _norm3(q0 - along_q * h0, q1 - along_q * h1, q2 - along_q * h2)
+            hs = h_p + h_q
+            t = h_p / hs if hs > 0 else 1.0
+            # outside the edge the shortest path inside the two faces bends at its end vertex
+            mu = (along_p + t * (along_q - along_p)) / el
+            if mu < 0.0:
+                mu = 0.0
+            elif mu > 1.0:
+                mu = 1.0
+            xf[:] = 0.0
+            xf[k] = 1.0 - mu
+            xf[(k + 1) % 3] = mu
+            xg[:] = 0.0
+            for c in range(3):
+                if F[g, c] == va:
+                    xg[c] = 1.0 - mu
+                    break
+            for c in range(3):
+                if F[g, c] == vc:
+                    xg[c] = mu
+                    break
+        _point_in(V, F, f, xf, xx)
+        face[2 * i] = f
+        face[2 * i + 1] = g
+        for c in range(3):
+            b0[2 * i, c] = pb[i, c]
+            b1[2 * i, c] = xf[c]
+            b0[2 * i + 1, c] = xg[c]
+            b1[2 * i + 1, c] = qb[i, c]
+        length[2 * i] = _norm3(xx[0] - xp[0], xx[1] - xp[1], xx[2] - xp[2])
+        length[2 * i + 1] = _norm3(xq[0] - xx[0], xq[1] - xx[1], xq[2] - xx[2])
+    for j in range(2 * n):
+        start[j + 1] = start[j] + length[j]
+    return -1, face, b0, b1, start, length
+
+
+@njit(cache=True, nogil=True)
+def place_on_pieces(p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, pt_bary, closed, s):
+    """Face points at arc lengths ``s (k,) f8`` (already in range) of a curve's pieces.
+
+    Pieces as returned by `curve_pieces` (``p_start`` without the total), ``arc`` the
+    curve's points' arc lengths (plus the total when closed), ``pt_face (m,)``, ``pt_bary
+    (m, 3)`` its points. Returns ``(face (k,) i8, bary (k, 3) f8, segment (k,) i8)``: a
+    position equal to a point's arc length gives that point. Kernel of
+    `meshfit.surface.walk._place_on_pieces` (same arithmetic as its numpy form).
+    """
+    k = s.size
+    npc = p_face.size
+    m = pt_face.size
+    face = np.empty(k, dtype=np.int64)
+    bary = np.empty((k, 3))
+    segment = np.empty(k, dtype=np.int64)
+    for i in range(k):
+        si = s[i]
+        j = np.searchsorted(p_start, si, side="right") - 1
+        if j < 0:
+            j = 0
+        if j > npc - 1:
+            j = npc - 1
+        plen = p_len[j]
+        t = (si - p_start[j]) / plen if plen > 0 else 1.0
+        if t < 0.0:
+            t = 0.0
+        elif t > 1.0:
+            t = 1.0
+        face[i] = p_face[j]
+        for c in range(3):
+            bary[i, c] = (1.0 - t) * p_b0[j, c] + t * p_b1[j, c]
+        segment[i] = j // 2
+        at = np.searchsorted(arc, si)
+        if at > arc.size - 1:
+            at = arc.size - 1
+        if arc[at] == si:
+            if closed:
+                at = at % m
+            face[i] = pt_face[at]
+            for c in range(3):
+                bary[i, c] = pt_bary[at, c]
+            segment[i] = min(at, npc // 2 - 1)
+        if bary[i, 0] < 0.0 or bary[i, 1] < 0.0 or bary[i, 2] < 0.0:
+            for c in range(3):
+                if bary[i, c] < 0.0:
+                    bary[i, c] = 0.0
+            tot = bary[i, 0] + bary[i, 1] + bary[i, 2]
+            for c in range(3):
+                bary[i, c] = bary[i, c] / tot
+    return face, bary, segment
+
+
+# --------------------------------------------------------- bisecting pairs that break the rule
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _clean_copy(b, out):
+    """``out`` = ``b`` (3,) with tiny negatives clamped and renormalised, only when there is
+    one (as `meshfit.surface.walk._clean_bary`)."""
+    for c in range(3):
+        out[c] = b[c]
+    if out[0] < 0.0 or out[1] < 0.0 or out[2] < 0.0:
+        for c in range(3):
+            if out[c] < 0.0:
+                out[c] = 0.0
+        tot = out[0] + out[1] + out[2]
+        for c in range(3):
+            out[c] = out[c] / tot
+
+
+@njit(cache=True, nogil=True)
+def _grow(face, bary, pair, need):
+    if need <= face.size:
+        return face, bary, pair
+    cap = max(need, 2 * face.size)
+    f2 = np.empty(cap, dtype=np.int64)
+    b2 = np.empty((cap, 3))
+    p2 = np.empty(cap, dtype=np.int64)
+    f2[: face.size] = face
+    b2[: face.size] = bary
+    p2[: face.size] = pair
+    return f2, b2, p2
+
+
+@njit(cache=True, nogil=True)
+def bridge_pairs(
+    V, F, FN, VF_ptr, VF, fa, ba, fb, bb, max_depth, max_iter, max_faces, walk_eps, att_eps,
+    bary_eps,
+):  # fmt: skip
+    """Points that bridge each pair (a, b) of face points breaking the sampling rule.
+
+    fa, fb (n,) i8; ba, bb (n, 3) f8. A pair still apart is bisected on the surface: a walks
+    halfway towards b (`_walk_one`, ``max_faces`` crossings, no move under ``walk_eps``) and
+    is attracted to the 3-D midpoint (``max_iter`` steps, ``att_eps``); both halves are
+    bisected further, depth first, while the midpoint brings the ends closer (both halves
+    under 0.8 of the gap) and the depth is below ``max_depth``. Returns ``(pair (k,) i8,
+    face (k,) i8, bary (k, 3) f8, gfa, gba, gfb, gbb)``: the inserted entries in curve order
+    with the pair each belongs to; an entry with ``face = -1 - j`` stands for a graph path
+    between the ends ``(gfa, gba)[j]`` and ``(gfb, gbb)[j]`` (a pair that would not come
+    closer or ran out of depth). Kernel of `meshfit.curves.base.densify_curve`.
+    """
+    n = fa.size
+    fa_r, ba_r, fb_r, bb_r = _scratch(VF_ptr)
+    cap = 16 * n + 16
+    out_face = np.empty(cap, dtype=np.int64)
+    out_bary = np.empty((cap, 3))
+    out_pair = np.empty(cap, dtype=np.int64)
+    k = 0
+    g_face = np.empty((n + 4, 2), dtype=np.int64)
+    g_bary = np.empty((n + 4, 2, 3))
+    ng = 0
+    # depth-first stack of tasks: kind 0 bisects (face, bary)[0] -> (face, bary)[1], kind 1
+    # emits (face, bary)[0]
+    ns = 3 * (max_depth + 2)
+    s_kind = np.empty(ns, dtype=np.int64)
+    s_depth = np.empty(ns, dtype=np.int64)
+    s_face = np.empty((ns, 2), dtype=np.int64)
+    s_bary = np.empty((ns, 2, 3))
+    buf = np.empty((_ATTRACT_SCRATCH, 3))
+    xa = np.empty(3)
+    xb = np.empty(3)
+    xm = np.empty(3)
+    step = np.empty(3)
+    u = np.empty(3)
+    hb = np.empty(3)
+    tgt = np.empty(3)
+    for i in range(n):
+        top = 0
+        s_kind[0] = 0
+        s_depth[0] = 0
+        s_face[0, 0] = fa[i]
+        s_face[0, 1] = fb[i]
+        for c in range(3):
+            s_bary[0, 0, c] = ba[i, c]
+            s_bary[0, 1, c] = bb[i, c]
+        top = 1
+        while top > 0:
+            top -= 1
+            f0 = s_face[top, 0]
+            f1 = s_face[top, 1]
+            if s_kind[top] == 1:
+                out_face, out_bary, out_pair = _grow(out_face, out_bary, out_pair, k + 1)
+                out_face[k] = f0
+                out_bary[k] = s_bary[top, 0]
+                out_pair[k] = i
+                k += 1
+                continue
+            b0 = s_bary[top, 0].copy()
+            b1 = s_bary[top, 1].copy()
+            depth = s_depth[top]
+            if _pair_ok(F, FN, VF_ptr, VF, f0, b0, f1, b1, bary_eps, fa_r, ba_r, fb_r, bb_r):
+                continue
+            closer = False
+            fm = -1
+            if depth < max_depth:
+                _position(V, F, f0, b0, xa)
+                _position(V, F, f1, b1, xb)
+                gap = np.sqrt(_dist2(xb, xa))
+                for d in range(3):
+                    step[d] = 0.5 * (xb[d] - xa[d])
+                    tgt[d] = 0.5 * (xa[d] + xb[d])
+                _clean_copy(b0, hb)
+                fh = f0
+                total = _start_direction(V, F, f0, step, u)
+                if total > walk_eps:
+                    fh, _, _, _ = _walk_one(V, F, FN, f0, hb, u, total, max_faces, bary_eps)
+                mb = np.empty(3)
+                _clean_copy(hb, mb)
+                fm, _, _, _, _ = _attract_one_buf(
+                    V, F, FN, VF_ptr, VF, fh, mb, tgt, max_iter, max_faces, att_eps,
+                    bary_eps, buf,
+                )  # fmt: skip
+                _position(V, F, fm, mb, xm)
+                da = np.sqrt(_dist2(xm, xa))
+                db = np.sqrt(_dist2(xb, xm))
+                closer = max(da, db) < 0.8 * gap
+            if closer:
+                # left half first: push (m, b), emit m, (a, m)
+                s_kind[top] = 0
+                s_depth[top] = depth + 1
+                s_face[top, 0] = fm
+                s_face[top, 1] = f1
+                s_bary[top, 0] = mb
+                s_bary[top, 1] = b1
+                s_kind[top + 1] = 1
+                s_face[top + 1, 0] = fm
+                s_face[top + 1, 1] = fm
+                s_bary[top + 1, 0] = mb
+                s_kind[top + 2] = 0
+                s_depth[top + 2] = depth + 1
+                s_face[top + 2, 0] = f0
+                s_face[top + 2, 1] = fm
+                s_bary[top + 2, 0] = b0
+                s_bary[top + 2, 1] = mb
+                top += 3
+                continue
+            if ng == g_face.shape[0]:
+                gf2 = np.empty((2 * ng, 2), dtype=np.int64)
+                gb2 = np.empty((2 * ng, 2, 3))
+                gf2[:ng] = g_face
+                gb2[:ng] = g_bary
+                g_face = gf2
+                g_bary = gb2
+            g_face[ng, 0] = f0
+            g_face[ng, 1] = f1
+            g_bary[ng, 0] = b0
+            g_bary[ng, 1] = b1
+            out_face, out_bary, out_pair = _grow(out_face, out_bary, out_pair, k + 1)
+            out_face[k] = -1 - ng
+            out_bary[k] = 0.0
+            out_pair[k] = i
+            k += 1
+            ng += 1
+    return out_pair[:k], out_face[:k], out_bary[:k], g_face[:ng], g_bary[:ng]

@@ -34,6 +34,8 @@ __all__ = ["check_sampling", "curve_length", "densify_curve", "resample_curve"]
 
 #: bisection depth before a pair that will not come together is joined by a graph path
 _MAX_BISECT = 12
+#: attraction steps of a bisection midpoint
+_MID_MAX_ITER = 50
 #: extra resampling passes that even out the spacing of a jagged input
 _MAX_PASSES = 3
 #: the passes stop once the spacing's coefficient of variation is at most this
@@ -213,58 +215,6 @@ def _graph_bridge(mesh: Mesh, fa: int, ba: NDArray, fb: int, bb: NDArray) -> Sur
     return path_to_surface_points(mesh, path, per_edge=1)
 
 
-def _xyz(mesh: Mesh, face: NDArray, bary: NDArray) -> NDArray:
-    c = mesh.vertices[mesh.faces[face]]  # (n, 3, 3)
-    return bary[:, 0, None] * c[:, 0] + bary[:, 1, None] * c[:, 1] + bary[:, 2, None] * c[:, 2]
-
-
-def _bridges(
-    mesh: Mesh, fa: NDArray, ba: NDArray, fb: NDArray, bb: NDArray, depth: int = 0
-) -> list[list]:
-    """Points to insert between each pair (a, b) so that every consecutive pair shares or
-    borders a face: one list of ``(face, bary)`` per pair.
-
-    Every pair still apart is bisected on the surface: a walks halfway towards b, then settles
-    at the surface point closest to the 3-D midpoint (never leaving the surface, so it cannot
-    jump across a thin part). Both halves are bisected further while the midpoint brings the
-    ends closer; a pair that does not come closer, or is still apart after ``_MAX_BISECT``
-    levels, is joined by a greedy graph path. All pairs of one level move in one batch.
-    """
-    out: list[list] = [[] for _ in range(len(fa))]
-    todo = np.flatnonzero(~_pairs_ok(mesh, fa, ba, fb, bb))
-    if todo.size == 0:
-        return out
-    graph = todo
-    if depth < _MAX_BISECT:
-        fa_t, ba_t, fb_t, bb_t = fa[todo], ba[todo], fb[todo], bb[todo]
-        xa, xb = _xyz(mesh, fa_t, ba_t), _xyz(mesh, fb_t, bb_t)
-        gap = np.linalg.norm(xb - xa, axis=1)
-        half = _walk_few(mesh, fa_t, ba_t, 0.5 * (xb - xa))
-        mid = _attract_few(mesh, half.face, half.bary, 0.5 * (xa + xb), max_iter=50)
-        xm = _xyz(mesh, mid.face, mid.bary)
-        closer = (
-            np.maximum(np.linalg.norm(xm - xa, axis=1), np.linalg.norm(xb - xm, axis=1)) < 0.8 * gap
-        )
-        k = int(closer.sum())
-        if k:
-            fm, bm = mid.face[closer], mid.bary[closer]
-            sub = _bridges(
-                mesh,
-                np.concatenate([fa_t[closer], fm]),
-                np.concatenate([ba_t[closer], bm]),
-                np.concatenate([fm, fb_t[closer]]),
-                np.concatenate([bm, bb_t[closer]]),
-                depth + 1,
-            )
-            for j, r in enumerate(todo[closer].tolist()):
-                out[r] = [*sub[j], (int(fm[j]), bm[j]), *sub[k + j]]
-        graph = todo[~closer]
-    for r in graph.tolist():
-        g = _graph_bridge(mesh, int(fa[r]), ba[r], int(fb[r]), bb[r])
-        out[r] = list(zip(g.face.tolist(), g.bary, strict=True))
-    return out
-
-
 def densify_curve(mesh: Mesh, curve: SurfaceCurve) -> SurfaceCurve:
     """Insert face points so that every consecutive pair lies on the same or adjacent faces.
 
@@ -305,22 +255,47 @@ def densify_curve(mesh: Mesh, curve: SurfaceCurve) -> SurfaceCurve:
     p = curve.points
     m = len(p)
     nxt = (bad + 1) % m
-    fill = dict(
-        zip(
-            bad.tolist(),
-            _bridges(mesh, p.face[bad], p.bary[bad], p.face[nxt], p.bary[nxt]),
-            strict=True,
-        )
+    indptr, vf = mesh.vertex_faces
+    pair, new_face, new_bary, g_face, g_bary = _curves.bridge_pairs(
+        mesh.vertices,
+        _i8(mesh.faces),
+        _i8(mesh.face_neighbors),
+        _i8(indptr),
+        _i8(vf),
+        _i8(p.face[bad]),
+        np.ascontiguousarray(p.bary[bad], dtype=np.float64),
+        _i8(p.face[nxt]),
+        np.ascontiguousarray(p.bary[nxt], dtype=np.float64),
+        _MAX_BISECT,
+        _MID_MAX_ITER,
+        10_000,
+        tol.length(mesh, tol.WALK_EPS),
+        tol.length(mesh, tol.ATTRACT_EPS),
+        tol.BARY_EPS,
     )
-    faces: list[int] = []
-    barys: list[NDArray] = []
-    for i in range(m):
-        faces.append(int(p.face[i]))
-        barys.append(p.bary[i])
-        for f, b in fill.get(i, ()):
-            faces.append(int(f))
-            barys.append(np.asarray(b, dtype=np.float64))
-    pts = SurfacePoints(np.asarray(faces, dtype=np.int64), np.asarray(barys))
+    graph = np.flatnonzero(new_face < 0)
+    if graph.size:  # a pair that would not come together: a greedy graph path instead
+        parts_f = np.split(new_face, graph)
+        parts_b = np.split(new_bary, graph)
+        parts_p = np.split(pair, graph)
+        fs, bs, ps = [parts_f[0]], [parts_b[0]], [parts_p[0]]
+        for j, e in enumerate(graph.tolist()):
+            r = -1 - int(new_face[e])
+            g = _graph_bridge(
+                mesh, int(g_face[r, 0]), g_bary[r, 0], int(g_face[r, 1]), g_bary[r, 1]
+            )
+            fs += [np.asarray(g.face, dtype=np.int64), parts_f[j + 1][1:]]
+            bs += [np.asarray(g.bary, dtype=np.float64), parts_b[j + 1][1:]]
+            ps += [np.full(len(g), pair[e], dtype=np.int64), parts_p[j + 1][1:]]
+        new_face, new_bary, pair = np.concatenate(fs), np.concatenate(bs), np.concatenate(ps)
+    if new_face.size == 0:
+        return SurfaceCurve(p, closed=curve.closed, kind=curve.kind)
+    # the points bridging pair i go right after point i, in order
+    at = bad[pair] + 1
+    pts = SurfacePoints(
+        np.insert(np.asarray(p.face, dtype=np.int64), at, new_face),
+        np.insert(np.asarray(p.bary, dtype=np.float64), at, new_bary, axis=0),
+    )
     return SurfaceCurve(pts, closed=curve.closed, kind=curve.kind)
 
 
@@ -411,20 +386,26 @@ def _resample(
     out, regular = _resample_once(mesh, curve, spacing, n)
     # the new polyline cuts the corners of a jagged input, so its own spacing is less even
     # than the arc-length steps taken on the input: repeat on the result (same count) until
-    # its steps agree to 1 %
+    # its steps agree to 1 %; the result's pieces give its arc lengths and serve the next pass
     for _ in range(_MAX_PASSES):
-        if _spacing_cv(mesh, out, regular) <= cv:
+        pieces = _curve_pieces(mesh, out.points, out.closed, "curve")
+        arc = np.append(pieces.start[0::2], pieces.total)
+        if _arc_spacing_cv(arc, regular, out.closed) <= cv:
             break
-        out, regular = _resample_once(mesh, out, spacing, int(regular.sum()))
+        out, regular = _resample_once(mesh, out, spacing, int(regular.sum()), pieces)
     return out, regular
 
 
 def _spacing_cv(mesh: Mesh, curve: SurfaceCurve, regular: NDArray[np.bool_]) -> float:
     """Coefficient of variation of the arc length between consecutive regular points."""
-    arc = curve_arc_lengths(mesh, curve)
+    return _arc_spacing_cv(curve_arc_lengths(mesh, curve), regular, curve.closed)
+
+
+def _arc_spacing_cv(arc: NDArray, regular: NDArray[np.bool_], closed: bool) -> float:
+    """:func:`_spacing_cv` from the curve's arc lengths (closed: with the total appended)."""
     idx = np.flatnonzero(regular)
-    if curve.closed:
-        idx = np.append(idx, len(curve))
+    if closed:
+        idx = np.append(idx, regular.size)
     d = np.diff(arc[idx])
     return float(d.std() / d.mean()) if d.size and d.mean() > 0 else 0.0
 
@@ -437,11 +418,14 @@ def _points_at(curve: SurfaceCurve, pieces: _Pieces, pos: NDArray) -> SurfacePoi
 
 
 def _resample_once(
-    mesh: Mesh, curve: SurfaceCurve, spacing: float, n: int | None
+    mesh: Mesh, curve: SurfaceCurve, spacing: float, n: int | None, pieces: _Pieces | None = None
 ) -> tuple[SurfaceCurve, NDArray[np.bool_]]:
-    curve = densify_curve(mesh, curve)
+    """One resampling pass; ``pieces`` are the curve's own when already known."""
+    dense = densify_curve(mesh, curve)
     # the curve's pieces once, for its arc lengths and every placement below
-    pieces = _curve_pieces(mesh, curve.points, curve.closed, "curve")
+    if pieces is None or dense is not curve:
+        pieces = _curve_pieces(mesh, dense.points, dense.closed, "curve")
+    curve = dense
     arc = np.append(pieces.start[0::2], pieces.total)
     total = float(arc[-1])
     if total == 0.0:

@@ -337,82 +337,40 @@ def _curve_pieces(mesh: Mesh, points: SurfacePoints, closed: bool, name: str) ->
     m = len(points)
     if m == 0:
         raise InputError(f"{name} has no points")
-    P = np.arange(m if closed else m - 1)
-    Q = (P + 1) % m
-    pf = np.array(points.face[P], dtype=np.int64)
-    qf = np.array(points.face[Q], dtype=np.int64)
-    pb = _clean_bary(points.bary[P])
-    qb = _clean_bary(points.bary[Q])
-    FN = mesh.face_neighbors
-    # faces neither equal nor adjacent: try the other faces through an edge or vertex point
-    # (a shared face first); the numba kernel follows the order of `_representations`.
-    # Faces that still share only a vertex are joined through that vertex.
+    # segment i joins point i to point i + 1 (to point 0 for a closed curve's last); the
+    # kernel rewrites both ends of a segment in place, so each gets its own copy
+    face = np.asarray(points.face, dtype=np.int64)
+    bary = _clean_bary(points.bary)
+    if closed:
+        pf, qf = face.copy(), np.roll(face, -1)
+        pb, qb = bary, np.roll(bary, -1, axis=0)
+    else:
+        pf, qf = face[:-1].copy(), face[1:].copy()
+        pb, qb = bary[:-1].copy(), bary[1:].copy()
+    # faces neither equal nor adjacent: the other faces through an edge or vertex point are
+    # tried (a shared face first, in the order of `_representations`); faces that still share
+    # only a vertex are joined through that vertex
     indptr, vf = mesh.vertex_faces
-    via = np.empty(P.size, dtype=np.int64)
-    bad = _curves.rewrite_pairs(
-        _i8(mesh.faces), _i8(FN), _i8(indptr), _i8(vf), pf, pb, qf, qb, tol.BARY_EPS, via
+    bad, pface, b0, b1, start, length = _curves.curve_pieces(
+        mesh.vertices,
+        _i8(mesh.faces),
+        _i8(mesh.face_neighbors),
+        _i8(indptr),
+        _i8(vf),
+        pf,
+        pb,
+        qf,
+        qb,
+        tol.BARY_EPS,
     )
     if bad >= 0:
+        P = bad
+        Q = (bad + 1) % m
         raise InputError(
-            f"{name} points {P[bad]} and {Q[bad]} are on faces {pf[bad]} and "
+            f"{name} points {P} and {Q} are on faces {pf[bad]} and "
             f"{qf[bad]}, which are neither the same, adjacent nor sharing a vertex"
         )
-    V, F = mesh.vertices, mesh.faces
-    xp = np.einsum("ij,ijk->ik", pb, V[F[pf]])
-    xq = np.einsum("ij,ijk->ik", qb, V[F[qf]])
-    n = P.size
-    # crossing point X on the shared edge (or the shared vertex); X = Q when both points
-    # share a face
-    xf_b = qb.copy()  # X in the face of P (overwritten below for adjacent pairs)
-    xg_b = qb.copy()  # X in the face of Q
-    corner = np.flatnonzero(via >= 0)
-    if corner.size:
-        xf_b[corner] = 0.0
-        xg_b[corner] = 0.0
-        xf_b[corner, np.argmax(F[pf[corner]] == via[corner, None], axis=1)] = 1.0
-        xg_b[corner, np.argmax(F[qf[corner]] == via[corner, None], axis=1)] = 1.0
-    adj = np.flatnonzero((pf != qf) & (via < 0))
-    if adj.size:
-        f, g = pf[adj], qf[adj]
-        k = np.argmax(FN[f] == g[:, None], axis=1)
-        va = F[f, k]
-        vc = F[f, (k + 1) % 3]
-        a = V[va]
-        e = V[vc] - a
-        el = np.linalg.norm(e, axis=1)
-        eh = e / el[:, None]
-        dp = xp[adj] - a
-        dq = xq[adj] - a
-        along_p = np.einsum("ij,ij->i", dp, eh)
-        along_q = np.einsum("ij,ij->i", dq, eh)
-        h_p = np.linalg.norm(dp - along_p[:, None] * eh, axis=1)
-        h_q = np.linalg.norm(dq - along_q[:, None] * eh, axis=1)
-        hs = h_p + h_q
-        t = np.divide(h_p, hs, out=np.ones_like(hs), where=hs > 0)
-        # the straight unfolded segment meets the edge line at mu; outside the edge the
-        # shortest path inside the two faces bends at the edge's end vertex instead
-        mu = np.clip((along_p + t * (along_q - along_p)) / el, 0.0, 1.0)
-        r = np.arange(adj.size)
-        bf = np.zeros((adj.size, 3))
-        bf[r, k] = 1.0 - mu
-        bf[r, (k + 1) % 3] = mu
-        slot_c = np.argmax(F[g] == vc[:, None], axis=1)
-        slot_a = np.argmax(F[g] == va[:, None], axis=1)
-        bg = np.zeros((adj.size, 3))
-        bg[r, slot_a] = 1.0 - mu
-        bg[r, slot_c] = mu
-        xf_b[adj] = bf
-        xg_b[adj] = bg
-    xx = np.einsum("ij,ijk->ik", xf_b, V[F[pf]])
-    face = np.stack([pf, qf], axis=1).reshape(-1)
-    b0 = np.stack([pb, xg_b], axis=1).reshape(-1, 3)
-    b1 = np.stack([xf_b, qb], axis=1).reshape(-1, 3)
-    length = np.stack(
-        [np.linalg.norm(xx - xp, axis=1), np.linalg.norm(xq - xx, axis=1)], axis=1
-    ).reshape(-1)
-    start = np.zeros(2 * n + 1)
-    np.cumsum(length, out=start[1:])
-    return _Pieces(face, b0, b1, start[:-1], length, float(start[-1]))
+    return _Pieces(pface, b0, b1, start[:-1], length, float(start[-1]))
 
 
 def curve_arc_lengths(
@@ -556,25 +514,20 @@ def _place_on_pieces(
             np.repeat(points.bary, s.size, axis=0),
             np.zeros(s.size, dtype=np.int64),
         )
-    total = pieces.total
-    arc = np.append(pieces.start[0::2], total)
-    j = np.clip(np.searchsorted(pieces.start, s, side="right") - 1, 0, pieces.face.size - 1)
-    plen = pieces.length[j]
-    t = np.divide(s - pieces.start[j], plen, out=np.ones_like(s), where=plen > 0)
-    t = np.clip(t, 0.0, 1.0)[:, None]
-    face = pieces.face[j].copy()
-    bary = (1.0 - t) * pieces.b0[j] + t * pieces.b1[j]
-    segment = j // 2
-    # exactly on a curve point: return that point
-    m = len(points)
-    at = np.clip(np.searchsorted(arc, s), 0, arc.size - 1)
-    hit = arc[at] == s
-    if closed:
-        at = at % m
-    face[hit] = points.face[at[hit]]
-    bary[hit] = points.bary[at[hit]]
-    segment[hit] = np.minimum(at[hit], pieces.face.size // 2 - 1)
-    return face, _clean_bary(bary), segment
+    arc = np.append(pieces.start[0::2], pieces.total)
+    face, bary, segment = _curves.place_on_pieces(
+        pieces.face,
+        pieces.b0,
+        pieces.b1,
+        np.ascontiguousarray(pieces.start),
+        pieces.length,
+        arc,
+        _i8(points.face),
+        np.ascontiguousarray(points.bary, dtype=np.float64),
+        bool(closed),
+        np.ascontiguousarray(s, dtype=np.float64),
+    )
+    return face, bary, segment
 
 
 def _as_scalars(value: ArrayLike, n: int | None, name: str) -> NDArray[np.float64]:

@@ -1,0 +1,133 @@
+"""Curve kernels against their slow references: bisecting broken pairs (densify), a curve as
+straight pieces, and placing points on the pieces."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+from numpy.testing import assert_allclose, assert_array_equal
+
+from meshfit.curves import check_sampling, densify_curve, paint_curve
+from meshfit.mesh import Mesh
+from meshfit.surface import curve_arc_lengths, greedy_path, path_to_surface_points
+from meshfit.surface.walk import _curve_pieces, _place_on_pieces
+from meshfit.types import SurfaceCurve, SurfacePoints
+from tests.reference import curves as reference
+
+from ..conftest import analytic_mesh, real_mesh
+
+
+def _thin_slab() -> Mesh:
+    box = trimesh.creation.box(extents=(1.0, 1.0, 0.02))
+    vv, ff = box.vertices, box.faces
+    for _ in range(3):
+        vv, ff = trimesh.remesh.subdivide(vv, ff)
+    return Mesh(np.asarray(vv, dtype=np.float64), np.asarray(ff, dtype=np.int64), name="slab")
+
+
+def _sparse_curve(mesh: Mesh, a: int, b: int, every: int, closed: bool = False) -> SurfaceCurve:
+    """Every ``every``-th sample of a graph path: pairs several faces apart."""
+    pts = path_to_surface_points(mesh, greedy_path(mesh, a, b).vertices, per_edge=1)
+    keep = np.unique(np.append(np.arange(0, len(pts), every), len(pts) - 1))
+    return SurfaceCurve(pts[keep], closed=closed)
+
+
+def _far_pairs(mesh: Mesh, rng: np.random.Generator, n: int) -> SurfaceCurve:
+    """Random face points in sequence: pairs far apart (graph bridges as well as bisection)."""
+    face = rng.integers(0, mesh.n_faces, n)
+    bary = rng.dirichlet([1.0, 1.0, 1.0], n)
+    bary[0] = [1.0, 0.0, 0.0]  # a vertex point
+    bary[1] = [0.5, 0.5, 0.0]  # an edge point
+    return SurfaceCurve(SurfacePoints(face, bary))
+
+
+def _densify_cases(rng):
+    igea = real_mesh("igea")
+    v = igea.vertices
+    a = int(np.argmin(v[:, 1]))
+    b = int(np.argmin(np.abs(np.linalg.norm(v - v[a], axis=1) - 60 * igea.mean_edge_length)))
+    sphere = analytic_mesh("icosphere")
+    slab = _thin_slab()
+    sv = slab.vertices
+    top = int(np.argmin(np.linalg.norm(sv - [0.3, 0.1, 0.01], axis=1)))
+    bot = int(np.argmin(np.linalg.norm(sv - [0.32, 0.1, -0.01], axis=1)))
+    rim = int(np.argmin(np.linalg.norm(sv - [0.5, 0.1, 0.0], axis=1)))
+    across = SurfaceCurve(SurfacePoints.at_vertices(slab.faces, [top, bot, rim]))
+    return [
+        ("igea sparse", igea, _sparse_curve(igea, a, b, 7)),
+        ("sphere sparse closed", sphere, _sparse_curve(sphere, 0, 300, 5, closed=True)),
+        ("sphere far", sphere, _far_pairs(sphere, rng, 6)),
+        ("slab across", slab, across),
+    ]
+
+
+def test_densify_matches_the_reference(rng):
+    for label, mesh, curve in _densify_cases(rng):
+        assert check_sampling(mesh, curve).size > 0, label  # something to repair
+        got = densify_curve(mesh, curve)
+        face, bary = reference.densify(mesh, curve)
+        assert_array_equal(got.points.face, face, err_msg=label)
+        assert_allclose(got.points.bary, bary, rtol=0, atol=1e-15, err_msg=label)
+        assert check_sampling(mesh, got).size == 0, label
+
+
+def _pieces_cases():
+    igea = real_mesh("igea")
+    v = igea.vertices
+    a, b = int(np.argmin(v[:, 1])), int(np.argmax(v[:, 0]))
+    painted = paint_curve(igea, [a, b])
+    sphere = analytic_mesh("icosphere")
+    loop = paint_curve(sphere, [0, 100, 300], closed=True)
+    # faces sharing only a vertex, joined through it
+    F = sphere.faces
+    indptr, vf = sphere.vertex_faces
+    fan = vf[indptr[7] : indptr[8]]
+    f0 = int(fan[0])
+    f1 = next(int(g) for g in fan[1:] if g not in sphere.face_neighbors[f0])
+    corner = SurfacePoints([f0, f1, f1], [[1 / 3] * 3, [1 / 3] * 3, (F[f1] == 7).astype(float)])
+    return [
+        ("igea painted", igea, painted.points, False),
+        ("sphere closed", sphere, loop.points, True),
+        ("vertex-sharing faces", sphere, corner, False),
+        ("one point closed", sphere, loop.points[:1], True),
+    ]
+
+
+def test_curve_pieces_match_the_reference():
+    for label, mesh, pts, closed in _pieces_cases():
+        got = _curve_pieces(mesh, pts, closed, "curve")
+        face, b0, b1, start, length, total = reference.curve_pieces(mesh, pts, closed)
+        assert_array_equal(got.face, face, err_msg=label)
+        for x, y in ((got.b0, b0), (got.b1, b1), (got.start, start), (got.length, length)):
+            assert_allclose(x, y, rtol=1e-14, atol=1e-15, err_msg=label)
+        assert_allclose(got.total, total, rtol=1e-14, err_msg=label)
+
+
+def test_place_on_pieces_matches_the_reference(rng):
+    for label, mesh, pts, closed in _pieces_cases()[:3]:
+        pieces = _curve_pieces(mesh, pts, closed, "curve")
+        arc = curve_arc_lengths(mesh, pts, closed=closed)
+        s = np.concatenate([rng.uniform(0, pieces.total, 200), arc[:-1], [0.0]])
+        if not closed:
+            s = np.append(s, pieces.total)
+        got = _place_on_pieces(pts, closed, pieces, s)
+        tup = (pieces.face, pieces.b0, pieces.b1, pieces.start, pieces.length, pieces.total)
+        want = reference.place_on_pieces(pts, closed, tup, s)
+        assert_array_equal(got[0], want[0], err_msg=label)
+        assert_allclose(got[1], want[1], rtol=0, atol=1e-15, err_msg=label)
+        assert_array_equal(got[2], want[2], err_msg=label)
+        # a position at a point's own arc length gives that point exactly
+        on = slice(200, 200 + arc.size - 1)
+        assert_array_equal(got[0][on], pts.face[: arc.size - 1], err_msg=label)
+        assert_array_equal(got[1][on], pts.bary[: arc.size - 1], err_msg=label)
+
+
+@pytest.mark.parametrize("closed", [False, True])
+def test_curve_pieces_report_pairs_sharing_nothing(closed):
+    from meshfit.errors import InputError
+
+    mesh = analytic_mesh("icosphere")
+    pts = SurfacePoints([0, 0, 500], [[1 / 3] * 3] * 3)
+    with pytest.raises(InputError, match="curve points 1 and 2 are on faces 0 and 500"):
+        _curve_pieces(mesh, pts, closed, "curve")
