@@ -3,6 +3,7 @@ layout status, layout files and previews."""
 
 from __future__ import annotations
 
+import base64
 import json
 
 import numpy as np
@@ -14,7 +15,7 @@ from meshfit.errors import InputError, LayoutError
 from meshfit.layout import check_layout_topology, load_layout
 from meshfit.types import SurfacePoints
 from meshfit.ui.picking import pick_point
-from meshfit.ui.state import Session
+from meshfit.ui.state import SESSION_VERSION, Session, _sp_from_json
 from tests.conftest import analytic_mesh, real_mesh
 from tests.ui.helpers import SPOT_LAYOUT, click_ray, paint_quad, side_picks
 
@@ -283,7 +284,7 @@ def test_autosave_every_change_and_restore(painted, tmp_path, spot):
     s.click(*click_ray(spot, x[0]))
     assert s.flush()
     doc = json.loads(path.read_text())
-    assert doc["meshfit_ui_session"] == 1 and doc["stroke"] is not None
+    assert doc["meshfit_ui_session"] == SESSION_VERSION and doc["stroke"] is not None
     s.state = painted.state
     s.smooth_curve(2, max_iter=10)  # a change writes the file
     assert s.flush() and not s.save_errors
@@ -309,6 +310,65 @@ def test_background_and_synchronous_autosave_agree(painted, tmp_path, spot):
     text = (tmp_path / "a.json").read_text()
     assert text == (tmp_path / "b.json").read_text() == a.to_json()
     assert json.loads(text)["curves"][3]["ends"] == [3, 0]
+
+
+def _as_version_1(doc: dict) -> dict:
+    """A session document rewritten in the version-1 encoding (decimal lists)."""
+
+    def lists(d: dict) -> dict:
+        sp = _sp_from_json(d, "test")
+        return {k: v for k, v in d.items() if k != "n"} | {
+            "face": sp.face.tolist(),
+            "bary": sp.bary.tolist(),
+        }
+
+    out = dict(doc, meshfit_ui_session=1, corners=lists(doc["corners"]))
+    out["curves"] = [lists(c) for c in doc["curves"]]
+    if doc["stroke"] is not None:
+        st = doc["stroke"]
+        out["stroke"] = dict(st, picks=lists(st["picks"]), pieces=[lists(q) for q in st["pieces"]])
+    return out
+
+
+def test_session_file_keeps_points_exactly_and_reads_version_1(painted, tmp_path, spot):
+    s = _copy(painted, tmp_path)
+    s.smooth_curve(1, max_iter=5)  # barycentrics with every digit used
+    s.add_pick(SurfacePoints.at_vertices(spot.faces, [7]))  # a stroke too
+    assert s.flush() and not s.save_errors
+    doc = json.loads(s.autosave_path.read_text())
+    assert isinstance(doc["curves"][0]["face"], str)  # base64, not decimal lists
+    old = tmp_path / "v1.json"
+    old.write_text(json.dumps(_as_version_1(doc)))
+    for path in (s.autosave_path, old):
+        t = Session(spot)
+        t.restore(path)
+        assert len(t.curves) == len(s.curves)
+        for a, b in zip(s.curves, t.curves, strict=True):
+            np.testing.assert_array_equal(a.curve.points.face, b.curve.points.face)
+            np.testing.assert_array_equal(a.curve.points.bary, b.curve.points.bary)
+            assert a.ends == b.ends and a.kind == b.kind
+        np.testing.assert_array_equal(t.corners.bary, s.corners.bary)
+        np.testing.assert_array_equal(t.state.stroke.picks.face, s.state.stroke.picks.face)
+        assert t.state.stroke.start_corner == s.state.stroke.start_corner
+
+
+@pytest.mark.parametrize(
+    "change, match",
+    [
+        ({"face": "not base64!"}, "bad face points"),
+        ({"n": 5}, "file says 5"),
+        ({"bary": base64.b64encode(b"\0" * 20).decode()}, "whole number"),
+        ({"bary": base64.b64encode(b"\0" * 48).decode()}, "barycentric values"),
+    ],
+)
+def test_restore_refuses_bad_point_arrays(painted, tmp_path, spot, change, match):
+    s = _copy(painted, tmp_path)
+    doc = json.loads(s.to_json())
+    doc["curves"][0] |= change
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(doc))
+    with pytest.raises(InputError, match=match):
+        Session(spot).restore(bad)
 
 
 def test_restore_refuses_bad_files(tmp_path, spot):
