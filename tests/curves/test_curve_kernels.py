@@ -131,3 +131,26 @@ def test_curve_pieces_report_pairs_sharing_nothing(closed):
     pts = SurfacePoints([0, 0, 500], [[1 / 3] * 3] * 3)
     with pytest.raises(InputError, match="curve points 1 and 2 are on faces 0 and 500"):
         _curve_pieces(mesh, pts, closed, "curve")
+
+
+@pytest.mark.parametrize("closed", [False, True])
+def test_check_sampling_matches_the_reference(closed, rng):
+    from meshfit.curves import check_sampling
+
+    mesh = analytic_mesh("icosphere")
+    # a graph path's samples (vertex and edge points) with some points dropped
+    pts = path_to_surface_points(mesh, greedy_path(mesh, 0, 300).vertices, per_edge=1)
+    keep = np.sort(rng.choice(len(pts), len(pts) * 2 // 3, replace=False))
+    curve = SurfaceCurve(pts[keep], closed=closed)
+    m = len(curve)
+    p = curve.points
+    want = [
+        i
+        for i in range(m if closed else m - 1)
+        if not reference._pair_ok(
+            mesh, p.face[i], p.bary[i], p.face[(i + 1) % m], p.bary[(i + 1) % m]
+        )
+    ]
+    got = check_sampling(mesh, curve)
+    assert 0 < len(want) < m - 1  # some pairs break the rule, some keep it
+    assert_array_equal(got, want)

@@ -336,6 +336,31 @@ def _pair_ok(F, FN, VF_ptr, VF, f, ba, g, bb, eps, fa_r, ba_r, fb_r, bb_r):
 
 
 @njit(cache=True, nogil=True)
+def _faces_valence(F, VF_ptr, faces, m):
+    """Largest of ``m`` and the valences of the vertices of ``faces``."""
+    for i in range(faces.size):
+        for c in range(3):
+            v = F[faces[i], c]
+            d = VF_ptr[v + 1] - VF_ptr[v]
+            if d > m:
+                m = d
+    return m
+
+
+@njit(cache=True, nogil=True)
+def _scratch_for(F, VF_ptr, faces_a, faces_b):
+    """`_scratch` sized by the largest valence among the vertices of the given faces (face
+    points on these faces only)."""
+    m = _faces_valence(F, VF_ptr, faces_b, _faces_valence(F, VF_ptr, faces_a, 1))
+    return (
+        np.empty(m + 1, dtype=np.int64),
+        np.empty((m + 1, 3)),
+        np.empty(m + 1, dtype=np.int64),
+        np.empty((m + 1, 3)),
+    )
+
+
+@njit(cache=True, nogil=True)
 def _scratch(VF_ptr):
     """Buffers for the representations of two face points, sized by the largest valence."""
     m = 1
@@ -362,7 +387,7 @@ def revert_jumps(V, F, FN, VF_ptr, VF, face, bary, gface, gbary, keep, max_gap, 
     `meshfit.curves.paint.paint_curve`.
     """
     n = face.size
-    fa_r, ba_r, fb_r, bb_r = _scratch(VF_ptr)
+    fa_r, ba_r, fb_r, bb_r = _scratch_for(F, VF_ptr, face, gface)
     reverts = 0
     i = 0
     while i < n - 1:
@@ -427,7 +452,7 @@ def subdivide_steps(
     """
     n = a.size
     out = np.zeros(n, dtype=np.int64)
-    fa_r, ba_r, fb_r, bb_r = _scratch(VF_ptr)
+    fa_r, ba_r, fb_r, bb_r = _scratch_for(F, VF_ptr, p_face, pt_face)
     prev = np.empty(3)
     cur = np.empty(3)
     for i in range(n):
@@ -829,3 +854,28 @@ def bridge_pairs(
             k += 1
             ng += 1
     return out_pair[:k], out_face[:k], out_bary[:k], g_face[:ng], g_bary[:ng]
+
+
+@njit(cache=True, nogil=True)
+def broken_pairs(F, FN, VF_ptr, VF, face, bary, closed, eps):
+    """Indices i (k,) i8 whose pair (i, i + 1) of a face-point curve (face (m,) i8, bary
+    (m, 3) f8; the pair (m - 1, 0) too when ``closed``) breaks the sampling rule, as
+    `pairs_ok`. Kernel of `meshfit.curves.check_sampling`."""
+    m = face.size
+    npairs = m if closed and m > 1 else max(m - 1, 0)
+    out = np.empty(npairs, dtype=np.int64)
+    k = 0
+    fa_r, ba_r, fb_r, bb_r = _scratch_for(F, VF_ptr, face, face[:0])
+    for i in range(npairs):
+        j = i + 1 if i + 1 < m else 0
+        f = face[i]
+        g = face[j]
+        if f == g or _adjacent(FN, f, g):
+            continue
+        na = _representations(F, FN, VF_ptr, VF, f, bary[i], eps, fa_r, ba_r)
+        nb = _representations(F, FN, VF_ptr, VF, g, bary[j], eps, fb_r, bb_r)
+        si, _ = _best_option(FN, fa_r, na, fb_r, nb)
+        if si < 0:
+            out[k] = i
+            k += 1
+    return out[:k]

@@ -55,44 +55,6 @@ def _as_curve(mesh: Mesh, curve: SurfaceCurve, name: str = "curve") -> SurfaceCu
     return curve
 
 
-def _pairs_ok(
-    mesh: Mesh, fa: NDArray[np.int64], ba: NDArray, fb: NDArray[np.int64], bb: NDArray
-) -> NDArray[np.bool_]:
-    """Whether each pair of face points lies on the same or on edge-adjacent faces.
-
-    An edge point counts as lying on both faces of its edge, a vertex point on every face
-    around the vertex.
-    """
-    indptr, vf = mesh.vertex_faces
-    return _curves.pairs_ok(
-        _i8(mesh.faces),
-        _i8(mesh.face_neighbors),
-        _i8(indptr),
-        _i8(vf),
-        _i8(fa),
-        np.ascontiguousarray(ba, dtype=np.float64),
-        _i8(fb),
-        np.ascontiguousarray(bb, dtype=np.float64),
-        tol.BARY_EPS,
-    )
-
-
-def _walk_few(mesh: Mesh, face: NDArray, bary: NDArray, step: NDArray) -> SurfacePoints:
-    """:func:`meshfit.surface.walk_points` (default cap) for trusted inputs, run serially."""
-    f, b, _, _, _ = _curves.walk_points_serial(
-        mesh.vertices,
-        _i8(mesh.faces),
-        _i8(mesh.face_neighbors),
-        _i8(face),
-        _clean_bary(bary),
-        np.ascontiguousarray(step, dtype=np.float64),
-        10_000,
-        tol.length(mesh, tol.WALK_EPS),
-        tol.BARY_EPS,
-    )
-    return SurfacePoints(f, b)
-
-
 def _attract_few(
     mesh: Mesh,
     face: NDArray,
@@ -162,13 +124,23 @@ def check_sampling(mesh: Mesh, curve: SurfaceCurve) -> NDArray[np.int64]:
        thesis, Stanford 2000, sec. 3.1 (successive face points on the same or adjacent
        faces).
     """
-    curve = _as_curve(mesh, curve)
+    return _broken_pairs(mesh, _as_curve(mesh, curve))
+
+
+def _broken_pairs(mesh: Mesh, curve: SurfaceCurve) -> NDArray[np.int64]:
+    """:func:`check_sampling` for a curve already checked to be on ``mesh``."""
     p = curve.points
-    m = len(p)
-    i = np.arange(m if curve.closed and m > 1 else m - 1)
-    j = (i + 1) % m
-    ok = _pairs_ok(mesh, p.face[i], p.bary[i], p.face[j], p.bary[j])
-    return i[~ok].astype(np.int64)
+    indptr, vf = mesh.vertex_faces
+    return _curves.broken_pairs(
+        _i8(mesh.faces),
+        _i8(mesh.face_neighbors),
+        _i8(indptr),
+        _i8(vf),
+        _i8(p.face),
+        np.ascontiguousarray(p.bary, dtype=np.float64),
+        bool(curve.closed),
+        tol.BARY_EPS,
+    )
 
 
 def curve_length(mesh: Mesh, curve: SurfaceCurve) -> float:
@@ -248,8 +220,12 @@ def densify_curve(mesh: Mesh, curve: SurfaceCurve) -> SurfaceCurve:
     .. [1] Krishnamurthy 2000, sec. 3.1 (sampling rule), sec. 3.2 (graph paths) and
        appendix A (MovePointOnSurface).
     """
-    curve = _as_curve(mesh, curve)
-    bad = check_sampling(mesh, curve)
+    return _densify(mesh, _as_curve(mesh, curve))
+
+
+def _densify(mesh: Mesh, curve: SurfaceCurve) -> SurfaceCurve:
+    """:func:`densify_curve` for a curve already checked to be on ``mesh``."""
+    bad = _broken_pairs(mesh, curve)
     if bad.size == 0:
         return curve
     p = curve.points
@@ -421,7 +397,7 @@ def _resample_once(
     mesh: Mesh, curve: SurfaceCurve, spacing: float, n: int | None, pieces: _Pieces | None = None
 ) -> tuple[SurfaceCurve, NDArray[np.bool_]]:
     """One resampling pass; ``pieces`` are the curve's own when already known."""
-    dense = densify_curve(mesh, curve)
+    dense = _densify(mesh, curve)
     # the curve's pieces once, for its arc lengths and every placement below
     if pieces is None or dense is not curve:
         pieces = _curve_pieces(mesh, dense.points, dense.closed, "curve")
@@ -433,7 +409,7 @@ def _resample_once(
     pos = _positions(total, curve.closed, spacing, n)
     res = _points_at(curve, pieces, pos)
     out = SurfaceCurve(res, closed=curve.closed, kind=curve.kind)
-    bad = check_sampling(mesh, out)
+    bad = _broken_pairs(mesh, out)
     if bad.size == 0:
         return out, np.ones(pos.size, dtype=bool)
     # a step still breaking the rule (it passes a vertex through a fan of small faces) is
