@@ -211,3 +211,78 @@ def locate_uv(uv, F, q):
         bary[k] = np.maximum(bary[k], 0.0)
         bary[k] /= bary[k].sum()
     return face, bary
+
+
+def _fold_score(X, N, nu, nv, p, margin):
+    """Folded triangles of the cells around p and the shortfall of their normals' cosines
+    from ``margin``."""
+    i, j = divmod(p, nv)
+    bad, short = 0, 0.0
+    for ci in (i - 1, i):
+        for cj in (j - 1, j):
+            if 0 <= ci < nu - 1 and 0 <= cj < nv - 1:
+                a, b = ci * nv + cj, (ci + 1) * nv + cj
+                c, d = b + 1, a + 1
+                for t in ((a, b, c), (a, c, d)):
+                    n = np.cross(X[t[1]] - X[t[0]], X[t[2]] - X[t[0]])
+                    s = N[list(t)].sum(axis=0)
+                    bad += int(n @ s <= 0)
+                    den = np.linalg.norm(n) * np.linalg.norm(s)
+                    cos = (n @ s) / den if den > 0 else -1.0
+                    short += max(0.0, margin - cos)
+    return bad, short
+
+
+def repair_folds(mesh: Mesh, face, bary, nu, nv, movable, rounds, n_dirs, margin):
+    """Fold repair as documented in the kernel: every movable corner of a folded cell tries
+    the centroid of its neighbours (all and half the way) and ``n_dirs`` tangent directions
+    at 0.15, 0.35 and 0.7 of its mean spring length; keeps the lexicographically best of
+    (folded triangles, shortfall, move length) if it beats staying."""
+    face, bary = face.copy(), bary.copy()
+    X = mesh.xyz(SurfacePoints(face, bary))
+    N = mesh.face_normals[face].copy()
+    for _ in range(rounds):
+        left, changed = 0, False
+        for p in range(nu * nv):
+            if not movable[p]:
+                continue
+            bad0, short0 = _fold_score(X, N, nu, nv, p, margin)
+            if bad0 == 0:
+                continue
+            f0, b0, x0 = face[p], bary[p].copy(), X[p].copy()
+            nbrs = X[[p - nv, p + nv, p - 1, p + 1]]
+            h = np.linalg.norm(nbrs - x0, axis=1).mean()
+            n = mesh.face_normals[f0]
+            e1 = X[p + nv] - X[p - nv]
+            e1 = e1 - (e1 @ n) * n
+            if np.linalg.norm(e1) <= 0 or h <= 0:
+                continue
+            e1 /= np.linalg.norm(e1)
+            e2 = np.cross(n, e1)
+            steps = [0.25 * (nbrs.sum(axis=0) - 4 * x0), 0.125 * (nbrs.sum(axis=0) - 4 * x0)]
+            for r in (0.15, 0.35, 0.7):
+                for d in range(n_dirs):
+                    a = 2 * np.pi * d / n_dirs
+                    steps.append(r * h * (np.cos(a) * e1 + np.sin(a) * e2))
+            best = (bad0, short0, 0.0, f0, b0)
+            for step in steps:
+                step = step - (step @ n) * n
+                if np.linalg.norm(step) <= 0:
+                    continue
+                f, b, moved = _walk_inside(mesh, f0, b0.copy(), step, tries=2)
+                if moved == 0:
+                    continue
+                X[p] = mesh.xyz(SurfacePoints(np.array([f]), b[None]))[0]
+                N[p] = mesh.face_normals[f]
+                bad, short = _fold_score(X, N, nu, nv, p, margin)
+                fewer = short < best[1] - 1e-12 or (short <= best[1] and moved < best[2])
+                if bad < best[0] or (bad == best[0] and fewer):
+                    best = (bad, short, moved, f, b)
+            face[p], bary[p] = best[3], best[4]
+            X[p] = mesh.xyz(SurfacePoints(face[p : p + 1], bary[p : p + 1]))[0]
+            N[p] = mesh.face_normals[face[p]]
+            changed |= best[3] != f0 or best[2] > 0
+            left += best[0]
+        if left == 0 or not changed:
+            break
+    return face, bary

@@ -133,3 +133,59 @@ def test_locate_uv_matches_oracle(patches, rng):
     assert_allclose(got, want, atol=1e-12)
     assert_allclose(got, q, atol=1e-12)
     assert (bary >= 0).all() and (face >= 0).all()
+
+
+def _folded_grid(patch, rng, k=4, shift=2):
+    """A level-1 spring mesh of the patch with ``k`` interior points moved ``shift`` cells
+    over (folded cells around them)."""
+    sm = resample_patch(patch, level=1, metrics=False).final
+    nu, nv = sm.shape
+    face = sm.points.face.copy()
+    bary = sm.points.bary.copy()
+    idx = np.arange(nu * nv).reshape(nu, nv)
+    pick = rng.choice(idx[3:-3, 3:-3].ravel(), size=k, replace=False)
+    face[pick], bary[pick] = face[pick + shift * nv], bary[pick + shift * nv]
+    return sm, face, bary
+
+
+@pytest.mark.parametrize("name", ["cap", "spot"])
+def test_repair_folds_matches_oracle(patches, name, rng):
+    mesh = patches[name].mesh
+    sm, face, bary = _folded_grid(patches[name], rng)
+    nu, nv = sm.shape
+    movable = (sm.kind == FREE).ravel()
+    before = K.folded_cells(mesh.vertices, mesh.faces, face, bary, nu, nv).sum()
+    want_f, want_b = ref.repair_folds(mesh, face, bary, nu, nv, movable, 2, 8, 0.3)
+    K.repair_folds(
+        mesh.vertices, mesh.faces, mesh.face_neighbors, face, bary, nu, nv, movable,
+        2, 8, 0.3, tol.BARY_EPS, 10_000,
+    )  # fmt: skip
+    assert before > 0
+    assert_allclose(
+        mesh.xyz(SurfacePoints(face, bary)),
+        mesh.xyz(SurfacePoints(want_f, want_b)),
+        atol=1e-9 * mesh.bbox_diagonal,
+    )
+    assert_allclose(bary.sum(axis=1), 1.0, atol=1e-12)
+    assert (bary >= -tol.BARY_EPS).all()
+
+
+@pytest.mark.parametrize("name", ["cap", "spot"])
+def test_repair_folds_unfolds_moved_points(patches, name, rng):
+    from meshfit.springs.relax import repair_folds
+    from meshfit.springs.resample import _sides
+    from meshfit.springs.state import State
+
+    patch = patches[name]
+    mesh = patch.mesh
+    sm, face, bary = _folded_grid(patch, rng, shift=1)
+    nu, nv = sm.shape
+    state = State(mesh, 0, _sides(patch), [], [], {}, [nu - 1], [nv - 1])
+    state.face, state.bary = face, bary
+    keep = ~(sm.kind == FREE).ravel()
+    fixed_xyz = mesh.xyz(SurfacePoints(face[keep], bary[keep]))
+    assert K.folded_cells(mesh.vertices, mesh.faces, face, bary, nu, nv).sum() > 0
+    assert repair_folds(state) == 0
+    assert not K.folded_cells(mesh.vertices, mesh.faces, state.face, state.bary, nu, nv).any()
+    # only free points move
+    assert_allclose(mesh.xyz(SurfacePoints(state.face[keep], state.bary[keep])), fixed_xyz)

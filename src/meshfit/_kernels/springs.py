@@ -299,6 +299,185 @@ def relax_sweeps(
 
 
 @njit(cache=True, nogil=True, fastmath=False)
+def _fold_score(X, N, nu, nv, p, margin):
+    """Folded triangles of the up to four cells around point p (the `_bad_around` count) and
+    their shortfall: the sum over those triangles of ``max(0, margin - cos)``, ``cos`` the
+    cosine between a triangle's normal and the summed normals at its corners."""
+    i = p // nv
+    j = p % nv
+    bad = 0
+    short = 0.0
+    for ci in range(i - 1, i + 1):
+        for cj in range(j - 1, j + 1):
+            if ci < 0 or cj < 0 or ci >= nu - 1 or cj >= nv - 1:
+                continue
+            a = ci * nv + cj
+            b = (ci + 1) * nv + cj
+            c = (ci + 1) * nv + cj + 1
+            d = ci * nv + cj + 1
+            for t in range(2):
+                q = b if t == 0 else c
+                r = c if t == 0 else d
+                ux = X[q, 0] - X[a, 0]
+                uy = X[q, 1] - X[a, 1]
+                uz = X[q, 2] - X[a, 2]
+                wx = X[r, 0] - X[a, 0]
+                wy = X[r, 1] - X[a, 1]
+                wz = X[r, 2] - X[a, 2]
+                cx = uy * wz - uz * wy
+                cy = uz * wx - ux * wz
+                cz = ux * wy - uy * wx
+                sx = N[a, 0] + N[q, 0] + N[r, 0]
+                sy = N[a, 1] + N[q, 1] + N[r, 1]
+                sz = N[a, 2] + N[q, 2] + N[r, 2]
+                dot = cx * sx + cy * sy + cz * sz
+                if dot <= 0.0:
+                    bad += 1
+                den = np.sqrt((cx * cx + cy * cy + cz * cz) * (sx * sx + sy * sy + sz * sz))
+                cos = dot / den if den > 0.0 else -1.0
+                if cos < margin:
+                    short += margin - cos
+    return bad, short
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def repair_folds(
+    V, F, FN, face, bary, nu, nv, movable, rounds, n_dirs, margin, bary_eps, max_faces
+):
+    """Move movable points of folded cells to the best of a set of trial places, in place.
+
+    V (nv, 3) f8; F, FN (nf, 3) i8; face (n,) i8 and bary (n, 3) f8 (updated in place);
+    movable (n,) bool. Each round visits every movable corner of a folded cell (the
+    `folded_cells` test) and tries, each walked on the surface from where it stands: the
+    centroid of its four neighbours (and half the way there), and ``n_dirs`` directions in
+    its tangent plane at 0.15, 0.35 and 0.7 of its mean spring length. It keeps the trial
+    with the fewest folded triangles in its four cells, then the smallest shortfall of the
+    triangles' normals from the corners' normals (cosines below ``margin``, see
+    `_fold_score`), then the shortest move, and only if it beats staying. The grid's fold
+    count never grows. Up to ``rounds`` rounds, until no cell is folded. Returns the folded
+    triangles left around the movable points. Kernel of `meshfit.springs.relax.repair_folds`.
+    """
+    n = face.shape[0]
+    X = grid_xyz(V, F, face, bary)
+    N = np.empty((n, 3))
+    nrm = np.empty(3)
+    for i in range(n):
+        _face_normal(V, F, face[i], nrm)
+        for c in range(3):
+            N[i, c] = nrm[c]
+    step = np.empty(3)
+    u = np.empty(3)
+    s0 = np.empty(3)
+    s1 = np.empty(3)
+    sb = np.empty(3)
+    sx = np.empty(3)
+    sn = np.empty(3)
+    bb = np.empty(3)
+    e1 = np.empty(3)
+    e2 = np.empty(3)
+    scales = (0.15, 0.35, 0.7)
+    left = 0
+    for _r in range(rounds):
+        left = 0
+        changed = False
+        for p in range(n):
+            if not movable[p]:
+                continue
+            bad0, short0 = _fold_score(X, N, nu, nv, p, margin)
+            if bad0 == 0:
+                continue
+            f0 = face[p]
+            for c in range(3):
+                sb[c] = bary[p, c]
+                sx[c] = X[p, c]
+                sn[c] = N[p, c]
+            # mean spring length and a tangent frame
+            h = 0.0
+            for q in (p - nv, p + nv, p - 1, p + 1):
+                h += 0.25 * np.sqrt(
+                    (X[q, 0] - sx[0]) ** 2 + (X[q, 1] - sx[1]) ** 2 + (X[q, 2] - sx[2]) ** 2
+                )
+            _face_normal(V, F, f0, nrm)
+            for c in range(3):
+                e1[c] = X[p + nv, c] - X[p - nv, c]
+            dn = e1[0] * nrm[0] + e1[1] * nrm[1] + e1[2] * nrm[2]
+            for c in range(3):
+                e1[c] -= dn * nrm[c]
+            ln = np.sqrt(e1[0] ** 2 + e1[1] ** 2 + e1[2] ** 2)
+            if ln <= 0.0 or h <= 0.0:
+                continue
+            for c in range(3):
+                e1[c] /= ln
+            e2[0] = nrm[1] * e1[2] - nrm[2] * e1[1]
+            e2[1] = nrm[2] * e1[0] - nrm[0] * e1[2]
+            e2[2] = nrm[0] * e1[1] - nrm[1] * e1[0]
+            best_bad, best_short, best_len = bad0, short0, 0.0
+            best_f = f0
+            for c in range(3):
+                bb[c] = sb[c]
+            n_trials = 2 + n_dirs * 3
+            for k in range(n_trials):
+                if k < 2:  # toward the centroid of the neighbours, all or half the way
+                    w = 0.25 if k == 0 else 0.125
+                    for c in range(3):
+                        step[c] = w * (
+                            X[p - nv, c] + X[p + nv, c] + X[p - 1, c] + X[p + 1, c] - 4.0 * sx[c]
+                        )
+                else:
+                    d = (k - 2) % n_dirs
+                    ang = 2.0 * np.pi * d / n_dirs
+                    r = scales[(k - 2) // n_dirs] * h
+                    for c in range(3):
+                        step[c] = r * (np.cos(ang) * e1[c] + np.sin(ang) * e2[c])
+                total = _start_direction(V, F, f0, step, u)
+                if total <= 0.0:
+                    continue
+                for c in range(3):
+                    bary[p, c] = sb[c]
+                f, moved = walk_inside(
+                    V, F, FN, f0, bary[p], u, total, max_faces, bary_eps, 2, s0, s1
+                )
+                if moved == 0.0:
+                    continue
+                for c in range(3):
+                    X[p, c] = (
+                        bary[p, 0] * V[F[f, 0], c]
+                        + bary[p, 1] * V[F[f, 1], c]
+                        + bary[p, 2] * V[F[f, 2], c]
+                    )
+                _face_normal(V, F, f, nrm)
+                for c in range(3):
+                    N[p, c] = nrm[c]
+                bad, short = _fold_score(X, N, nu, nv, p, margin)
+                if bad < best_bad or (
+                    bad == best_bad
+                    and (short < best_short - 1e-12 or (short <= best_short and moved < best_len))
+                ):
+                    best_bad, best_short, best_len = bad, short, moved
+                    best_f = f
+                    for c in range(3):
+                        bb[c] = bary[p, c]
+            face[p] = best_f
+            for c in range(3):
+                bary[p, c] = bb[c]
+            for c in range(3):
+                X[p, c] = (
+                    bb[0] * V[F[best_f, 0], c]
+                    + bb[1] * V[F[best_f, 1], c]
+                    + bb[2] * V[F[best_f, 2], c]
+                )
+            _face_normal(V, F, best_f, nrm)
+            for c in range(3):
+                N[p, c] = nrm[c]
+            if best_f != f0 or best_len > 0.0:
+                changed = True
+            left += best_bad
+        if left == 0 or not changed:
+            break
+    return left
+
+
+@njit(cache=True, nogil=True, fastmath=False)
 def _on_boundary_edge(FN, f, b, eps):
     """Whether face point (f, b) lies on a boundary edge of its face."""
     for k in range(3):

@@ -9,10 +9,14 @@ from meshfit._kernels import springs as _k
 from meshfit.springs.grid import FREE
 from meshfit.springs.state import State
 
-__all__ = ["relax"]
+__all__ = ["folded_cells", "relax", "repair_folds", "unfold_in_map", "untangle"]
 
 #: walk steps never cross more faces than this (a relaxation step is about one spring long)
 _MAX_FACES = 10_000
+#: fold repair: trial directions per point, and the cosine between a grid triangle's normal
+#: and its corners' surface normals below which a triangle counts as nearly folded
+REPAIR_DIRECTIONS = 16
+REPAIR_MARGIN = 0.3
 
 
 def _curve_step(state: State, X: np.ndarray, w_arc: float, w_fair: float) -> float:
@@ -197,3 +201,74 @@ def untangle(
         )  # fmt: skip
         folds = folded_cells(state)
     return int(folds.sum())
+
+
+def repair_folds(state: State, *, rounds: int = 8) -> int:
+    """Unfold the folded cells of the spring mesh by local moves of their free corners, in
+    place; returns the folded cells left.
+
+    Each free corner of a folded cell goes to the best of a set of trial places around it
+    (the centroid of its neighbours, and steps in its tangent plane), walked on the patch:
+    fewest folded triangles in its four cells, then the triangles' normals closest to the
+    surface normals. Where a side bends sharply between two grid points, the point next to
+    it must step past the chord between them; the relaxation forces, which pull it toward
+    its neighbours, do not take it there (see `meshfit._kernels.springs.repair_folds`).
+    """
+    if not folded_cells(state).any():
+        return 0
+    mesh = state.mesh
+    movable = (state.kind() == FREE).ravel()
+    _k.repair_folds(
+        mesh.vertices, mesh.faces, mesh.face_neighbors, state.face, state.bary,
+        state.nu, state.nv, movable, int(rounds), REPAIR_DIRECTIONS, REPAIR_MARGIN,
+        tol.BARY_EPS, _MAX_FACES,
+    )  # fmt: skip
+    return int(folded_cells(state).sum())
+
+
+def _near_folds(state: State, folds: np.ndarray, reach: int) -> np.ndarray:
+    """(nu, nv) bool: free points within ``reach`` grid steps of a corner of a folded cell."""
+    from scipy.ndimage import binary_dilation
+
+    near = np.zeros((state.nu, state.nv), dtype=bool)
+    near[:-1, :-1] |= folds
+    near[1:, :-1] |= folds
+    near[:-1, 1:] |= folds
+    near[1:, 1:] |= folds
+    if reach > 0:
+        near = binary_dilation(near, iterations=reach)
+    return near & (state.kind() == FREE)
+
+
+def unfold_in_map(state: State, pmap, *, reach: int = 2, sweeps: int = 40) -> int:
+    """Re-place the free points around folded cells harmonically in the planar map, in place;
+    returns the folded cells left.
+
+    The points within ``reach`` grid steps of a folded cell take the mean of their four
+    neighbours' parameters in `meshfit.springs.planar.PlanarMap` (Gauss-Seidel, the other
+    points fixed) and go to the images of those parameters. The map is a bijection of the
+    patch onto the square, so a tangle of several points, which no single move undoes,
+    comes out as an untangled grid patch in the map; `repair_folds` then handles the cells
+    still folded on the surface (a triangle spanning a sharp bend). Nothing changes if the
+    surface would have more folded cells than before.
+    """
+    folds = folded_cells(state)
+    if not folds.any() or pmap is None:
+        return int(folds.sum())
+    nu, nv = state.nu, state.nv
+    win = _near_folds(state, folds, reach)
+    uv = pmap.uv_of(state.face, state.bary).reshape(nu, nv, 2)
+    ii, jj = np.nonzero(win)
+    for _ in range(sweeps):
+        for i, j in zip(ii.tolist(), jj.tolist(), strict=True):
+            uv[i, j] = 0.25 * (uv[i - 1, j] + uv[i + 1, j] + uv[i, j - 1] + uv[i, j + 1])
+    flat = (ii * nv + jj).astype(np.int64)
+    old_face, old_bary = state.face[flat].copy(), state.bary[flat].copy()
+    pts = pmap.locate(uv[ii, jj])
+    state.face[flat] = pts.face
+    state.bary[flat] = pts.bary
+    left = int(folded_cells(state).sum())
+    if left > folds.sum():  # worse on the surface than before: keep the old points
+        state.face[flat], state.bary[flat] = old_face, old_bary
+        return int(folds.sum())
+    return left

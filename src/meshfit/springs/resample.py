@@ -16,7 +16,7 @@ from meshfit.springs.grid import FREE, SpringMesh
 from meshfit.springs.init import chain_arc, chain_edge_faces, closest_approach, dijkstra_paths
 from meshfit.springs.metrics import spring_metrics
 from meshfit.springs.planar import PlanarMap, square_map
-from meshfit.springs.relax import relax, untangle
+from meshfit.springs.relax import relax, repair_folds, unfold_in_map, untangle
 from meshfit.springs.state import State
 from meshfit.springs.subdivide import subdivide
 
@@ -238,6 +238,7 @@ def resample_patch(
     omega: float = 1.0,
     n_fair: int = 2,
     untangle_rounds: int = 3,
+    repair: bool = True,
     forces: str = "tangent",
     init: str = "map",
     midpoints: str = "map",
@@ -316,6 +317,11 @@ def resample_patch(
     untangle_rounds : int, keyword-only
         After each subdivision and each level's relaxation, rounds of fairness-only sweeps
         around folded cells (default 3; 0 turns it off).
+    repair : bool, keyword-only
+        After each subdivision and each level's relaxation, re-place the free points around
+        folded cells harmonically in the planar map (`meshfit.springs.relax.unfold_in_map`,
+        when there is a map), then move the free corners of cells still folded to fold-free
+        places nearby (`meshfit.springs.relax.repair_folds`; default True).
     metrics, fidelity : bool, keyword-only
         Compute :func:`meshfit.springs.grid_metrics` of every level (with the fidelity
         distances).
@@ -406,6 +412,9 @@ def resample_patch(
                     tangent=forces == "tangent",
                     guard=guard,
                 )
+            if repair:
+                unfold_in_map(state, pmap)
+                repair_folds(state)
             seconds["subdivide"] += time.perf_counter() - t
         t = time.perf_counter()
         # level 0 starts from graph paths and must travel far: it is relaxed to a tighter
@@ -432,6 +441,9 @@ def resample_patch(
                 tangent=forces == "tangent",
                 guard=guard,
             )
+        if repair:
+            unfold_in_map(state, pmap)
+            repair_folds(state)
         seconds["relax"] += time.perf_counter() - t
         sweeps.append(done)
         snap = state.snapshot()
