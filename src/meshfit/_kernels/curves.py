@@ -391,6 +391,9 @@ def revert_jumps(V, F, FN, VF_ptr, VF, face, bary, gface, gbary, keep, max_gap, 
     reverts = 0
     i = 0
     while i < n - 1:
+        if not (keep[i] or keep[i + 1]):  # two graph samples: nothing to revert
+            i += 1
+            continue
         f0 = face[i] if keep[i] else gface[i]
         f1 = face[i + 1] if keep[i + 1] else gface[i + 1]
         b0 = bary[i] if keep[i] else gbary[i]
@@ -879,3 +882,14 @@ def broken_pairs(F, FN, VF_ptr, VF, face, bary, closed, eps):
             out[k] = i
             k += 1
     return out[:k]
+
+
+@njit(cache=True, nogil=True)
+def positions(V, F, face, bary):
+    """Positions (n, 3) f8 of face points face (n,) i8, bary (n, 3) f8, summed in the order
+    of ``Mesh.xyz``. Used by `meshfit.curves.paint`."""
+    n = face.size
+    out = np.empty((n, 3))
+    for i in range(n):
+        _point_in(V, F, face[i], bary[i], out[i])
+    return out

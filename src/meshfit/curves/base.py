@@ -340,10 +340,13 @@ def _resample(
     spacing: float | None,
     n: int | None,
     cv: float = _RESAMPLE_CV,
+    checked: bool = False,
 ) -> tuple[SurfaceCurve, NDArray[np.bool_]]:
     """:func:`resample_curve` plus a mask of the evenly spaced points (False: inserted);
-    passes repeat until the spacing's coefficient of variation is at most ``cv``."""
-    curve = _as_curve(mesh, curve)
+    passes repeat until the spacing's coefficient of variation is at most ``cv``. With
+    ``checked`` the curve is known to be a SurfaceCurve on ``mesh`` (not validated again)."""
+    if not checked:
+        curve = _as_curve(mesh, curve)
     if spacing is not None and n is not None:
         raise InputError("give spacing or n, not both")
     need = 3 if curve.closed else 2

@@ -136,7 +136,7 @@ def _segment(
         return resample_curve(mesh, SurfaceCurve(pts), spacing=spacing).points
     # CurveAttract toward the chord: each graph sample's target is the chord point at the
     # same fraction of the length (the samples keep their order and rough spacing)
-    x = mesh.xyz(pts)
+    x = _curves.positions(mesh.vertices, _i8(mesh.faces), pts.face, pts.bary)
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(x, axis=0), axis=1))])
     t = (arc[1:-1] / arc[-1])[:, None] if arc[-1] > 0 else np.zeros((m - 2, 1))
     targets = x[0] + t * (x[-1] - x[0])
@@ -145,7 +145,9 @@ def _segment(
     straight = _straighten(
         mesh, pts, _attract_few(mesh, inner.face, inner.bary, targets, chain=True), spacing
     )
-    out, _ = _resample(mesh, SurfaceCurve(straight), spacing=spacing, n=None, cv=PAINT_SPACING_CV)
+    out, _ = _resample(
+        mesh, SurfaceCurve(straight), spacing=spacing, n=None, cv=PAINT_SPACING_CV, checked=True
+    )
     return out.points
 
 
