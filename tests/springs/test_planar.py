@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from meshfit import tol
 from meshfit.errors import InputError
 from meshfit.springs import resample_patch
-from meshfit.springs.planar import square_map
+from meshfit.springs.planar import clear_map_cache, square_map
 from meshfit.springs.resample import _sides
 
 from ..conftest import real_mesh
@@ -39,6 +40,66 @@ def test_square_map_is_a_bijection_onto_the_square(which):
     area = _signed_areas(uv, patch.mesh.faces)
     assert area.min() >= -1e-15
     assert_allclose(0.5 * area.sum(), 1.0, rtol=1e-9)  # the faces tile the square once
+
+
+def _square_map_oracle(mesh, sides):
+    """The mean-value map by the textbook route: the full weight matrix, one spsolve."""
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import spsolve
+
+    V, F = mesh.vertices, mesh.faces
+    n = mesh.n_vertices
+    W = sp.lil_matrix((n, n))
+    for f in range(len(F)):
+        for c in range(3):
+            i, j, k = F[f, c], F[f, (c + 1) % 3], F[f, (c + 2) % 3]
+            eij, eik = V[j] - V[i], V[k] - V[i]
+            lij, lik = np.linalg.norm(eij), np.linalg.norm(eik)
+            theta = np.arccos(np.clip(eij @ eik / (lij * lik), -1.0, 1.0))
+            W[i, j] += np.tan(theta / 2) / lij
+            W[i, k] += np.tan(theta / 2) / lik
+    W = W.tocsr()
+    uv = np.zeros((n, 2))
+    fixed = np.zeros(n, dtype=bool)
+    for name, axis, const in [("bottom", 0, 0), ("top", 0, 1), ("left", 1, 0), ("right", 1, 1)]:
+        arc = sides.arcs[name]
+        uv[sides.chains[name], axis] = arc / arc[-1]
+        uv[sides.chains[name], 1 - axis] = const
+        fixed[sides.chains[name]] = True
+    free, fix = np.flatnonzero(~fixed), np.flatnonzero(fixed)
+    A = sp.diags(np.asarray(W.sum(axis=1)).ravel()[free]) - W[free][:, free]
+    uv[free] = spsolve(A.tocsc(), W[free][:, fix] @ uv[fix])
+    return uv
+
+
+@pytest.mark.parametrize("which", ["cap", "igea"])
+def test_square_map_matches_the_plain_solve(which):
+    if which == "cap":
+        patch = param_patch(cap_map(1.0, 0.6), 20, 20)
+    else:
+        patch = cut_patch(real_mesh("igea"), 1000, 0.02)
+    sides = _sides(patch)
+    clear_map_cache()
+    got = square_map(patch.mesh, sides).uv
+    assert_allclose(got, _square_map_oracle(patch.mesh, sides), rtol=0, atol=tol.TEST_ATOL)
+
+
+def test_square_map_is_kept_per_patch_mesh():
+    patch = param_patch(cap_map(1.0, 0.6), 12, 10)
+    sides = _sides(patch)
+    clear_map_cache()
+    a = square_map(patch.mesh, sides)
+    assert square_map(patch.mesh, _sides(patch)) is a  # equal sides, new object: kept
+    with pytest.raises(ValueError, match="read-only"):
+        a.uv[0, 0] = 0.5  # shared between callers: nobody may change it
+    other = param_patch(cap_map(1.0, 0.6), 12, 10)  # equal arrays, another mesh object
+    b = square_map(other.mesh, _sides(other))
+    assert b is not a
+    assert_allclose(b.uv, a.uv, rtol=0, atol=tol.TEST_ATOL)
+    clear_map_cache()
+    c = square_map(patch.mesh, sides)
+    assert c is not a
+    np.testing.assert_array_equal(c.uv, a.uv)
 
 
 def test_locate_inverts_the_map():
