@@ -236,3 +236,60 @@ def place_on_pieces(points, closed: bool, pieces, s):
         barys.append(b)
         segs.append(seg)
     return np.array(faces, dtype=np.int64), np.array(barys), np.array(segs, dtype=np.int64)
+
+
+def attract_uncut(mesh, face, bary, target, *, max_iter=200):
+    """One point's attraction as `meshfit._kernels.walk._attract_one` does it, every
+    walking step followed to its end (no early give-up), step by step in Python over the
+    kernel's walking primitives (sums in the kernel's order). Returns ``(face, bary (3,),
+    distance, iterations)``."""
+    from meshfit import tol
+    from meshfit._kernels import walk as K
+
+    V = mesh.vertices
+    F = np.ascontiguousarray(mesh.faces)
+    FN = np.ascontiguousarray(mesh.face_neighbors)
+    VFp, VF = mesh.vertex_faces
+    eps_len = tol.length(mesh, tol.ATTRACT_EPS)
+
+    def at(f, b):
+        return b[0] * V[F[f, 0]] + b[1] * V[F[f, 1]] + b[2] * V[F[f, 2]]
+
+    def norm(d):
+        return float(np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]))
+
+    f = int(face)
+    b = np.array(bary, dtype=float)
+    tgt = np.asarray(target, dtype=float)
+    dist = norm(tgt - at(f, b))
+    h = 1.0
+    it = 0
+    while it < max_iter:
+        it += 1
+        x = at(f, b)
+        nrm = np.empty(3)
+        K._face_normal(V, F, f, nrm)
+        p = (tgt - x) * nrm
+        off = p[0] + p[1] + p[2]
+        step = h * (tgt - off * nrm - x)
+        K._clip_at_boundary(V, F, FN, f, b, step, tol.BARY_EPS)
+        moved = False
+        if norm(step) >= eps_len:
+            u = np.empty(3)
+            total = K._start_direction(V, F, f, step, u)
+            cb = b.copy()
+            g, _, _, _ = K._walk_one(V, F, FN, f, cb, u, total, 10_000, tol.BARY_EPS)
+            cand = norm(tgt - at(g, cb))
+            if cand < dist:
+                f, b, dist, h, moved = int(g), cb, cand, min(1.0, 2.0 * h), True
+            else:
+                h *= 0.5
+        if not moved:
+            f, dist, moved = K._descend(
+                V, F, FN, VFp, VF, f, b, tgt, dist, np.empty(3), np.empty(3), np.empty(3)
+            )
+            f = int(f)
+            if not moved:
+                break
+    K._clean_bary(b)
+    return f, b, dist, it

@@ -649,3 +649,27 @@ def test_walk_kernel_does_not_divide_by_zero_in_a_zero_area_face():
     _, out_bary, *_ = kernels.walk_points(V, F, FN, face, bary, step, 100, 1e-12, 1e-12)
     assert np.isfinite(out_bary).all()
     assert_allclose(out_bary.sum(axis=1), 1.0)
+
+
+@pytest.mark.parametrize("name", ["spot", "igea"])
+def test_attraction_cutting_hopeless_walks_short_changes_nothing(name):
+    """Attraction gives up a walking step once it cannot end closer than the point already
+    is; the result is the same as following every step to its end."""
+    from meshfit.surface import greedy_path, path_to_surface_points
+    from tests.reference import curves as ref_curves
+
+    mesh = real_mesh(name)
+    v = mesh.vertices
+    a, b = int(np.argmin(v[:, 1])), int(np.argmax(v[:, 0]))
+    pts = path_to_surface_points(mesh, greedy_path(mesh, a, b).vertices, per_edge=1)
+    pts = pts[:: max(1, len(pts) // 120)]
+    x = mesh.xyz(pts)
+    t = np.linspace(0.0, 1.0, len(pts))[:, None]
+    targets = x[0] + t * (x[-1] - x[0])  # far under the surface: long, rejected steps
+    got = attract_points(mesh, pts, targets)
+    for i in range(len(pts)):
+        f, bary, dist, it = ref_curves.attract_uncut(mesh, pts.face[i], pts.bary[i], targets[i])
+        assert got.end.face[i] == f
+        assert_array_equal(got.end.bary[i], bary)
+        assert got.distance[i] == dist
+        assert got.iterations[i] == it

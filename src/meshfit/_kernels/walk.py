@@ -17,6 +17,8 @@ from numba import njit, prange
 DONE = 0
 BOUNDARY = 1
 CAPPED = 2
+#: `_walk_core` gave up: the walk cannot end within its bound of the target
+FARTHER = 3
 #: rows of (3,) scratch that `_attract_one_buf` needs
 _ATTRACT_SCRATCH = 7
 
@@ -99,6 +101,15 @@ def _walk_one(V, F, FN, f, b, u, length, max_faces, bary_eps):
     Returns ``(face, remaining_length, status, faces_crossed)``; status is DONE, BOUNDARY or
     CAPPED. Kernel of `meshfit.surface.walk.walk_points`.
     """
+    return _walk_core(V, F, FN, f, b, u, length, max_faces, bary_eps, u, np.inf)
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _walk_core(V, F, FN, f, b, u, length, max_faces, bary_eps, tgt, bound):
+    """`_walk_one` that gives up (status FARTHER) at an edge crossing from which the walk
+    cannot end within ``bound`` of ``tgt`` (3,): the distance to ``tgt`` there minus the
+    length still to walk exceeds ``bound`` (a surface path is never shorter than the chord).
+    ``bound = inf`` never gives up. ``b`` is then the crossing point (in face ``f``)."""
     entered = -1  # coordinate that vanishes on the edge just entered through
     crossed = 0
     while True:
@@ -131,6 +142,12 @@ def _walk_one(V, F, FN, f, b, u, length, max_faces, bary_eps):
         b[i_exit] = 0.0
         _clean_bary(b)
         length -= s_exit
+        if bound < np.inf:
+            d0 = tgt[0] - (b[0] * V[F[f, 0], 0] + b[1] * V[F[f, 1], 0] + b[2] * V[F[f, 2], 0])
+            d1 = tgt[1] - (b[0] * V[F[f, 0], 1] + b[1] * V[F[f, 1], 1] + b[2] * V[F[f, 2], 1])
+            d2 = tgt[2] - (b[0] * V[F[f, 0], 2] + b[1] * V[F[f, 1], 2] + b[2] * V[F[f, 2], 2])
+            if np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) - length > bound:
+                return f, length, FARTHER, crossed
         k = (i_exit + 1) % 3  # edge opposite vertex slot i_exit
         g = FN[f, k]
         if g < 0:
@@ -446,9 +463,15 @@ def _attract_one_buf(V, F, FN, VFp, VF, f, b, tgt, max_iter, max_faces, eps_len,
         if np.sqrt(step[0] * step[0] + step[1] * step[1] + step[2] * step[2]) >= eps_len:
             total = _start_direction(V, F, f, step, u)
             cb[:] = b
-            g, _, _, _ = _walk_one(V, F, FN, f, cb, u, total, max_faces, bary_eps)
-            _position(V, F, g, cb, nrm)  # nrm reused as the candidate position
-            cand = _dist(tgt, nrm)
+            # a walk that cannot end closer than `dist` is cut short: it would be rejected
+            # (the margin keeps the decision exact under rounding)
+            g, _, status, _ = _walk_core(
+                V, F, FN, f, cb, u, total, max_faces, bary_eps, tgt, dist + eps_len
+            )
+            cand = np.inf
+            if status != FARTHER:
+                _position(V, F, g, cb, nrm)  # nrm reused as the candidate position
+                cand = _dist(tgt, nrm)
             if cand < dist:
                 f = g
                 b[:] = cb
