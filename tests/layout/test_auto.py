@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from meshfit.curves.base import check_sampling
+from meshfit.curves.base import check_sampling, densify_curve
 from meshfit.demo import demo_mesh, demo_sphere_map
 from meshfit.errors import InputError, LayoutError, TopologyError
 from meshfit.layout import extract_patches, layout_from_json, layout_to_json
@@ -69,3 +69,46 @@ def test_crossing_curves_give_a_clear_error():
     # spot has about 2,900 vertices: 400 patches put several traced curves through one face
     with pytest.raises(LayoutError, match="fewer patches"):
         auto_layout(real_mesh("spot"), patches=400, relax=False)
+
+
+def test_batched_relaxation_matches_relax_snake():
+    from meshfit.curves import relax_snake
+    from meshfit.layout.auto import _network, _relax_all
+    from meshfit.shrinkwrap import sphere_map
+
+    mesh = real_mesh("spot")
+    smap = sphere_map(mesh, max_aspect=10.0)
+    _, curves, _, _ = _network(mesh, smap, 20, 0)
+    curves = curves[:12]
+    got = _relax_all(mesh, curves, 60)
+    for c, g in zip(curves, got, strict=True):
+        want = relax_snake(mesh, c, max_iter=60).curve
+        if len(check_sampling(mesh, want)):
+            want = densify_curve(mesh, want)
+        np.testing.assert_array_equal(g.points.face, want.points.face)
+        np.testing.assert_allclose(g.points.bary, want.points.bary, atol=1e-12)
+
+
+def test_batched_snake_kernels_match_oracle(rng):
+    from meshfit._kernels import snakes as _kb
+
+    from ..reference import snakes as reference
+
+    sizes = np.array([2, 5, 17, 40])
+    start = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    n = int(start[-1])
+    x = np.cumsum(rng.normal(size=(n, 3)), axis=0)
+    levels = np.array([1, 2, 3, 5], dtype=np.int64)
+    got = _kb.forces_many(x, start, levels, 1.0, 0.5, 1.0)
+    want = reference.forces_many(x, start, levels, 1.0, 0.5, 1.0)
+    np.testing.assert_allclose(got, want, atol=1e-12)
+    nrm = rng.normal(size=(n, 3))
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    fixed = rng.random(n) < 0.2
+    floor = np.array([0.0, 0.5, 0.1, 2.0])
+    got = _kb.moves_many(x, want, nrm, fixed, start, 0.5, 0.25, floor)
+    np.testing.assert_allclose(
+        got, reference.moves_many(x, want, nrm, fixed, start, 0.5, 0.25, floor), atol=1e-12
+    )
+    assert not got[fixed].any()
+    np.testing.assert_array_equal(_kb.curve_max(np.arange(n, dtype=float), start), start[1:] - 1)

@@ -21,13 +21,15 @@ re-used.
 4. Each traced curve is relaxed as a surface snake with fixed ends (a tight, evenly sampled
    curve on the surface instead of the image of an arc, which follows the parameterization's
    distortion); if the relaxed network no longer cuts the mesh into disks the traced curves
-   are kept.
+   are kept. All curves are relaxed together (one walk per iteration for every point).
+5. A dense mesh (more than ``PROXY_RATIO * PROXY_FACES`` faces) goes through steps 1-4 on a
+   coarse proxy (:func:`meshfit.shrinkwrap.proxy.simplify_mesh`, vertices a subset of the
+   input's); corners and curve points are carried to their closest points on the mesh, the
+   curves densified and relaxed a few more iterations there. If that network does not cut
+   the mesh into disks, steps 1-4 run on the mesh itself.
 """
 
 from __future__ import annotations
-
-import os
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,6 +50,12 @@ DEFAULT_PATCHES = 60
 #: squeezes triangles gives base cells whose images are very uneven (nefertiti unbounded:
 #: aspect 571, 310 folded spring cells in the fit; bounded: 18)
 SPHERE_MAX_ASPECT = 10.0
+#: default face count of the coarse proxy a dense mesh is laid out on (``auto_layout``)
+PROXY_FACES = 50_000
+#: a mesh is laid out on a proxy when it has more than this many times ``proxy_faces`` faces
+PROXY_RATIO = 2.0
+#: snake iterations on the full mesh after the curves relaxed on the proxy are carried over
+FINE_RELAX_ITERATIONS = 20
 #: samples of a base edge's image when it is split at half its surface length
 _SPLIT_SAMPLES = 65
 #: a base triangle's image is split n x n ways to find its area centre
@@ -183,6 +191,7 @@ def auto_layout(
     relax: bool = True,
     relax_iterations: int = 200,
     sphere_max_aspect: float | None = SPHERE_MAX_ASPECT,
+    proxy_faces: int | None = PROXY_FACES,
 ) -> Layout:
     """A four-sided layout of a closed genus-0 mesh: three quads per base-mesh triangle.
 
@@ -207,6 +216,14 @@ def auto_layout(
     sphere_max_aspect : float or None, keyword-only
         Aspect-ratio bound of the default sphere map's triangles (default
         ``SPHERE_MAX_ASPECT`` = 10; None: unbounded).
+    proxy_faces : int or None, keyword-only
+        A mesh with more than ``PROXY_RATIO`` times this many faces (and no ``sphere``) is
+        laid out on a coarse proxy: :func:`meshfit.shrinkwrap.simplify_mesh` to about
+        ``proxy_faces`` faces, the sphere map, base mesh, traced curves and their relaxation
+        on the proxy; then the corners and curve points are carried to the closest points of
+        ``mesh``, the curves densified there and relaxed for ``FINE_RELAX_ITERATIONS`` more
+        iterations on ``mesh``. If the carried network does not cut ``mesh`` into disks, the
+        layout is made on ``mesh`` itself. Default ``PROXY_FACES`` (50,000); None: never.
 
     Returns
     -------
@@ -227,10 +244,13 @@ def auto_layout(
        area-equalised base mesh).
     .. [2] Krishnamurthy 2000, sec. 1.3 (four-sided patch layouts).
     """
-    from meshfit.shrinkwrap import base_mesh, sphere_map
+    from meshfit.layout.extract import check_layout_topology
+    from meshfit.shrinkwrap import sphere_map
 
     if patches is not None and int(patches) < 1:
         raise InputError(f"patches must be >= 1, got {patches}")
+    if proxy_faces is not None and int(proxy_faces) < 20:
+        raise InputError(f"proxy_faces must be >= 20, got {proxy_faces}")
     if not mesh.is_closed or mesh.genus != 0 or mesh.n_components != 1:
         what = (
             "is open (has boundary loops)"
@@ -247,7 +267,51 @@ def auto_layout(
     want = DEFAULT_PATCHES if patches is None else int(patches)
     n_faces = max(20, round(want / PATCHES_PER_TRIANGLE))
     n_faces += n_faces % 2
+    iters = int(relax_iterations)
+
+    if sphere is None and proxy_faces is not None and mesh.n_faces > PROXY_RATIO * proxy_faces:
+        from meshfit.shrinkwrap.proxy import simplify_mesh
+
+        coarse = simplify_mesh(mesh, int(proxy_faces)).mesh
+        smap = sphere_map(coarse, max_aspect=sphere_max_aspect)
+        c_corners, c_curves, ends, quads = _network(coarse, smap, n_faces, seed)
+        tries = []
+        if relax:
+            c_relaxed = _relax_all(coarse, c_curves, iters)
+            tries.append((c_relaxed, min(iters, FINE_RELAX_ITERATIONS)))
+        tries.append((c_curves, 0))
+        corners = _carry_points(mesh, coarse, c_corners)
+        for c_set, fine_iters in tries:
+            try:
+                curves = _carry_curves(mesh, coarse, c_set, corners, ends)
+                if fine_iters > 0:
+                    curves = _relax_all(mesh, curves, fine_iters)
+                out = layout_from_curves(mesh, corners, curves, ends, quads)
+                check_layout_topology(mesh, out)
+                return out
+            except MeshfitError:
+                continue
+        # the carried network does not cut the mesh: lay out on the mesh itself
+
     smap = sphere_map(mesh, max_aspect=sphere_max_aspect) if sphere is None else sphere
+    corners, curves, ends, quads = _network(mesh, smap, n_faces, seed)
+    traced = layout_from_curves(mesh, corners, curves, ends, quads)
+    if not relax:
+        return _checked(mesh, traced)
+    relaxed = _relax_all(mesh, curves, iters)
+    try:
+        out = layout_from_curves(mesh, corners, relaxed, ends, quads)
+        check_layout_topology(mesh, out)
+        return out
+    except MeshfitError:
+        pass
+    return _checked(mesh, traced)
+
+
+def _network(mesh: Mesh, smap, n_faces: int, seed: int):
+    """Corners, traced curves, curve ends and quads of the base mesh of ``smap``."""
+    from meshfit.shrinkwrap import base_mesh
+
     base = base_mesh(smap, max_faces=n_faces, min_faces=n_faces, seed=seed)
     S, BF = base.sphere, base.faces
 
@@ -274,30 +338,155 @@ def auto_layout(
 
     pts, ends, quads = quad_network(S, BF, midpoint=midpoint, centroid=centroid)
     corners = smap.locate(pts)
-    curves = []
-    for a, b in ends.tolist():
-        curves.append(_trace(mesh, smap, pts[a], pts[b], corners[a], corners[b]))
-    traced = layout_from_curves(mesh, corners, curves, ends, quads)
-    from meshfit.curves import relax_snake
-    from meshfit.layout.extract import check_layout_topology
+    curves = [_trace(mesh, smap, pts[a], pts[b], corners[a], corners[b]) for a, b in ends.tolist()]
+    return corners, curves, ends, quads
 
-    if not relax:
-        return _checked(mesh, traced)
 
-    def relax_one(c: SurfaceCurve) -> SurfaceCurve:
-        r = relax_snake(mesh, c, max_iter=int(relax_iterations)).curve
-        return densify_curve(mesh, r) if len(check_sampling(mesh, r)) else r
+def _relax_all(mesh: Mesh, curves: list[SurfaceCurve], iterations: int) -> list[SurfaceCurve]:
+    """Every curve relaxed as a snake with fixed ends, densified where the rule breaks.
 
-    # curves are independent: threads (the walking kernel releases the GIL)
-    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-        relaxed = list(pool.map(relax_one, curves))
-    try:
-        out = layout_from_curves(mesh, corners, relaxed, ends, quads)
-        check_layout_topology(mesh, out)
-        return out
-    except MeshfitError:
-        pass
-    return _checked(mesh, traced)
+    The curves are relaxed together, one walk per iteration for all of them: the same forces,
+    moves, sampling guard and per-curve stopping tests as :func:`meshfit.curves.relax_snake`
+    with its default weights (a converged curve stops moving).
+    """
+    from meshfit import tol
+    from meshfit._kernels import snake as _ks
+    from meshfit._kernels import snakes as _kb
+    from meshfit._kernels import walk as _walk
+    from meshfit.curves.snake import _MAX_FACES, SNAKE_MOVE_TOL, _auto_levels
+
+    if not curves:
+        return []
+    sizes = np.array([len(c) for c in curves], dtype=np.int64)
+    start = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    k = len(curves)
+    owner = np.repeat(np.arange(k), sizes)
+    face = np.ascontiguousarray(np.concatenate([c.points.face for c in curves]), dtype=np.int64)
+    bary = np.array(np.concatenate([c.points.bary for c in curves]), dtype=np.float64, order="C")
+    neg = (bary < 0).any(axis=1)
+    if neg.any():
+        c = np.clip(bary[neg], 0.0, None)
+        bary[neg] = c / c.sum(axis=1, keepdims=True)
+    ends = np.zeros(face.size, dtype=bool)
+    ends[start[:-1]] = True
+    ends[start[1:] - 1] = True
+    levels = np.array([_auto_levels(int(n), False) for n in sizes], dtype=np.int64)
+    V, F, FN = mesh.vertices, mesh.faces, mesh.face_neighbors
+    VN = mesh.vertex_normals
+    eps = tol.length(mesh, tol.WALK_EPS)
+    gain = 1.0 / 2.0  # 1 / max(1, w_fair + w_curv + w_arc), default weights 1, 0, 1
+    stop = SNAKE_MOVE_TOL * mesh.mean_edge_length
+    # segments inside a curve (the pair from one curve's end to the next's start is not one)
+    inner_seg = np.ones(max(face.size - 1, 0), dtype=bool)
+    inner_seg[start[1:-1] - 1] = False
+
+    def pairs(fc):
+        return _ks.pairs_ok(F, fc, False) & inner_seg
+
+    def walk(fc, bc, mv):
+        f, b, ln, _, _ = _walk.walk_points(
+            V, F, FN, fc, bc, np.ascontiguousarray(mv), _MAX_FACES, eps, tol.BARY_EPS
+        )
+        return f, b, ln
+
+    def step(fc, bc, mv):
+        n = fc.shape[0]
+        ok0 = pairs(fc)
+        nf, nb, ln = walk(fc, bc, mv)
+        mv = mv.copy()
+        for _attempt in range(6):
+            bad = ok0 & ~pairs(nf)
+            if not bad.any():
+                return nf, nb, ln
+            seg = np.flatnonzero(bad)
+            pts = np.unique(np.concatenate([seg, seg + 1]))
+            pts = pts[np.linalg.norm(mv[pts], axis=1) > 0]
+            if pts.size == 0:
+                break
+            mv[pts] *= 0.5
+            f2, b2, l2 = walk(fc[pts], np.ascontiguousarray(bc[pts]), mv[pts])
+            nf[pts], nb[pts], ln[pts] = f2, b2, l2
+        while True:
+            bad = ok0 & ~pairs(nf)
+            if not bad.any():
+                return nf, nb, ln
+            seg = np.flatnonzero(bad)
+            pts = np.unique(np.concatenate([seg, seg + 1]))
+            pts = pts[pts < n]
+            nf[pts], nb[pts], ln[pts] = fc[pts], bc[pts], 0.0
+
+    x = _ks.positions(V, F, face, bary)
+    seg_len = np.linalg.norm(np.diff(x, axis=0), axis=1)
+    sums = np.bincount(owner[:-1][inner_seg], weights=seg_len[inner_seg], minlength=k)
+    floor = 0.1 * np.where(sizes > 1, sums / np.maximum(sizes - 1, 1), 0.0)
+    active = np.ones(k, dtype=bool)
+    x_prev2 = None
+    x_prev = x
+    for _ in range(int(iterations)):
+        fixed = ends | ~active[owner]
+        force = _kb.forces_many(x, start, levels, 1.0, 0.0, 1.0)
+        nrm = np.einsum("ij,ijk->ik", bary, VN[F[face]])
+        nrm /= np.linalg.norm(nrm, axis=1)[:, None]
+        move = _kb.moves_many(x, force, nrm, fixed, start, gain, 0.25, floor)
+        nf, nb, length = step(face, bary, move)
+        free = ~fixed
+        face = np.where(free, nf, face)
+        bary = np.where(free[:, None], nb, bary)
+        mm = _kb.curve_max(np.where(free, length, 0.0), start)
+        has_free = np.bincount(owner, weights=free, minlength=k) > 0
+        active &= has_free & (mm >= stop)
+        x = _ks.positions(V, F, face, bary)
+        if x_prev2 is not None:
+            net = _kb.curve_max(np.linalg.norm(x - x_prev2, axis=1), start)
+            active &= net >= stop
+        if not active.any():
+            break
+        x_prev2, x_prev = x_prev, x
+    out = []
+    for c, curve in enumerate(curves):
+        a, b = int(start[c]), int(start[c + 1])
+        fc, bc = face[a:b].copy(), bary[a:b].copy()
+        fc[0], fc[-1] = curve.points.face[0], curve.points.face[-1]
+        bc[0], bc[-1] = curve.points.bary[0], curve.points.bary[-1]
+        r = SurfaceCurve(SurfacePoints(fc, bc), curve.closed, curve.kind)
+        out.append(densify_curve(mesh, r) if len(check_sampling(mesh, r)) else r)
+    return out
+
+
+def _carry_points(mesh: Mesh, coarse: Mesh, points: SurfacePoints) -> SurfacePoints:
+    """Face points of ``coarse`` carried to the closest points of ``mesh``."""
+    return mesh.closest_points(coarse.xyz(points)).points
+
+
+def _carry_curves(
+    mesh: Mesh,
+    coarse: Mesh,
+    curves: list[SurfaceCurve],
+    corners: SurfacePoints,
+    ends: NDArray[np.int64],
+) -> list[SurfaceCurve]:
+    """Curves of ``coarse`` carried point by point to the closest points of ``mesh``, ends
+    on the carried ``corners``, densified on ``mesh``."""
+    sizes = [len(c) for c in curves]
+    inner = SurfacePoints.concatenate(
+        [c.points[np.arange(1, n - 1)] for c, n in zip(curves, sizes, strict=True)]
+    )
+    moved = _carry_points(mesh, coarse, inner)
+    out = []
+    at = 0
+    for c, n, (a, b) in zip(curves, sizes, ends.tolist(), strict=True):
+        mid = moved[np.arange(at, at + n - 2)]
+        at += n - 2
+        pts = SurfacePoints.concatenate([corners[np.array([a])], mid, corners[np.array([b])]])
+        # exact repeats go (a carried point on a corner: the corner stays)
+        same = (pts.face[1:] == pts.face[:-1]) & np.all(pts.bary[1:] == pts.bary[:-1], axis=1)
+        keep = np.concatenate([[True], ~same])
+        if same[-1]:
+            keep[-1] = True
+            keep[-2] = len(keep) == 2
+        pts = pts[np.flatnonzero(keep)]
+        out.append(densify_curve(mesh, SurfaceCurve(pts, kind=c.kind)))
+    return out
 
 
 def _checked(mesh: Mesh, layout: Layout) -> Layout:

@@ -1,0 +1,223 @@
+"""Numba kernel of mesh simplification: one pass of independent half-edge collapses.
+
+No validation here: :func:`meshfit.shrinkwrap.proxy.simplify_mesh` checks the input (one
+closed manifold surface) and passes contiguous arrays. ``fastmath`` stays off: the normal
+test of a collapse is a sign test.
+
+Conventions: ``V (nv, 3) f8`` positions (never moved: a half-edge collapse ``v -> u`` keeps
+``u`` where it is), ``F (nf, 3) i8`` faces, ``alive (nf,) bool`` the faces still in the mesh.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _star(F, alive, nv):
+    """Vertex -> alive faces as CSR ``(indptr (nv + 1,), faces)``."""
+    cnt = np.zeros(nv + 1, dtype=np.int64)
+    for f in range(F.shape[0]):
+        if alive[f]:
+            for k in range(3):
+                cnt[F[f, k] + 1] += 1
+    for i in range(nv):
+        cnt[i + 1] += cnt[i]
+    out = np.empty(cnt[nv], dtype=np.int64)
+    fill = cnt[:nv].copy()
+    for f in range(F.shape[0]):
+        if alive[f]:
+            for k in range(3):
+                v = F[f, k]
+                out[fill[v]] = f
+                fill[v] += 1
+    return cnt, out
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _neighbors(F, indptr, star, v, buf):
+    """Distinct neighbours of ``v`` into ``buf``; returns their count."""
+    n = 0
+    for i in range(indptr[v], indptr[v + 1]):
+        f = star[i]
+        for k in range(3):
+            w = F[f, k]
+            if w == v:
+                continue
+            seen = False
+            for j in range(n):
+                if buf[j] == w:
+                    seen = True
+                    break
+            if not seen:
+                buf[n] = w
+                n += 1
+    return n
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _normal(V, a, b, c):
+    ux = V[b, 0] - V[a, 0]
+    uy = V[b, 1] - V[a, 1]
+    uz = V[b, 2] - V[a, 2]
+    wx = V[c, 0] - V[a, 0]
+    wy = V[c, 1] - V[a, 1]
+    wz = V[c, 2] - V[a, 2]
+    return uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _quality(V, a, b, c):
+    """``4 sqrt(3) area / (l0^2 + l1^2 + l2^2)``: 1 equilateral, 0 degenerate."""
+    nx, ny, nz = _normal(V, a, b, c)
+    area2 = np.sqrt(nx * nx + ny * ny + nz * nz)
+    s = 0.0
+    for p, q in ((a, b), (b, c), (c, a)):
+        for d in range(3):
+            e = V[q, d] - V[p, d]
+            s += e * e
+    if s <= 0.0:
+        return 0.0
+    return 2.0 * np.sqrt(3.0) * area2 / s
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def collapse_pass(V, F, alive, max_collapses, max_valence, min_cos, min_quality):
+    """One pass of independent half-edge collapses, shortest edges first, in place.
+
+    V (nv, 3) f8; F (nf, 3) i8 and alive (nf,) bool, updated in place. A vertex ``v`` is
+    collapsed into its nearest neighbour ``u`` (then the next nearest, ...) when: the link
+    condition holds (``u`` and ``v`` share exactly two neighbours), neither ``u`` nor ``v`` was
+    touched by an earlier collapse of the pass (a collapse touches ``v``, ``u`` and the
+    one-ring of ``v``: the vertices whose stars change), ``u`` ends with at most
+    ``max_valence`` neighbours and the two opposite vertices with at least three, every face
+    that keeps ``v`` -> ``u`` turns its normal by less than ``arccos(min_cos)`` and has
+    quality (``4 sqrt(3) area / sum l^2``) at least ``min_quality`` or at least its old one.
+    Stops after ``max_collapses``. Returns the number of collapses. Wrapped by
+    ``meshfit.shrinkwrap.proxy.simplify_mesh``.
+    """
+    nv = V.shape[0]
+    indptr, star = _star(F, alive, nv)
+    # shortest incident edge per vertex: the visiting order
+    short = np.full(nv, np.inf)
+    for f in range(F.shape[0]):
+        if alive[f]:
+            for k in range(3):
+                a = F[f, k]
+                b = F[f, (k + 1) % 3]
+                d = 0.0
+                for j in range(3):
+                    e = V[b, j] - V[a, j]
+                    d += e * e
+                if d < short[a]:
+                    short[a] = d
+                if d < short[b]:
+                    short[b] = d
+    order = np.argsort(short, kind="mergesort")
+    valence = np.zeros(nv, dtype=np.int64)  # faces around a vertex == its valence (closed)
+    for v in range(nv):
+        valence[v] = indptr[v + 1] - indptr[v]
+    locked = np.zeros(nv, dtype=np.bool_)
+    nbv = np.empty(64, dtype=np.int64)
+    nbu = np.empty(64, dtype=np.int64)
+    dist = np.empty(64)
+    cand = np.empty(64, dtype=np.int64)
+    done = 0
+    for oi in range(nv):
+        if done >= max_collapses:
+            break
+        v = order[oi]
+        if locked[v] or not np.isfinite(short[v]):
+            continue
+        if indptr[v + 1] - indptr[v] > 64:
+            continue
+        nv_v = _neighbors(F, indptr, star, v, nbv)
+        if nv_v < 3:
+            continue
+        # neighbours by distance (insertion sort)
+        for j in range(nv_v):
+            w = nbv[j]
+            d = 0.0
+            for c in range(3):
+                e = V[w, c] - V[v, c]
+                d += e * e
+            i = j
+            while i > 0 and dist[i - 1] > d:
+                dist[i] = dist[i - 1]
+                cand[i] = cand[i - 1]
+                i -= 1
+            dist[i] = d
+            cand[i] = w
+        for ci in range(nv_v):
+            u = cand[ci]
+            if locked[u] or indptr[u + 1] - indptr[u] > 64:
+                continue
+            nu_u = _neighbors(F, indptr, star, u, nbu)
+            # link condition: exactly two common neighbours (the two faces on edge uv)
+            common = 0
+            o0 = -1
+            o1 = -1
+            for i in range(nv_v):
+                for j in range(nu_u):
+                    if nbv[i] == nbu[j]:
+                        if common == 0:
+                            o0 = nbv[i]
+                        else:
+                            o1 = nbv[i]
+                        common += 1
+            if common != 2:
+                continue
+            if nu_u + nv_v - 4 > max_valence:
+                continue
+            # the opposite vertices lose one neighbour each
+            if valence[o0] - 1 < 3 or valence[o1] - 1 < 3:
+                continue
+            ok = True
+            # faces around v that survive: normal turn and quality
+            for i in range(indptr[v], indptr[v + 1]):
+                f = star[i]
+                a = F[f, 0]
+                b = F[f, 1]
+                c = F[f, 2]
+                if a == u or b == u or c == u:
+                    continue
+                ox, oy, oz = _normal(V, a, b, c)
+                a2 = u if a == v else a
+                b2 = u if b == v else b
+                c2 = u if c == v else c
+                nx, ny, nz = _normal(V, a2, b2, c2)
+                on = np.sqrt(ox * ox + oy * oy + oz * oz)
+                nn = np.sqrt(nx * nx + ny * ny + nz * nz)
+                if nn <= 0.0 or on <= 0.0:
+                    ok = False
+                    break
+                if ox * nx + oy * ny + oz * nz < min_cos * on * nn:
+                    ok = False
+                    break
+                q_new = _quality(V, a2, b2, c2)
+                if q_new < min_quality and q_new < _quality(V, a, b, c):
+                    ok = False
+                    break
+            if not ok:
+                continue
+            # collapse v -> u
+            for i in range(indptr[v], indptr[v + 1]):
+                f = star[i]
+                if F[f, 0] == u or F[f, 1] == u or F[f, 2] == u:
+                    alive[f] = False
+                else:
+                    for k in range(3):
+                        if F[f, k] == v:
+                            F[f, k] = u
+            valence[o0] -= 1
+            valence[o1] -= 1
+            valence[u] = nu_u + nv_v - 4
+            valence[v] = 0
+            locked[v] = True
+            locked[u] = True
+            for j in range(nv_v):
+                locked[nbv[j]] = True
+            done += 1
+            break
+    return done
