@@ -170,9 +170,12 @@ def render(
         lit = AMBIENT + (1.0 - AMBIENT) * np.abs(n @ R[2])
         shade = np.repeat(lit[:, None], 3, axis=1)
     else:
-        vn = np.zeros_like(V)
-        for k in range(3):
-            np.add.at(vn, F[:, k], fn)
+        # area-weighted face normals summed per vertex (bincount: one pass per coordinate)
+        idx = F.reshape(-1)
+        fn3 = np.repeat(fn, 3, axis=0)
+        vn = np.stack(
+            [np.bincount(idx, weights=fn3[:, d], minlength=V.shape[0]) for d in range(3)], axis=1
+        )
         vn /= np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
         lit = AMBIENT + (1.0 - AMBIENT) * np.abs(vn @ R[2])
         shade = lit[F]
