@@ -154,3 +154,36 @@ def test_check_sampling_matches_the_reference(closed, rng):
     got = check_sampling(mesh, curve)
     assert 0 < len(want) < m - 1  # some pairs break the rule, some keep it
     assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize("name", ["igea", "spot"])
+def test_straightening_matches_the_reference(name):
+    """Attraction by continuation, then reverting jumps, in one kernel: as the references
+    run one after the other."""
+    from meshfit import tol
+    from meshfit._kernels import curves as K
+
+    mesh = real_mesh(name)
+    v = mesh.vertices
+    h = mesh.mean_edge_length
+    a = int(np.argmin(v[:, 1]))
+    b = int(np.argmin(np.abs(np.linalg.norm(v - v[a], axis=1) - 120 * h)))
+    pts = path_to_surface_points(mesh, greedy_path(mesh, a, b).vertices, per_edge=1)
+    x = mesh.xyz(pts)
+    m = len(pts)
+    t = np.linspace(0.0, 1.0, m)[1:-1, None]
+    targets = np.ascontiguousarray(x[0] + t * (x[-1] - x[0]))
+    indptr, vf = mesh.vertex_faces
+    face, bary = K.straighten_chain(
+        mesh.vertices, mesh.faces, mesh.face_neighbors, indptr, vf, pts.face, pts.bary,
+        targets, 200, 10_000, tol.length(mesh, tol.ATTRACT_EPS), tol.BARY_EPS, 3.0 * h,
+    )  # fmt: skip
+    af, ab = reference.attract_chain(mesh, pts[1 : m - 1], targets)
+    att_f = np.concatenate([pts.face[:1], af, pts.face[-1:]])
+    att_b = np.concatenate([pts.bary[:1], ab, pts.bary[-1:]])
+    keep = np.ones(m, dtype=bool)
+    keep[[0, -1]] = False
+    keep = reference.revert_jumps(mesh, att_f, att_b, pts.face, pts.bary, keep, 3.0 * h)
+    assert (~keep[1:-1]).any()  # some stretch reverted
+    assert_array_equal(face, np.where(keep, att_f, pts.face))
+    assert_allclose(bary, np.where(keep[:, None], att_b, pts.bary), rtol=0, atol=1e-15)

@@ -293,3 +293,30 @@ def attract_uncut(mesh, face, bary, target, *, max_iter=200):
                 break
     K._clean_bary(b)
     return f, b, dist, it
+
+
+def revert_jumps(mesh, face, bary, gface, gbary, keep, max_gap):
+    """Where consecutive points jump (faces neither the same nor adjacent, as the sampling
+    rule, and either sharing no vertex or more than ``max_gap`` apart) both go back to the
+    graph samples ``(gface, gbary)``; the sweep steps back after each revert. Returns the
+    final ``keep`` (n,) bool."""
+    keep = np.array(keep, dtype=bool)
+    F = mesh.faces
+
+    def point(i):
+        return (face[i], bary[i]) if keep[i] else (gface[i], gbary[i])
+
+    i = 0
+    while i < len(face) - 1:
+        (f0, b0), (f1, b1) = point(i), point(i + 1)
+        jump = False
+        if not _pair_ok(mesh, f0, b0, f1, b1):
+            share = bool(np.intersect1d(F[f0], F[f1]).size)
+            gap = np.linalg.norm(_xyz(mesh, [f1], b1[None])[0] - _xyz(mesh, [f0], b0[None])[0])
+            jump = not share or gap > max_gap
+        if jump and (keep[i] or keep[i + 1]):
+            keep[i] = keep[i + 1] = False
+            i = max(i - 1, 0)
+            continue
+        i += 1
+    return keep

@@ -893,3 +893,37 @@ def positions(V, F, face, bary):
     for i in range(n):
         _point_in(V, F, face[i], bary[i], out[i])
     return out
+
+
+@njit(cache=True, nogil=True)
+def straighten_chain(
+    V, F, FN, VF_ptr, VF, face, bary, targets, max_iter, max_faces, eps_len, bary_eps, max_gap
+):
+    """Attract the inner points of a sampled graph path toward ``targets`` by continuation,
+    then revert where neighbours jump: `attract_points_serial` (``chain``) on points 1 ..
+    m - 2 followed by `revert_jumps` against the samples themselves.
+
+    face (m,) i8, bary (m, 3) f8: the samples, ends kept; targets (m - 2, 3) f8. Returns
+    ``(face (m,) i8, bary (m, 3) f8)``. Kernel of `meshfit.curves.paint.paint_curve`.
+    """
+    m = face.size
+    inner_b = np.empty((m - 2, 3))
+    for i in range(m - 2):
+        _clean_copy(bary[i + 1], inner_b[i])
+    af, ab, _, _, _, _ = attract_points_serial(
+        V, F, FN, VF_ptr, VF, face[1 : m - 1], inner_b, targets, max_iter, max_faces,
+        eps_len, bary_eps, True,
+    )  # fmt: skip
+    out_f = face.copy()
+    out_b = bary.copy()
+    out_f[1 : m - 1] = af
+    out_b[1 : m - 1] = ab
+    keep = np.ones(m, dtype=np.bool_)
+    keep[0] = False
+    keep[m - 1] = False
+    revert_jumps(V, F, FN, VF_ptr, VF, out_f, out_b, face, bary, keep, max_gap, bary_eps)
+    for i in range(m):
+        if not keep[i]:
+            out_f[i] = face[i]
+            out_b[i] = bary[i]
+    return out_f, out_b

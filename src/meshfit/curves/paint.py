@@ -21,7 +21,6 @@ from meshfit._kernels import curves as _curves
 from meshfit._validate import as_points, as_surface_points
 from meshfit.curves.base import (
     _as_curve,
-    _attract_few,
     _resample,
     resample_curve,
 )
@@ -36,6 +35,8 @@ __all__ = ["attract_curve", "extend_to_curve", "paint_curve"]
 #: a painted segment's spacing is even to this coefficient of variation (one resampling pass
 #: in most cases; :func:`resample_curve` evens a curve to 1 %)
 PAINT_SPACING_CV = 0.05
+#: attraction steps per point when straightening (as :func:`meshfit.surface.attract_points`)
+_ATTRACT_MAX_ITER = 200
 
 
 def _as_picks(mesh: Mesh, picks: ArrayLike | SurfacePoints) -> tuple[SurfacePoints, NDArray]:
@@ -85,38 +86,6 @@ def _at_vertices(mesh: Mesh, v: NDArray[np.int64]) -> SurfacePoints:
     return SurfacePoints(face, bary)
 
 
-def _straighten(
-    mesh: Mesh, pts: SurfacePoints, att: SurfacePoints, spacing: float
-) -> SurfacePoints:
-    """The graph samples ``pts`` with their inner points moved to ``att`` (attracted toward
-    the chord), except where attraction pulled neighbours apart."""
-    m = len(pts)
-    face = np.concatenate([pts.face[:1], att.face, pts.face[-1:]])
-    bary = np.concatenate([pts.bary[:1], att.bary, pts.bary[-1:]])
-    # where attraction pulled neighbours apart (sharp bends, thin parts of the model: faces
-    # sharing no vertex, or a gap over three spacings) revert to the graph-path samples,
-    # growing each reverted stretch until no pair jumps; a pair merely passing a vertex
-    # through a fan of faces is filled in by densify_curve later
-    keep = np.ones(m, dtype=bool)
-    keep[[0, -1]] = False  # the picks are graph samples already
-    indptr, vf = mesh.vertex_faces
-    _curves.revert_jumps(
-        mesh.vertices,
-        _i8(mesh.faces),
-        _i8(mesh.face_neighbors),
-        _i8(indptr),
-        _i8(vf),
-        _i8(face),
-        np.ascontiguousarray(bary),
-        _i8(pts.face),
-        np.ascontiguousarray(pts.bary),
-        keep,
-        3.0 * max(spacing, mesh.mean_edge_length),
-        tol.BARY_EPS,
-    )
-    return SurfacePoints(np.where(keep, face, pts.face), np.where(keep[:, None], bary, pts.bary))
-
-
 def _segment(
     mesh: Mesh, a: SurfacePoints, b: SurfacePoints, va: int, vb: int, spacing: float
 ) -> SurfacePoints:
@@ -140,11 +109,28 @@ def _segment(
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(x, axis=0), axis=1))])
     t = (arc[1:-1] / arc[-1])[:, None] if arc[-1] > 0 else np.zeros((m - 2, 1))
     targets = x[0] + t * (x[-1] - x[0])
-    inner = pts[1 : m - 1]
-    # by continuation: each point may start where its predecessor settled (a short walk each)
-    straight = _straighten(
-        mesh, pts, _attract_few(mesh, inner.face, inner.bary, targets, chain=True), spacing
+    # by continuation: each point may start where its predecessor settled (a short walk
+    # each); where attraction pulled neighbours apart (sharp bends, thin parts of the model:
+    # faces sharing no vertex, or a gap over three spacings) the graph-path samples are kept,
+    # each reverted stretch growing until no pair jumps; a pair merely passing a vertex
+    # through a fan of faces is filled in by densifying when resampling
+    indptr, vf = mesh.vertex_faces
+    face, bary = _curves.straighten_chain(
+        mesh.vertices,
+        _i8(mesh.faces),
+        _i8(mesh.face_neighbors),
+        _i8(indptr),
+        _i8(vf),
+        pts.face,
+        pts.bary,
+        targets,
+        _ATTRACT_MAX_ITER,
+        10_000,
+        tol.length(mesh, tol.ATTRACT_EPS),
+        tol.BARY_EPS,
+        3.0 * max(spacing, mesh.mean_edge_length),
     )
+    straight = SurfacePoints(face, bary)
     out, _ = _resample(
         mesh, SurfaceCurve(straight), spacing=spacing, n=None, cv=PAINT_SPACING_CV, checked=True
     )
