@@ -105,6 +105,8 @@ def simplify_mesh(mesh: Mesh, target_faces: int) -> SimplifiedMesh:
         if done == 0:
             break
         n_alive -= 2 * done
+        F = np.ascontiguousarray(F[alive])  # same order: the next pass sees the same stars
+        alive = np.ones(F.shape[0], dtype=np.bool_)
     F = F[alive]
     used = np.unique(F)
     remap = np.full(V.shape[0], -1, dtype=np.int64)
