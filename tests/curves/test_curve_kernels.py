@@ -187,3 +187,13 @@ def test_straightening_matches_the_reference(name):
     assert (~keep[1:-1]).any()  # some stretch reverted
     assert_array_equal(face, np.where(keep, att_f, pts.face))
     assert_allclose(bary, np.where(keep[:, None], att_b, pts.bary), rtol=0, atol=1e-15)
+
+
+def test_positions_kernel_is_mesh_xyz(rng):
+    from meshfit._kernels import curves as K
+
+    mesh = real_mesh("spot")
+    face = rng.integers(0, mesh.n_faces, 500)
+    bary = rng.dirichlet([1.0, 1.0, 1.0], 500)
+    got = K.positions(mesh.vertices, mesh.faces, face, bary)
+    assert_array_equal(got, mesh.xyz(SurfacePoints(face, bary)))
