@@ -16,9 +16,11 @@ timed in the same run:
   a new control resolution (fit, evaluation on the grid and the error colours); peer:
   :func:`meshfit.bspline.fit_bspline` alone.
 * ``spring_preview`` (target <= 100 ms): ``Session.spring_preview(level=0)`` of the patch
-  closest to 25,000 vertices of a one-per-cube-face layout of igea (cache cleared each run);
-  peer: one single-source Dijkstra over that patch's edge graph
-  (``scipy.sparse.csgraph.dijkstra``), the unit of work of the level-0 iso-curves.
+  closest to 25,000 vertices of a one-per-cube-face layout of igea (the session's previews
+  and the kept square maps cleared each run: a cold preview); peer: one single-source
+  Dijkstra over that patch's edge graph (``scipy.sparse.csgraph.dijkstra``), the unit of work
+  of the level-0 iso-curves. Also reported: level 1 cold, and level 1 right after level 0
+  (the coarse-to-fine preview; the patch's square map is kept from level 0).
 
 Run: ``python benchmarks/ui_latency.py [--repeats 9] [--edges 50 200]``. Prints JSON and writes
 ``benchmarks/results/ui_latency.json`` atomically.
@@ -41,6 +43,7 @@ from meshfit.bspline import fit_bspline
 from meshfit.curves import paint_curve, relax_snake, resample_curve
 from meshfit.layout.cube import cube_layout
 from meshfit.mesh import load_mesh
+from meshfit.springs.planar import clear_map_cache
 from meshfit.surface import greedy_path
 from meshfit.types import SurfaceCurve, SurfacePoints
 from meshfit.ui.state import Session
@@ -134,13 +137,27 @@ def bench_patch(mesh, session: Session, repeats: int) -> tuple[dict, dict]:
     p = int(np.argmin([abs(q.mesh.n_vertices - 25_000) for q in patches]))
     nv = patches[p].mesh.n_vertices
 
-    def preview():
+    def clear(maps: bool) -> None:
         for k in [k for k in session._cache if isinstance(k, tuple) and k[0] == "springs"]:
             del session._cache[k]
-        return session.spring_preview(p, level=0)
+        if maps:
+            clear_map_cache()
+
+    def preview(level: int = 0, maps: bool = True):
+        clear(maps)
+        return session.spring_preview(p, level=level)
+
+    def next_level():  # level 0 shown (untimed), then level 1 with the map kept
+        preview(0)
+        clear(False)
+        t0 = time.perf_counter()
+        session.spring_preview(p, level=1)
+        return time.perf_counter() - t0
 
     grid0 = preview()
     t_spring, _ = median_time(preview, repeats)
+    t_level1, _ = median_time(lambda: preview(1), repeats)
+    t_next = float(np.median([next_level() for _ in range(repeats)]))
     pm = patches[p].mesh
     src = int(patches[p].sides[0][len(patches[p].sides[0]) // 2])
     graph = pm.edge_graph
@@ -154,6 +171,8 @@ def bench_patch(mesh, session: Session, repeats: int) -> tuple[dict, dict]:
         patch_vertices=int(nv),
         grid=list(grid0.shape),
         layout_and_cut_s=round(layout_s, 2),
+        level1_cold_ms=_ms(t_level1),
+        level1_after_level0_ms=_ms(t_next),
     )
     grid = session.spring_preview(p, level=3)
     X = np.asarray(grid.xyz)
