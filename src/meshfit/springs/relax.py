@@ -40,8 +40,10 @@ def _curve_step(state: State, X: np.ndarray, w_arc: float, w_fair: float) -> flo
                 continue
             if not along_u:  # u feature: column c, neighbours across are columns c -/+ 1
                 P, A, B = Xg[c, k], Xg[c - 1, k], Xg[c + 1, k]
+                prev, nxt = Xg[c, k - 1], Xg[c, k + 1]
             else:
                 P, A, B = Xg[k, c], Xg[k, c - 1], Xg[k, c + 1]
+                prev, nxt = Xg[k - 1, c], Xg[k + 1, c]
             fa, fb = A - P, B - P
             la = np.linalg.norm(fa, axis=1)
             lb = np.linalg.norm(fb, axis=1)
@@ -49,7 +51,10 @@ def _curve_step(state: State, X: np.ndarray, w_arc: float, w_fair: float) -> flo
             fair = fa / np.maximum(la, 1e-300)[:, None] + fb / np.maximum(lb, 1e-300)[:, None]
             fair = np.einsum("ij,ij->i", fair, T)  # eq. 5.15-5.16
             h = 0.5 * (la + lb)
-            arc = (s[k + 1] - s[k]) - (s[k] - s[k - 1])  # eq. 5.14
+            # eq. 5.14 with the spacing measured as chords between the grid points along
+            # the curve (as the free points' springs are): where a painted feature curve
+            # wiggles, equal arc lengths along it give unequal grid spacing
+            arc = np.linalg.norm(nxt - P, axis=1) - np.linalg.norm(P - prev, axis=1)
             ds = 0.25 * (w_arc * arc + w_fair * fair * h)
             new = np.clip(s[k] + ds, s[k - 1], s[k + 1])
             # Gauss-Seidel would use new neighbours; Jacobi with clipping keeps the order
