@@ -197,3 +197,30 @@ def test_positions_kernel_is_mesh_xyz(rng):
     bary = rng.dirichlet([1.0, 1.0, 1.0], 500)
     got = K.positions(mesh.vertices, mesh.faces, face, bary)
     assert_array_equal(got, mesh.xyz(SurfacePoints(face, bary)))
+
+
+def test_split_steps_matches_the_reference(rng):
+    from meshfit._kernels import curves as K
+
+    pos = np.sort(rng.uniform(0.0, 10.0, 60))
+    bad = np.sort(rng.choice(59, 15, replace=False)).astype(np.int64)
+    a, b = pos[bad], pos[bad + 1]
+    kbest = rng.choice([0, 2, 3, 7], bad.size).astype(np.int64)
+    inside = np.sort(rng.uniform(0.0, 10.0, 200))
+    got = K.split_steps(pos, bad, a, b, kbest, inside)
+    want = reference.split_steps(pos, bad, a, b, kbest, inside)
+    assert (kbest == 0).any() and (kbest > 0).any()
+    assert_array_equal(got[0], want[0])
+    assert_array_equal(got[1], want[1])
+
+
+def test_chord_targets_match_the_reference():
+    from meshfit._kernels import curves as K
+
+    mesh = real_mesh("spot")
+    pts = path_to_surface_points(mesh, greedy_path(mesh, 0, 1500).vertices, per_edge=1)
+    got = K.chord_targets(mesh.vertices, mesh.faces, pts.face, pts.bary)
+    assert_array_equal(got, reference.chord_targets(mesh, pts))
+    one = pts[[0, 0, 0]]  # no length: every target is the first point
+    got = K.chord_targets(mesh.vertices, mesh.faces, one.face, one.bary)
+    assert_array_equal(got, mesh.xyz(one)[:1])

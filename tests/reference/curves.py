@@ -320,3 +320,36 @@ def revert_jumps(mesh, face, bary, gface, gbary, keep, max_gap):
             continue
         i += 1
     return keep
+
+
+def split_steps(pos, bad, a, b, kbest, inside):
+    """Resampling positions with the broken steps split (numpy throughout): after
+    ``pos[bad[q]]`` the k - 1 even split points of [a[q], b[q]] (k = kbest[q]), or where k is
+    0 the values of ``inside`` strictly between a[q] and b[q]. Returns ``(pos2, regular)``."""
+    counts = np.maximum(kbest - 1, 0)
+    grp = np.repeat(np.arange(bad.size), counts)
+    j = np.arange(grp.size) - np.repeat(np.cumsum(counts) - counts, counts) + 1
+    extra = a[grp] + (b - a)[grp] * j / kbest[grp]
+    at = bad[grp]
+    none = np.flatnonzero(kbest == 0)
+    lo = np.searchsorted(inside, a[none], side="right")
+    hi = np.searchsorted(inside, b[none], side="left")
+    n_own = np.maximum(hi - lo, 0)
+    own = np.repeat(lo - (np.cumsum(n_own) - n_own), n_own) + np.arange(n_own.sum())
+    extra = np.concatenate([extra, inside[own]])
+    at = np.concatenate([at, np.repeat(bad[none], n_own)])
+    order = np.argsort(at, kind="stable")
+    where = at[order] + 1
+    return (
+        np.insert(pos, where, extra[order]),
+        np.insert(np.ones(pos.size, dtype=bool), where, False),
+    )
+
+
+def chord_targets(mesh, points):
+    """Chord points at the inner points' fractions of the polyline length (numpy)."""
+    x = mesh.xyz(points)
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(x, axis=0), axis=1))])
+    m = len(points)
+    t = (arc[1:-1] / arc[-1])[:, None] if arc[-1] > 0 else np.zeros((m - 2, 1))
+    return x[0] + t * (x[-1] - x[0])

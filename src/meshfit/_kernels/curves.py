@@ -927,3 +927,92 @@ def straighten_chain(
             out_f[i] = face[i]
             out_b[i] = bary[i]
     return out_f, out_b
+
+
+@njit(cache=True, nogil=True)
+def split_steps(pos, bad, a, b, kbest, inside):
+    """Resampling positions with the broken steps split: after ``pos[bad[q]]`` come
+    ``a[q] + (b[q] - a[q]) * j / k`` (j = 1 .. k - 1, k = ``kbest[q]``) or, where ``k`` is 0,
+    the curve's own arc lengths ``inside`` strictly between ``a[q]`` and ``b[q]``.
+
+    pos (n,) f8; bad (q,) i8 ascending; a, b (q,) f8; kbest (q,) i8; inside (p,) f8
+    ascending. Returns ``(pos2 (n2,) f8, regular (n2,) bool)`` (False: inserted). Kernel of
+    `meshfit.curves.resample_curve`.
+    """
+    n = pos.size
+    extra = 0
+    for q in range(bad.size):
+        if kbest[q] > 0:
+            extra += kbest[q] - 1
+        else:
+            lo = np.searchsorted(inside, a[q], side="right")
+            hi = np.searchsorted(inside, b[q], side="left")
+            extra += max(hi - lo, 0)
+    pos2 = np.empty(n + extra)
+    regular = np.zeros(n + extra, dtype=np.bool_)
+    r = 0
+    q = 0
+    for i in range(n):
+        pos2[r] = pos[i]
+        regular[r] = True
+        r += 1
+        while q < bad.size and bad[q] == i:
+            k = kbest[q]
+            if k > 0:
+                for j in range(1, k):
+                    pos2[r] = a[q] + (b[q] - a[q]) * j / k
+                    r += 1
+            else:
+                lo = np.searchsorted(inside, a[q], side="right")
+                hi = np.searchsorted(inside, b[q], side="left")
+                for t in range(lo, hi):
+                    pos2[r] = inside[t]
+                    r += 1
+            q += 1
+    return pos2, regular
+
+
+@njit(cache=True, nogil=True)
+def splice(face, bary, after, new_face, new_bary):
+    """Face points with ``(new_face, new_bary)[e]`` inserted right after point ``after[e]``
+    (ascending, in [0, m)), in order. face (m,) i8, bary (m, 3) f8 -> (m + k,) i8,
+    (m + k, 3) f8. Used by `meshfit.curves.densify_curve`."""
+    m = face.size
+    k = new_face.size
+    out_f = np.empty(m + k, dtype=np.int64)
+    out_b = np.empty((m + k, 3))
+    r = 0
+    e = 0
+    for i in range(m):
+        out_f[r] = face[i]
+        out_b[r] = bary[i]
+        r += 1
+        while e < k and after[e] == i:
+            out_f[r] = new_face[e]
+            out_b[r] = new_bary[e]
+            r += 1
+            e += 1
+    return out_f, out_b
+
+
+@njit(cache=True, nogil=True)
+def chord_targets(V, F, face, bary):
+    """The point of the chord from the first to the last of m face points (face (m,) i8,
+    bary (m, 3) f8) at the same fraction of the polyline's length as each inner point;
+    (m - 2, 3) f8 (all the first point when the length is 0). Used by
+    `meshfit.curves.paint_curve`."""
+    x = positions(V, F, face, bary)
+    m = face.size
+    arc = np.zeros(m)
+    for i in range(1, m):
+        d0 = x[i, 0] - x[i - 1, 0]
+        d1 = x[i, 1] - x[i - 1, 1]
+        d2 = x[i, 2] - x[i - 1, 2]
+        arc[i] = arc[i - 1] + np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    total = arc[m - 1]
+    out = np.empty((max(m - 2, 0), 3))
+    for i in range(1, m - 1):
+        t = arc[i] / total if total > 0 else 0.0
+        for d in range(3):
+            out[i - 1, d] = x[0, d] + t * (x[m - 1, d] - x[0, d])
+    return out

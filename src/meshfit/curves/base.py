@@ -267,12 +267,14 @@ def _densify(mesh: Mesh, curve: SurfaceCurve) -> SurfaceCurve:
     if new_face.size == 0:
         return SurfaceCurve(p, closed=curve.closed, kind=curve.kind)
     # the points bridging pair i go right after point i, in order
-    at = bad[pair] + 1
-    pts = SurfacePoints(
-        np.insert(np.asarray(p.face, dtype=np.int64), at, new_face),
-        np.insert(np.asarray(p.bary, dtype=np.float64), at, new_bary, axis=0),
+    face, bary = _curves.splice(
+        _i8(p.face),
+        np.ascontiguousarray(p.bary, dtype=np.float64),
+        _i8(bad[pair]),
+        _i8(new_face),
+        np.ascontiguousarray(new_bary, dtype=np.float64),
     )
-    return SurfaceCurve(pts, closed=curve.closed, kind=curve.kind)
+    return SurfaceCurve(SurfacePoints(face, bary), closed=curve.closed, kind=curve.kind)
 
 
 def _positions(total: float, closed: bool, spacing: float | None, n: int | None) -> NDArray:
@@ -445,24 +447,16 @@ def _resample_once(
         tol.BARY_EPS,
     )
     # the inserted positions of every broken step, in curve order: k - 1 evenly spaced ones
-    # for a step split into k parts, or the curve's own points inside a step no split fixes
-    counts = np.maximum(kbest - 1, 0)
-    grp = np.repeat(np.arange(bad.size), counts)
-    j = np.arange(grp.size) - np.repeat(np.cumsum(counts) - counts, counts) + 1
-    extra = a[grp] + (b - a)[grp] * j / kbest[grp]
-    at = bad[grp]
+    # for a step split into k parts, or the curve's own points strictly inside a step no
+    # split fixes (they always do)
     inside = arc[:-1] if curve.closed else arc
-    # the curve's own points strictly inside a step always do
-    none = np.flatnonzero(kbest == 0)
-    lo = np.searchsorted(inside, a[none], side="right")
-    hi = np.searchsorted(inside, b[none], side="left")
-    n_own = np.maximum(hi - lo, 0)
-    own = np.repeat(lo - (np.cumsum(n_own) - n_own), n_own) + np.arange(n_own.sum())
-    extra = np.concatenate([extra, inside[own]])
-    at = np.concatenate([at, np.repeat(bad[none], n_own)])
-    order = np.argsort(at, kind="stable")
-    where = at[order] + 1
-    pos2 = np.insert(pos, where, extra[order])
-    regular = np.insert(np.ones(pos.size, dtype=bool), where, False)
+    pos2, regular = _curves.split_steps(
+        pos,
+        _i8(bad),
+        np.ascontiguousarray(a, dtype=np.float64),
+        np.ascontiguousarray(b, dtype=np.float64),
+        kbest,
+        np.ascontiguousarray(inside),
+    )
     res = _points_at(curve, pieces, pos2)
     return SurfaceCurve(res, closed=curve.closed, kind=curve.kind), regular

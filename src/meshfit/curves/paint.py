@@ -105,10 +105,7 @@ def _segment(
         return resample_curve(mesh, SurfaceCurve(pts), spacing=spacing).points
     # CurveAttract toward the chord: each graph sample's target is the chord point at the
     # same fraction of the length (the samples keep their order and rough spacing)
-    x = _curves.positions(mesh.vertices, _i8(mesh.faces), pts.face, pts.bary)
-    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(x, axis=0), axis=1))])
-    t = (arc[1:-1] / arc[-1])[:, None] if arc[-1] > 0 else np.zeros((m - 2, 1))
-    targets = x[0] + t * (x[-1] - x[0])
+    targets = _curves.chord_targets(mesh.vertices, _i8(mesh.faces), pts.face, pts.bary)
     # by continuation: each point may start where its predecessor settled (a short walk
     # each); where attraction pulled neighbours apart (sharp bends, thin parts of the model:
     # faces sharing no vertex, or a gap over three spacings) the graph-path samples are kept,
