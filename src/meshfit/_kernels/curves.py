@@ -1,8 +1,11 @@
 """Numba kernels for face-point curves.
 
 The sampling rule (consecutive points on the same or edge-adjacent faces, edge and vertex
-points written in every face that holds them), the subdivision search of uniform
-resampling, and serial walking / attraction for the few points curve bisection moves.
+points written in every face that holds them), a curve as straight pieces and points placed
+on them, the subdivision search and split positions of uniform resampling, bisecting pairs
+that break the rule (densifying), serial walking / attraction, and painting's
+straightening (attraction by continuation, then reverting jumps). Each has a slow
+reference in ``tests/reference/curves.py``.
 
 No validation here: the wrappers in :mod:`meshfit.curves.base` and
 :mod:`meshfit.surface.walk` pass contiguous arrays of the right dtypes.
