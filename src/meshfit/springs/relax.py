@@ -250,12 +250,12 @@ def unfold_in_map(state: State, pmap, *, reach: int = 2, sweeps: int = 40) -> in
     returns the folded cells left.
 
     The points within ``reach`` grid steps of a folded cell take the mean of their four
-    neighbours' parameters in `meshfit.springs.planar.PlanarMap` (Gauss-Seidel, the other
-    points fixed) and go to the images of those parameters. The map is a bijection of the
-    patch onto the square, so a tangle of several points, which no single move undoes,
-    comes out as an untangled grid patch in the map; `repair_folds` then handles the cells
-    still folded on the surface (a triangle spanning a sharp bend). Nothing changes if the
-    surface would have more folded cells than before.
+    neighbours' parameters in `meshfit.springs.planar.PlanarMap` (``sweeps`` red-black
+    Gauss-Seidel sweeps, the other points fixed) and go to the images of those parameters.
+    The map is a bijection of the patch onto the square, so a tangle of several points,
+    which no single move undoes, comes out as an untangled grid patch in the map;
+    `repair_folds` then handles the cells still folded on the surface (a triangle spanning
+    a sharp bend). Nothing changes if the surface would have more folded cells than before.
     """
     folds = folded_cells(state)
     if not folds.any() or pmap is None:
@@ -264,9 +264,11 @@ def unfold_in_map(state: State, pmap, *, reach: int = 2, sweeps: int = 40) -> in
     win = _near_folds(state, folds, reach)
     uv = pmap.uv_of(state.face, state.bary).reshape(nu, nv, 2)
     ii, jj = np.nonzero(win)
+    red = (ii + jj) % 2 == 0
+    colours = [(ii[red], jj[red]), (ii[~red], jj[~red])]
     for _ in range(sweeps):
-        for i, j in zip(ii.tolist(), jj.tolist(), strict=True):
-            uv[i, j] = 0.25 * (uv[i - 1, j] + uv[i + 1, j] + uv[i, j - 1] + uv[i, j + 1])
+        for a, b in colours:  # red-black Gauss-Seidel: each colour's neighbours are the other's
+            uv[a, b] = 0.25 * (uv[a - 1, b] + uv[a + 1, b] + uv[a, b - 1] + uv[a, b + 1])
     flat = (ii * nv + jj).astype(np.int64)
     old_face, old_bary = state.face[flat].copy(), state.bary[flat].copy()
     pts = pmap.locate(uv[ii, jj])
