@@ -83,6 +83,13 @@ def test_exports_read_back(spot_fit):
     d = mesh.closest_points(np.asarray(obj.vertices)).distance
     assert np.median(d) < 1e-9 * mesh.bbox_diagonal
     assert (out / "layout.json").is_file()
+    # STEP: one named B-spline face per patch, sewn along the stitched boundaries of the
+    # closed model into one closed shell
+    from tests.export.step_reader import read_step
+
+    faces, topo = read_step(out / "patches.step")
+    assert sorted(f.name for f in faces) == [f"patch_{p:03d}" for p in range(len(shapes))]
+    assert topo == {"shells": 1, "closed_shells": 1, "free_edges": 0}
 
 
 def test_stage_files_reload(spot_fit):
@@ -134,6 +141,12 @@ def test_bad_options_and_layouts(tmp_path):
         FitOptions(controls=(3, 8))
     with pytest.raises(InputError, match="format"):
         FitOptions(formats=("stl",))
+    import meshfit.export
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(meshfit.export, "step_available", lambda: False)
+        with pytest.raises(InputError, match=r"meshfit\[cad\]"):
+            FitOptions(formats=("obj", "step"))
     with pytest.raises(InputError, match="continuity"):
         FitOptions(continuity="c2")
     mesh = real_mesh("spot")

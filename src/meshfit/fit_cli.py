@@ -167,7 +167,8 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--formats",
         default="usd,obj,glb,exr,png",
-        help="outputs among usd,3dm,iges,obj,glb,exr,png (default: %(default)s)",
+        help="outputs among usd,3dm,iges,step,obj,glb,exr,png; step needs meshfit[cad] "
+        "(default: %(default)s)",
     )
     p.add_argument(
         "--level", type=int, default=None, help="final spring-mesh level (default: auto)"

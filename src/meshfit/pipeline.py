@@ -70,7 +70,7 @@ STAGES = (
     "report",
 )
 #: output formats of ``FitOptions.formats``
-FORMATS = ("usd", "3dm", "iges", "obj", "glb", "exr", "png")
+FORMATS = ("usd", "3dm", "iges", "step", "obj", "glb", "exr", "png")
 #: version of the stage files and the summary
 PIPELINE_FORMAT = 1
 
@@ -137,6 +137,13 @@ class FitOptions:
         bad = [f for f in fm if f not in FORMATS]
         if bad:
             raise InputError(f"unknown output format {bad[0]!r}: choose from {', '.join(FORMATS)}")
+        if "step" in fm:
+            from meshfit.export import step_available
+
+            if not step_available():
+                raise InputError(
+                    "STEP output needs OpenCASCADE: pip install 'meshfit[cad]' (cadquery-ocp)"
+                )
         object.__setattr__(self, "formats", fm)
         if self.map_kind not in ("vector", "normal"):
             raise InputError(f"map_kind must be 'vector' or 'normal', got {self.map_kind!r}")
@@ -1002,6 +1009,9 @@ def _write_exports(out: Path, names, surfaces, dmaps, formats, st: _Stages) -> d
             labels = [f"P{k}" for k in range(len(names))]
             export.export_iges(out / "patches.igs", surfaces, names=labels)
             files = ["patches.igs"]
+        elif fmt == "step":
+            export.export_step(out / "patches.step", surfaces, names=names)
+            files = ["patches.step"]
         elif fmt == "obj":
             export.export_obj(out / "displaced.obj", surfaces, displacements=dmaps, names=names)
             export.export_obj(out / "spline.obj", surfaces, names=names)

@@ -56,8 +56,8 @@ def read_step(path, metres_per_unit: float = 1e-3) -> tuple[list[StepFace], dict
     doc = TDocStd_Document(TCollection_ExtendedString("MDTV-XCAF"))
     app.InitDocument(doc)
     XCAFDoc_DocumentTool.SetLengthUnit_s(doc, metres_per_unit)
+    reader = STEPCAFControl_Reader()  # registers the static parameters: set them after
     Interface_Static.SetIVal_s("read.stepcaf.subshapes.name", 1)
-    reader = STEPCAFControl_Reader()
     reader.SetNameMode(True)
     assert reader.ReadFile(str(path)) == IFSelect_RetDone
     assert reader.Transfer(doc)

@@ -1,3 +1,5 @@
+from pathlib import Path
+
 import numpy as np
 import pytest
 import trimesh
@@ -297,3 +299,23 @@ def test_occ_surface_conversion_is_exact(network):
     occ.IncreaseDegree(4, 3)
     with pytest.raises(InputError, match="bicubic"):
         surface_from_occ(occ)
+
+
+@needs_ocp
+def test_step_first_export_of_a_process_keeps_names_and_units(tmp_path):
+    """OpenCASCADE resets its static parameters when the first writer is built."""
+    import subprocess
+    import sys
+
+    code = (
+        "import numpy as np, sys\n"
+        "from meshfit.export import export_step\n"
+        "from tests.bspline.grids import random_surface\n"
+        "s = random_surface(np.random.default_rng(5), 5, 4)\n"
+        "export_step(sys.argv[1], [s], names=['first'], units='M')\n"
+    )
+    path = tmp_path / "fresh.step"
+    root = Path(__file__).resolve().parents[2]
+    subprocess.run([sys.executable, "-c", code, str(path)], check=True, cwd=root)
+    text = path.read_text()
+    assert "'first'" in text and "SI_UNIT($,.METRE.)" in text

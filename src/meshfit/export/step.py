@@ -276,11 +276,12 @@ def export_step(
         for name, f in zip(names, faces, strict=True):
             _add(shapes, f, name)
 
+    # the writer's constructor registers (and resets) the static parameters: set them after
+    writer = STEPCAFControl_Writer()
     # the document's coordinates are in the declared unit, so nothing is rescaled
     XCAFDoc_DocumentTool.SetLengthUnit_s(doc, STEP_UNITS[units][1])
     Interface_Static.SetCVal_s("write.step.unit", STEP_UNITS[units][0])
     Interface_Static.SetIVal_s("write.stepcaf.subshapes.name", 1)
-    writer = STEPCAFControl_Writer()
     writer.SetNameMode(True)
 
     def write(tmp: str) -> None:
