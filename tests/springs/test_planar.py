@@ -156,3 +156,101 @@ def test_side_spacing_option():
         resample_patch(plane, side_spacing="even")
     a = resample_patch(plane, level=1, side_spacing="arc", fidelity=False)
     assert a.metrics[-1]["folded"] == 0
+
+
+# --- the interior solve: kernels against tests/reference/planar.py, multigrid against LU
+
+
+def _interior(which):
+    from meshfit.springs import planar
+
+    if which == "cap":
+        patch = param_patch(cap_map(1.0, 0.6), 30, 30)
+    else:
+        patch = cut_patch(real_mesh("igea"), 1000, 0.02)
+    mesh, sides = patch.mesh, _sides(patch)
+    uv = np.zeros((mesh.n_vertices, 2))
+    fixed = np.zeros(mesh.n_vertices, dtype=bool)
+    for name, axis, const in [("bottom", 0, 0), ("top", 0, 1), ("left", 1, 0), ("right", 1, 1)]:
+        arc = sides.arcs[name]
+        uv[sides.chains[name], axis] = arc / arc[-1]
+        uv[sides.chains[name], 1 - axis] = const
+        fixed[sides.chains[name]] = True
+    free = np.flatnonzero(~fixed)
+    return planar, mesh, uv, fixed, free
+
+
+@pytest.mark.parametrize("which", ["cap", "igea"])
+def test_interior_system_matches_the_oracle(which):
+    from ..reference import planar as ref
+
+    planar, mesh, uv, fixed, free = _interior(which)
+    A, rhs = planar._interior_system(mesh, uv, fixed, free)
+    at = np.full(mesh.n_vertices, -1)
+    at[free] = np.arange(free.size)
+    floor = tol.BARY_EPS * mesh.mean_edge_length
+    A_ref, rhs_ref = ref.mean_value_system(mesh.vertices, mesh.faces, at, uv, floor, tol.BARY_EPS)
+    scale = np.abs(A_ref).max()
+    assert_allclose(A.toarray(), A_ref, rtol=0, atol=1e-12 * scale)
+    assert_allclose(rhs, rhs_ref, rtol=0, atol=1e-12 * scale)
+    # rows sorted and unique: what the Gauss-Seidel and residual kernels expect
+    for i in range(A.shape[0]):
+        cols = A.indices[A.indptr[i] : A.indptr[i + 1]]
+        assert (np.diff(cols) > 0).all()
+
+
+@pytest.mark.parametrize("backward", [False, True])
+def test_gauss_seidel_matches_the_oracle(backward):
+    from meshfit._kernels import planar as kp
+
+    from ..reference import planar as ref
+
+    planar, mesh, uv, fixed, free = _interior("cap")
+    A, rhs = planar._interior_system(mesh, uv, fixed, free)
+    x0 = np.random.default_rng(0).random(rhs.shape)
+    x = x0.copy()
+    kp.gauss_seidel(A.indptr, A.indices, A.data, x, rhs, 2, backward)
+    assert_allclose(x, ref.gauss_seidel(A.toarray(), x0, rhs, 2, backward), atol=1e-12)
+    r = np.empty_like(x)
+    worst = kp.scaled_residual(A.indptr, A.indices, A.data, x, rhs, r)
+    assert_allclose(r, rhs - A @ x, atol=1e-9 * np.abs(rhs).max())
+    assert_allclose(worst, np.abs(r / A.diagonal()[:, None]).max(), rtol=1e-12)
+
+
+def test_aggregates_cover_every_unknown_once():
+    from meshfit._kernels import planar as kp
+
+    planar, mesh, uv, fixed, free = _interior("igea")
+    A, _ = planar._interior_system(mesh, uv, fixed, free)
+    agg, na = kp.aggregate(A.indptr, A.indices, A.data, planar._STRENGTH)
+    assert agg.shape == (A.shape[0],)
+    assert agg.min() == 0 and agg.max() == na - 1
+    assert (np.bincount(agg, minlength=na) > 0).all()
+    assert na < A.shape[0] / 3  # the hierarchy coarsens
+
+
+def test_dense_lu_solves():
+    from meshfit._kernels import planar as kp
+
+    rng = np.random.default_rng(1)
+    a = rng.random((40, 40)) + np.eye(40)
+    b = rng.random((40, 2))
+    lu, piv = kp.dense_lu(a)
+    assert_allclose(kp.dense_lu_solve(lu, piv, b), np.linalg.solve(a, b), atol=1e-10)
+
+
+@pytest.mark.parametrize("which", ["cap", "igea"])
+def test_multigrid_solve_matches_the_direct_solve(which, monkeypatch):
+    planar, mesh, uv, fixed, free = _interior(which)
+    assert free.size > planar._COARSEST  # the multigrid path, not the fallback
+    A, rhs = planar._interior_system(mesh, uv, fixed, free)
+    x = planar._gmres(A, rhs, planar._Multigrid(A))
+    assert x is not None
+    want = planar._direct_solve(A, rhs)
+    assert_allclose(x, want, rtol=0, atol=tol.TEST_ATOL)
+    r = rhs - A @ x
+    assert np.abs(r / A.diagonal()[:, None]).max() <= planar._SOLVE_TOL
+    # no convergence within the cap: the direct solve answers
+    monkeypatch.setattr(planar, "_MAX_ITER", 0)
+    assert planar._gmres(A, rhs, planar._Multigrid(A)) is None
+    assert_allclose(planar._solve_interior(mesh, uv, fixed, free), want, rtol=0, atol=1e-14)

@@ -16,38 +16,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from meshfit import tol
+from meshfit._kernels import planar as _kp
 from meshfit._kernels import springs as _k
 from meshfit.mesh import Mesh
 from meshfit.springs.features import Sides
 from meshfit.types import SurfacePoints
 
 __all__ = ["PlanarMap", "clear_map_cache", "square_map"]
-
-
-def _mean_value_weights(mesh: Mesh):
-    """Rows, columns and values of the mean-value weights ``w_ij`` (all positive).
-
-    Corner ``c`` of face ``f`` (vertex ``i = F[f, c]``, ``j = F[f, c + 1]``, ``k = F[f, c + 2]``)
-    gives ``tan(theta / 2) / |e_ij|`` to ``(i, j)`` and ``tan(theta / 2) / |e_ik|`` to ``(i, k)``,
-    ``theta`` its angle; the entries come corner by corner (all faces' corner 0, then 1, 2).
-    """
-    V, F = mesh.vertices, mesh.faces
-    P = V[F]  # (nf, 3, 3)
-    E = P[:, [1, 2, 0]] - P  # E[:, c] = V[F[:, c + 1]] - V[F[:, c]]
-    L = np.sqrt(np.einsum("fcd,fcd->fc", E, E))
-    floor = tol.BARY_EPS * mesh.mean_edge_length
-    L = np.maximum(L, floor)
-    Lk = L[:, [2, 0, 1]]  # |e_ik| = |E[:, c + 2]|
-    cos = -np.einsum("fcd,fcd->fc", E, E[:, [2, 0, 1]]) / (L * Lk)
-    np.clip(cos, -1.0, 1.0, out=cos)
-    # tan(theta / 2) = sqrt((1 - cos) / (1 + cos)); a zero angle gives a tiny weight
-    half = np.sqrt(np.maximum(1.0 - cos, 0.0) / np.maximum(1.0 + cos, 1e-12))
-    np.maximum(half, tol.BARY_EPS, out=half)
-    Ft = F.T
-    rows = np.concatenate([Ft, Ft], axis=1)  # (3, 2 nf): corner c: i twice
-    cols = np.concatenate([Ft[[1, 2, 0]], Ft[[2, 0, 1]]], axis=1)  # j then k
-    vals = np.concatenate([(half / L).T, (half / Lk).T], axis=1)
-    return rows.ravel(), cols.ravel(), vals.ravel()
 
 
 class PlanarMap:
@@ -82,7 +57,7 @@ class PlanarMap:
 
 
 def _interior_system(mesh: Mesh, uv: NDArray, fixed: NDArray, free: NDArray):
-    """The mean-value equations of the interior vertices: ``A`` (m, m) CSC over ``free`` and
+    """The mean-value equations of the interior vertices: ``A`` (m, m) CSR over ``free`` and
     the right-hand side (m, 2) from the fixed boundary parameters ``uv[fixed]``.
 
     Row ``i``: ``sum_j w_ij (x_i - x_j) = 0``, the fixed ``x_j`` moved to the right.
@@ -90,37 +65,156 @@ def _interior_system(mesh: Mesh, uv: NDArray, fixed: NDArray, free: NDArray):
     import scipy.sparse as sp
 
     n, m = mesh.n_vertices, free.size
-    r, c, w = _mean_value_weights(mesh)
-    deg = np.bincount(r, weights=w, minlength=n)
     at = np.full(n, -1, dtype=np.int64)
     at[free] = np.arange(m)
-    ri, ci = at[r], at[c]
-    rows_free = ri >= 0
-    inner = rows_free & (ci >= 0)
-    edge = rows_free & (ci < 0)  # interior row, boundary column: to the right-hand side
-    rows = np.concatenate([ri[inner], np.arange(m)])
-    cols = np.concatenate([ci[inner], np.arange(m)])
-    vals = np.concatenate([-w[inner], deg[free]])
-    A = sp.csc_matrix((vals, (rows, cols)), shape=(m, m))
-    rhs = np.empty((m, 2))
-    for d in range(2):
-        rhs[:, d] = np.bincount(ri[edge], weights=w[edge] * uv[c[edge], d], minlength=m)
+    floor = tol.BARY_EPS * mesh.mean_edge_length
+    indptr, indices, data, rhs = _kp.mean_value_system(
+        np.ascontiguousarray(mesh.vertices, dtype=np.float64),
+        np.ascontiguousarray(mesh.faces, dtype=np.int64),
+        at,
+        np.ascontiguousarray(uv, dtype=np.float64),
+        floor,
+        tol.BARY_EPS,
+    )
+    A = sp.csr_matrix((data, indices, indptr), shape=(m, m))
+    A.has_sorted_indices = True
     return A, rhs
 
 
+#: the interior solve stops when every equation's residual over its diagonal (a length in
+#: the unit square) is below this; the error is then below this times the largest expected
+#: exit time of a random walk on the weights (a few thousand steps on 25K-vertex patches)
+_SOLVE_TOL = 1e-14
+#: multigrid levels stop coarsening at this many unknowns (solved densely)
+_COARSEST = 300
+#: strength threshold of the aggregation (``|a_ij| >= theta sqrt(a_ii a_jj)``)
+_STRENGTH = 0.1
+#: Jacobi damping of the prolongation smoother (4/3 over the bound 2 of rho(D^-1 A))
+_OMEGA = 2.0 / 3.0
+#: GMRES restart length and cap on preconditioned iterations before the direct solve is used
+_RESTART = 40
+_MAX_ITER = 80
+#: Gauss-Seidel sweeps before and after each coarse correction
+_SWEEPS = 1
+
+
+class _Multigrid:
+    """Smoothed-aggregation V-cycle for ``A x = b`` with two right-hand-side columns: one
+    forward Gauss-Seidel sweep before and one backward sweep after each coarse correction."""
+
+    def __init__(self, A):
+        import scipy.sparse as sp
+
+        self.levels = []
+        while A.shape[0] > _COARSEST:
+            A = A.tocsr()
+            A.sort_indices()
+            ip = A.indptr.astype(np.int64)
+            ix = A.indices.astype(np.int64)
+            d = np.ascontiguousarray(A.data, dtype=np.float64)
+            agg, na = _kp.aggregate(ip, ix, d, _STRENGTH)
+            m = A.shape[0]
+            if na >= m:  # nothing aggregates: stop here
+                break
+            T = sp.csr_matrix((np.ones(m), agg, np.arange(m + 1)), shape=(m, na))
+            AT = A @ T
+            P = (T - AT.multiply((_OMEGA / A.diagonal())[:, None])).tocsr()
+            R = P.T.tocsr()
+            self.levels.append((ip, ix, d, P, R))
+            A = R @ (A @ P)
+        self.lu, self.piv = _kp.dense_lu(np.ascontiguousarray(A.toarray()))
+
+    def cycle(self, b: NDArray, k: int = 0) -> NDArray:
+        """One V-cycle from a zero guess: an approximation of ``A^-1 b`` (linear in b)."""
+        if k == len(self.levels):
+            return _kp.dense_lu_solve(self.lu, self.piv, np.ascontiguousarray(b))
+        ip, ix, d, P, R = self.levels[k]
+        x = np.zeros_like(b)
+        _kp.gauss_seidel(ip, ix, d, x, b, _SWEEPS, False)
+        r = np.empty_like(b)
+        _kp.scaled_residual(ip, ix, d, x, b, r)
+        x += P @ self.cycle(np.ascontiguousarray(R @ r), k + 1)
+        _kp.gauss_seidel(ip, ix, d, x, b, _SWEEPS, True)
+        return x
+
+
+def _gmres(A, b: NDArray, mg: _Multigrid) -> NDArray | None:
+    """Right-preconditioned restarted GMRES on ``A x = b`` (both columns as one system); None
+    when it does not reach :data:`_SOLVE_TOL` within :data:`_MAX_ITER` iterations."""
+    ip, ix, d = A.indptr, A.indices, A.data
+    m = b.shape[0]
+    x = np.zeros_like(b)
+    r = np.empty_like(b)
+    zero = np.zeros_like(b)
+    Q = np.empty((_RESTART + 1, m, 2))
+    Z = np.empty((_RESTART, m, 2))
+    H = np.zeros((_RESTART + 1, _RESTART))
+    # the residual's 2-norm at which its scaled entries are likely below the target (checked)
+    target = _SOLVE_TOL * float(A.diagonal().min()) * np.sqrt(m)
+    done = 0
+    while True:
+        worst = _kp.scaled_residual(ip, ix, d, x, b, r)
+        if not np.isfinite(worst):
+            return None
+        if worst <= _SOLVE_TOL:
+            return x
+        if done >= _MAX_ITER:
+            return None
+        beta = _kp.norm2(r)
+        np.divide(r, beta, out=Q[0])
+        H[:] = 0.0
+        g = np.zeros(_RESTART + 1)
+        g[0] = beta
+        cs = np.zeros(_RESTART)
+        sn = np.zeros(_RESTART)
+        k = 0
+        for k in range(_RESTART):
+            Z[k] = mg.cycle(Q[k])
+            w = np.empty_like(b)
+            _kp.scaled_residual(ip, ix, d, Z[k], zero, w)  # w = -A z
+            np.negative(w, out=w)
+            hk1 = _kp.arnoldi(Q, k, w, H)
+            H[k + 1, k] = hk1
+            for i in range(k):  # the earlier Givens rotations
+                hi = cs[i] * H[i, k] + sn[i] * H[i + 1, k]
+                H[i + 1, k] = -sn[i] * H[i, k] + cs[i] * H[i + 1, k]
+                H[i, k] = hi
+            den = float(np.hypot(H[k, k], H[k + 1, k]))
+            cs[k], sn[k] = H[k, k] / den, H[k + 1, k] / den
+            H[k, k], H[k + 1, k] = den, 0.0
+            g[k + 1], g[k] = -sn[k] * g[k], cs[k] * g[k]
+            done += 1
+            if abs(g[k + 1]) <= target or hk1 == 0.0:
+                break
+        _kp.gmres_update(x, Z, H, g, k)
+
+
 def _solve_interior(mesh: Mesh, uv: NDArray, fixed: NDArray, free: NDArray) -> NDArray:
-    """Parameters (m, 2) of the interior vertices ``free`` (a sparse LU solve)."""
+    """Parameters (m, 2) of the interior vertices ``free``.
+
+    Multigrid-preconditioned GMRES to :data:`_SOLVE_TOL` (the map agrees with a direct solve
+    to round-off times the system's conditioning); a sparse LU solve when that does not
+    converge.
+    """
+    A, rhs = _interior_system(mesh, uv, fixed, free)
+    x = _gmres(A, rhs, _Multigrid(A)) if A.shape[0] > _COARSEST else None
+    if x is None:
+        x = _direct_solve(A, rhs)
+    return x
+
+
+def _direct_solve(A, rhs: NDArray) -> NDArray:
+    """``A^-1 rhs`` by a sparse LU factorization."""
     from scipy.sparse.linalg import splu
 
-    A, rhs = _interior_system(mesh, uv, fixed, free)
     # A is an M-matrix (positive diagonal, negative off-diagonal, weakly diagonally dominant
     # rows, strictly next to the boundary): the diagonal pivots are stable, and a symmetric
     # fill-reducing ordering of its (symmetric) pattern keeps the factors small
-    lu = splu(A, **_LU_OPTIONS)
+    lu = splu(A.tocsc(), **_LU_OPTIONS)
     return lu.solve(rhs)
 
 
-#: SuperLU options of the interior solve (see :func:`_solve_interior`)
+#: SuperLU options of the direct solve (see :func:`_direct_solve`)
 _LU_OPTIONS: dict = {
     "permc_spec": "MMD_AT_PLUS_A",
     "diag_pivot_thresh": 0.0,
@@ -153,14 +247,19 @@ def square_map(mesh: Mesh, sides: Sides) -> PlanarMap:
     """Mean-value map of a four-sided disk patch onto the unit square.
 
     Boundary vertices go to the square's sides by arc length along each side; interior
-    vertices are the mean-value convex combinations of their neighbours (one sparse solve
-    for both coordinates). The map is kept while ``mesh`` lives: asking again for the same
-    mesh object and sides (the next level of a coarse-to-fine preview) returns it at once.
+    vertices are the mean-value convex combinations of their neighbours (one solve for both
+    coordinates: smoothed-aggregation multigrid-preconditioned GMRES to a residual at
+    round-off, a sparse LU factorization if that does not converge). The map is kept while
+    ``mesh`` lives: asking again for the same mesh object and sides (the next level of a
+    coarse-to-fine preview) returns it at once.
 
     References
     ----------
     .. [1] Floater, "Mean value coordinates", CAGD 20 (2003); Tutte, "How to draw a graph"
        (1963). Used for the starting grid of Krishnamurthy 2000, sec. 5.4.
+    .. [2] Vanek, Mandel & Brezina, "Algebraic multigrid by smoothed aggregation for second
+       and fourth order elliptic problems", Computing 56 (1996); Saad & Schultz, "GMRES",
+       SIAM J. Sci. Stat. Comput. 7 (1986).
     """
     key = _sides_key(sides)
     with _MAPS_LOCK:
