@@ -148,3 +148,19 @@ def test_the_igea_feature_patch_is_uniform_along_its_iso_curves():
         assert max(m["arc_cv_max"] for m in res.metrics) <= 0.15
         assert max(m["aspect_median"] for m in res.metrics) <= 1.5
         assert sum(m["folded"] for m in res.metrics) == 0
+
+
+def test_arc_length_polish_evens_the_igea_layout():
+    # the igea patches whose arc-length CV exceeds 0.15 with the default fairness equilibrium
+    # come within it with arc-length sweeps on the coarse levels, still unfolded
+    worst = [
+        p
+        for p, res, _ in layout_springs("igea")
+        if res.metrics and max(m["arc_cv_max"] for m in res.metrics) > 0.15
+    ]
+    assert worst
+    for patch in worst:
+        res = resample_patch(patch, fidelity=False, polish=10)
+        assert max(m["arc_cv_max"] for m in res.metrics) <= 0.15, patch.index
+        assert sum(m["folded"] for m in res.metrics) == 0
+        assert max(m["aspect_median"] for m in res.metrics) <= 1.5

@@ -197,6 +197,8 @@ def test_bad_options_raise(plane):
         resample_patch(plane, max_points=3)
     with pytest.raises(InputError, match="sections_u"):
         resample_patch(plane, sections_u=(1, 2))
+    with pytest.raises(InputError, match="polish"):
+        resample_patch(plane, polish=-1)
 
 
 def test_max_points_caps_the_level(plane):

@@ -239,6 +239,7 @@ def resample_patch(
     n_fair: int = 2,
     untangle_rounds: int = 3,
     repair: bool = True,
+    polish: int = 0,
     forces: str = "tangent",
     init: str = "map",
     midpoints: str = "map",
@@ -317,6 +318,15 @@ def resample_patch(
     untangle_rounds : int, keyword-only
         After each subdivision and each level's relaxation, rounds of fairness-only sweeps
         around folded cells (default 3; 0 turns it off).
+    polish : int, keyword-only
+        Sweeps of the arc-length force alone (guarded) after the relaxation of level 0
+        (``polish`` times `COARSE_SWEEPS`) and of level 1 (``2 * polish``), when they are
+        not the final level (default 0: none). The fairness force's equilibrium spaces grid
+        lines unevenly on curved patches; these cheap coarse sweeps even the spacing out
+        before subdivision. On the igea test layout 10 brings the worst arc-length CV of
+        every patch to 0.15 (from 0.23) at no measurable cost, but on the nefertiti and spot
+        layouts it stretches the cells of their bulging and near-triangular patches (median
+        aspect ratio up to 1.71 and 1.87) and leaves one more folded cell on each.
     repair : bool, keyword-only
         After each subdivision and each level's relaxation, re-place the free points around
         folded cells harmonically in the planar map (`meshfit.springs.relax.unfold_in_map`,
@@ -358,6 +368,8 @@ def resample_patch(
         raise InputError(f"side_spacing must be 'chord' or 'arc', got {side_spacing!r}")
     if midpoints not in ("map", "findmid"):
         raise InputError(f"midpoints must be 'map' or 'findmid', got {midpoints!r}")
+    if isinstance(polish, bool) or int(polish) != polish or polish < 0:
+        raise InputError(f"polish must be a non-negative integer, got {polish!r}")
     if not 0.0 < omega < 2.0:
         raise InputError(f"omega must be in (0, 2), got {omega}")
     if int(init_intervals) < 1:
@@ -432,6 +444,18 @@ def resample_patch(
             tangent=forces == "tangent",
             guard=guard,
         )
+        if polish and k <= 1 and k < final:  # arc-length sweeps on the coarse levels
+            relax(
+                state,
+                max_iter=int(polish) * (coarse[0] if k == 0 else 2),
+                ramp=0,
+                fairness=0.0,
+                omega=omega,
+                start=0,
+                eps=0.0,
+                tangent=forces == "tangent",
+                guard=guard,
+            )
         if untangle_rounds:
             untangle(
                 state,
