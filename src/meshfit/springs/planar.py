@@ -94,13 +94,16 @@ _OMEGA = 2.0 / 3.0
 #: GMRES restart length and cap on preconditioned iterations before the direct solve is used
 _RESTART = 40
 _MAX_ITER = 80
-#: Gauss-Seidel sweeps before and after each coarse correction
-_SWEEPS = 1
+#: Gauss-Seidel sweeps before and after each coarse correction, on the finest level and on
+#: the coarser ones (Galerkin coarse operators of the non-symmetric weights are not M-matrices:
+#: more sweeps there slow the solve down)
+_SWEEPS = (2, 1)
 
 
 class _Multigrid:
-    """Smoothed-aggregation V-cycle for ``A x = b`` with two right-hand-side columns: one
-    forward Gauss-Seidel sweep before and one backward sweep after each coarse correction."""
+    """Smoothed-aggregation V-cycle for ``A x = b`` with two right-hand-side columns:
+    forward Gauss-Seidel sweeps before and backward sweeps after each coarse correction
+    (:data:`_SWEEPS`)."""
 
     def __init__(self, A):
         import scipy.sparse as sp
@@ -129,12 +132,13 @@ class _Multigrid:
         if k == len(self.levels):
             return _kp.dense_lu_solve(self.lu, self.piv, np.ascontiguousarray(b))
         ip, ix, d, P, R = self.levels[k]
+        sweeps = _SWEEPS[0] if k == 0 else _SWEEPS[1]
         x = np.zeros_like(b)
-        _kp.gauss_seidel(ip, ix, d, x, b, _SWEEPS, False)
+        _kp.gauss_seidel(ip, ix, d, x, b, sweeps, False)
         r = np.empty_like(b)
         _kp.scaled_residual(ip, ix, d, x, b, r)
         x += P @ self.cycle(np.ascontiguousarray(R @ r), k + 1)
-        _kp.gauss_seidel(ip, ix, d, x, b, _SWEEPS, True)
+        _kp.gauss_seidel(ip, ix, d, x, b, sweeps, True)
         return x
 
 
