@@ -28,6 +28,8 @@ source point on the original mesh.
 
 from __future__ import annotations
 
+import contextlib
+import gc
 import itertools
 import math
 from dataclasses import dataclass
@@ -120,6 +122,29 @@ def _cross2(a, b):
 
 def _key(a: int, b: int) -> tuple[int, int]:
     return (a, b) if a < b else (b, a)
+
+
+@contextlib.contextmanager
+def _no_gc():
+    """Pause the cyclic garbage collector while the cut builds its many small containers
+    (they hold no cycles; repeated full collections over them dominate the run time)."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was:
+            gc.enable()
+
+
+def _argmin3(x) -> int:
+    """Index of the first smallest of three numbers (as ``numpy.argmin``)."""
+    k = 0
+    if x[1] < x[k]:
+        k = 1
+    if x[2] < x[k]:
+        k = 2
+    return k
 
 
 @dataclass
@@ -225,18 +250,42 @@ class _Cutter:
     def _register(self, t: int, abc: tuple[int, int, int], parent: int) -> None:
         self.tri[t] = abc
         self.parent[t] = parent
-        for k in range(3):
-            self.edge_map.setdefault(_key(abc[k], abc[(k + 1) % 3]), []).append(t)
-            self.vtris.setdefault(abc[k], set()).add(t)
-        self.face_tris.setdefault(parent, set()).add(t)
+        a, b, c = abc
+        em = self.edge_map
+        for key in (
+            (a, b) if a < b else (b, a),
+            (b, c) if b < c else (c, b),
+            (c, a) if c < a else (a, c),
+        ):
+            lst = em.get(key)
+            if lst is None:
+                em[key] = [t]
+            else:
+                lst.append(t)
+        vt = self.vtris
+        for v in abc:
+            st = vt.get(v)
+            if st is None:
+                vt[v] = {t}
+            else:
+                st.add(t)
+        st = self.face_tris.get(parent)
+        if st is None:
+            self.face_tris[parent] = {t}
+        else:
+            st.add(t)
 
     def _unregister(self, t: int) -> None:
-        abc = self.tri.pop(t)
-        parent = self.parent[t]
-        for k in range(3):
-            self.edge_map[_key(abc[k], abc[(k + 1) % 3])].remove(t)
-            self.vtris[abc[k]].discard(t)
-        self.face_tris[parent].discard(t)
+        a, b, c = self.tri.pop(t)
+        em = self.edge_map
+        em[(a, b) if a < b else (b, a)].remove(t)
+        em[(b, c) if b < c else (c, b)].remove(t)
+        em[(c, a) if c < a else (a, c)].remove(t)
+        vt = self.vtris
+        vt[a].discard(t)
+        vt[b].discard(t)
+        vt[c].discard(t)
+        self.face_tris[self.parent[t]].discard(t)
 
     def _load(self, f: int) -> None:
         if f >= 0 and f not in self.loaded:
@@ -353,7 +402,7 @@ class _Cutter:
         pos = [self.xyz(v) for v in abc]
         # an existing vertex
         dv = [_norm(_sub(p, q)) for q in pos]
-        k = int(np.argmin(dv))
+        k = _argmin3(dv)
         if dv[k] < self.snap and self.may_snap(abc[k]):
             return abc[k]
         # an existing edge
@@ -366,13 +415,13 @@ class _Cutter:
             edge_s.append(s)
             edge_d.append(_norm(_sub(p, _lerp(qa, qb, s))))
         area = self.tri_area(best_t)
-        k = int(np.argmin(edge_d))
+        k = _argmin3(edge_d)
         if edge_d[k] >= self.snap and min(best_lam) * area >= self.min_area:
             x = self.new_vertex(p, g, bary)
             self.split_face(best_t, x)
             return x
         if edge_d[k] >= self.snap:  # too thin to split the face: use the nearest edge
-            k = (int(np.argmin(best_lam)) + 1) % 3
+            k = (_argmin3(best_lam) + 1) % 3
         return self.split_edge_at(abc[k], abc[(k + 1) % 3], edge_s[k], g)
 
     def _insert_on_edge(self, p, bary: tuple[float, float, float], g: int) -> int:
@@ -501,6 +550,66 @@ def _classify(cutter: _Cutter, face: int, bary: NDArray, index: int) -> _CutPoin
     return _CutPoint(
         face, (float(b[0]), float(b[1]), float(b[2])), -1, frozenset((face,)), p, index
     )
+
+
+def _classify_all(
+    cutter: _Cutter, face: NDArray[np.int64], bary: NDArray[np.float64], index: NDArray[np.int64]
+) -> list[_CutPoint]:
+    """:func:`_classify` of many points at once (the same arithmetic, elementwise)."""
+    n = face.shape[0]
+    if n == 0:
+        return []
+    snap = cutter.snap
+    fv = cutter.F0[face]
+    pos = cutter.V0[fv]  # (n, 3 corners, 3)
+    b = np.clip(bary, 0.0, None)
+    b = b / b.sum(axis=1, keepdims=True)
+    p = b[:, 0:1] * pos[:, 0] + b[:, 1:2] * pos[:, 1] + b[:, 2:3] * pos[:, 2]
+
+    def norm(d):
+        return np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])
+
+    def dot(u, w):
+        return u[:, 0] * w[:, 0] + u[:, 1] * w[:, 1] + u[:, 2] * w[:, 2]
+
+    dv = np.stack([norm(p - pos[:, k]) for k in range(3)], axis=1)
+    kv = np.argmin(dv, axis=1)
+    at_vertex = dv[np.arange(n), kv] < snap
+    edge_k = np.full(n, -1, dtype=np.int64)
+    edge_s = np.zeros(n)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for k in (2, 1, 0):  # the first edge that qualifies wins
+            qa, qb = pos[:, k], pos[:, (k + 1) % 3]
+            e = qb - qa
+            sk = dot(p - qa, e) / dot(e, e)
+            foot = qa + sk[:, None] * e
+            ok = (sk > 0.0) & (sk < 1.0) & (norm(p - foot) < snap)
+            edge_k[ok] = k
+            edge_s[ok] = sk[ok]
+    faces_l = face.tolist()
+    index_l = index.tolist()
+    fv_l = fv.tolist()
+    kv_l = kv.tolist()
+    at_vertex_l = at_vertex.tolist()
+    edge_k_l = edge_k.tolist()
+    edge_s_l = edge_s.tolist()
+    b_l = b.tolist()
+    p_l = p.tolist()
+    out: list[_CutPoint] = []
+    for i in range(n):
+        f = faces_l[i]
+        if at_vertex_l[i]:
+            out.append(_vertex_point(cutter, fv_l[i][kv_l[i]], index_l[i]))
+        elif edge_k_l[i] >= 0:
+            out.append(_edge_point(cutter, f, edge_k_l[i], edge_s_l[i], index_l[i]))
+        else:
+            bi, pi = b_l[i], p_l[i]
+            out.append(
+                _CutPoint(
+                    f, (bi[0], bi[1], bi[2]), -1, frozenset((f,)), (pi[0], pi[1], pi[2]), index_l[i]
+                )
+            )
+    return out
 
 
 def _vertex_point(cutter: _Cutter, v: int, index: int) -> _CutPoint:
@@ -696,15 +805,16 @@ def cut_mesh(
     n = len(points)
     if n < 2:
         raise InputError(f"a cut needs at least 2 curve points, got {n}")
-    cutter = _Cutter(mesh)
-    cps = [_classify(cutter, int(points.face[i]), points.bary[i], i) for i in range(n)]
-    path = _insert_curve(cutter, cps, closed)
-    path = _drop_spikes(_expand(cutter, path, closed), closed)
-    if len(path) < 2:
-        raise CutError(f"the curve's {n} points collapse to a single vertex: nothing to cut")
-    edges = list(itertools.pairwise(path)) + ([(path[-1], path[0])] if closed else [])
-    cutter.cut = {_key(a, b) for a, b in edges}
-    return _assemble(cutter, mesh, path, closed, split)
+    with _no_gc():
+        cutter = _Cutter(mesh)
+        cps = _classify_all(cutter, points.face, points.bary, np.arange(n))
+        path = _insert_curve(cutter, cps, closed)
+        path = _drop_spikes(_expand(cutter, path, closed), closed)
+        if len(path) < 2:
+            raise CutError(f"the curve's {n} points collapse to a single vertex: nothing to cut")
+        edges = list(itertools.pairwise(path)) + ([(path[-1], path[0])] if closed else [])
+        cutter.cut = {_key(a, b) for a, b in edges}
+        return _assemble(cutter, mesh, path, closed, split)
 
 
 def _insert_curve(cutter: _Cutter, cps: list[_CutPoint], closed: bool) -> list[int]:
@@ -932,76 +1042,77 @@ def cut_mesh_network(
     if ends.size and (ends.min() < 0 or ends.max() >= nc):
         i = int(np.flatnonzero((ends < 0).any(axis=1) | (ends >= nc).any(axis=1))[0])
         raise InputError(f"curve {i}: corner index out of range 0..{nc - 1}: {ends[i].tolist()}")
-    cutter = _Cutter(mesh)
-    cutter.route_fans = True
-    merge = tol.length(mesh, tol.CUT_CORNER_MERGE)
-    corner_cp: list[_CutPoint] = []
-    corner_v = np.empty(nc, dtype=np.int64)
-    for c in range(nc):
-        cp = _classify(cutter, int(corners.face[c]), corners.bary[c], c)
-        if cp.vertex < 0:  # a corner within CUT_CORNER_MERGE of a vertex is that vertex
-            fv = cutter.face(cp.face)
-            dv = [_norm(_sub(cutter.xyz(u), cp.xyz)) for u in fv]
-            k = int(np.argmin(dv))
-            if dv[k] < merge:
-                cp = _vertex_point(cutter, fv[k], c)
-        v = cutter.insert(cp, cp.face)
-        if v < cutter.nv0:
-            cp = _vertex_point(cutter, v, c)
-        else:
-            cp = _CutPoint(cp.face, cp.bary, v, cp.faces, cutter.xyz(v), c)
-        corner_v[c] = v
-        corner_cp.append(cp)
-        cutter.on_path.add(v)
-    if len(set(corner_v.tolist())) < nc:
-        a, b = _first_repeat(corner_v)
-        raise CutError(f"corners {a} and {b} fall on the same point")
-    raw: list[list[int]] = []
-    for i, curve in enumerate(curves):
-        pts = curve.points if isinstance(curve, SurfaceCurve) else curve
-        pts = as_surface_points(mesh, pts, name=f"curve {i}")
-        if len(pts) < 2:
-            raise InputError(f"curve {i}: needs at least 2 points, got {len(pts)}")
-        # points at (within CUT_CORNER_MERGE of) an end corner are that corner
-        xyz = mesh.xyz(pts)
-        first, last = corner_cp[ends[i, 0]], corner_cp[ends[i, 1]]
-        d0 = np.linalg.norm(xyz - np.asarray(first.xyz), axis=1)
-        d1 = np.linalg.norm(xyz - np.asarray(last.xyz), axis=1)
-        inner = np.flatnonzero((d0 > merge) & (d1 > merge))
-        inner = inner[(inner > 0) & (inner < len(pts) - 1)]
-        cps = [first]
-        cps += [_classify(cutter, int(pts.face[k]), pts.bary[k], int(k)) for k in inner]
-        cps.append(last)
-        try:
-            raw.append(_insert_curve(cutter, cps, False))
-        except CutError as exc:
-            raise CutError(f"curve {i}: {exc}") from None
-    paths = []
-    for i, path in enumerate(raw):
-        path = _drop_loops(_drop_spikes(_expand(cutter, path, False), False))
-        if len(path) < 2:
-            raise CutError(f"curve {i} collapses to a single vertex: nothing to cut")
-        paths.append(path)
-    _check_meetings(paths, corner_v, ends)
-    cutter.cut = {_key(a, b) for path in paths for a, b in itertools.pairwise(path)}
-    vertices, faces, face_parent, src, parent, colors = _refined(cutter, mesh)
-    copy_of = np.arange(vertices.shape[0], dtype=np.int64)
-    if split:
-        faces, copy_of = _split_faces(cutter, faces, vertices.shape[0])
-        vertices = vertices[copy_of]
-        parent = parent[copy_of]
-        src = src[copy_of]
-        colors = None if colors is None else colors[copy_of]
-    new_mesh = Mesh(vertices, faces, colors, name=mesh.name)
-    return NetworkCutResult(
-        new_mesh,
-        tuple(np.asarray(p, dtype=np.int64) for p in paths),
-        corner_v,
-        copy_of,
-        face_parent,
-        parent,
-        src,
-    )
+    with _no_gc():
+        cutter = _Cutter(mesh)
+        cutter.route_fans = True
+        merge = tol.length(mesh, tol.CUT_CORNER_MERGE)
+        corner_cp: list[_CutPoint] = []
+        corner_v = np.empty(nc, dtype=np.int64)
+        for c in range(nc):
+            cp = _classify(cutter, int(corners.face[c]), corners.bary[c], c)
+            if cp.vertex < 0:  # a corner within CUT_CORNER_MERGE of a vertex is that vertex
+                fv = cutter.face(cp.face)
+                dv = [_norm(_sub(cutter.xyz(u), cp.xyz)) for u in fv]
+                k = int(np.argmin(dv))
+                if dv[k] < merge:
+                    cp = _vertex_point(cutter, fv[k], c)
+            v = cutter.insert(cp, cp.face)
+            if v < cutter.nv0:
+                cp = _vertex_point(cutter, v, c)
+            else:
+                cp = _CutPoint(cp.face, cp.bary, v, cp.faces, cutter.xyz(v), c)
+            corner_v[c] = v
+            corner_cp.append(cp)
+            cutter.on_path.add(v)
+        if len(set(corner_v.tolist())) < nc:
+            a, b = _first_repeat(corner_v)
+            raise CutError(f"corners {a} and {b} fall on the same point")
+        raw: list[list[int]] = []
+        for i, curve in enumerate(curves):
+            pts = curve.points if isinstance(curve, SurfaceCurve) else curve
+            pts = as_surface_points(mesh, pts, name=f"curve {i}")
+            if len(pts) < 2:
+                raise InputError(f"curve {i}: needs at least 2 points, got {len(pts)}")
+            # points at (within CUT_CORNER_MERGE of) an end corner are that corner
+            xyz = mesh.xyz(pts)
+            first, last = corner_cp[ends[i, 0]], corner_cp[ends[i, 1]]
+            d0 = np.linalg.norm(xyz - np.asarray(first.xyz), axis=1)
+            d1 = np.linalg.norm(xyz - np.asarray(last.xyz), axis=1)
+            inner = np.flatnonzero((d0 > merge) & (d1 > merge))
+            inner = inner[(inner > 0) & (inner < len(pts) - 1)]
+            cps = [first]
+            cps += _classify_all(cutter, pts.face[inner], pts.bary[inner], inner)
+            cps.append(last)
+            try:
+                raw.append(_insert_curve(cutter, cps, False))
+            except CutError as exc:
+                raise CutError(f"curve {i}: {exc}") from None
+        paths = []
+        for i, path in enumerate(raw):
+            path = _drop_loops(_drop_spikes(_expand(cutter, path, False), False))
+            if len(path) < 2:
+                raise CutError(f"curve {i} collapses to a single vertex: nothing to cut")
+            paths.append(path)
+        _check_meetings(paths, corner_v, ends)
+        cutter.cut = {_key(a, b) for path in paths for a, b in itertools.pairwise(path)}
+        vertices, faces, face_parent, src, parent, colors = _refined(cutter, mesh)
+        copy_of = np.arange(vertices.shape[0], dtype=np.int64)
+        if split:
+            faces, copy_of = _split_faces(cutter, faces, vertices.shape[0])
+            vertices = vertices[copy_of]
+            parent = parent[copy_of]
+            src = src[copy_of]
+            colors = None if colors is None else colors[copy_of]
+        new_mesh = Mesh(vertices, faces, colors, name=mesh.name)
+        return NetworkCutResult(
+            new_mesh,
+            tuple(np.asarray(p, dtype=np.int64) for p in paths),
+            corner_v,
+            copy_of,
+            face_parent,
+            parent,
+            src,
+        )
 
 
 def _drop_loops(path: list[int]) -> list[int]:
