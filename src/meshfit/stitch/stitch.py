@@ -320,14 +320,18 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
     if np.linalg.norm(normal) <= tol.BSPLINE_DEGENERATE:
         return False
     normal /= np.linalg.norm(normal)
-    # the plane must face the way every patch does beyond the corner's own control ring
+    # the plane must face the way every patch does beyond the corner's own control ring,
+    # unless the patch already turns over between its corner point and there (a fit curling
+    # over a sharp feature next to the corner): that fold is not the corner rule's, and
+    # leaving the corner C0 would not undo it
     for k, i, j in slots:
         mu, mv = shapes[k]
+        n_c = surfaces[k].normals(np.array([float(i == -1)]), np.array([float(j == -1)]))[0]
         u = 2.0 / (mu - 3) if i == 0 else 1.0 - 2.0 / (mu - 3)
         v = 2.0 / (mv - 3) if j == 0 else 1.0 - 2.0 / (mv - 3)
         uv = np.clip([u, v], 0.0, 1.0)
         n_in = surfaces[k].normals(uv[:1], uv[1:])[0]
-        if n_in @ normal <= 0:
+        if n_in @ normal <= 0 and n_in @ n_c > 0:
             return False
     theta = np.array([np.arccos(np.clip(unit[w.first] @ unit[w.second], -1, 1)) for w in wedges])
     flat = _flat_angles(theta, cycle)
