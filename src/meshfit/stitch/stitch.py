@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 
 from meshfit import tol
 from meshfit.bspline import BSplineSurface
+from meshfit.bspline.basis import DEGREE, basis_local
 from meshfit.displacement import DisplacementMap
 from meshfit.errors import InputError
 from meshfit.stitch.network import Network, SharedBoundary, side_row
@@ -281,7 +282,11 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
     2. Flat fan: the spokes are laid out in that plane around the corner in the patches'
        cyclic order, each keeping its length, the wedge angles the patches' own corner angles
        scaled to a full turn (kept within ``tol.STITCH_CORNER_MIN_ANGLE`` of 0 and pi), the
-       fan turned about ``N`` to fit the old spokes best; each diagonal point keeps its
+       fan turned about ``N`` to fit the old spokes best (where row 0 cannot be collinear:
+       the turn, among that one and ``_FAN_TURNS`` others refined around the best, with the
+       smallest normal jump over the first knot span of the corner's boundaries; the rows
+       beyond the corner ring stay, and the turn decides how much the first span twists
+       between them); each diagonal point keeps its
        coordinates in its wedge's spoke basis (clamped inside the wedge). No patch corner
        folds: every wedge is counter-clockwise about ``N``, as every patch's own normal.
     3. Constraints, solved together as the least change from the flat fan (Gauss-Newton,
@@ -404,12 +409,12 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
             J.append(row)
         return np.array(r) / scale**2, np.array(J).reshape(-1, nx) / scale**2
 
-    def flat_fan(equal: bool):
+    def flat_fan(equal: bool, rot: float):
         ln = dict(length)
         if equal:  # a symmetric start when the patches' own spokes fold the fan
             mean = float(np.mean(list(length.values())))
             ln = dict.fromkeys(keys, mean)
-        s2 = {k: ln[k] * np.array([np.cos(phi[k] + psi), np.sin(phi[k] + psi)]) for k in keys}
+        s2 = {k: ln[k] * np.array([np.cos(phi[k] + rot), np.sin(phi[k] + rot)]) for k in keys}
         d2 = []
         for w in wedges:
             A = np.stack([e3[w.first], e3[w.second]], axis=1)
@@ -419,24 +424,108 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
             d2.append(ab[0] * s2[w.first] + ab[1] * s2[w.second])
         return s2, np.array(d2)
 
-    for equal, with_row0 in ((False, True), (True, True), (False, False), (True, False)):
-        s2, d2 = flat_fan(equal)
-        if _fan_folded(s2, wedges, d2):
+    def place(rot: float) -> NDArray | None:
+        """The control array with the corner rule applied, the fan turned by ``rot``."""
+        for equal, with_row0 in ((False, True), (True, True), (False, False), (True, False)):
+            s2, d2 = flat_fan(equal, rot)
+            if _fan_folded(s2, wedges, d2):
+                continue
+            x0 = np.concatenate([np.array([s2[k] for k in keys]).ravel(), d2.ravel()])
+            x = _solve_fan(x0, hard, soft if with_row0 and not exact else None, scale)
+            X = x.reshape(-1, 2)
+            sp = {k: X[ks[k]] for k in keys}
+            if _fan_folded(sp, wedges, X[nd:], np.sin(0.5 * tol.STITCH_CORNER_MIN_ANGLE)):
+                continue
+            Q = P.copy()
+            for k in keys:
+                Q[spoke_index[k]] = c0 + sp[k][0] * x_ax + sp[k][1] * y_ax
+            for w, d in zip(wedges, X[nd:], strict=True):
+                Q[w.diag] = c0 + d[0] * x_ax + d[1] * y_ax
+            if not exact:
+                _flatten_row2(Q, shapes, c0, normal, keys, spoke_index, boundaries)
+            return Q
+        return None
+
+    best = place(psi)
+    if best is None:
+        return False
+    if not exact:
+        # row 0 is not collinear: the normal jump within the first knot span depends on how
+        # the fan is turned about the normal against the fixed rows beyond it; keep the turn
+        # with the smallest jump (the fitted turn first, so it stays on a tie)
+        zone = _corner_zone_jump(surfaces, shapes, offs, keys, spoke_index, boundaries)
+        best_jump = zone(best)
+        step = 2 * np.pi / _FAN_TURNS
+        best_rot, cands = 0.0, [step * t for t in range(1, _FAN_TURNS)]
+        for _ in range(3):
+            for rot in cands:
+                Q = place(psi + rot)
+                if Q is None:
+                    continue
+                j = zone(Q)
+                if j < best_jump:
+                    best, best_jump, best_rot = Q, j, rot
+            step /= 3
+            cands = [best_rot - step, best_rot + step]
+    P[:] = best
+    return True
+
+
+#: fan turns tried about the corner normal at a corner whose row 0 cannot be collinear,
+#: evenly over a full turn (then twice around the best, at a third of the step each time)
+_FAN_TURNS = 12
+
+
+def _corner_zone_jump(surfaces, shapes, offs, keys, spoke_index, boundaries):
+    """A function of the flat control array: the largest normal angle (radians) between
+    the two patches of every shared boundary at one corner, over the knot span at that
+    corner (the corner zone of :func:`seam_report`), 33 samples. The partials are linear in
+    the control points: their weights are computed once."""
+    a4 = np.arange(DEGREE + 1)
+    sides = []
+    for k in keys:
+        if k[0] != "b":
             continue
-        x0 = np.concatenate([np.array([s2[k] for k in keys]).ravel(), d2.ravel()])
-        x = _solve_fan(x0, hard, soft if with_row0 and not exact else None, scale)
-        X = x.reshape(-1, 2)
-        sp = {k: X[ks[k]] for k in keys}
-        if _fan_folded(sp, wedges, X[nd:], np.sin(0.5 * tol.STITCH_CORNER_MIN_ANGLE)):
-            continue
-        for k in keys:
-            P[spoke_index[k]] = c0 + sp[k][0] * x_ax + sp[k][1] * y_ax
-        for w, d in zip(wedges, X[nd:], strict=True):
-            P[w.diag] = c0 + d[0] * x_ax + d[1] * y_ax
-        if not exact:
-            _flatten_row2(P, shapes, c0, normal, keys, spoke_index, boundaries)
-        return True
-    return False
+        b = boundaries[k[1]]
+        ia, ib = _slot_rows(shapes, b, 0)
+        t = np.linspace(0.0, 1.0 / (len(ia) - 3), 33)
+        if spoke_index[k][0] not in (ia[1], ib[1]):
+            t = 1.0 - t
+        pair = []
+        for patch, side, tt in ((b.a, b.side_a, t), (b.b, b.side_b, 1.0 - t if b.reversed else t)):
+            s = surfaces[patch]
+            u, v = _side_params(side, tt)
+            fu, Nu = basis_local(u, s.knots_u, DEGREE, 1)
+            fv, Nv = basis_local(v, s.knots_v, DEGREE, 1)
+            mv = shapes[patch][1]
+            idx = (
+                offs[patch]
+                + (fu[:, None, None] + a4[None, :, None]) * mv
+                + (fv[:, None, None] + a4[None, None, :])
+            )
+            wu = Nu[:, 1, :, None] * Nv[:, 0, None, :]
+            wv = Nu[:, 0, :, None] * Nv[:, 1, None, :]
+            pair.append((idx, wu, wv))
+        sides.append(pair)
+
+    def jump(Q: NDArray) -> float:
+        worst = 0.0
+        for pair in sides:
+            ns = []
+            for idx, wu, wv in pair:
+                block = Q[idx]
+                n = np.cross(
+                    np.einsum("nab,nabc->nc", wu, block), np.einsum("nab,nabc->nc", wv, block)
+                )
+                ln = np.linalg.norm(n, axis=1)
+                ns.append(n / np.where(ln > 0, ln, 1.0)[:, None])
+            cos = (ns[0] * ns[1]).sum(axis=1)
+            ok = (np.abs(ns[0]).sum(axis=1) > 0) & (np.abs(ns[1]).sum(axis=1) > 0)
+            if ok.any():
+                worst = max(worst, float(np.arccos(np.clip(cos[ok], -1.0, 1.0)).max()))
+        return worst
+
+    return jump
 
 
 def _slot_rows(shapes, b: SharedBoundary, depth: int):
@@ -498,7 +587,8 @@ def stitch_surfaces(surfaces: Sequence[BSplineSurface], network: Network) -> lis
          valence-3 corner cannot be pairwise opposite); the fan is pulled towards ``e_a +
          lam e_b`` parallel to the boundary's own spoke (``e_a, e_b`` the two patches' other
          spokes), and row 2 from the corner is translated onto the corner plane, so the
-         boundary curves leave the corner without normal curvature. The normal jump within
+         boundary curves leave the corner without normal curvature; the fan is turned about
+         the normal to the smallest normal jump over the first knot span. The normal jump within
          the first knot span is then small but not zero (uniform bicubic patches cannot be
          G1 there in general without extra knots). A corner whose fan would fold is left C0.
     """
