@@ -118,8 +118,9 @@ def spring_force(X, nv, p, w_arc, w_fair, nrm, tangent, out):
 
 
 @njit(cache=True, nogil=True, fastmath=False)
-def _tri_bad(X, N, p, q, r):
-    """1 if triangle (p, q, r) faces against the summed normals at its corners, else 0."""
+def _tri_facing(X, N, p, q, r):
+    """Dot product of triangle (p, q, r)'s normal ``(q - p) x (r - p)`` with the summed
+    normals at its corners, and the product of the two vectors' lengths."""
     ux = X[q, 0] - X[p, 0]
     uy = X[q, 1] - X[p, 1]
     uz = X[q, 2] - X[p, 2]
@@ -132,7 +133,14 @@ def _tri_bad(X, N, p, q, r):
     sx = N[p, 0] + N[q, 0] + N[r, 0]
     sy = N[p, 1] + N[q, 1] + N[r, 1]
     sz = N[p, 2] + N[q, 2] + N[r, 2]
-    return 1 if cx * sx + cy * sy + cz * sz <= 0.0 else 0
+    dot = cx * sx + cy * sy + cz * sz
+    return dot, np.sqrt((cx * cx + cy * cy + cz * cz) * (sx * sx + sy * sy + sz * sz))
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _tri_bad(X, N, p, q, r):
+    """1 if triangle (p, q, r) faces against the summed normals at its corners, else 0."""
+    return 1 if _tri_facing(X, N, p, q, r)[0] <= 0.0 else 0
 
 
 @njit(cache=True, nogil=True, fastmath=False)
@@ -318,22 +326,9 @@ def _fold_score(X, N, nu, nv, p, margin):
             for t in range(2):
                 q = b if t == 0 else c
                 r = c if t == 0 else d
-                ux = X[q, 0] - X[a, 0]
-                uy = X[q, 1] - X[a, 1]
-                uz = X[q, 2] - X[a, 2]
-                wx = X[r, 0] - X[a, 0]
-                wy = X[r, 1] - X[a, 1]
-                wz = X[r, 2] - X[a, 2]
-                cx = uy * wz - uz * wy
-                cy = uz * wx - ux * wz
-                cz = ux * wy - uy * wx
-                sx = N[a, 0] + N[q, 0] + N[r, 0]
-                sy = N[a, 1] + N[q, 1] + N[r, 1]
-                sz = N[a, 2] + N[q, 2] + N[r, 2]
-                dot = cx * sx + cy * sy + cz * sz
+                dot, den = _tri_facing(X, N, a, q, r)
                 if dot <= 0.0:
                     bad += 1
-                den = np.sqrt((cx * cx + cy * cy + cz * cz) * (sx * sx + sy * sy + sz * sz))
                 cos = dot / den if den > 0.0 else -1.0
                 if cos < margin:
                     short += margin - cos
