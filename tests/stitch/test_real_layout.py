@@ -121,38 +121,6 @@ def test_displacement_seams_close_at_any_resolution(igea_layout):
     assert gaps.max() <= tol.STITCH_GAP * diag
 
 
-@pytest.fixture(scope="module")
-def igea_test_layout():
-    """The igea layout of the spring-mesh tests (examples/layouts/igea.json)."""
-    from meshfit.layout import extract_patches, load_layout
-    from meshfit.springs import resample_patch
-
-    mesh = real_mesh("igea")
-    layout = load_layout(ROOT / "examples" / "layouts" / "igea.json", mesh)
-    grids = [
-        resample_patch(p, fidelity=False, metrics=False).final.xyz
-        for p in extract_patches(mesh, layout)
-    ]
-    net = network_from_grids(grids)
-    cc = control_classes(net, default=8, grid_shapes=[g.shape[:2] for g in grids])
-    surfaces = [fit_bspline(g, controls=c) for g, c in zip(grids, cc.controls, strict=True)]
-    return grids, net, surfaces, mesh.bbox_diagonal
-
-
-def test_test_layout_meets_the_stitching_targets(igea_test_layout):
-    grids, net, surfaces, diag = igea_test_layout
-    stitched = stitch_surfaces(surfaces, net)
-    after = seam_report(stitched, net)
-    assert after.gap.max() <= tol.STITCH_GAP * diag
-    assert after.angle_deg.max() <= 0.5
-    assert after.angle_corner_deg.max() <= 2.0
-    assert after.corner_point_deg.max() <= 1e-5
-    assert _no_folded_corner(stitched)
-    maps = [displacement_map(s, g) for s, g in zip(stitched, grids, strict=True)]
-    fixed = stitch_displacements(stitched, maps, net)
-    assert displacement_seam_gaps(stitched, fixed, net).max() <= tol.STITCH_GAP * diag
-
-
 def _test_layout(name: str, m: int = 8):
     """Spring meshes of examples/layouts/<name>.json, their network and fits with m x m controls."""
     from meshfit.layout import extract_patches, load_layout
@@ -171,22 +139,39 @@ def _test_layout(name: str, m: int = 8):
 
 
 @pytest.fixture(scope="module")
+def igea_test_layout():
+    """The igea layout of the spring-mesh tests (examples/layouts/igea.json)."""
+    return _test_layout("igea")
+
+
+@pytest.fixture(scope="module")
 def nefertiti_test_layout():
     """The nefertiti layout of the spring-mesh tests (examples/layouts/nefertiti.json)."""
     return _test_layout("nefertiti")
 
 
-def test_nefertiti_test_layout_meets_the_stitching_targets(nefertiti_test_layout):
-    grids, net, surfaces, diag = nefertiti_test_layout
+def _meets_the_targets(layout, *, corner_zones: bool) -> None:
+    grids, net, surfaces, diag = layout
     stitched = stitch_surfaces(surfaces, net)
     after = seam_report(stitched, net)
     assert after.gap.max() <= tol.STITCH_GAP * diag
     assert after.angle_deg.max() <= 0.5
+    if corner_zones:
+        assert after.angle_corner_deg.max() <= 2.0
     assert after.corner_point_deg.max() <= 1e-5
     assert _no_folded_corner(stitched)
     maps = [displacement_map(s, g) for s, g in zip(stitched, grids, strict=True)]
     fixed = stitch_displacements(stitched, maps, net)
     assert displacement_seam_gaps(stitched, fixed, net).max() <= tol.STITCH_GAP * diag
+
+
+def test_test_layout_meets_the_stitching_targets(igea_test_layout):
+    _meets_the_targets(igea_test_layout, corner_zones=True)
+
+
+def test_nefertiti_test_layout_meets_the_stitching_targets(nefertiti_test_layout):
+    """All but the corner zones (their own test below)."""
+    _meets_the_targets(nefertiti_test_layout, corner_zones=False)
 
 
 def _refit(layout, m):
