@@ -1,5 +1,5 @@
 """Stitching the spring meshes of real layouts: igea's 2 x 2 cube layout (24 patches) and the
-layouts of the spring-mesh tests (examples/layouts/igea.json, nefertiti.json)."""
+layouts of the spring-mesh tests (examples/layouts/: igea, nefertiti, spot)."""
 
 import numpy as np
 import pytest
