@@ -19,8 +19,14 @@ timed in the same run:
   closest to 25,000 vertices of a one-per-cube-face layout of igea (the session's previews
   and the kept square maps cleared each run: a cold preview); peer: one single-source
   Dijkstra over that patch's edge graph (``scipy.sparse.csgraph.dijkstra``), the unit of work
-  of the level-0 iso-curves. Also reported: level 1 cold, and level 1 right after level 0
-  (the coarse-to-fine preview; the patch's square map is kept from level 0).
+  of the level-0 iso-curves. A patch over
+  :data:`meshfit.springs.preview.PREVIEW_MIN_VERTICES` gets its level-0 preview from a planar
+  map made on a coarse copy (:func:`meshfit.springs.preview.coarse_level0`); also reported:
+  the exact level 0 cold (``resample_patch(level=0)`` with its square map, the path used
+  before), the preview's distance from it (max / median over the mean grid spacing and over
+  the patch's bounding-box diagonal), level 1 cold, and level 1 right after level 0 (the
+  coarse-to-fine preview; level 1 uses the exact square map, made there: level 0 no longer
+  makes it).
 
 Run: ``python benchmarks/ui_latency.py [--repeats 9] [--edges 50 200]``. Prints JSON and writes
 ``benchmarks/results/ui_latency.json`` atomically.
@@ -43,7 +49,9 @@ from meshfit.bspline import fit_bspline
 from meshfit.curves import paint_curve, relax_snake, resample_curve
 from meshfit.layout.cube import cube_layout
 from meshfit.mesh import load_mesh
+from meshfit.springs import resample_patch
 from meshfit.springs.planar import clear_map_cache
+from meshfit.springs.preview import PREVIEW_MIN_VERTICES
 from meshfit.surface import greedy_path
 from meshfit.types import SurfaceCurve, SurfacePoints
 from meshfit.ui.state import Session
@@ -158,6 +166,18 @@ def bench_patch(mesh, session: Session, repeats: int) -> tuple[dict, dict]:
     t_spring, _ = median_time(preview, repeats)
     t_level1, _ = median_time(lambda: preview(1), repeats)
     t_next = float(np.median([next_level() for _ in range(repeats)]))
+
+    def exact_level0():
+        clear_map_cache()
+        return resample_patch(patches[p], level=0, metrics=False).final
+
+    exact = exact_level0()
+    t_exact, _ = median_time(exact_level0, repeats)
+    E, G = np.asarray(exact.xyz), np.asarray(grid0.xyz)
+    d = np.linalg.norm(G - E, axis=2)
+    steps = np.concatenate([np.linalg.norm(np.diff(E, axis=k), axis=2).ravel() for k in (0, 1)])
+    spacing = float(steps.mean())
+    diag = float(patches[p].mesh.bbox_diagonal)
     pm = patches[p].mesh
     src = int(patches[p].sides[0][len(patches[p].sides[0]) // 2])
     graph = pm.edge_graph
@@ -171,6 +191,14 @@ def bench_patch(mesh, session: Session, repeats: int) -> tuple[dict, dict]:
         patch_vertices=int(nv),
         grid=list(grid0.shape),
         layout_and_cut_s=round(layout_s, 2),
+        coarse_copy_preview=bool(nv > PREVIEW_MIN_VERTICES),
+        exact_level0_cold_ms=_ms(t_exact),
+        offset_to_exact_level0={
+            "max_over_spacing": round(float(d.max()) / spacing, 6),
+            "median_over_spacing": round(float(np.median(d)) / spacing, 6),
+            "max_over_diagonal": round(float(d.max()) / diag, 8),
+            "median_over_diagonal": round(float(np.median(d)) / diag, 8),
+        },
         level1_cold_ms=_ms(t_level1),
         level1_after_level0_ms=_ms(t_next),
     )

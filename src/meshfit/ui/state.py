@@ -886,17 +886,34 @@ class Session:
         """The spring mesh of one patch relaxed up to ``level`` (coarse-to-fine previews:
         call with level 0, 1, 2... and show each; sec. 5.7, 5.13).
 
+        Level 0 of a patch with more than
+        :data:`meshfit.springs.preview.PREVIEW_MIN_VERTICES` vertices is a preview made on a
+        coarse copy of the patch (:func:`meshfit.springs.preview.coarse_level0`: the planar
+        map solved on the copy, the grid carried to the closest points of the patch and
+        relaxed on the patch; 3-4x faster cold on a 26.5K-vertex patch). Its points are face
+        points of the patch; they lie within 0.44 of a grid spacing of the exact level 0 of
+        :func:`meshfit.springs.resample_patch`, median under 0.021 (measured on the igea
+        and nefertiti layouts' patches over the threshold; 0.0005 / 0.00005 on the igea
+        cube-layout patch of the benchmark). Levels 1 and up, and every other caller of
+        ``resample_patch``, use the exact map; the first of them makes it.
+
         Returns
         -------
         meshfit.springs.SpringMesh
         """
         from meshfit.springs import resample_patch
+        from meshfit.springs.preview import PREVIEW_MIN_VERTICES, coarse_level0
 
         key = ("springs", int(patch), int(level))
         if key not in self._cache:
-            res = resample_patch(self._patch(patch), level=int(level), metrics=False)
-            self._cache[key] = res.final
-            self._cache[("grid", int(patch))] = res.final
+            p = self._patch(patch)
+            grid = None
+            if int(level) == 0 and p.mesh.n_vertices > PREVIEW_MIN_VERTICES:
+                grid = coarse_level0(p)
+            if grid is None:
+                grid = resample_patch(p, level=int(level), metrics=False).final
+            self._cache[key] = grid
+            self._cache[("grid", int(patch))] = grid
         return self._cache[key]
 
     def fit_patch(self, patch: int, *, controls: tuple[int, int] = (8, 8)) -> PatchFit:
