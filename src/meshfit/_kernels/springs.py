@@ -118,6 +118,18 @@ def spring_force(X, nv, p, w_arc, w_fair, nrm, tangent, out):
 
 
 @njit(cache=True, nogil=True, fastmath=False)
+def _point_normals(V, F, face):
+    """Unit normal of each grid point's face: ``(n, 3)`` float64."""
+    N = np.empty((face.shape[0], 3))
+    nrm = np.empty(3)
+    for i in range(face.shape[0]):
+        _face_normal(V, F, face[i], nrm)
+        for c in range(3):
+            N[i, c] = nrm[c]
+    return N
+
+
+@njit(cache=True, nogil=True, fastmath=False)
 def _tri_facing(X, N, p, q, r):
     """Dot product of triangle (p, q, r)'s normal ``(q - p) x (r - p)`` with the summed
     normals at its corners, and the product of the two vectors' lengths."""
@@ -202,13 +214,9 @@ def relax_sweeps(
     """
     n = face.shape[0]
     X = grid_xyz(V, F, face, bary)
-    N = np.empty((n, 3))
+    N = _point_normals(V, F, face)
     nrm = np.zeros(3)
     nrm2 = np.zeros(3)
-    for i in range(n):
-        _face_normal(V, F, face[i], nrm2)
-        for c in range(3):
-            N[i, c] = nrm2[c]
     step = np.empty(3)
     u = np.empty(3)
     s0 = np.empty(3)
@@ -354,12 +362,8 @@ def repair_folds(
     """
     n = face.shape[0]
     X = grid_xyz(V, F, face, bary)
-    N = np.empty((n, 3))
+    N = _point_normals(V, F, face)
     nrm = np.empty(3)
-    for i in range(n):
-        _face_normal(V, F, face[i], nrm)
-        for c in range(3):
-            N[i, c] = nrm[c]
     step = np.empty(3)
     u = np.empty(3)
     s0 = np.empty(3)
@@ -630,13 +634,7 @@ def folded_cells(V, F, face, bary, nu, nv):
     the summed face normals at its corners; -> (nu - 1, nv - 1) bool. Kernel of
     `meshfit.springs.relax.folded_cells` (the test of `meshfit.springs.grid_metrics`)."""
     X = grid_xyz(V, F, face, bary)
-    n = face.shape[0]
-    N = np.empty((n, 3))
-    nrm = np.empty(3)
-    for i in range(n):
-        _face_normal(V, F, face[i], nrm)
-        for c in range(3):
-            N[i, c] = nrm[c]
+    N = _point_normals(V, F, face)
     out = np.zeros((nu - 1, nv - 1), dtype=np.bool_)
     for i in range(nu - 1):
         for j in range(nv - 1):
