@@ -276,8 +276,9 @@ def square_map(mesh: Mesh, sides: Sides) -> PlanarMap:
     return pmap
 
 
-def _square_map(mesh: Mesh, sides: Sides) -> PlanarMap:
-    """:func:`square_map` without the cache."""
+def _square_map(mesh: Mesh, sides: Sides, index: NDArray[np.int64] | None = None) -> PlanarMap:
+    """:func:`square_map` without the cache. ``index`` maps the sides' vertex numbers to
+    ``mesh``'s (a coarse copy of the patch that keeps its boundary vertices)."""
     n = mesh.n_vertices
     uv = np.zeros((n, 2))
     fixed = np.zeros(n, dtype=bool)
@@ -287,7 +288,8 @@ def _square_map(mesh: Mesh, sides: Sides) -> PlanarMap:
         "left": (1, 0.0),
         "right": (1, 1.0),
     }.items():
-        chain, arc = sides.chains[name], sides.arcs[name]
+        chain = sides.chains[name] if index is None else index[sides.chains[name]]
+        arc = sides.arcs[name]
         t = arc / arc[-1] if arc[-1] > 0 else np.linspace(0.0, 1.0, len(arc))
         uv[chain, axis] = t
         uv[chain, 1 - axis] = const

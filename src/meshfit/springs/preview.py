@@ -35,16 +35,15 @@ from numpy.typing import NDArray
 
 from meshfit import tol
 from meshfit._kernels import planar as _kp
-from meshfit.springs.features import Sides, prepare_features
 from meshfit.springs.grid import FREE, SpringMesh
-from meshfit.springs.planar import PlanarMap, _solve_interior
+from meshfit.springs.planar import PlanarMap, _square_map
 from meshfit.springs.relax import relax, repair_folds, unfold_in_map, untangle
 from meshfit.springs.resample import (
     COARSE_EPS,
     COARSE_OMEGA,
     COARSE_SWEEPS,
+    _level0_sections,
     _sides,
-    _split_counts,
     grid_parameters,
 )
 from meshfit.springs.state import State
@@ -154,27 +153,6 @@ def _coarse_copy(mesh, boundary: NDArray[np.int64], rounds: int):
     return _Coarse(Vc, G, float(np.sqrt(np.einsum("ijk,ijk->ij", e, e)).mean())), keep
 
 
-def _coarse_map(coarse: _Coarse, sides: Sides, index: NDArray[np.int64]) -> PlanarMap:
-    """Mean-value map of the coarse copy, the boundary where the exact map puts it."""
-    uv = np.zeros((coarse.n_vertices, 2))
-    fixed = np.zeros(coarse.n_vertices, dtype=bool)
-    for name, (axis, const) in {
-        "bottom": (0, 0.0),
-        "top": (0, 1.0),
-        "left": (1, 0.0),
-        "right": (1, 1.0),
-    }.items():
-        chain, arc = index[sides.chains[name]], sides.arcs[name]
-        t = arc / arc[-1] if arc[-1] > 0 else np.linspace(0.0, 1.0, len(arc))
-        uv[chain, axis] = t
-        uv[chain, 1 - axis] = const
-        fixed[chain] = True
-    free = np.flatnonzero(~fixed)
-    if free.size:
-        uv[free] = _solve_interior(coarse, uv, fixed, free)
-    return PlanarMap(coarse, uv)
-
-
 class _ProxyMap:
     """The coarse copy's map seen from the patch: ``uv_of`` and ``locate`` of
     :class:`meshfit.springs.planar.PlanarMap` for face points of the patch (through the
@@ -258,28 +236,9 @@ def coarse_level0(
     """
     mesh = patch.mesh
     sides = _sides(patch)
-    us, vs, eb, et, el, er = prepare_features(
-        mesh, sides, patch.features, patch.feature_sides, patch.index
-    )
+    us, vs, breaks, counts_u, counts_v = _level0_sections(patch, sides, init_intervals)
     if us and vs:
         return None
-    breaks = {
-        "bottom": [0.0, *eb, float(sides.arcs["bottom"][-1])],
-        "top": [0.0, *et, float(sides.arcs["top"][-1])],
-        "left": [0.0, *el, float(sides.arcs["left"][-1])],
-        "right": [0.0, *er, float(sides.arcs["right"][-1])],
-    }
-    len_u = 0.5 * (sides.arcs["bottom"][-1] + sides.arcs["top"][-1])
-    len_v = 0.5 * (sides.arcs["left"][-1] + sides.arcs["right"][-1])
-    spacing = min(len_u, len_v) / int(init_intervals)
-    mid_u = [0.5 * (a + b) for a, b in zip(breaks["bottom"], breaks["top"], strict=True)]
-    mid_v = [0.5 * (a + b) for a, b in zip(breaks["left"], breaks["right"], strict=True)]
-    if not us:
-        mid_u = [0.0, len_u]
-    if not vs:
-        mid_v = [0.0, len_v]
-    counts_u = _split_counts(spacing, mid_u)
-    counts_v = _split_counts(spacing, mid_v)
     state = State(mesh, patch.index, sides, us, vs, breaks, counts_u, counts_v)
     state.chords = True
 
@@ -288,7 +247,7 @@ def coarse_level0(
     index = np.full(mesh.n_vertices, -1, dtype=np.int64)
     index[keep] = np.arange(keep.size)
     try:
-        cmap = _coarse_map(coarse, sides, index)
+        cmap = _square_map(coarse, sides, index)  # the boundary where the exact map puts it
     except RuntimeError:  # singular coarse system (SuperLU): no preview from this copy
         return None
     if not np.isfinite(cmap.uv).all():

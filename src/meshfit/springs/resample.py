@@ -224,6 +224,43 @@ def _final_level(n_level0: tuple[int, int], n_vertices: int, level, max_points) 
     return k
 
 
+def _level0_sections(patch, sides: Sides, init_intervals: int, sections_u=None, sections_v=None):
+    """Feature curves, section breaks and level-0 interval counts of a patch.
+
+    Returns
+    -------
+    us, vs : list
+        The patch's feature curves across u and v (:func:`prepare_features`).
+    breaks : dict of str to list of float
+        Arc length along each side at its ends and where feature curves meet it.
+    counts_u, counts_v : list of int
+        Level-0 intervals per section: ``sections_u`` / ``sections_v`` when given, else
+        ``init_intervals`` along the shorter direction and the other in proportion, at least
+        one per section (Krishnamurthy 2000, sec. 5.4: counts from the patch's aspect ratio).
+    """
+    us, vs, eb, et, el, er = prepare_features(
+        patch.mesh, sides, patch.features, patch.feature_sides, patch.index
+    )
+    breaks = {
+        "bottom": [0.0, *eb, float(sides.arcs["bottom"][-1])],
+        "top": [0.0, *et, float(sides.arcs["top"][-1])],
+        "left": [0.0, *el, float(sides.arcs["left"][-1])],
+        "right": [0.0, *er, float(sides.arcs["right"][-1])],
+    }
+    len_u = 0.5 * (sides.arcs["bottom"][-1] + sides.arcs["top"][-1])
+    len_v = 0.5 * (sides.arcs["left"][-1] + sides.arcs["right"][-1])
+    spacing = min(len_u, len_v) / int(init_intervals)
+    mid_u = [0.5 * (a + b) for a, b in zip(breaks["bottom"], breaks["top"], strict=True)]
+    mid_v = [0.5 * (a + b) for a, b in zip(breaks["left"], breaks["right"], strict=True)]
+    if not us:
+        mid_u = [0.0, len_u]
+    if not vs:
+        mid_v = [0.0, len_v]
+    counts_u = _as_counts(sections_u, len(us) + 1, "sections_u") or _split_counts(spacing, mid_u)
+    counts_v = _as_counts(sections_v, len(vs) + 1, "sections_v") or _split_counts(spacing, mid_v)
+    return us, vs, breaks, counts_u, counts_v
+
+
 def resample_patch(
     patch,
     *,
@@ -377,28 +414,9 @@ def resample_patch(
     t0 = time.perf_counter()
     mesh = patch.mesh
     sides = _sides(patch)
-    us, vs, eb, et, el, er = prepare_features(
-        mesh, sides, patch.features, patch.feature_sides, patch.index
+    us, vs, breaks, counts_u, counts_v = _level0_sections(
+        patch, sides, init_intervals, sections_u, sections_v
     )
-    breaks = {
-        "bottom": [0.0, *eb, float(sides.arcs["bottom"][-1])],
-        "top": [0.0, *et, float(sides.arcs["top"][-1])],
-        "left": [0.0, *el, float(sides.arcs["left"][-1])],
-        "right": [0.0, *er, float(sides.arcs["right"][-1])],
-    }
-    len_u = 0.5 * (sides.arcs["bottom"][-1] + sides.arcs["top"][-1])
-    len_v = 0.5 * (sides.arcs["left"][-1] + sides.arcs["right"][-1])
-    # level-0 spacing: ``init_intervals`` intervals along the shorter direction, the other in
-    # proportion (sec. 5.4: counts from the patch's aspect ratio); at least one per section
-    spacing = min(len_u, len_v) / int(init_intervals)
-    mid_u = [0.5 * (a + b) for a, b in zip(breaks["bottom"], breaks["top"], strict=True)]
-    mid_v = [0.5 * (a + b) for a, b in zip(breaks["left"], breaks["right"], strict=True)]
-    if not us:
-        mid_u = [0.0, len_u]
-    if not vs:
-        mid_v = [0.0, len_v]
-    counts_u = _as_counts(sections_u, len(us) + 1, "sections_u") or _split_counts(spacing, mid_u)
-    counts_v = _as_counts(sections_v, len(vs) + 1, "sections_v") or _split_counts(spacing, mid_v)
     state = State(mesh, patch.index, sides, us, vs, breaks, counts_u, counts_v)
     state.chords = side_spacing == "chord"
     final = _final_level((sum(counts_u), sum(counts_v)), mesh.n_vertices, level, max_points)
