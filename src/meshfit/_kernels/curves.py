@@ -288,11 +288,11 @@ def attract_points_serial(
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _place(s, closed, total, p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, pt_bary, out_b):
+def _place(s, closed, p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, pt_bary, out_b):
     """Face point at arc length ``s`` (already in range) of a curve given by its pieces.
 
     Same arithmetic as `meshfit.surface.walk._place_on_pieces` followed by `_clean_bary`;
-    barycentrics into ``out_b`` (3,), returns the face.
+    barycentrics into ``out_b`` (3,), returns the face and the curve segment it lies on.
     """
     npc = p_face.size
     j = np.searchsorted(p_start, s, side="right") - 1
@@ -309,6 +309,7 @@ def _place(s, closed, total, p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, p
     f = p_face[j]
     for c in range(3):
         out_b[c] = (1.0 - t) * p_b0[j, c] + t * p_b1[j, c]
+    segment = j // 2
     at = np.searchsorted(arc, s)
     if at > arc.size - 1:
         at = arc.size - 1
@@ -318,6 +319,7 @@ def _place(s, closed, total, p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, p
         f = pt_face[at]
         for c in range(3):
             out_b[c] = pt_bary[at, c]
+        segment = min(at, npc // 2 - 1)
     if out_b[0] < 0.0 or out_b[1] < 0.0 or out_b[2] < 0.0:
         for c in range(3):
             if out_b[c] < 0.0:
@@ -325,7 +327,7 @@ def _place(s, closed, total, p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, p
         tot = out_b[0] + out_b[1] + out_b[2]
         for c in range(3):
             out_b[c] = out_b[c] / tot
-    return f
+    return f, segment
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -439,9 +441,7 @@ def _place_part(
         s = total
     if closed and s >= total:
         s = 0.0
-    return _place(
-        s, closed, total, p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, pt_bary, out_b
-    )
+    return _place(s, closed, p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, pt_bary, out_b)[0]
 
 
 @njit(cache=True, nogil=True)
@@ -656,45 +656,13 @@ def place_on_pieces(p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, pt_bary, c
     `meshfit.surface.walk._place_on_pieces` (same arithmetic as its numpy form).
     """
     k = s.size
-    npc = p_face.size
-    m = pt_face.size
     face = np.empty(k, dtype=np.int64)
     bary = np.empty((k, 3))
     segment = np.empty(k, dtype=np.int64)
     for i in range(k):
-        si = s[i]
-        j = np.searchsorted(p_start, si, side="right") - 1
-        if j < 0:
-            j = 0
-        if j > npc - 1:
-            j = npc - 1
-        plen = p_len[j]
-        t = (si - p_start[j]) / plen if plen > 0 else 1.0
-        if t < 0.0:
-            t = 0.0
-        elif t > 1.0:
-            t = 1.0
-        face[i] = p_face[j]
-        for c in range(3):
-            bary[i, c] = (1.0 - t) * p_b0[j, c] + t * p_b1[j, c]
-        segment[i] = j // 2
-        at = np.searchsorted(arc, si)
-        if at > arc.size - 1:
-            at = arc.size - 1
-        if arc[at] == si:
-            if closed:
-                at = at % m
-            face[i] = pt_face[at]
-            for c in range(3):
-                bary[i, c] = pt_bary[at, c]
-            segment[i] = min(at, npc // 2 - 1)
-        if bary[i, 0] < 0.0 or bary[i, 1] < 0.0 or bary[i, 2] < 0.0:
-            for c in range(3):
-                if bary[i, c] < 0.0:
-                    bary[i, c] = 0.0
-            tot = bary[i, 0] + bary[i, 1] + bary[i, 2]
-            for c in range(3):
-                bary[i, c] = bary[i, c] / tot
+        face[i], segment[i] = _place(
+            s[i], closed, p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, pt_bary, bary[i]
+        )
     return face, bary, segment
 
 
