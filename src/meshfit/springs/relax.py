@@ -184,20 +184,12 @@ def untangle(
     across a bump or into a hollow (sec. 5.5.3, fig. 5.5). Points within ``reach`` cells of
     a fold move; up to ``rounds`` rounds of ``sweeps`` sweeps. Returns the folded cells left.
     """
-    from scipy.ndimage import binary_dilation
-
     mesh = state.mesh
-    free = state.kind() == FREE
     folds = folded_cells(state)
     for _ in range(rounds):
         if not folds.any():
             break
-        near = np.zeros((state.nu, state.nv), dtype=bool)
-        near[:-1, :-1] |= folds
-        near[1:, :-1] |= folds
-        near[:-1, 1:] |= folds
-        near[1:, 1:] |= folds
-        near = binary_dilation(near, iterations=reach) & free
+        near = _near_folds(state, folds, reach)
         n = state.nu * state.nv
         _k.relax_sweeps(
             mesh.vertices, mesh.faces, mesh.face_neighbors, state.face, state.bary,
