@@ -82,8 +82,19 @@ def _knots(knots: np.ndarray):
 
 
 def step_surface(surface: BSplineSurface):
-    """The patch as an OpenCASCADE ``Geom_BSplineSurface`` (poles ``(i + 1, j + 1) = P[i, j]``,
-    i along u)."""
+    """The patch as an OpenCASCADE ``Geom_BSplineSurface``.
+
+    Parameters
+    ----------
+    surface : BSplineSurface
+        Bicubic, clamped knots (Krishnamurthy 2000, sec. 4.3).
+
+    Returns
+    -------
+    OCP.Geom.Geom_BSplineSurface
+        Non-rational, degree 3 x 3; pole ``(i + 1, j + 1)`` is ``P[i, j]`` (i along u),
+        knots as distinct values with multiplicities.
+    """
     _need_ocp()
     from OCP.Geom import Geom_BSplineSurface
     from OCP.gp import gp_Pnt
@@ -141,7 +152,17 @@ def _contains(shell, face) -> bool:
 
 def surface_from_occ(surface) -> BSplineSurface:
     """A non-rational degree-3 OpenCASCADE ``Geom_BSplineSurface`` as a
-    :class:`BSplineSurface` (its knots expanded by their multiplicities).
+    :class:`BSplineSurface` (the inverse of :func:`step_surface`).
+
+    Parameters
+    ----------
+    surface : OCP.Geom.Geom_BSplineSurface
+
+    Returns
+    -------
+    BSplineSurface
+        Control points ``(mu, mv, 3)`` float64, knots expanded by their multiplicities
+        (``(mu + 4,)`` and ``(mv + 4,)`` float64).
 
     Raises
     ------
