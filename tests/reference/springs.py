@@ -286,3 +286,29 @@ def repair_folds(mesh: Mesh, face, bary, nu, nv, movable, rounds, n_dirs, margin
         if left == 0 or not changed:
             break
     return face, bary
+
+
+def chord_positions(xyz, arc, breaks, counts, rounds):
+    """Slow reference of `meshfit.springs.state.chord_positions` (numpy rounds)."""
+    from meshfit.springs.state import section_positions
+
+    pos = section_positions(breaks, counts)
+    ends = np.cumsum([0, *counts])
+    free = np.ones(len(pos), dtype=bool)
+    free[ends] = False
+    if not free.any():
+        return pos
+    k = np.flatnonzero(free)
+    seg = np.diff(arc)
+    last = len(arc) - 2
+    for _ in range(rounds):
+        e = np.clip(np.searchsorted(arc, pos, side="right") - 1, 0, last)
+        t = np.where(seg[e] > 0, (pos - arc[e]) / np.where(seg[e] > 0, seg[e], 1.0), 0.0)
+        P = xyz[e] + t[:, None] * (xyz[e + 1] - xyz[e])
+        d = P[1:] - P[:-1]
+        c = np.sqrt(np.einsum("ij,ij->i", d, d))
+        ca, cb = c[k - 1], c[k]
+        span = pos[k + 1] - pos[k - 1]
+        step = 0.5 * (cb - ca) * span / np.maximum(ca + cb, 1e-300)
+        pos[k] = np.clip(pos[k] + 0.5 * step, pos[k - 1], pos[k + 1])
+    return pos

@@ -189,3 +189,25 @@ def test_repair_folds_unfolds_moved_points(patches, name, rng):
     assert not K.folded_cells(mesh.vertices, mesh.faces, state.face, state.bary, nu, nv).any()
     # only free points move
     assert_allclose(mesh.xyz(SurfacePoints(state.face[keep], state.bary[keep])), fixed_xyz)
+
+
+@pytest.mark.parametrize("rounds", [1, 30, 200])
+def test_chord_positions_match_oracle(rng, rounds):
+    from meshfit.springs.state import chord_positions
+
+    for trial in range(20):
+        k = int(rng.integers(3, 60))
+        # a bent polyline with a repeated point and uneven edges
+        xyz = np.cumsum(rng.normal(size=(k, 3)) * rng.uniform(0.1, 2.0, (k, 1)), axis=0)
+        if trial % 4 == 0:
+            xyz[k // 2] = xyz[k // 2 - 1]
+        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(xyz, axis=0), axis=1))])
+        sections = int(rng.integers(1, 4))
+        inner = np.sort(rng.uniform(0.0, arc[-1], sections - 1)).tolist()
+        breaks = [0.0, *inner, float(arc[-1])]
+        counts = [int(c) for c in rng.integers(1, 12, sections)]
+        got = chord_positions(xyz, arc, breaks, counts, rounds=rounds)
+        want = ref.chord_positions(xyz, arc, breaks, counts, rounds)
+        # the rounds agree to rounding (einsum and the loop may order sums differently)
+        assert_allclose(got, want, rtol=0, atol=1e-9 * arc[-1])
+        assert (np.diff(got) >= 0).all()

@@ -746,3 +746,49 @@ def locate_uv(uv, F, start, items, g, q):
             for i in range(3):
                 bary[k, i] /= tot
     return face, bary
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def chord_rounds(xyz, arc, pos, fixed, rounds):
+    """Jacobi rounds evening out the chords between consecutive positions along a polyline,
+    in place. Kernel of `meshfit.springs.state.chord_positions`.
+
+    xyz (k, 3) f8 polyline points at cumulative lengths arc (k,) f8; pos (n,) f8 arc-length
+    positions, increasing; fixed (n,) bool positions that stay (section ends); rounds int.
+    Each round moves every free position towards its longer neighbouring chord by a quarter
+    of the chord difference (in arc length), clipped between its neighbours' old positions.
+    """
+    n = pos.shape[0]
+    k = arc.shape[0]
+    last = k - 2
+    P = np.empty((n, 3))
+    c = np.empty(max(n - 1, 0))
+    old = np.empty(n)
+    for _ in range(rounds):
+        for i in range(n):
+            old[i] = pos[i]
+            # the segment holding pos[i]: searchsorted(arc, pos, side="right") - 1, clipped
+            lo, hi = 0, k
+            while lo < hi:
+                mid = (lo + hi) // 2
+                if arc[mid] <= pos[i]:
+                    lo = mid + 1
+                else:
+                    hi = mid
+            e = min(max(lo - 1, 0), last)
+            seg = arc[e + 1] - arc[e]
+            t = (pos[i] - arc[e]) / seg if seg > 0 else 0.0
+            for d in range(3):
+                P[i, d] = xyz[e, d] + t * (xyz[e + 1, d] - xyz[e, d])
+        for i in range(n - 1):
+            dx = P[i + 1, 0] - P[i, 0]
+            dy = P[i + 1, 1] - P[i, 1]
+            dz = P[i + 1, 2] - P[i, 2]
+            c[i] = np.sqrt(dx * dx + dy * dy + dz * dz)
+        for i in range(1, n - 1):
+            if fixed[i]:
+                continue
+            ca, cb = c[i - 1], c[i]
+            span = old[i + 1] - old[i - 1]
+            step = 0.5 * (cb - ca) * span / max(ca + cb, 1e-300)
+            pos[i] = min(max(old[i] + 0.5 * step, old[i - 1]), old[i + 1])

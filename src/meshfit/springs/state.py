@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from meshfit._kernels.springs import chord_rounds
 from meshfit.mesh import Mesh
 from meshfit.springs.features import FeatureLine, Sides
 from meshfit.springs.grid import ANCHOR, BOUNDARY, CURVE, FREE, SpringMesh
@@ -43,25 +44,17 @@ def chord_positions(
     chords agree (section ends stay). Where a side bends, equal arc lengths give unequal
     chords, i.e. uneven spacing of the grid's boundary iso-curves."""
     pos = section_positions(breaks, counts)
-    ends = np.cumsum([0, *counts])
-    free = np.ones(len(pos), dtype=bool)
-    free[ends] = False
-    if not free.any():
+    fixed = np.zeros(len(pos), dtype=bool)
+    fixed[np.cumsum([0, *counts])] = True
+    if fixed.all():
         return pos
-    k = np.flatnonzero(free)
-    seg = np.diff(arc)
-    last = len(arc) - 2
-    for _ in range(rounds):
-        e = np.clip(np.searchsorted(arc, pos, side="right") - 1, 0, last)
-        t = np.where(seg[e] > 0, (pos - arc[e]) / np.where(seg[e] > 0, seg[e], 1.0), 0.0)
-        P = xyz[e] + t[:, None] * (xyz[e + 1] - xyz[e])
-        d = P[1:] - P[:-1]
-        c = np.sqrt(np.einsum("ij,ij->i", d, d))
-        ca, cb = c[k - 1], c[k]
-        span = pos[k + 1] - pos[k - 1]
-        # move towards the longer chord by half the difference, in arc length
-        step = 0.5 * (cb - ca) * span / np.maximum(ca + cb, 1e-300)
-        pos[k] = np.clip(pos[k] + 0.5 * step, pos[k - 1], pos[k + 1])
+    chord_rounds(
+        np.ascontiguousarray(xyz, dtype=np.float64),
+        np.ascontiguousarray(arc, dtype=np.float64),
+        pos,
+        fixed,
+        int(rounds),
+    )
     return pos
 
 
