@@ -463,13 +463,11 @@ def _surface_distance(
 ) -> tuple[NDArray, NDArray]:
     """Two-sided distances: reconstruction vertices to the input, input vertices to the
     reconstruction (a triangle soup ``V, F``)."""
-    import igl
+    from meshfit.mesh.locate import triangle_distances
 
     to_input = mesh.closest_points(V).distance
-    sq, _, _ = igl.point_mesh_squared_distance(
-        np.ascontiguousarray(mesh.vertices), np.ascontiguousarray(V), np.ascontiguousarray(F)
-    )
-    return to_input, np.sqrt(np.maximum(np.asarray(sq), 0.0))
+    from_input, _ = triangle_distances(mesh.vertices, V, F)
+    return to_input, from_input
 
 
 def _error_figures(mesh: Mesh, V, F) -> tuple[dict[str, float], NDArray[np.float64]]:

@@ -9,12 +9,20 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from meshfit._validate import as_points, as_vectors
+from meshfit.errors import InputError
 from meshfit.types import SurfacePoints
 
 if TYPE_CHECKING:
     from meshfit.mesh.core import Mesh
 
-__all__ = ["ClosestPoints", "RayHits", "barycentric", "closest_points", "ray_first_hit"]
+__all__ = [
+    "ClosestPoints",
+    "RayHits",
+    "barycentric",
+    "closest_points",
+    "ray_first_hit",
+    "triangle_distances",
+]
 
 
 def build_aabb(mesh: Mesh):
@@ -24,6 +32,46 @@ def build_aabb(mesh: Mesh):
     tree = igl.AABB()
     tree.init(mesh.vertices, mesh.faces)
     return tree
+
+
+def triangle_distances(
+    points: ArrayLike, vertices: ArrayLike, faces: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Distance from each point to the nearest of a set of triangles (any soup: no
+    connectivity is needed), on all cores.
+
+    A bounding-volume hierarchy is built over the triangles (Morton order of their centroids,
+    :mod:`meshfit._kernels.bvh`) and searched per point in parallel; unlike one-off queries
+    through ``igl.point_mesh_squared_distance`` it releases the GIL and uses every core.
+
+    Parameters
+    ----------
+    points : (n, 3) float64
+        Query points.
+    vertices : (k, 3) float64
+    faces : (m, 3) int64
+        Triangles; ``m >= 1``.
+
+    Returns
+    -------
+    distance : (n,) float64
+        Euclidean distance to the nearest triangle.
+    face : (n,) int64
+        That triangle.
+    """
+    from meshfit._kernels import bvh
+
+    Q = as_points(points, name="points")
+    V = as_points(vertices, name="vertices")
+    F = np.ascontiguousarray(faces, dtype=np.int64)
+    if F.ndim != 2 or F.shape[1] != 3 or F.shape[0] == 0:
+        raise InputError(f"faces must have shape (m >= 1, 3), got {F.shape}")
+    if F.min() < 0 or F.max() >= V.shape[0]:
+        raise InputError(f"a face index is out of range 0..{V.shape[0] - 1}")
+    order = np.argsort(bvh.morton_codes(V, F), kind="stable")
+    tree = bvh.build(V, F, order, bvh.LEAF_SIZE)
+    sq, face = bvh.squared_distances(V, F, order, *tree, Q)
+    return np.sqrt(sq), face
 
 
 def barycentric(
