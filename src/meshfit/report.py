@@ -11,6 +11,7 @@ from __future__ import annotations
 import html
 import os
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -127,35 +128,44 @@ def write_report(
         # layout: input faces coloured by patch
         if face_patch is None:
             face_patch = np.full(mesh.n_faces, -1, dtype=np.int64)
-        img = render(
-            mesh.vertices, mesh.faces, face_colors=patch_colors(face_patch), shading="flat", **kw
-        )
-        write_png_rgb(folder / "layout.png", img)
+        jobs = {
+            "layout": lambda: render(
+                mesh.vertices,
+                mesh.faces,
+                face_colors=patch_colors(face_patch),
+                shading="flat",
+                **kw,
+            )
+        }
         V, F, P, UV = _grid_soup(grids)
         cols = patch_colors(P)
         vcol = np.zeros((V.shape[0], 3))
         vcol[F[:, 0]] = cols
         vcol[F[:, 1]] = cols
         vcol[F[:, 2]] = cols
-        img = render(V, F, vertex_colors=vcol, uv=UV, checker=1.0, shading="flat", **kw)
-        write_png_rgb(folder / "springs.png", img)
+        jobs["springs"] = lambda: render(
+            V, F, vertex_colors=vcol, uv=UV, checker=1.0, shading="flat", **kw
+        )
         spline = [
             s.evaluate_grid(np.linspace(0, 1, g.shape[0]), np.linspace(0, 1, g.shape[1]))
             for s, g in zip(surfaces, grids, strict=True)
         ]
         Vs, Fs, _, _ = _grid_soup(spline)
-        write_png_rgb(folder / "spline.png", render(Vs, Fs, **kw))
+        jobs["spline"] = lambda: render(Vs, Fs, **kw)
         disp = displaced() if callable(displaced) else displaced
         Vd, Fd, _, _ = _grid_soup(disp)
-        write_png_rgb(folder / "displaced.png", render(Vd, Fd, **kw))
+        jobs["displaced"] = lambda: render(Vd, Fd, **kw)
         dist = spline_distance
         if dist is None or len(dist) != len(Vs):
             dist = mesh.closest_points(Vs).distance
         vmax = float(np.quantile(dist, 0.99)) if dist.size else 0.0
         summary["error_map_max"] = vmax / mesh.bbox_diagonal
-        write_png_rgb(
-            folder / "error.png", render(Vs, Fs, vertex_colors=heat_colors(dist, vmax), **kw)
-        )
+        jobs["error"] = lambda: render(Vs, Fs, vertex_colors=heat_colors(dist, vmax), **kw)
+        # the rasteriser runs without the GIL: the images are rendered side by side
+        with ThreadPoolExecutor(max_workers=max(1, min(len(jobs), os.cpu_count() or 1))) as pool:
+            futures = {stem: pool.submit(job) for stem, job in jobs.items()}
+            for stem, fut in futures.items():
+                write_png_rgb(folder / f"{stem}.png", fut.result())
         scale = max(float(np.abs(d.values).max()) for d in dmaps) if dmaps else 0.0
         for p, d in enumerate(dmaps):
             img = _map_image(d.values, scale)
