@@ -36,6 +36,32 @@ def test_kernel_matches_oracle(rng, checker):
     np.testing.assert_allclose(out[0][1], out[1][1], atol=1e-12)
 
 
+@pytest.mark.parametrize("flat", [False, True])
+@pytest.mark.parametrize("colours", ["face", "vertex", "none"])
+def test_mesh_kernel_matches_the_gathered_oracle(rng, flat, colours):
+    n, m, size = 30, 40, 32
+    V = rng.normal(size=(n, 3))
+    X = rng.uniform(-4, size + 4, size=(n, 3))
+    F = rng.integers(0, n, size=(m, 3))
+    view = np.array([0.0, 0.6, 0.8])
+    fc = rng.uniform(0, 1, (m, 3)) if colours == "face" else np.zeros((0, 3))
+    vc = rng.uniform(0, 1, (n, 3)) if colours == "vertex" else np.zeros((0, 3))
+    uv = rng.uniform(0, 3, (n, 2))
+    args = (V, X, F, view, 0.25, flat, fc, vc, uv, 2.0)
+    out = []
+    for draw in ("kernel", "oracle"):
+        image = np.ones((size, size, 3))
+        depth = np.full((size, size), -np.inf)
+        if draw == "kernel":
+            kernel.raster_mesh(*args, image, depth)
+        else:
+            oracle.raster(*oracle.mesh_inputs(*args), image, depth)
+        out.append((image, depth))
+    assert np.isfinite(out[1][1]).any()
+    np.testing.assert_allclose(out[0][0], out[1][0], atol=1e-12)
+    np.testing.assert_allclose(out[0][1], out[1][1], rtol=1e-12)
+
+
 def _square(z=0.0):
     V = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], dtype=float)
     V[:, 1] = z

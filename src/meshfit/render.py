@@ -163,45 +163,33 @@ def render(
     X[:, 0] = (S[:, 0] - mid[0]) * scale + 0.5 * w
     X[:, 1] = 0.5 * h - (S[:, 1] - mid[1]) * scale
     X[:, 2] = S[:, 2]
-    # normals and light (head light along the view)
-    fn = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    if shading == "flat":
-        n = fn / np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
-        lit = AMBIENT + (1.0 - AMBIENT) * np.abs(n @ R[2])
-        shade = np.repeat(lit[:, None], 3, axis=1)
-    else:
-        # area-weighted face normals summed per vertex (bincount: one pass per coordinate)
-        idx = F.reshape(-1)
-        fn3 = np.repeat(fn, 3, axis=0)
-        vn = np.stack(
-            [np.bincount(idx, weights=fn3[:, d], minlength=V.shape[0]) for d in range(3)], axis=1
-        )
-        vn /= np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
-        lit = AMBIENT + (1.0 - AMBIENT) * np.abs(vn @ R[2])
-        shade = lit[F]
+    empty = np.zeros((0, 3))
+    fc = vc = empty
     if face_colors is not None:
-        fc = _as_colors(face_colors, F.shape[0], "face_colors")
-        color = np.repeat(fc[:, None, :], 3, axis=1)
+        fc = np.ascontiguousarray(_as_colors(face_colors, F.shape[0], "face_colors"))
     elif vertex_colors is not None:
-        color = _as_colors(vertex_colors, V.shape[0], "vertex_colors")[F]
-    else:
-        color = np.full((F.shape[0], 3, 3), 0.82)
+        vc = np.ascontiguousarray(_as_colors(vertex_colors, V.shape[0], "vertex_colors"))
+    UV = np.zeros((0, 2))
     if uv is not None and checker > 0:
-        UV = np.asarray(uv, dtype=np.float64)
+        UV = np.ascontiguousarray(uv, dtype=np.float64)
         if UV.shape != (V.shape[0], 2):
             raise InputError(f"uv must have shape ({V.shape[0]}, 2), got {UV.shape}")
-        cuv = UV[F]
     else:
-        cuv = np.zeros((F.shape[0], 3, 2))
         checker = 0.0
     image = np.empty((h, w, 3))
     image[:] = BACKGROUND
     depth = np.full((h, w), -np.inf)
-    _k.raster(
-        np.ascontiguousarray(X[F]),
-        np.ascontiguousarray(color),
-        np.ascontiguousarray(shade),
-        np.ascontiguousarray(cuv),
+    # head light along the view; colours, light and (u, v) gathered per triangle in the kernel
+    _k.raster_mesh(
+        V,
+        X,
+        F,
+        np.ascontiguousarray(R[2]),
+        float(AMBIENT),
+        shading == "flat",
+        fc,
+        vc,
+        UV,
         float(checker),
         image,
         depth,

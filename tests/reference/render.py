@@ -35,3 +35,27 @@ def raster(P, color, shade, uv, checker, image, depth):
                     if (math.floor(u * checker) + math.floor(v * checker)) % 2:
                         f = 0.55
                 image[py, px] = np.clip((b @ color[t]) * s * f, 0.0, 1.0)
+
+
+def mesh_inputs(V, X, F, view, ambient, flat, face_color, vertex_color, uv, checker):
+    """Per-corner arrays of an indexed mesh for `raster` (numpy gathers): what
+    `meshfit._kernels.render.raster_mesh` draws, triangle by triangle."""
+    fn = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    if flat:
+        n = fn / np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
+        shade = np.repeat((ambient + (1.0 - ambient) * np.abs(n @ view))[:, None], 3, axis=1)
+    else:
+        vn = np.zeros_like(V)
+        for k in range(3):
+            np.add.at(vn, F[:, k], fn)
+        vn /= np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
+        shade = (ambient + (1.0 - ambient) * np.abs(vn @ view))[F]
+    if len(face_color) == len(F):
+        color = np.repeat(face_color[:, None, :], 3, axis=1)
+    elif len(vertex_color) == len(V):
+        color = vertex_color[F]
+    else:
+        color = np.full((len(F), 3, 3), 0.82)
+    use_uv = checker > 0 and len(uv) == len(V)
+    cuv = uv[F] if use_uv else np.zeros((len(F), 3, 2))
+    return X[F], color, shade, cuv, (checker if use_uv else 0.0)
