@@ -6,12 +6,15 @@ of face ``f`` runs from ``faces[f, k]`` to ``faces[f, (k + 1) % 3]``.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
+
+from meshfit._kernels import topology as _k
 
 __all__ = ["EdgeTable", "corner_fans", "edge_table"]
 
@@ -174,23 +177,7 @@ def boundary_loops(faces: NDArray[np.int64], table: EdgeTable) -> list[NDArray[n
     he = table.order[table.start[bnd]]
     tail, head = halfedges(faces)
     t, h = tail[he], head[he]
-    # successor: the boundary half-edge leaving the head vertex
-    by_tail: dict[int, list[int]] = {}
-    for i, v in enumerate(t.tolist()):
-        by_tail.setdefault(v, []).append(i)
-    used = np.zeros(he.size, dtype=bool)
-    loops = []
-    for s in range(he.size):
-        if used[s]:
-            continue
-        loop = []
-        i = s
-        while not used[i]:
-            used[i] = True
-            loop.append(int(t[i]))
-            nxt = [j for j in by_tail.get(int(h[i]), []) if not used[j]]
-            if not nxt:
-                break
-            i = nxt[0]
-        loops.append(np.asarray(loop, dtype=np.int64))
-    return loops
+    # successor: the unused boundary half-edge of lowest index leaving the head vertex
+    nv = int(max(t.max(), h.max())) + 1
+    out, starts = _k.trace_loops(np.ascontiguousarray(t), np.ascontiguousarray(h), nv)
+    return [out[a:b].copy() for a, b in itertools.pairwise(starts)]
