@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import contextlib
 import gc
-import itertools
 import math
 from dataclasses import dataclass
 
@@ -38,15 +37,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from meshfit import tol
+from meshfit._kernels import cut as _k
 from meshfit._validate import as_surface_points
 from meshfit.errors import CutError, InputError
-from meshfit.mesh import Mesh, topology
+from meshfit.mesh import Mesh
 from meshfit.types import SurfaceCurve, SurfacePoints
 
 __all__ = ["CutResult", "NetworkCutResult", "cut_mesh", "cut_mesh_network"]
-
-#: a walk between two consecutive curve points never takes more steps than this
-_MAX_WALK_STEPS = 100_000
 
 
 @dataclass(frozen=True)
@@ -105,23 +102,8 @@ def _norm(a):
     return math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
 
 
-def _area(p, q, r):
-    u = _sub(q, p)
-    v = _sub(r, p)
-    c = (u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0])
-    return 0.5 * _norm(c)
-
-
 def _lerp(a, b, s):
     return (a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1]), a[2] + s * (b[2] - a[2]))
-
-
-def _cross2(a, b):
-    return a[0] * b[1] - a[1] * b[0]
-
-
-def _key(a: int, b: int) -> tuple[int, int]:
-    return (a, b) if a < b else (b, a)
 
 
 @contextlib.contextmanager
@@ -135,16 +117,6 @@ def _no_gc():
     finally:
         if was:
             gc.enable()
-
-
-def _argmin3(x) -> int:
-    """Index of the first smallest of three numbers (as ``numpy.argmin``)."""
-    k = 0
-    if x[1] < x[k]:
-        k = 1
-    if x[2] < x[k]:
-        k = 2
-    return k
 
 
 @dataclass
@@ -161,39 +133,31 @@ class _CutPoint:
 
 
 class _Cutter:
-    """Dynamic triangulation of the original faces a cut touches."""
+    """Dynamic triangulation of the original faces a cut touches.
 
-    def __init__(self, mesh: Mesh):
+    The triangulation lives in the arrays of :mod:`meshfit._kernels.cut` (``state``); points
+    are inserted and joined there. Original faces are loaded lazily: making face ``g``
+    editable loads it and its neighbours.
+    """
+
+    def __init__(self, mesh: Mesh, n_points: int = 0):
         self.mesh = mesh
-        self.V0 = mesh.vertices
-        self.F0 = mesh.faces
-        self.FN = mesh.face_neighbors
+        self.V0 = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
+        self.F0 = np.ascontiguousarray(mesh.faces, dtype=np.int64)
+        self.FN = np.ascontiguousarray(mesh.face_neighbors, dtype=np.int64)
         self.nv0 = mesh.n_vertices
         self.nf0 = mesh.n_faces
         self.snap = tol.length(mesh, tol.CUT_SNAP)
         self.min_area = tol.CUT_MIN_AREA * mesh.bbox_diagonal**2
         self.vf_indptr, self.vf_faces = mesh.vertex_faces
+        self.VFI = np.ascontiguousarray(self.vf_indptr, dtype=np.int64)
+        self.VFF = np.ascontiguousarray(self.vf_faces, dtype=np.int64)
         self._face_cache: dict[int, tuple[int, int, int]] = {}
         self._xyz_cache: dict[int, tuple[float, float, float]] = {}
-        # new vertices
-        self.new_xyz: list[tuple[float, float, float]] = []
-        self.new_face: list[int] = []
-        self.new_bary: list[tuple[float, float, float]] = []
-        # triangles (ids < nf0 are original faces, loaded lazily)
-        self.tri: dict[int, tuple[int, int, int]] = {}
-        self.parent: dict[int, int] = {}
-        self.n_tri = self.nf0
-        self.edge_map: dict[tuple[int, int], list[int]] = {}
-        self.vtris: dict[int, set[int]] = {}
-        self.face_tris: dict[int, set[int]] = {}
-        self.loaded: set[int] = set()
-        self.active: set[int] = set()
-        self._uv: dict[tuple[int, int], tuple[float, float]] = {}
-        # cut edges and the vertex that split a cut edge later
-        self.cut: set[tuple[int, int]] = set()
-        self.split_of: dict[tuple[int, int], int] = {}
-        self.on_path: set[int] = set()
-        self.snap_ok: tuple[int, ...] = ()
+        cap = max(1024, 4 * n_points)
+        self.state = _k.new_state(self.F0, self.nv0, cap, cap)
+        # the cut edges of the finished paths, (m, 2) sorted rows a < b (set before splitting)
+        self.cut = np.zeros((0, 2), dtype=np.int64)
         # join points on faces sharing only a vertex across the fan (else through the vertex)
         self.route_fans = False
 
@@ -207,7 +171,8 @@ class _Cutter:
 
     def xyz(self, v: int) -> tuple[float, float, float]:
         if v >= self.nv0:
-            return self.new_xyz[v - self.nv0]
+            x = self.state[3][v - self.nv0]
+            return (float(x[0]), float(x[1]), float(x[2]))
         p = self._xyz_cache.get(v)
         if p is None:
             p = tuple(float(x) for x in self.V0[v])
@@ -218,316 +183,98 @@ class _Cutter:
         return frozenset(self.vf_faces[self.vf_indptr[v] : self.vf_indptr[v + 1]].tolist())
 
     def bary_in(self, v: int, g: int) -> tuple[float, float, float]:
-        """Barycentric coordinates of vertex ``v`` in original face ``g`` (exact mapping)."""
+        """Barycentric coordinates of original vertex ``v`` in original face ``g``."""
         fg = self.face(g)
-        if v < self.nv0:
-            return (float(fg[0] == v), float(fg[1] == v), float(fg[2] == v))
-        sf = self.new_face[v - self.nv0]
-        sb = self.new_bary[v - self.nv0]
-        if sf == g:
-            return sb
-        out = [0.0, 0.0, 0.0]
-        fs = self.face(sf)
-        for k in range(3):
-            if sb[k] == 0.0:
-                continue
-            ov = fs[k]
-            if ov not in fg:  # pragma: no cover - guarded by construction
-                raise CutError(f"internal: vertex {v} is not on original face {g}")
-            out[fg.index(ov)] += sb[k]
-        return (out[0], out[1], out[2])
+        return (float(fg[0] == v), float(fg[1] == v), float(fg[2] == v))
 
-    def uv(self, v: int, g: int) -> tuple[float, float]:
-        key = (v, g)
-        r = self._uv.get(key)
-        if r is None:
-            b = self.bary_in(v, g)
-            r = (b[1], b[2])
-            self._uv[key] = r
-        return r
+    @property
+    def n_new(self) -> int:
+        """Number of vertices the cut made."""
+        return int(self.state[0][_k.N_NEW])
 
-    # ---------------------------------------------------------- triangulation
-    def _register(self, t: int, abc: tuple[int, int, int], parent: int) -> None:
-        self.tri[t] = abc
-        self.parent[t] = parent
-        a, b, c = abc
-        em = self.edge_map
-        for key in (
-            (a, b) if a < b else (b, a),
-            (b, c) if b < c else (c, b),
-            (c, a) if c < a else (a, c),
-        ):
-            lst = em.get(key)
-            if lst is None:
-                em[key] = [t]
-            else:
-                lst.append(t)
-        vt = self.vtris
-        for v in abc:
-            st = vt.get(v)
-            if st is None:
-                vt[v] = {t}
-            else:
-                st.add(t)
-        st = self.face_tris.get(parent)
-        if st is None:
-            self.face_tris[parent] = {t}
-        else:
-            st.add(t)
+    @property
+    def n_tri(self) -> int:
+        """Number of triangles (original faces first, loaded or not)."""
+        return int(self.state[0][_k.N_TRI])
 
-    def _unregister(self, t: int) -> None:
-        a, b, c = self.tri.pop(t)
-        em = self.edge_map
-        em[(a, b) if a < b else (b, a)].remove(t)
-        em[(b, c) if b < c else (c, b)].remove(t)
-        em[(c, a) if c < a else (a, c)].remove(t)
-        vt = self.vtris
-        vt[a].discard(t)
-        vt[b].discard(t)
-        vt[c].discard(t)
-        self.face_tris[self.parent[t]].discard(t)
+    def mark_on_path(self, v: int) -> None:
+        _, _, _, _, NI, OP0, _, _ = self.state
+        _k.set_on_path(self.V0, NI, OP0, v)
 
-    def _load(self, f: int) -> None:
-        if f >= 0 and f not in self.loaded:
-            self.loaded.add(f)
-            self._register(f, self.face(f), f)
-
-    def ensure(self, g: int) -> None:
-        """Make original face ``g`` and its neighbours editable."""
-        if g in self.active:
+    def _raise(self) -> None:
+        """Raise the error that a kernel left in the state, if any."""
+        S = self.state[0]
+        code, a, b, c, d = (int(x) for x in S[_k.ERR : _k.ERR + 5])
+        if code == 0:
             return
-        self.active.add(g)
-        self._load(g)
-        for h in self.FN[g].tolist():
-            self._load(h)
-
-    def _new_tri(self, abc: tuple[int, int, int], parent: int) -> int:
-        t = self.n_tri
-        self.n_tri += 1
-        self._register(t, abc, parent)
-        return t
-
-    def new_vertex(self, xyz, g: int, bary) -> int:
-        self.new_xyz.append((float(xyz[0]), float(xyz[1]), float(xyz[2])))
-        self.new_face.append(int(g))
-        self.new_bary.append((float(bary[0]), float(bary[1]), float(bary[2])))
-        return self.nv0 + len(self.new_xyz) - 1
-
-    def tri_area(self, t: int) -> float:
-        a, b, c = self.tri[t]
-        return _area(self.xyz(a), self.xyz(b), self.xyz(c))
-
-    def split_face(self, t: int, x: int) -> None:
-        a, b, c = self.tri[t]
-        parent = self.parent[t]
-        self._unregister(t)
-        self._register(t, (a, b, x), parent)
-        self._new_tri((b, c, x), parent)
-        self._new_tri((c, a, x), parent)
-
-    def split_edge(self, a: int, b: int, x: int) -> None:
-        key = _key(a, b)
-        for t in list(self.edge_map.get(key, ())):
-            abc = self.tri[t]
-            parent = self.parent[t]
-            for k in range(3):
-                p, q = abc[k], abc[(k + 1) % 3]
-                if _key(p, q) == key:
-                    r = abc[(k + 2) % 3]
-                    break
-            self._unregister(t)
-            self._register(t, (p, x, r), parent)
-            self._new_tri((x, q, r), parent)
-        if key in self.cut:
-            self.cut.discard(key)
-            self.cut.add(_key(a, x))
-            self.cut.add(_key(x, b))
-            self.split_of[key] = x
-
-    def may_snap(self, v: int) -> bool:
-        """Whether a point may snap onto vertex ``v``: not when ``v`` is already on the cut
-        path (other than the path's current end or the walk's target), so the cut does not
-        touch itself where a split is possible instead."""
-        return v not in self.on_path or v in self.snap_ok
-
-    def edge_split_ok(self, a: int, b: int, s: float) -> bool:
-        """Whether splitting edge (a, b) at parameter s keeps every piece above min_area."""
-        m = min(s, 1.0 - s)
-        return all(self.tri_area(t) * m >= self.min_area for t in self.edge_map[_key(a, b)])
-
-    def split_edge_at(self, a: int, b: int, s: float, g: int) -> int:
-        """Split edge (a, b) at parameter s, or snap to its nearer end when that is within
-        ``CUT_SNAP`` or a piece would be too small; returns the vertex. An end already on the
-        cut path is snapped to only when the split is impossible (no self-touching cut)."""
-        pa, pb = self.xyz(a), self.xyz(b)
-        length = _norm(_sub(pb, pa))
-        near = a if s < 0.5 else b
-        if not 0.0 < s < 1.0 or not self.edge_split_ok(a, b, s):
-            return near
-        if (s * length < self.snap or (1.0 - s) * length < self.snap) and self.may_snap(near):
-            return near
-        ba, bb = self.bary_in(a, g), self.bary_in(b, g)
-        bary = tuple(ba[k] + s * (bb[k] - ba[k]) for k in range(3))
-        x = self.new_vertex(_lerp(pa, pb, s), g, bary)
-        self.split_edge(a, b, x)
-        return x
+        S[_k.ERR : _k.ERR + 5] = 0
+        if code == _k.ERR_BRIDGE:
+            raise CutError(
+                f"curve points {a} and {b} lie on faces {c} and {d}, which are not "
+                "the same, edge-adjacent or sharing a vertex: sample the curve more densely "
+                "(consecutive points on the same or adjacent faces)"
+            )
+        if code == _k.ERR_COLLAPSE:
+            raise CutError(
+                f"the curve's {a} points collapse to {b} distinct point(s): nothing to cut"
+            )
+        if code == _k.ERR_NOT_JOINED:
+            raise CutError(f"internal: edge pieces {a}, {b} of face {c} are not joined")
+        if code == _k.ERR_WALK:  # pragma: no cover - guarded by construction
+            raise CutError(f"internal: walk from vertex {a} to vertex {b} in face {c} did not end")
+        if code == _k.ERR_NO_TRIANGLE:  # pragma: no cover - guarded by construction
+            raise CutError(f"internal: no triangle of original face {a} around vertex {b}")
+        if code == _k.ERR_NOT_ON_FACE:  # pragma: no cover - guarded by construction
+            raise CutError(f"internal: vertex {a} is not on original face {b}")
+        if code == _k.ERR_POOL:  # pragma: no cover - guarded by construction
+            raise CutError("internal: no room for a face's triangle table")
+        raise CutError(f"internal: edge ({a}, {b}) has more than two faces")  # pragma: no cover
 
     # --------------------------------------------------------------- insertion
     def insert(self, cp: _CutPoint, g: int) -> int:
         """Insert a snapped curve point into original face ``g`` (which contains it)."""
         if cp.vertex >= 0:
             return cp.vertex
-        self.ensure(g)
-        bary = cp.bary if cp.face == g else self._map_bary(cp, g)
-        if 0.0 in bary:
-            return self._insert_on_edge(cp.xyz, bary, g)
-        p = cp.xyz
-        pu = (bary[1], bary[2])
-        # locate: the sub-triangle of g with the largest smallest barycentric coordinate
-        best_t, best_min, best_lam = -1, -math.inf, (0.0, 0.0, 0.0)
-        for t in self.face_tris[g]:
-            a, b, c = self.tri[t]
-            ua, ub, uc = self.uv(a, g), self.uv(b, g), self.uv(c, g)
-            e1 = (ub[0] - ua[0], ub[1] - ua[1])
-            e2 = (uc[0] - ua[0], uc[1] - ua[1])
-            d = (pu[0] - ua[0], pu[1] - ua[1])
-            det = _cross2(e1, e2)
-            l1 = _cross2(d, e2) / det
-            l2 = _cross2(e1, d) / det
-            lam = (1.0 - l1 - l2, l1, l2)
-            m = min(lam)
-            if m > best_min:
-                best_t, best_min, best_lam = t, m, lam
-        abc = self.tri[best_t]
-        pos = [self.xyz(v) for v in abc]
-        # an existing vertex
-        dv = [_norm(_sub(p, q)) for q in pos]
-        k = _argmin3(dv)
-        if dv[k] < self.snap and self.may_snap(abc[k]):
-            return abc[k]
-        # an existing edge
-        edge_d, edge_s = [], []
-        for k in range(3):
-            qa, qb = pos[k], pos[(k + 1) % 3]
-            e = _sub(qb, qa)
-            ee = _dot(e, e)
-            s = min(max(_dot(_sub(p, qa), e) / ee, 0.0), 1.0)
-            edge_s.append(s)
-            edge_d.append(_norm(_sub(p, _lerp(qa, qb, s))))
-        area = self.tri_area(best_t)
-        k = _argmin3(edge_d)
-        if edge_d[k] >= self.snap and min(best_lam) * area >= self.min_area:
-            x = self.new_vertex(p, g, bary)
-            self.split_face(best_t, x)
-            return x
-        if edge_d[k] >= self.snap:  # too thin to split the face: use the nearest edge
-            k = (_argmin3(best_lam) + 1) % 3
-        return self.split_edge_at(abc[k], abc[(k + 1) % 3], edge_s[k], g)
+        v, *state = _k.insert_point(
+            self.V0,
+            self.F0,
+            self.FN,
+            self.snap,
+            self.min_area,
+            *self.state,
+            cp.face,
+            np.asarray(cp.bary, dtype=np.float64),
+            cp.vertex,
+            np.asarray(cp.xyz, dtype=np.float64),
+            g,
+        )
+        self.state = tuple(state)
+        self._raise()
+        return int(v)
 
-    def _insert_on_edge(self, p, bary: tuple[float, float, float], g: int) -> int:
-        """Insert a point of an original edge of ``g`` (exact zero coordinate in ``bary``) on
-        the pieces of that edge, so that it stays a vertex of both faces sharing the edge."""
-        z = bary.index(0.0)
-        j = (z + 2) % 3  # parameter along the edge: the coordinate of its second vertex
-        t = bary[j]
-        lo, hi, t_lo, t_hi = -1, -1, -math.inf, math.inf
-        seen: set[int] = set()
-        for tri in self.face_tris[g]:
-            for v in self.tri[tri]:
-                if v in seen:
-                    continue
-                seen.add(v)
-                bv = self.bary_in(v, g)
-                if bv[z] != 0.0:
-                    continue
-                if t_lo < bv[j] <= t:
-                    lo, t_lo = v, bv[j]
-                if t <= bv[j] < t_hi:
-                    hi, t_hi = v, bv[j]
-        if lo == hi:
-            return lo
-        d_lo = _norm(_sub(p, self.xyz(lo)))
-        d_hi = _norm(_sub(p, self.xyz(hi)))
-        near = lo if d_lo <= d_hi else hi
-        if min(d_lo, d_hi) < self.snap and self.may_snap(near):
-            return near
-        s = (t - t_lo) / (t_hi - t_lo)
-        if _key(lo, hi) not in self.edge_map or not self.edge_map[_key(lo, hi)]:
-            raise CutError(f"internal: edge pieces {lo}, {hi} of face {g} are not joined")
-        if not 0.0 < s < 1.0 or not self.edge_split_ok(lo, hi, s):
-            return near
-        x = self.new_vertex(p, g, bary)
-        self.split_edge(lo, hi, x)
-        return x
-
-    def _map_bary(self, cp: _CutPoint, g: int) -> tuple[float, float, float]:
-        fs, fg = self.face(cp.face), self.face(g)
-        out = [0.0, 0.0, 0.0]
-        for k in range(3):
-            if cp.bary[k] != 0.0:
-                out[fg.index(fs[k])] += cp.bary[k]
-        return (out[0], out[1], out[2])
-
-    # ------------------------------------------------------------------- walk
-    def connect(self, u: int, w: int, g: int) -> list[int]:
-        """Vertices after ``u`` up to ``w`` along the straight segment u -> w in face ``g``."""
-        out: list[int] = []
-        cur = u
-        self.snap_ok = (w,)
-        W = self.xyz(w)
-        uw = self.uv(w, g)
-        for _ in range(_MAX_WALK_STEPS):
-            if cur == w:
-                return out
-            if _key(cur, w) in self.edge_map and self.edge_map[_key(cur, w)]:
-                out.append(w)
-                return out
-            P = self.xyz(cur)
-            D = _sub(W, P)
-            L = _norm(D)
-            uc = self.uv(cur, g)
-            dw = (uw[0] - uc[0], uw[1] - uc[1])
-            nw = math.hypot(dw[0], dw[1])
-            best, best_score = None, -math.inf
-            for t in self.vtris.get(cur, ()):
-                if self.parent[t] != g:
-                    continue
-                abc = self.tri[t]
-                i = abc.index(cur)
-                b, c = abc[(i + 1) % 3], abc[(i + 2) % 3]
-                ub, uc2 = self.uv(b, g), self.uv(c, g)
-                db = (ub[0] - uc[0], ub[1] - uc[1])
-                dc = (uc2[0] - uc[0], uc2[1] - uc[1])
-                s1 = _cross2(db, dw) / (math.hypot(*db) * nw)
-                s2 = _cross2(dw, dc) / (math.hypot(*dc) * nw)
-                score = min(s1, s2)
-                if score > best_score:
-                    best, best_score = (b, c, ub, uc2), score
-            if best is None:  # pragma: no cover - guarded by construction
-                raise CutError(f"internal: no triangle of original face {g} around vertex {cur}")
-            b, c, ub, uc2 = best
-            nxt = -1
-            nxt_proj = math.inf
-            for v in (b, c):
-                X = _sub(self.xyz(v), P)
-                proj = _dot(X, D) / L
-                perp = _norm(_sub(X, tuple(proj * D[i] / L for i in range(3))))
-                if (
-                    perp < self.snap
-                    and 0.0 < proj < L + self.snap
-                    and proj < nxt_proj
-                    and (v == w or v not in self.on_path)
-                ):
-                    nxt, nxt_proj = v, proj
-            if nxt < 0:
-                denom = _cross2(dw, (uc2[0] - ub[0], uc2[1] - ub[1]))
-                s = _cross2(dw, (uc[0] - ub[0], uc[1] - ub[1])) / denom if denom != 0 else 0.5
-                s = min(max(s, 0.0), 1.0)
-                nxt = self.split_edge_at(b, c, s, g)
-            out.append(nxt)
-            self.on_path.add(nxt)
-            cur = nxt
-        raise CutError(f"internal: walk from vertex {u} to vertex {w} in face {g} did not end")
+    def cut_curve(self, CI: NDArray[np.int64], CF: NDArray[np.float64], closed: bool) -> list[int]:
+        """Cut along one curve's points (as from :func:`_classify_all`): method steps 1-3 of
+        the module docstring. Returns the curve's vertices in order (before :func:`_expand`);
+        the joining edges are marked as cut, so that later splits of them are known to
+        :func:`_expand`. A point whose ``vertex`` is set (an original vertex, or a corner
+        inserted earlier) is used as that vertex."""
+        path, *state = _k.cut_curve(
+            self.V0,
+            self.F0,
+            self.FN,
+            self.VFI,
+            self.VFF,
+            self.snap,
+            self.min_area,
+            self.route_fans,
+            *self.state,
+            np.ascontiguousarray(CI, dtype=np.int64),
+            np.ascontiguousarray(CF, dtype=np.float64),
+            closed,
+        )
+        self.state = tuple(state)
+        self._raise()
+        return path.tolist()
 
 
 def _classify(cutter: _Cutter, face: int, bary: NDArray, index: int) -> _CutPoint:
@@ -553,63 +300,32 @@ def _classify(cutter: _Cutter, face: int, bary: NDArray, index: int) -> _CutPoin
 
 
 def _classify_all(
-    cutter: _Cutter, face: NDArray[np.int64], bary: NDArray[np.float64], index: NDArray[np.int64]
-) -> list[_CutPoint]:
-    """:func:`_classify` of many points at once (the same arithmetic, elementwise)."""
-    n = face.shape[0]
-    if n == 0:
-        return []
-    snap = cutter.snap
-    fv = cutter.F0[face]
-    pos = cutter.V0[fv]  # (n, 3 corners, 3)
-    b = np.clip(bary, 0.0, None)
-    b = b / b.sum(axis=1, keepdims=True)
-    p = b[:, 0:1] * pos[:, 0] + b[:, 1:2] * pos[:, 1] + b[:, 2:3] * pos[:, 2]
+    cutter: _Cutter, face: NDArray[np.int64], bary: NDArray[np.float64]
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """:func:`_classify` of many points at once (the same arithmetic, elementwise), as arrays
+    ``(n, 4) int64`` (kind, vertex, face, other face) and ``(n, 6) float64`` (barycentrics,
+    position); see :mod:`meshfit._kernels.cut` for the point layout."""
+    return _k.classify(
+        cutter.V0,
+        cutter.F0,
+        cutter.FN,
+        cutter.VFI,
+        cutter.VFF,
+        cutter.snap,
+        np.ascontiguousarray(face, dtype=np.int64),
+        np.ascontiguousarray(bary, dtype=np.float64).reshape(-1, 3),
+    )
 
-    def norm(d):
-        return np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])
 
-    def dot(u, w):
-        return u[:, 0] * w[:, 0] + u[:, 1] * w[:, 1] + u[:, 2] * w[:, 2]
-
-    dv = np.stack([norm(p - pos[:, k]) for k in range(3)], axis=1)
-    kv = np.argmin(dv, axis=1)
-    at_vertex = dv[np.arange(n), kv] < snap
-    edge_k = np.full(n, -1, dtype=np.int64)
-    edge_s = np.zeros(n)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        for k in (2, 1, 0):  # the first edge that qualifies wins
-            qa, qb = pos[:, k], pos[:, (k + 1) % 3]
-            e = qb - qa
-            sk = dot(p - qa, e) / dot(e, e)
-            foot = qa + sk[:, None] * e
-            ok = (sk > 0.0) & (sk < 1.0) & (norm(p - foot) < snap)
-            edge_k[ok] = k
-            edge_s[ok] = sk[ok]
-    faces_l = face.tolist()
-    index_l = index.tolist()
-    fv_l = fv.tolist()
-    kv_l = kv.tolist()
-    at_vertex_l = at_vertex.tolist()
-    edge_k_l = edge_k.tolist()
-    edge_s_l = edge_s.tolist()
-    b_l = b.tolist()
-    p_l = p.tolist()
-    out: list[_CutPoint] = []
-    for i in range(n):
-        f = faces_l[i]
-        if at_vertex_l[i]:
-            out.append(_vertex_point(cutter, fv_l[i][kv_l[i]], index_l[i]))
-        elif edge_k_l[i] >= 0:
-            out.append(_edge_point(cutter, f, edge_k_l[i], edge_s_l[i], index_l[i]))
-        else:
-            bi, pi = b_l[i], p_l[i]
-            out.append(
-                _CutPoint(
-                    f, (bi[0], bi[1], bi[2]), -1, frozenset((f,)), (pi[0], pi[1], pi[2]), index_l[i]
-                )
-            )
-    return out
+def _record(cutter: _Cutter, cp: _CutPoint) -> tuple[list[int], list[float]]:
+    """A snapped point as a row of the arrays of :func:`_classify_all`."""
+    if 0 <= cp.vertex < cutter.nv0:
+        kind, other = _k.KIND_VERTEX, -1
+    else:
+        kind = _k.KIND_FACES
+        rest = sorted(cp.faces - {cp.face})
+        other = rest[0] if rest else -1
+    return [kind, cp.vertex, cp.face, other], [*cp.bary, *cp.xyz]
 
 
 def _vertex_point(cutter: _Cutter, v: int, index: int) -> _CutPoint:
@@ -633,120 +349,6 @@ def _edge_point(cutter: _Cutter, face: int, k: int, s: float, index: int) -> _Cu
     other = int(cutter.FN[face, k])
     faces = frozenset((face, other)) if other >= 0 else frozenset((face,))
     return _CutPoint(face, (bary[0], bary[1], bary[2]), -1, faces, _lerp(qa, qb, s), index)
-
-
-def _same_point(cutter: _Cutter, p: _CutPoint, q: _CutPoint) -> bool:
-    """Whether two points are one: the same vertex, or within ``CUT_SNAP`` on the same faces
-    (points on different faces are kept apart; insertion snaps them where it is safe)."""
-    if p.vertex >= 0 or q.vertex >= 0:
-        return p.vertex == q.vertex
-    return p.faces == q.faces and _norm(_sub(p.xyz, q.xyz)) < cutter.snap
-
-
-def _crossing(cutter: _Cutter, p: _CutPoint, f: int, k: int, q: _CutPoint) -> _CutPoint:
-    """Where the straight segment p -> q, unfolded about edge k of face f, crosses that edge."""
-    fv = cutter.face(f)
-    vi, vj = cutter.xyz(fv[k]), cutter.xyz(fv[(k + 1) % 3])
-    e = _sub(vj, vi)
-    length = _norm(e)
-    eh = (e[0] / length, e[1] / length, e[2] / length)
-    rp, rq = _sub(p.xyz, vi), _sub(q.xyz, vi)
-    pa, qa = _dot(rp, eh), _dot(rq, eh)
-    ph = _norm(_sub(rp, tuple(pa * x for x in eh)))
-    qh = _norm(_sub(rq, tuple(qa * x for x in eh)))
-    a = pa + (qa - pa) * ph / (ph + qh) if ph + qh > 0 else 0.5 * (pa + qa)
-    s = min(max(a / length, 0.0), 1.0)
-    return _edge_point(cutter, f, k, s, p.index)
-
-
-def _bridge(cutter: _Cutter, p: _CutPoint, q: _CutPoint, i: int, j: int) -> list[_CutPoint]:
-    """Points to insert between p and q so each consecutive pair shares an original face."""
-    if p.faces & q.faces:
-        return []
-    # edge-adjacent faces: the crossing point on the shared edge
-    best, best_len = None, math.inf
-    for f in sorted(p.faces):
-        for k in range(3):
-            h = int(cutter.FN[f, k])
-            if h >= 0 and h in q.faces:
-                x = _crossing(cutter, p, f, k, q)
-                d = _norm(_sub(x.xyz, p.xyz)) + _norm(_sub(q.xyz, x.xyz))
-                if d < best_len:
-                    best, best_len = x, d
-    if best is not None:
-        return [best]
-    # faces sharing a vertex only: route through it (or across the fan of faces around it)
-    vp = {v for f in p.faces for v in cutter.face(f)}
-    vq = {v for f in q.faces for v in cutter.face(f)}
-    shared = sorted(vp & vq)
-    if shared:
-        v = min(
-            shared,
-            key=lambda v: _norm(_sub(cutter.xyz(v), p.xyz)) + _norm(_sub(q.xyz, cutter.xyz(v))),
-        )
-        if cutter.route_fans:
-            fan = _fan_crossings(cutter, p, q, v)
-            if fan:
-                return fan
-        return [_vertex_point(cutter, v, p.index)]
-    raise CutError(
-        f"curve points {i} and {j} lie on faces {p.face} and {q.face}, which are not "
-        "the same, edge-adjacent or sharing a vertex: sample the curve more densely "
-        "(consecutive points on the same or adjacent faces)"
-    )
-
-
-def _fan_crossings(cutter: _Cutter, p: _CutPoint, q: _CutPoint, v: int) -> list[_CutPoint]:
-    """Crossings of the segment p -> q with the edges around vertex ``v`` between a face of p
-    and a face of q, going round ``v`` the way that passes fewer faces (empty when none)."""
-    around = cutter.faces_around(v)
-    starts = sorted(f for f in p.faces if f in around)
-    best: list[tuple[int, int]] | None = None
-    for f0 in starts:
-        for first in range(3):
-            fv = cutter.face(f0)
-            if v not in (fv[first], fv[(first + 1) % 3]):
-                continue  # only the two edges of f0 at v lead round the fan
-            steps: list[tuple[int, int]] = []
-            f, k = f0, first
-            for _ in range(len(around)):
-                h = int(cutter.FN[f, k])
-                if h < 0 or h not in around or h == f0:
-                    steps = []
-                    break
-                steps.append((f, k))
-                if h in q.faces:
-                    break
-                hv = cutter.face(h)
-                # leave h by its other edge at v
-                k = next(
-                    kk
-                    for kk in range(3)
-                    if v in (hv[kk], hv[(kk + 1) % 3]) and int(cutter.FN[h, kk]) != f
-                )
-                f = h
-            else:
-                steps = []
-            if steps and (best is None or len(steps) < len(best)):
-                best = steps
-    if not best:
-        return []
-    out: list[_CutPoint] = []
-    prev = p
-    for f, k in best:
-        x = _crossing(cutter, prev, f, k, q)
-        out.append(x)
-        prev = x
-    return out
-
-
-def _common_face(p: _CutPoint, q: _CutPoint) -> int:
-    common = p.faces & q.faces
-    if p.face in common:
-        return p.face
-    if q.face in common:
-        return q.face
-    return min(common)
 
 
 def cut_mesh(
@@ -806,125 +408,59 @@ def cut_mesh(
     if n < 2:
         raise InputError(f"a cut needs at least 2 curve points, got {n}")
     with _no_gc():
-        cutter = _Cutter(mesh)
-        cps = _classify_all(cutter, points.face, points.bary, np.arange(n))
-        path = _insert_curve(cutter, cps, closed)
+        cutter = _Cutter(mesh, n)
+        CI, CF = _classify_all(cutter, points.face, points.bary)
+        path = cutter.cut_curve(CI, CF, closed)
         path = _drop_spikes(_expand(cutter, path, closed), closed)
         if len(path) < 2:
             raise CutError(f"the curve's {n} points collapse to a single vertex: nothing to cut")
-        edges = list(itertools.pairwise(path)) + ([(path[-1], path[0])] if closed else [])
-        cutter.cut = {_key(a, b) for a, b in edges}
+        cutter.cut = _cut_edges([path], closed)
         return _assemble(cutter, mesh, path, closed, split)
-
-
-def _insert_curve(cutter: _Cutter, cps: list[_CutPoint], closed: bool) -> list[int]:
-    """Insert one curve's snapped points into the triangulation and join them by edges.
-
-    Returns the curve's vertices in order (before :func:`_expand`); the joining edges are added
-    to ``cutter.cut``. A point whose ``vertex`` is set (an original vertex, or a corner inserted
-    earlier) is used as that vertex.
-    """
-    n = len(cps)
-    # 1. a sequence in which consecutive points share an original face
-    seq: list[_CutPoint] = []
-    pairs = [(i, i + 1) for i in range(n - 1)] + ([(n - 1, 0)] if closed else [])
-    seq.append(cps[0])
-    for i, j in pairs:
-        q = cps[j]
-        if _same_point(cutter, seq[-1], q):
-            continue
-        for x in _bridge(cutter, seq[-1], q, i, j):
-            if not _same_point(cutter, seq[-1], x):
-                seq.append(x)
-        if not _same_point(cutter, seq[-1], q):
-            seq.append(q)
-    if closed and len(seq) > 1 and _same_point(cutter, seq[-1], seq[0]):
-        seq.pop()
-    if len(seq) < 2 or (closed and len(seq) < 3):
-        raise CutError(
-            f"the curve's {n} points collapse to {len(seq)} distinct point(s): nothing to cut"
-        )
-
-    # 2-3. insert the points and join consecutive ones by edges
-    segs = list(itertools.pairwise(seq))
-    if closed:
-        segs.append((seq[-1], seq[0]))
-    first = cutter.insert(seq[0], _common_face(seq[0], seq[1]))
-    path = [first]
-    cutter.on_path.add(first)
-    prev = first
-    for k, (p, q) in enumerate(segs):
-        g = _common_face(p, q)
-        cutter.ensure(g)
-        cutter.snap_ok = (prev,)
-        nxt = first if (closed and k == len(segs) - 1) else cutter.insert(q, g)
-        step = cutter.connect(prev, nxt, g)
-        chain = [prev, *step]
-        for a, b in itertools.pairwise(chain):
-            cutter.cut.add(_key(a, b))
-        path.extend(step)
-        cutter.on_path.add(nxt)
-        prev = nxt
-    if closed and len(path) > 1 and path[-1] == path[0]:
-        path.pop()  # the walk ended back at the first vertex
-    return path
 
 
 def _expand(cutter: _Cutter, path: list[int], closed: bool) -> list[int]:
     """Re-insert the vertices that later splits put on earlier cut edges; drop repeats."""
-
-    def between(a: int, b: int) -> list[int]:
-        x = cutter.split_of.get(_key(a, b))
-        if x is None:
-            return [b]
-        return between(a, x) + between(x, b)
-
-    out = [path[0]]
-    ends = path[1:] + ([path[0]] if closed else [])
-    for b in ends:
-        for v in between(out[-1], b):
-            if v != out[-1]:
-                out.append(v)
-    if closed and len(out) > 1 and out[-1] == out[0]:
-        out.pop()
-    return out
+    H = cutter.state[6]
+    return _k.expand_path(H, np.asarray(path, dtype=np.int64), closed).tolist()
 
 
 def _drop_spikes(path: list[int], closed: bool) -> list[int]:
     """Remove immediate back-and-forth steps ``a, b, a`` (a cut of zero width)."""
-    stack: list[int] = []
-    for v in path + ([path[0]] if closed else []):
-        if len(stack) >= 2 and stack[-2] == v:
-            stack.pop()
-        else:
-            stack.append(v)
-    if closed:
-        while len(stack) >= 3 and stack[1] == stack[-2]:
-            stack = stack[1:-1]
-        stack.pop()
-    return stack
+    return _k.drop_spikes(np.asarray(path, dtype=np.int64), closed).tolist()
+
+
+def _cut_edges(paths: list[list[int]], closed: bool) -> NDArray[np.int64]:
+    """The edges joining consecutive vertices of the paths (and each path's last vertex to its
+    first when ``closed``): ``(m, 2) int64`` rows ``a < b``, unique and sorted."""
+    pairs = []
+    for path in paths:
+        p = np.asarray(path, dtype=np.int64)
+        pairs.append(np.stack([p[:-1], p[1:]], axis=1))
+        if closed:
+            pairs.append(np.array([[p[-1], p[0]]], dtype=np.int64))
+    e = np.concatenate(pairs) if pairs else np.zeros((0, 2), dtype=np.int64)
+    e = np.sort(e, axis=1)
+    n = np.int64(max(int(e.max(initial=0)) + 1, 1))
+    keys = np.unique(e[:, 0] * n + e[:, 1])
+    return np.stack([keys // n, keys % n], axis=1)
 
 
 def _refined(cutter: _Cutter, mesh: Mesh):
     """Arrays of the refined (not yet split) triangulation: vertices, faces, face parents,
     vertex sources, vertex parents and colours."""
-    nv0, nf0 = cutter.nv0, cutter.nf0
-    n_new = len(cutter.new_xyz)
-    vertices = np.concatenate([mesh.vertices, np.asarray(cutter.new_xyz).reshape(-1, 3)])
-    faces = np.concatenate([mesh.faces, np.zeros((cutter.n_tri - nf0, 3), dtype=np.int64)])
-    face_parent = np.concatenate(
-        [np.arange(nf0, dtype=np.int64), np.zeros(cutter.n_tri - nf0, dtype=np.int64)]
-    )
-    for t, abc in cutter.tri.items():
-        faces[t] = abc
-        face_parent[t] = cutter.parent[t]
+    nv0 = cutter.nv0
+    n_new, n_tri = cutter.n_new, cutter.n_tri
+    nf0 = cutter.nf0
+    _, TR, FL, NV, NI, _, _, _ = cutter.state
+    vertices = np.concatenate([mesh.vertices, NV[:n_new, :3]])
+    faces = np.concatenate([mesh.faces, TR[nf0:n_tri, :3]])
+    loaded = np.flatnonzero(FL[:, 2] & _k.LOADED)
+    faces[loaded] = TR[loaded, :3]
+    face_parent = np.concatenate([np.arange(nf0, dtype=np.int64), TR[nf0:n_tri, 3]])
     src = SurfacePoints.concatenate(
         [
             SurfacePoints.at_vertices(mesh.faces, np.arange(nv0)),
-            SurfacePoints(
-                np.asarray(cutter.new_face, dtype=np.int64),
-                np.asarray(cutter.new_bary, dtype=np.float64).reshape(-1, 3),
-            ),
+            SurfacePoints(NI[:n_new, 0].copy(), NV[:n_new, 3:6].copy()),
         ]
     )
     parent = np.concatenate([np.arange(nv0, dtype=np.int64), np.full(n_new, -1, np.int64)])
@@ -1043,7 +579,8 @@ def cut_mesh_network(
         i = int(np.flatnonzero((ends < 0).any(axis=1) | (ends >= nc).any(axis=1))[0])
         raise InputError(f"curve {i}: corner index out of range 0..{nc - 1}: {ends[i].tolist()}")
     with _no_gc():
-        cutter = _Cutter(mesh)
+        n_points = sum(len(c.points if isinstance(c, SurfaceCurve) else c) for c in curves)
+        cutter = _Cutter(mesh, n_points)
         cutter.route_fans = True
         merge = tol.length(mesh, tol.CUT_CORNER_MERGE)
         corner_cp: list[_CutPoint] = []
@@ -1063,7 +600,7 @@ def cut_mesh_network(
                 cp = _CutPoint(cp.face, cp.bary, v, cp.faces, cutter.xyz(v), c)
             corner_v[c] = v
             corner_cp.append(cp)
-            cutter.on_path.add(v)
+            cutter.mark_on_path(v)
         if len(set(corner_v.tolist())) < nc:
             a, b = _first_repeat(corner_v)
             raise CutError(f"corners {a} and {b} fall on the same point")
@@ -1080,11 +617,12 @@ def cut_mesh_network(
             d1 = np.linalg.norm(xyz - np.asarray(last.xyz), axis=1)
             inner = np.flatnonzero((d0 > merge) & (d1 > merge))
             inner = inner[(inner > 0) & (inner < len(pts) - 1)]
-            cps = [first]
-            cps += _classify_all(cutter, pts.face[inner], pts.bary[inner], inner)
-            cps.append(last)
+            CI, CF = _classify_all(cutter, pts.face[inner], pts.bary[inner])
+            (i0, f0), (i1, f1) = _record(cutter, first), _record(cutter, last)
+            CI = np.concatenate([[i0], CI, [i1]]).astype(np.int64)
+            CF = np.concatenate([[f0], CF, [f1]])
             try:
-                raw.append(_insert_curve(cutter, cps, False))
+                raw.append(cutter.cut_curve(CI, CF, False))
             except CutError as exc:
                 raise CutError(f"curve {i}: {exc}") from None
         paths = []
@@ -1094,7 +632,7 @@ def cut_mesh_network(
                 raise CutError(f"curve {i} collapses to a single vertex: nothing to cut")
             paths.append(path)
         _check_meetings(paths, corner_v, ends)
-        cutter.cut = {_key(a, b) for path in paths for a, b in itertools.pairwise(path)}
+        cutter.cut = _cut_edges(paths, False)
         vertices, faces, face_parent, src, parent, colors = _refined(cutter, mesh)
         copy_of = np.arange(vertices.shape[0], dtype=np.int64)
         if split:
@@ -1118,18 +656,7 @@ def cut_mesh_network(
 def _drop_loops(path: list[int]) -> list[int]:
     """Cut out closed detours ``v ... v`` of an open path (left where a walk curled round and
     came back to a vertex it had passed), so each vertex appears once."""
-    out: list[int] = []
-    where: dict[int, int] = {}
-    for v in path:
-        k = where.get(v)
-        if k is not None:
-            for u in out[k + 1 :]:
-                del where[u]
-            del out[k + 1 :]
-            continue
-        where[v] = len(out)
-        out.append(v)
-    return out
+    return _k.drop_loops(np.asarray(path, dtype=np.int64)).tolist()
 
 
 def _first_repeat(a: NDArray[np.int64]) -> tuple[int, int]:
@@ -1175,48 +702,10 @@ def _split_along(cutter: _Cutter, faces: NDArray[np.int64], nv: int, path: list[
 def _split_faces(cutter: _Cutter, faces: NDArray[np.int64], nv: int):
     """Faces with each fan separated by ``cutter.cut`` on its own vertex copy, and the vertex
     each new vertex copies (the first ``nv`` keep their index)."""
-    table = topology.edge_table(faces, nv)
-    n = np.int64(max(nv, 1))
-    keys = table.edges[:, 0] * n + table.edges[:, 1]
-    cut = np.asarray(sorted(cutter.cut), dtype=np.int64).reshape(-1, 2)
-    cut_mask = np.zeros(keys.size, dtype=bool)
-    if cut.size:
-        cut_mask[np.searchsorted(keys, cut[:, 0] * n + cut[:, 1])] = True
-    fan, n_fans = topology.corner_fans(faces, nv, table, cut_mask)
-    corner_vertex = faces.reshape(-1)
-    fan_vertex = np.empty(n_fans, dtype=np.int64)
-    fan_vertex[fan] = corner_vertex
-    fan_first = np.full(n_fans, corner_vertex.size, dtype=np.int64)
-    np.minimum.at(fan_first, fan, np.arange(corner_vertex.size))
-    order = np.lexsort((fan_first, fan_vertex))
-    primary = np.ones(n_fans, dtype=bool)
-    primary[order[1:]] = fan_vertex[order[1:]] != fan_vertex[order[:-1]]
-    new_id = np.empty(n_fans, dtype=np.int64)
-    new_id[primary] = fan_vertex[primary]
-    extra = order[~primary[order]]
-    new_id[extra] = nv + np.arange(extra.size)
-    copy_of = np.concatenate([np.arange(nv), fan_vertex[extra]])
-    new_faces = new_id[fan].reshape(-1, 3)
-
-    return new_faces, copy_of
+    return _k.split_faces(np.ascontiguousarray(faces, dtype=np.int64), nv, cutter.cut)
 
 
 def _path_sides(cutter: _Cutter, new_faces: NDArray[np.int64], path: list[int], closed: bool):
     """The copies of each path vertex on the left and right of the curve after splitting."""
-    k = len(path)
-    left = np.full(k, -1, dtype=np.int64)
-    right = np.full(k, -1, dtype=np.int64)
-    n_edges = k if closed else k - 1
-    for i in range(k):
-        e = i if i < n_edges else i - 1  # the edge leaving vertex i (entering, at an open end)
-        a, b = path[e], path[(e + 1) % k]
-        for t in cutter.edge_map[_key(a, b)]:
-            abc = cutter.tri[t]
-            v = int(new_faces[t, abc.index(path[i])])
-            if abc[(abc.index(a) + 1) % 3] == b:  # half-edge a -> b: the face on the left
-                left[i] = v
-            else:
-                right[i] = v
-    left = np.where(left < 0, right, left)
-    right = np.where(right < 0, left, right)
-    return left, right
+    _, TR, _, _, _, _, H, _ = cutter.state
+    return _k.path_sides(TR, H, new_faces, np.asarray(path, dtype=np.int64), closed)
