@@ -2,7 +2,13 @@
 
 from meshfit.mesh.core import Mesh
 from meshfit.mesh.io import FORMATS, RawMesh, load_mesh, read_mesh_arrays, save_mesh
-from meshfit.mesh.locate import ClosestPoints, RayHits, closest_points, ray_first_hit
+from meshfit.mesh.locate import (
+    ClosestPoints,
+    RayHits,
+    closest_points,
+    ray_first_hit,
+    triangle_distances,
+)
 from meshfit.mesh.validate import Finding, RepairReport, find_problems, repair_arrays
 
 __all__ = [
@@ -20,4 +26,5 @@ __all__ = [
     "read_mesh_arrays",
     "repair_arrays",
     "save_mesh",
+    "triangle_distances",
 ]
