@@ -8,8 +8,10 @@ import numpy as np
 import pytest
 
 from meshfit._kernels import cut as kc
+from meshfit.errors import CutError
 from meshfit.layout import load_layout
-from meshfit.surface.cut import cut_mesh_network
+from meshfit.surface.cut import cut_mesh, cut_mesh_network
+from meshfit.types import SurfacePoints
 from tests.conftest import real_mesh
 from tests.reference import cut as reference
 
@@ -132,3 +134,61 @@ def test_reserve_keeps_the_face_tables():
     grown = kc.reserve(*state, 1, 1)
     assert grown[7].shape[0] > P.shape[0]
     np.testing.assert_array_equal(grown[7][:used], before)
+
+
+def _vertex_chain(mesh, rng, n_faces):
+    """Face points on faces each sharing only a vertex with the one before."""
+    indptr, around = mesh.vertex_faces
+    fn = mesh.face_neighbors
+    faces = [int(rng.integers(0, mesh.n_faces))]
+    while len(faces) < n_faces:
+        f = faces[-1]
+        v = int(mesh.faces[f, rng.integers(0, 3)])
+        fan = [int(h) for h in around[indptr[v] : indptr[v + 1]] if h != f and h not in fn[f]]
+        if not fan:
+            continue
+        faces.append(fan[int(rng.integers(0, len(fan)))])
+    bary = rng.uniform(0.2, 1.0, size=(n_faces, 3))
+    return SurfacePoints(np.asarray(faces), bary / bary.sum(axis=1, keepdims=True))
+
+
+def _same_or_same_error(new, old, *args, **kwargs):
+    """Both results, or (None, None) when both raise the same CutError."""
+    try:
+        want = old(*args, **kwargs)
+    except CutError as exc:
+        with pytest.raises(CutError) as got:
+            new(*args, **kwargs)
+        assert str(got.value) == str(exc)
+        return None, None
+    return new(*args, **kwargs), want
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_points_on_faces_sharing_only_a_vertex_match_oracle(seed):
+    """Joining points whose faces share only a vertex: across the fan of faces around it
+    (network cut) or through the vertex (single cut), as the per-point algorithm does."""
+    mesh = real_mesh("spot")
+    rng = np.random.default_rng(seed)
+    n_cut = 0
+    for _ in range(8):
+        pts = _vertex_chain(mesh, rng, int(rng.integers(2, 6)))
+        corners = pts[np.array([0, len(pts) - 1])]
+        ends = np.array([[0, 1]])
+        got, want = _same_or_same_error(
+            cut_mesh_network, reference.cut_mesh_network, mesh, [pts], corners, ends, split=False
+        )
+        if got is not None:
+            n_cut += 1
+            np.testing.assert_array_equal(got.mesh.vertices, want.mesh.vertices)
+            np.testing.assert_array_equal(got.mesh.faces, want.mesh.faces)
+            np.testing.assert_array_equal(got.curve_vertices[0], want.curve_vertices[0])
+            np.testing.assert_array_equal(got.vertex_source.bary, want.vertex_source.bary)
+        got, want = _same_or_same_error(cut_mesh, reference.cut_mesh, mesh, pts)
+        if got is not None:
+            n_cut += 1
+            np.testing.assert_array_equal(got.mesh.vertices, want.mesh.vertices)
+            np.testing.assert_array_equal(got.mesh.faces, want.mesh.faces)
+            np.testing.assert_array_equal(got.path, want.path)
+            np.testing.assert_array_equal(got.path_other_side, want.path_other_side)
+    assert n_cut >= 8

@@ -736,15 +736,6 @@ def _insert_on_edge(
     return x
 
 
-@njit(cache=True, nogil=True)
-def insert_point(V0, F0, FN, snap, min_area, S, TR, FL, NV, NI, OP0, H, P, cf, cb, cv, cx, g):
-    """`_Cutter.insert` of one point; returns the vertex (-1 on an error in ``S[ERR]``) and the
-    state."""
-    S, TR, FL, NV, NI, OP0, H, P = reserve(S, TR, FL, NV, NI, OP0, H, P, 1, 32)
-    v = _insert(V0, F0, FN, S, TR, FL, NV, NI, OP0, H, P, snap, min_area, cf, cb, cv, cx, g)
-    return v, S, TR, FL, NV, NI, OP0, H, P
-
-
 # --------------------------------------------------------------------------------- walk
 @njit(cache=True, nogil=True)
 def _walk_step(
@@ -1579,59 +1570,29 @@ def bridge_curve(V0, F0, FN, VFI, VFF, snap, route_fans, CI, CF, closed, S):
 def _sorted_shared(F0, VFI, VFF, p, fq):
     """The original vertices of both a face of p and a face ``fq`` of q, ascending."""
     fp = _faces_of(VFI, VFF, p)
-    vp = np.empty(3 * fp.shape[0], dtype=np.int64)
+    out = np.empty(3 * fp.shape[0], dtype=np.int64)
+    n = 0
     for a in range(fp.shape[0]):
         for k in range(3):
-            vp[3 * a + k] = F0[fp[a], k]
-    vq = np.empty(3 * fq.shape[0], dtype=np.int64)
-    for a in range(fq.shape[0]):
-        for k in range(3):
-            vq[3 * a + k] = F0[fq[a], k]
-    vp = np.unique(vp)
-    vq = np.unique(vq)
-    out = np.empty(min(vp.shape[0], vq.shape[0]), dtype=np.int64)
-    n = 0
-    j = 0
-    for i in range(vp.shape[0]):
-        while j < vq.shape[0] and vq[j] < vp[i]:
-            j += 1
-        if j < vq.shape[0] and vq[j] == vp[i]:
-            out[n] = vp[i]
+            v = F0[fp[a], k]
+            shared = False
+            for c in range(fq.shape[0]):
+                if F0[fq[c], 0] == v or F0[fq[c], 1] == v or F0[fq[c], 2] == v:
+                    shared = True
+                    break
+            if not shared:
+                continue
+            # insert v into the ascending out[:n] unless already there
+            i = n
+            while i > 0 and out[i - 1] > v:
+                i -= 1
+            if i > 0 and out[i - 1] == v:
+                continue
+            for j in range(n, i, -1):
+                out[j] = out[j - 1]
+            out[i] = v
             n += 1
     return out[:n]
-
-
-@njit(cache=True, nogil=True)
-def cut_curve(
-    V0, F0, FN, VFI, VFF, snap, min_area, route_fans, S, TR, FL, NV, NI, OP0, H, P, CI, CF, closed
-):
-    """`bridge_curve` then `insert_curve`: one curve's points (as from `classify`) inserted
-    and joined by edges. Returns the curve's vertices (empty on an error in ``S[ERR]``) and
-    the state."""
-    QI, QF, seg_g = bridge_curve(V0, F0, FN, VFI, VFF, snap, route_fans, CI, CF, closed, S)
-    if S[ERR]:
-        return np.empty(0, dtype=np.int64), S, TR, FL, NV, NI, OP0, H, P
-    return insert_curve(
-        V0,
-        F0,
-        FN,
-        snap,
-        min_area,
-        S,
-        TR,
-        FL,
-        NV,
-        NI,
-        OP0,
-        H,
-        P,
-        QI[:, 2].copy(),
-        QF[:, :3].copy(),
-        QI[:, 1].copy(),
-        QF[:, 3:].copy(),
-        seg_g,
-        closed,
-    )
 
 
 # -------------------------------------------------------------------------------- paths

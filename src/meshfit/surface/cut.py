@@ -235,22 +235,23 @@ class _Cutter:
         """Insert a snapped curve point into original face ``g`` (which contains it)."""
         if cp.vertex >= 0:
             return cp.vertex
-        v, *state = _k.insert_point(
+        path, *state = _k.insert_curve(
             self.V0,
             self.F0,
             self.FN,
             self.snap,
             self.min_area,
             *self.state,
-            cp.face,
-            np.asarray(cp.bary, dtype=np.float64),
-            cp.vertex,
-            np.asarray(cp.xyz, dtype=np.float64),
-            g,
+            np.array([cp.face], dtype=np.int64),
+            np.array([cp.bary], dtype=np.float64),
+            np.array([cp.vertex], dtype=np.int64),
+            np.array([cp.xyz], dtype=np.float64),
+            np.array([g], dtype=np.int64),
+            False,
         )
         self.state = tuple(state)
         self._raise()
-        return int(v)
+        return int(path[0])
 
     def cut_curve(self, CI: NDArray[np.int64], CF: NDArray[np.float64], closed: bool) -> list[int]:
         """Cut along one curve's points (as from :func:`_classify_all`): method steps 1-3 of
@@ -258,18 +259,33 @@ class _Cutter:
         the joining edges are marked as cut, so that later splits of them are known to
         :func:`_expand`. A point whose ``vertex`` is set (an original vertex, or a corner
         inserted earlier) is used as that vertex."""
-        path, *state = _k.cut_curve(
+        S = self.state[0]
+        QI, QF, faces = _k.bridge_curve(
             self.V0,
             self.F0,
             self.FN,
             self.VFI,
             self.VFF,
             self.snap,
-            self.min_area,
             self.route_fans,
-            *self.state,
             np.ascontiguousarray(CI, dtype=np.int64),
             np.ascontiguousarray(CF, dtype=np.float64),
+            closed,
+            S,
+        )
+        self._raise()
+        path, *state = _k.insert_curve(
+            self.V0,
+            self.F0,
+            self.FN,
+            self.snap,
+            self.min_area,
+            *self.state,
+            np.ascontiguousarray(QI[:, 2]),
+            np.ascontiguousarray(QF[:, :3]),
+            np.ascontiguousarray(QI[:, 1]),
+            np.ascontiguousarray(QF[:, 3:]),
+            faces,
             closed,
         )
         self.state = tuple(state)
