@@ -989,24 +989,6 @@ def set_on_path(V0, NI, OP0, v):
 
 # ------------------------------------------------------------------------------ results
 @njit(cache=True, nogil=True)
-def split_table(H):
-    """Cut edges split later: ``(m, 3) i8`` rows ``a, b, x`` (edge (a, b) split at x)."""
-    m = 0
-    for i in range(H.shape[0]):
-        if H[i, _HA] >= 0 and H[i, _HSPLIT] >= 0:
-            m += 1
-    out = np.empty((m, 3), dtype=np.int64)
-    m = 0
-    for i in range(H.shape[0]):
-        if H[i, _HA] >= 0 and H[i, _HSPLIT] >= 0:
-            out[m, 0] = H[i, _HA]
-            out[m, 1] = H[i, _HB]
-            out[m, 2] = H[i, _HSPLIT]
-            m += 1
-    return out
-
-
-@njit(cache=True, nogil=True)
 def path_sides(TR, H, new_faces, path, closed):
     """The copies of each path vertex on the left and right of the curve after splitting."""
     k = path.shape[0]
