@@ -211,3 +211,38 @@ def test_chord_positions_match_oracle(rng, rounds):
         # the rounds agree to rounding (einsum and the loop may order sums differently)
         assert_allclose(got, want, rtol=0, atol=1e-9 * arc[-1])
         assert (np.diff(got) >= 0).all()
+
+
+def test_side_points_slide_back_between_their_neighbours():
+    # a side point pushed past its neighbour folds the two boundary cells beside it whatever
+    # the free points do; sliding it along the side (between its static neighbours) unfolds
+    # them, and no other point moves
+    from meshfit.springs.relax import repair_folds, slide_side_points
+    from meshfit.springs.resample import _sides
+    from meshfit.springs.state import State
+
+    from .patches import plane_map
+
+    patch = param_patch(plane_map(), 24, 24, jitter=0.0)
+    mesh = patch.mesh
+    sm = resample_patch(patch, level=1, metrics=False).final
+    nu, nv = sm.shape
+    sides = _sides(patch)
+    breaks = {n: [0.0, float(sides.arcs[n][-1])] for n in sides.chains}
+    state = State(mesh, 0, sides, [], [], breaks, [nu - 1], [nv - 1])
+    state.face = sm.points.face.copy()
+    state.bary = sm.points.bary.copy()
+    g, g2 = 4 * nv, 6 * nv  # bottom side points 4 and 6
+    before = mesh.xyz(SurfacePoints(state.face, state.bary))
+    state.face[g], state.bary[g] = state.face[g2], state.bary[g2]
+    assert K.folded_cells(mesh.vertices, mesh.faces, state.face, state.bary, nu, nv).any()
+    assert repair_folds(state) > 0  # moving free points cannot help
+    moved = mesh.xyz(SurfacePoints(state.face, state.bary))
+    assert slide_side_points(state) == 0
+    after = mesh.xyz(SurfacePoints(state.face, state.bary))
+    changed = np.flatnonzero(np.linalg.norm(after - moved, axis=1) > 0)
+    assert changed.tolist() == [g]
+    # back between its neighbours on the side
+    x = after[g, 0]
+    assert before[3 * nv, 0] < x < before[5 * nv, 0]
+    assert abs(after[g, 1]) <= 1e-12

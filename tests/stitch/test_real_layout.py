@@ -204,10 +204,10 @@ _NEFERTITI_CORNER_ZONES = (
     "m",
     [
         pytest.param(
-            8, marks=pytest.mark.xfail(strict=True, reason=_NEFERTITI_CORNER_ZONES + "2.65 deg")
+            8, marks=pytest.mark.xfail(strict=True, reason=_NEFERTITI_CORNER_ZONES + "2.02 deg")
         ),
         pytest.param(
-            16, marks=pytest.mark.xfail(strict=True, reason=_NEFERTITI_CORNER_ZONES + "4.67 deg")
+            16, marks=pytest.mark.xfail(strict=True, reason=_NEFERTITI_CORNER_ZONES + "2.39 deg")
         ),
     ],
 )

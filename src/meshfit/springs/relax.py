@@ -17,6 +17,9 @@ _MAX_FACES = 10_000
 #: and its corners' surface normals below which a triangle counts as nearly folded
 REPAIR_DIRECTIONS = 16
 REPAIR_MARGIN = 0.3
+#: trial places of a side point of a folded cell (`slide_side_points`), as fractions of the
+#: way to the neighbouring side point before (negative) or after it
+SLIDE_FRACTIONS = tuple(float(f) for f in np.linspace(-0.9, 0.9, 19) if abs(f) > 1e-9)
 
 
 def _curve_step(state: State, X: np.ndarray, w_arc: float, w_fair: float) -> float:
@@ -221,6 +224,65 @@ def repair_folds(state: State, *, rounds: int = 8) -> int:
         tol.BARY_EPS, _MAX_FACES,
     )  # fmt: skip
     return int(folded_cells(state).sum())
+
+
+def slide_side_points(state: State) -> int:
+    """Slide the side points of folded cells along their sides, in place; returns the folded
+    cells left.
+
+    A side cut along mesh edges can step sideways or back over a stretch as short as the grid
+    spacing; when two consecutive side points fall on the two legs of such a step, the chord
+    between them points into the patch and the cell beside it folds wherever its free
+    corners go (the fold repair moves only free points). Each side point of a folded cell
+    (not a patch corner, not the end of a feature curve) tries places along its side between
+    its two neighbouring side points (`SLIDE_FRACTIONS`) and keeps the one with the fewest
+    folded cells; the static resampling of the next level starts afresh.
+    """
+    from meshfit.springs.init import chain_points
+
+    folds = folded_cells(state)
+    if not folds.any():
+        return 0
+    nu, nv = state.nu, state.nv
+    count = int(folds.sum())
+    fixed_u = set(state.u_lines.tolist())
+    fixed_v = set(state.v_lines.tolist())
+    grid = {  # side -> (grid index of its s-th point, its number of points, fixed indices)
+        "bottom": (lambda k: k * nv, nu, fixed_u),
+        "top": (lambda k: k * nv + nv - 1, nu, fixed_u),
+        "left": (lambda k: k, nv, fixed_v),
+        "right": (lambda k: (nu - 1) * nv + k, nv, fixed_v),
+    }
+    todo = []
+    for i, j in zip(*np.nonzero(folds), strict=True):
+        for a, b in ((i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)):
+            for name, k in (
+                ("bottom", a if b == 0 else -1),
+                ("top", a if b == nv - 1 else -1),
+                ("left", b if a == 0 else -1),
+                ("right", b if a == nu - 1 else -1),
+            ):
+                _, n, fixed = grid[name]
+                if 0 < k < n - 1 and k not in fixed and (name, k) not in todo:
+                    todo.append((name, int(k)))
+    for name, k in todo:
+        at, _, _ = grid[name]
+        pos = state.side_positions(name)
+        g = at(k)
+        chain, arc = state.sides.chains[name], state.sides.arcs[name]
+        best_face, best_bary = int(state.face[g]), state.bary[g].copy()
+        for f in SLIDE_FRACTIONS:
+            other = pos[k + 1] if f > 0 else pos[k - 1]
+            p = pos[k] + abs(f) * (other - pos[k])
+            pt = chain_points(state.mesh, chain, arc, np.array([p]), state.sides.edge_faces[name])
+            state.face[g], state.bary[g] = pt.face[0], pt.bary[0]
+            c = int(folded_cells(state).sum())
+            if c < count:
+                count, best_face, best_bary = c, int(pt.face[0]), pt.bary[0].copy()
+        state.face[g], state.bary[g] = best_face, best_bary
+        if count == 0:
+            break
+    return count
 
 
 def _near_folds(state: State, folds: np.ndarray, reach: int) -> np.ndarray:

@@ -16,7 +16,13 @@ from meshfit.springs.grid import FREE, SpringMesh
 from meshfit.springs.init import chain_arc, chain_edge_faces, closest_approach, dijkstra_paths
 from meshfit.springs.metrics import spring_metrics
 from meshfit.springs.planar import PlanarMap, square_map
-from meshfit.springs.relax import relax, repair_folds, unfold_in_map, untangle
+from meshfit.springs.relax import (
+    relax,
+    repair_folds,
+    slide_side_points,
+    unfold_in_map,
+    untangle,
+)
 from meshfit.springs.state import State
 from meshfit.springs.subdivide import subdivide
 
@@ -200,6 +206,14 @@ def _initialize_map(state: State, pmap: PlanarMap) -> None:
     state.set_feature_points()
 
 
+def _repair(state: State, pmap) -> None:
+    """Fold repair: free points re-placed in the planar map, then moved one by one; side
+    points of cells still folded slid along their sides, and the free points moved again."""
+    unfold_in_map(state, pmap)
+    if repair_folds(state) and slide_side_points(state):
+        repair_folds(state)
+
+
 def _final_level(n_level0: tuple[int, int], n_vertices: int, level, max_points) -> int:
     mu, mv = n_level0
 
@@ -368,7 +382,9 @@ def resample_patch(
         After each subdivision and each level's relaxation, re-place the free points around
         folded cells harmonically in the planar map (`meshfit.springs.relax.unfold_in_map`,
         when there is a map), then move the free corners of cells still folded to fold-free
-        places nearby (`meshfit.springs.relax.repair_folds`; default True).
+        places nearby (`meshfit.springs.relax.repair_folds`), then slide the side points of
+        cells still folded along their sides and move the free corners again
+        (`meshfit.springs.relax.slide_side_points`; default True).
     metrics, fidelity : bool, keyword-only
         Compute :func:`meshfit.springs.grid_metrics` of every level (with the fidelity
         distances).
@@ -443,8 +459,7 @@ def resample_patch(
                     guard=guard,
                 )
             if repair:
-                unfold_in_map(state, pmap)
-                repair_folds(state)
+                _repair(state, pmap)
             seconds["subdivide"] += time.perf_counter() - t
         t = time.perf_counter()
         # level 0 starts from graph paths and must travel far: it is relaxed to a tighter
@@ -484,8 +499,7 @@ def resample_patch(
                 guard=guard,
             )
         if repair:
-            unfold_in_map(state, pmap)
-            repair_folds(state)
+            _repair(state, pmap)
         seconds["relax"] += time.perf_counter() - t
         sweeps.append(done)
         snap = state.snapshot()
