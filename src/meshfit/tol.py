@@ -49,6 +49,7 @@ def length(mesh: Mesh, rel: float, *, scale: str = "mean_edge_length") -> float:
         return rel * mesh.bbox_diagonal
     raise ValueError(f"unknown scale {scale!r}")
 
+
 # --- meshfit.springs
 #: a feature curve's end lies on a side when it is this close to it, times the mean edge length
 FEATURE_END_ON_SIDE = 1e-3
