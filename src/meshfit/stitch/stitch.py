@@ -283,8 +283,9 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
        cyclic order, each keeping its length, the wedge angles the patches' own corner angles
        scaled to a full turn (kept within ``tol.STITCH_CORNER_MIN_ANGLE`` of 0 and pi), the
        fan turned about ``N`` to fit the old spokes best (where row 0 cannot be collinear:
-       the turn, among that one and ``_FAN_TURNS`` others refined around the best, with the
-       smallest normal jump over the first knot span of the corner's boundaries; the rows
+       the turn, among that one and ``_FAN_TURNS`` others evenly over a full turn and then
+       a golden-section search around the best, with the smallest normal jump over the
+       first knot span of the corner's boundaries; the rows
        beyond the corner ring stay, and the turn decides how much the first span twists
        between them); each diagonal point keeps its
        coordinates in its wedge's spoke basis (clamped inside the wedge). No patch corner
@@ -455,25 +456,40 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
         # with the smallest jump (the fitted turn first, so it stays on a tie)
         zone = _corner_zone_jump(surfaces, shapes, offs, keys, spoke_index, boundaries)
         best_jump = zone(best)
-        step = 2 * np.pi / _FAN_TURNS
-        best_rot, cands = 0.0, [step * t for t in range(1, _FAN_TURNS)]
-        for _ in range(3):
-            for rot in cands:
+        seen: dict[float, tuple[float, NDArray | None]] = {0.0: (best_jump, best)}
+
+        def trial(rot: float) -> float:
+            if rot not in seen:
                 Q = place(psi + rot)
-                if Q is None:
-                    continue
-                j = zone(Q)
-                if j < best_jump:
-                    best, best_jump, best_rot = Q, j, rot
-            step /= 3
-            cands = [best_rot - step, best_rot + step]
+                seen[rot] = (np.inf, None) if Q is None else (zone(Q), Q)
+            return seen[rot][0]
+
+        step = 2 * np.pi / _FAN_TURNS
+        for t in range(1, _FAN_TURNS):
+            trial(step * t)
+        # golden-section search within one step of the best turn seen
+        mid = min(seen, key=lambda r: (seen[r][0], r != 0.0))
+        a, b = mid - step, mid + step
+        g = 0.5 * (np.sqrt(5.0) - 1.0)
+        c, d = b - g * (b - a), a + g * (b - a)
+        while b - a > _FAN_TURN_TOL:
+            if trial(c) <= trial(d):
+                b, d = d, c
+                c = b - g * (b - a)
+            else:
+                a, c = c, d
+                d = a + g * (b - a)
+        rot = min(seen, key=lambda r: (seen[r][0], r != 0.0))
+        best_jump, best = seen[rot]
     P[:] = best
     return True
 
 
 #: fan turns tried about the corner normal at a corner whose row 0 cannot be collinear,
-#: evenly over a full turn (then twice around the best, at a third of the step each time)
+#: evenly over a full turn; the best is then refined by a golden-section search within one
+#: step of it, to a bracket of ``_FAN_TURN_TOL`` radians
 _FAN_TURNS = 12
+_FAN_TURN_TOL = 1e-3
 
 
 def _corner_zone_jump(surfaces, shapes, offs, keys, spoke_index, boundaries):
