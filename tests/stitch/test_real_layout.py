@@ -203,7 +203,7 @@ _NEFERTITI_CORNER_ZONES = (
 @pytest.mark.parametrize(
     "m",
     [
-        8,  # 1.995 degrees at that corner
+        8,  # 1.9975 degrees at that corner
         pytest.param(
             16, marks=pytest.mark.xfail(strict=True, reason=_NEFERTITI_CORNER_ZONES + "2.19 deg")
         ),

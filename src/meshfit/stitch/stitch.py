@@ -489,7 +489,7 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
 #: evenly over a full turn; the best is then refined by a golden-section search within one
 #: step of it, to a bracket of ``_FAN_TURN_TOL`` radians
 _FAN_TURNS = 12
-_FAN_TURN_TOL = 1e-3
+_FAN_TURN_TOL = 1e-2
 
 
 def _corner_zone_jump(surfaces, shapes, offs, keys, spoke_index, boundaries):
