@@ -265,24 +265,44 @@ def slide_side_points(state: State) -> int:
                 _, n, fixed = grid[name]
                 if 0 < k < n - 1 and k not in fixed and (name, k) not in todo:
                     todo.append((name, int(k)))
+    idx = np.arange(nu * nv).reshape(nu, nv)
+    window = {  # the grid points of the two cells beside a side's k-th point
+        "bottom": lambda k: idx[k - 1 : k + 2, :2],
+        "top": lambda k: idx[k - 1 : k + 2, nv - 2 :],
+        "left": lambda k: idx[:2, k - 1 : k + 2],
+        "right": lambda k: idx[nu - 2 :, k - 1 : k + 2],
+    }
+    mesh = state.mesh
     for name, k in todo:
         at, _, _ = grid[name]
         pos = state.side_positions(name)
         g = at(k)
+        win = window[name](k)
+        rows, cols = win.shape
+        sub = win.ravel()
         chain, arc = state.sides.chains[name], state.sides.arcs[name]
-        best_face, best_bary = int(state.face[g]), state.bary[g].copy()
+        here = _window_folds(state, sub, rows, cols)
+        best, best_face, best_bary = here, int(state.face[g]), state.bary[g].copy()
         for f in SLIDE_FRACTIONS:
             other = pos[k + 1] if f > 0 else pos[k - 1]
             p = pos[k] + abs(f) * (other - pos[k])
-            pt = chain_points(state.mesh, chain, arc, np.array([p]), state.sides.edge_faces[name])
+            pt = chain_points(mesh, chain, arc, np.array([p]), state.sides.edge_faces[name])
             state.face[g], state.bary[g] = pt.face[0], pt.bary[0]
-            c = int(folded_cells(state).sum())
-            if c < count:
-                count, best_face, best_bary = c, int(pt.face[0]), pt.bary[0].copy()
+            c = _window_folds(state, sub, rows, cols)
+            if c < best:
+                best, best_face, best_bary = c, int(pt.face[0]), pt.bary[0].copy()
         state.face[g], state.bary[g] = best_face, best_bary
+        count -= here - best
         if count == 0:
             break
     return count
+
+
+def _window_folds(state: State, sub: np.ndarray, rows: int, cols: int) -> int:
+    """Folded cells of the (rows, cols) window of grid points ``sub`` (flat indices)."""
+    mesh = state.mesh
+    f, b = state.face[sub], state.bary[sub]
+    return int(_k.folded_cells(mesh.vertices, mesh.faces, f, b, rows, cols).sum())
 
 
 def _near_folds(state: State, folds: np.ndarray, reach: int) -> np.ndarray:
