@@ -12,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from meshfit._kernels.walk import _closest_on_face
+
 #: triangles per leaf
 LEAF_SIZE = 8
 #: bits per axis of the Morton codes
@@ -176,71 +178,42 @@ def _segment_sq(px, py, pz, ax, ay, az, bx, by, bz):
 
 
 @njit(cache=True, nogil=True, fastmath=False)
-def point_triangle_sq(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
-    """Squared distance from a point to a triangle (Ericson, Real-Time Collision Detection,
-    sec. 5.1.5: the Voronoi region of the closest feature). A triangle of zero area is its
-    three edges (every denominator below is a squared edge length or the squared doubled
-    area, so none is zero otherwise)."""
-    abx, aby, abz = bx - ax, by - ay, bz - az
-    acx, acy, acz = cx - ax, cy - ay, cz - az
-    nx = aby * acz - abz * acy
-    ny = abz * acx - abx * acz
-    nz = abx * acy - aby * acx
-    if nx * nx + ny * ny + nz * nz == 0.0:
-        return min(
-            _segment_sq(px, py, pz, ax, ay, az, bx, by, bz),
-            min(
-                _segment_sq(px, py, pz, bx, by, bz, cx, cy, cz),
-                _segment_sq(px, py, pz, cx, cy, cz, ax, ay, az),
-            ),
-        )
-    apx, apy, apz = px - ax, py - ay, pz - az
-    d1 = abx * apx + aby * apy + abz * apz
-    d2 = acx * apx + acy * apy + acz * apz
-    if d1 <= 0.0 and d2 <= 0.0:
-        qx, qy, qz = ax, ay, az
-    else:
-        bpx, bpy, bpz = px - bx, py - by, pz - bz
-        d3 = abx * bpx + aby * bpy + abz * bpz
-        d4 = acx * bpx + acy * bpy + acz * bpz
-        if d3 >= 0.0 and d4 <= d3:
-            qx, qy, qz = bx, by, bz
-        else:
-            vc = d1 * d4 - d3 * d2
-            if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-                v = d1 / (d1 - d3)
-                qx, qy, qz = ax + v * abx, ay + v * aby, az + v * abz
-            else:
-                cpx, cpy, cpz = px - cx, py - cy, pz - cz
-                d5 = abx * cpx + aby * cpy + abz * cpz
-                d6 = acx * cpx + acy * cpy + acz * cpz
-                if d6 >= 0.0 and d5 <= d6:
-                    qx, qy, qz = cx, cy, cz
-                else:
-                    vb = d5 * d2 - d1 * d6
-                    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-                        w = d2 / (d2 - d6)
-                        qx, qy, qz = ax + w * acx, ay + w * acy, az + w * acz
-                    else:
-                        va = d3 * d6 - d5 * d4
-                        if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
-                            w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-                            qx = bx + w * (cx - bx)
-                            qy = by + w * (cy - by)
-                            qz = bz + w * (cz - bz)
-                        else:
-                            denom = 1.0 / (va + vb + vc)
-                            v = vb * denom
-                            w = vc * denom
-                            qx = ax + abx * v + acx * w
-                            qy = ay + aby * v + acy * w
-                            qz = az + abz * v + acz * w
-    dx, dy, dz = px - qx, py - qy, pz - qz
+def zero_area(V, F):
+    """(m,) bool: triangles whose edge vectors' cross product is exactly zero."""
+    out = np.empty(F.shape[0], dtype=np.bool_)
+    for t in range(F.shape[0]):
+        a, b, c = F[t, 0], F[t, 1], F[t, 2]
+        abx, aby, abz = V[b, 0] - V[a, 0], V[b, 1] - V[a, 1], V[b, 2] - V[a, 2]
+        acx, acy, acz = V[c, 0] - V[a, 0], V[c, 1] - V[a, 1], V[c, 2] - V[a, 2]
+        nx = aby * acz - abz * acy
+        ny = abz * acx - abx * acz
+        nz = abx * acy - aby * acx
+        out[t] = nx * nx + ny * ny + nz * nz == 0.0
+    return out
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _triangle_sq(V, F, flat, t, p, bary):
+    """Squared distance from ``p`` (3,) to triangle ``t``; ``bary`` (3,) is scratch. The
+    closest point is `meshfit._kernels.walk._closest_on_face`'s; a triangle of zero area
+    (``flat[t]``, see `zero_area`) is its three edges (that routine divides by the doubled
+    area)."""
+    a, b, c = F[t, 0], F[t, 1], F[t, 2]
+    px, py, pz = p[0], p[1], p[2]
+    if flat[t]:
+        e0 = _segment_sq(px, py, pz, V[a, 0], V[a, 1], V[a, 2], V[b, 0], V[b, 1], V[b, 2])
+        e1 = _segment_sq(px, py, pz, V[b, 0], V[b, 1], V[b, 2], V[c, 0], V[c, 1], V[c, 2])
+        e2 = _segment_sq(px, py, pz, V[c, 0], V[c, 1], V[c, 2], V[a, 0], V[a, 1], V[a, 2])
+        return min(e0, min(e1, e2))
+    _closest_on_face(V, F, t, p, bary)
+    dx = px - (bary[0] * V[a, 0] + bary[1] * V[b, 0] + bary[2] * V[c, 0])
+    dy = py - (bary[0] * V[a, 1] + bary[1] * V[b, 1] + bary[2] * V[c, 1])
+    dz = pz - (bary[0] * V[a, 2] + bary[1] * V[b, 2] + bary[2] * V[c, 2])
     return dx * dx + dy * dy + dz * dz
 
 
 @njit(cache=True, nogil=True, parallel=True, fastmath=False)
-def squared_distances(V, F, order, lo, hi, child, start, stop, Q):
+def squared_distances(V, F, flat, order, lo, hi, child, start, stop, Q):
     """(n,) squared distance from each query point ``Q (n, 3)`` to the nearest triangle, and
     (n,) that triangle."""
     n = Q.shape[0]
@@ -249,15 +222,17 @@ def squared_distances(V, F, order, lo, hi, child, start, stop, Q):
     depth = 2 * 64 + 2
     block = 1024
     for blk in prange((n + block - 1) // block):
-        stack = np.empty(depth, dtype=np.int64)  # one per block, not per point
+        stack = np.empty(depth, dtype=np.int64)  # scratch per block, not per point
+        bary = np.empty(3)
         for i in range(blk * block, min(n, (blk + 1) * block)):
-            _nearest(V, F, order, lo, hi, child, start, stop, Q, i, stack, out, tri)
+            _nearest(V, F, flat, order, lo, hi, child, start, stop, Q, i, stack, bary, out, tri)
     return out, tri
 
 
 @njit(cache=True, nogil=True, fastmath=False)
-def _nearest(V, F, order, lo, hi, child, start, stop, Q, i, stack, out, tri):
-    px, py, pz = Q[i, 0], Q[i, 1], Q[i, 2]
+def _nearest(V, F, flat, order, lo, hi, child, start, stop, Q, i, stack, bary, out, tri):
+    p = Q[i]
+    px, py, pz = p[0], p[1], p[2]
     best = np.inf
     best_t = -1
     top = 0
@@ -272,33 +247,20 @@ def _nearest(V, F, order, lo, hi, child, start, stop, Q, i, stack, out, tri):
         if c < 0:
             for j in range(start[k], stop[k]):
                 t = order[j]
-                a, b, cc = F[t, 0], F[t, 1], F[t, 2]
-                d = point_triangle_sq(
-                    px, py, pz,
-                    V[a, 0], V[a, 1], V[a, 2],
-                    V[b, 0], V[b, 1], V[b, 2],
-                    V[cc, 0], V[cc, 1], V[cc, 2],
-                )  # fmt: skip
+                d = _triangle_sq(V, F, flat, t, p, bary)
                 if d < best:
                     best = d
                     best_t = t
         else:
             d0 = _box_sq(lo, hi, c, px, py, pz)
             d1 = _box_sq(lo, hi, c + 1, px, py, pz)
-            # the nearer child is popped first
-            if d0 <= d1:
-                if d1 < best:
-                    stack[top] = c + 1
-                    top += 1
-                if d0 < best:
-                    stack[top] = c
-                    top += 1
-            else:
-                if d0 < best:
-                    stack[top] = c
-                    top += 1
-                if d1 < best:
-                    stack[top] = c + 1
-                    top += 1
+            # the nearer child is pushed last, popped first
+            near, far, dn, df = (c, c + 1, d0, d1) if d0 <= d1 else (c + 1, c, d1, d0)
+            if df < best:
+                stack[top] = far
+                top += 1
+            if dn < best:
+                stack[top] = near
+                top += 1
     out[i] = best
     tri[i] = best_t

@@ -70,7 +70,7 @@ def triangle_distances(
         raise InputError(f"a face index is out of range 0..{V.shape[0] - 1}")
     order = np.argsort(bvh.morton_codes(V, F), kind="stable")
     tree = bvh.build(V, F, order, bvh.LEAF_SIZE)
-    sq, face = bvh.squared_distances(V, F, order, *tree, Q)
+    sq, face = bvh.squared_distances(V, F, bvh.zero_area(V, F), order, *tree, Q)
     return np.sqrt(sq), face
 
 
