@@ -245,27 +245,21 @@ def slide_side_points(state: State) -> int:
         return 0
     nu, nv = state.nu, state.nv
     count = int(folds.sum())
-    fixed_u = set(state.u_lines.tolist())
-    fixed_v = set(state.v_lines.tolist())
-    grid = {  # side -> (grid index of its s-th point, its number of points, fixed indices)
-        "bottom": (lambda k: k * nv, nu, fixed_u),
-        "top": (lambda k: k * nv + nv - 1, nu, fixed_u),
-        "left": (lambda k: k, nv, fixed_v),
-        "right": (lambda k: (nu - 1) * nv + k, nv, fixed_v),
-    }
-    todo = []
-    for i, j in zip(*np.nonzero(folds), strict=True):
-        for a, b in ((i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)):
-            for name, k in (
-                ("bottom", a if b == 0 else -1),
-                ("top", a if b == nv - 1 else -1),
-                ("left", b if a == 0 else -1),
-                ("right", b if a == nu - 1 else -1),
-            ):
-                _, n, fixed = grid[name]
-                if 0 < k < n - 1 and k not in fixed and (name, k) not in todo:
-                    todo.append((name, int(k)))
     idx = np.arange(nu * nv).reshape(nu, nv)
+    fixed_u, fixed_v = set(state.u_lines.tolist()), set(state.v_lines.tolist())
+    movable = {}  # flat grid index -> (side, position along it) of every side point that may slide
+    for name, pts, fixed in (
+        ("bottom", idx[:, 0], fixed_u),
+        ("top", idx[:, -1], fixed_u),
+        ("left", idx[0, :], fixed_v),
+        ("right", idx[-1, :], fixed_v),
+    ):
+        for k in range(1, len(pts) - 1):
+            if k not in fixed:
+                movable[int(pts[k])] = (name, k)
+    i, j = np.nonzero(folds)
+    cells = np.stack([idx[i, j], idx[i + 1, j], idx[i, j + 1], idx[i + 1, j + 1]], axis=1)
+    todo = [(g, *movable[g]) for g in dict.fromkeys(cells.ravel().tolist()) if g in movable]
     window = {  # the grid points of the two cells beside a side's k-th point
         "bottom": lambda k: idx[k - 1 : k + 2, :2],
         "top": lambda k: idx[k - 1 : k + 2, nv - 2 :],
@@ -273,10 +267,8 @@ def slide_side_points(state: State) -> int:
         "right": lambda k: idx[nu - 2 :, k - 1 : k + 2],
     }
     mesh = state.mesh
-    for name, k in todo:
-        at, _, _ = grid[name]
+    for g, name, k in todo:
         pos = state.side_positions(name)
-        g = at(k)
         win = window[name](k)
         rows, cols = win.shape
         sub = win.ravel()

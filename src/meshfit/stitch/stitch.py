@@ -455,8 +455,10 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
         # the fan is turned about the normal against the fixed rows beyond it; keep the turn
         # with the smallest jump (the fitted turn first, so it stays on a tie)
         zone = _corner_zone_jump(surfaces, shapes, offs, keys, spoke_index, boundaries)
-        best_jump = zone(best)
-        seen: dict[float, tuple[float, NDArray | None]] = {0.0: (best_jump, best)}
+        seen: dict[float, tuple[float, NDArray | None]] = {0.0: (zone(best), best)}
+
+        def best_turn() -> float:  # the fitted turn (0) wins a tie
+            return min(seen, key=lambda r: (seen[r][0], r != 0.0))
 
         def trial(rot: float) -> float:
             if rot not in seen:
@@ -468,7 +470,7 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
         for t in range(1, _FAN_TURNS):
             trial(step * t)
         # golden-section search within one step of the best turn seen
-        mid = min(seen, key=lambda r: (seen[r][0], r != 0.0))
+        mid = best_turn()
         a, b = mid - step, mid + step
         g = 0.5 * (np.sqrt(5.0) - 1.0)
         c, d = b - g * (b - a), a + g * (b - a)
@@ -479,8 +481,7 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
             else:
                 a, c = c, d
                 d = a + g * (b - a)
-        rot = min(seen, key=lambda r: (seen[r][0], r != 0.0))
-        best_jump, best = seen[rot]
+        best = seen[best_turn()][1]
     P[:] = best
     return True
 
