@@ -58,6 +58,16 @@ def triangle_distances(
         Euclidean distance to the nearest triangle.
     face : (n,) int64
         That triangle.
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        Points or vertices not (k, 3) finite numbers, no faces, a face index out of range.
+
+    References
+    ----------
+    .. [1] Ericson, "Real-Time Collision Detection", 2005, sec. 5.1.5 (closest point on a
+       triangle) and ch. 6 (bounding-volume hierarchies).
     """
     from meshfit._kernels import bvh
 

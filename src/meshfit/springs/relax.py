@@ -237,6 +237,22 @@ def slide_side_points(state: State) -> int:
     (not a patch corner, not the end of a feature curve) tries places along its side between
     its two neighbouring side points (`SLIDE_FRACTIONS`) and keeps the one with the fewest
     folded cells; the static resampling of the next level starts afresh.
+
+    Parameters
+    ----------
+    state : State
+        The spring mesh being built (``face (nu nv,) int64``, ``bary (nu nv, 3) float64``),
+        changed in place.
+
+    Returns
+    -------
+    int
+        Folded cells left.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 5.6 (boundary points resampled statically along the
+       patch's sides) and sec. 5.5.3, fig. 5.5 (folded spring cells).
     """
     from meshfit.springs.init import chain_points
 
