@@ -1,4 +1,5 @@
-"""Slow reference of the boundary-loop tracing (meshfit._kernels.topology.trace_loops)."""
+"""Slow references of the connectivity kernels (meshfit._kernels.topology): boundary-loop
+tracing, the edge table and connected components."""
 
 from __future__ import annotations
 
@@ -26,3 +27,29 @@ def trace_loops(t, h):
             i = nxt[0]
         loops.append(np.asarray(loop, dtype=np.int64))
     return loops
+
+
+def edge_table(faces, nv):
+    """Edge table from ``np.unique`` of the half-edge keys ``lo * nv + hi``: edges,
+    half-edge -> edge, edge counts, half-edges stably sorted by edge, offsets."""
+    tail = faces.reshape(-1)
+    head = np.roll(faces, -1, axis=1).reshape(-1)
+    lo = np.minimum(tail, head)
+    hi = np.maximum(tail, head)
+    m = np.int64(max(nv, 1))
+    uniq, inverse, counts = np.unique(lo * m + hi, return_inverse=True, return_counts=True)
+    order = np.argsort(inverse, kind="stable")
+    start = np.zeros(uniq.size, dtype=np.int64)
+    np.cumsum(counts[:-1], out=start[1:])
+    edges = np.stack([uniq // m, uniq % m], axis=1)
+    return edges, inverse.reshape(-1), counts, order, start
+
+
+def components(n, a, b):
+    """Connected components of ``n`` nodes joined by pairs, by scipy's csgraph."""
+    from scipy import sparse
+    from scipy.sparse.csgraph import connected_components
+
+    graph = sparse.coo_matrix((np.ones(a.size, dtype=np.int8), (a, b)), shape=(n, n))
+    count, labels = connected_components(graph, directed=False)
+    return int(count), labels.astype(np.int64)

@@ -54,3 +54,116 @@ def trace_loops(t, h, nv):
             i = j
         starts.append(n)
     return out, np.array(starts, dtype=np.int64)
+
+
+_SMALL_BUCKET = 32  # insertion sort below this many half-edges per vertex, merge sort above
+
+
+@njit(cache=True, nogil=True)
+def edge_table(faces, nv):
+    """Undirected edge table of a triangle list; kernel of `meshfit.mesh.topology.edge_table`.
+
+    The half-edges are counting-sorted by their smaller vertex and, within one vertex,
+    stably sorted by the larger one, so edges come out in ascending ``(lo, hi)`` order and
+    the half-edges of one edge in ascending index: the layout of ``np.unique`` on the keys
+    ``lo * nv + hi`` and a stable argsort of its inverse. Returns ``edges (ne, 2)``,
+    ``halfedge_edge (3 nf,)``, ``edge_count (ne,)``, ``order (3 nf,)``, ``start (ne,)``.
+    """
+    nf = faces.shape[0]
+    nh = 3 * nf
+    lo = np.empty(nh, dtype=np.int64)
+    hi = np.empty(nh, dtype=np.int64)
+    for f in range(nf):
+        for k in range(3):
+            a = faces[f, k]
+            b = faces[f, (k + 1) % 3]
+            h = 3 * f + k
+            if a < b:
+                lo[h] = a
+                hi[h] = b
+            else:
+                lo[h] = b
+                hi[h] = a
+    count = np.zeros(nv + 1, dtype=np.int64)
+    for h in range(nh):
+        count[lo[h] + 1] += 1
+    for v in range(nv):
+        count[v + 1] += count[v]
+    fill = count[:-1].copy()
+    order = np.empty(nh, dtype=np.int64)
+    for h in range(nh):
+        order[fill[lo[h]]] = h
+        fill[lo[h]] += 1
+    # within each vertex's bucket: stable sort by the larger vertex
+    for v in range(nv):
+        s = count[v]
+        e = count[v + 1]
+        if e - s <= _SMALL_BUCKET:
+            for i in range(s + 1, e):
+                h = order[i]
+                key = hi[h]
+                j = i - 1
+                while j >= s and hi[order[j]] > key:
+                    order[j + 1] = order[j]
+                    j -= 1
+                order[j + 1] = h
+        else:
+            seg = order[s:e].copy()
+            idx = np.argsort(hi[seg], kind="mergesort")
+            for i in range(e - s):
+                order[s + i] = seg[idx[i]]
+    halfedge_edge = np.empty(nh, dtype=np.int64)
+    ne = 0
+    for i in range(nh):
+        h = order[i]
+        if i == 0 or lo[h] != lo[order[i - 1]] or hi[h] != hi[order[i - 1]]:
+            ne += 1
+        halfedge_edge[h] = ne - 1
+    edges = np.empty((ne, 2), dtype=np.int64)
+    edge_count = np.zeros(ne, dtype=np.int64)
+    start = np.empty(ne, dtype=np.int64)
+    for i in range(nh):
+        h = order[i]
+        e = halfedge_edge[h]
+        if edge_count[e] == 0:
+            edges[e, 0] = lo[h]
+            edges[e, 1] = hi[h]
+            start[e] = i
+        edge_count[e] += 1
+    return edges, halfedge_edge, edge_count, order, start
+
+
+@njit(cache=True, nogil=True)
+def _root(parent, i):
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i
+
+
+@njit(cache=True, nogil=True)
+def components(n, a, b):
+    """Connected components of ``n`` nodes joined by the pairs ``(a[i], b[i])`` (union-find).
+
+    Labels are numbered in the order of each component's smallest node, as
+    ``scipy.sparse.csgraph.connected_components`` numbers them. Returns ``(n_components,
+    labels (n,))``.
+    """
+    parent = np.arange(n)
+    for i in range(a.shape[0]):
+        ra = _root(parent, a[i])
+        rb = _root(parent, b[i])
+        if ra != rb:
+            if ra < rb:
+                parent[rb] = ra
+            else:
+                parent[ra] = rb
+    labels = np.full(n, -1, dtype=np.int64)
+    count = 0
+    for i in range(n):
+        r = _root(parent, i)
+        if labels[r] < 0:
+            labels[r] = count
+            count += 1
+        labels[i] = labels[r]
+    return count, labels

@@ -11,8 +11,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import sparse
-from scipy.sparse.csgraph import connected_components
 
 from meshfit._kernels import topology as _k
 
@@ -57,7 +55,8 @@ def halfedges(faces: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.i
 
 
 def edge_table(faces: NDArray[np.int64], n_vertices: int) -> EdgeTable:
-    """Build the undirected edge table of a triangle list.
+    """Build the undirected edge table of a triangle list (a linear-time kernel: a counting
+    sort of the half-edges by their smaller vertex).
 
     Parameters
     ----------
@@ -66,22 +65,10 @@ def edge_table(faces: NDArray[np.int64], n_vertices: int) -> EdgeTable:
     n_vertices : int
         Number of vertices.
     """
-    tail, head = halfedges(faces)
-    lo = np.minimum(tail, head)
-    hi = np.maximum(tail, head)
-    key = lo * np.int64(max(n_vertices, 1)) + hi
-    uniq, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
-    order = np.argsort(inverse, kind="stable")
-    start = np.zeros(uniq.size, dtype=np.int64)
-    np.cumsum(counts[:-1], out=start[1:])
-    edges = np.stack([uniq // max(n_vertices, 1), uniq % max(n_vertices, 1)], axis=1)
-    return EdgeTable(
-        edges.astype(np.int64),
-        inverse.astype(np.int64).reshape(-1),
-        counts.astype(np.int64),
-        order.astype(np.int64),
-        start,
+    edges, inverse, counts, order, start = _k.edge_table(
+        np.ascontiguousarray(faces, dtype=np.int64), int(n_vertices)
     )
+    return EdgeTable(edges, inverse, counts, order, start)
 
 
 def face_neighbors(faces: NDArray[np.int64], table: EdgeTable) -> NDArray[np.int64]:
@@ -148,21 +135,17 @@ def corner_fans(
     same = corner_vertex[a_tail] == corner_vertex[b_tail]
     r1 = np.concatenate([a_tail, a_head])
     c1 = np.concatenate([np.where(same, b_tail, b_head), np.where(same, b_head, b_tail)])
-    graph = sparse.coo_matrix((np.ones(r1.size, dtype=np.int8), (r1, c1)), shape=(nc, nc))
-    n, labels = connected_components(graph, directed=False)
-    return labels.astype(np.int64), int(n)
+    n, labels = _k.components(nc, r1, c1)
+    return labels, int(n)
 
 
 def face_components(n_faces: int, neighbors: NDArray[np.int64]) -> tuple[int, NDArray[np.int64]]:
     """Connected components of faces joined across manifold edges."""
     f = np.repeat(np.arange(n_faces), 3)
-    g = neighbors.reshape(-1)
+    g = np.ascontiguousarray(neighbors, dtype=np.int64).reshape(-1)
     keep = g >= 0
-    graph = sparse.coo_matrix(
-        (np.ones(int(keep.sum()), dtype=np.int8), (f[keep], g[keep])), shape=(n_faces, n_faces)
-    )
-    n, labels = connected_components(graph, directed=False)
-    return int(n), labels.astype(np.int64)
+    n, labels = _k.components(int(n_faces), f[keep], g[keep])
+    return int(n), labels
 
 
 def boundary_loops(faces: NDArray[np.int64], table: EdgeTable) -> list[NDArray[np.int64]]:
