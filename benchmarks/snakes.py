@@ -11,20 +11,30 @@
   force evaluations, and their ratio. Single-resolution forces reach one sample further per
   iteration; coarse-to-fine forces reach every sample in the first iteration.
 - Time of one relaxation iteration for a 1,000-point snake (target <= 5 ms), median of runs.
+- The automatic layout's relaxation of all traced curves at once (``layout.auto._relax_all``)
+  on igea (269K triangles) and on igea midpoint-subdivided once (1.07M), ``--patches``
+  patches: the calls ``auto_layout`` makes (on the 50K-face proxy, then on the mesh) are
+  recorded and replayed, through the one-kernel relaxation (``_kernels.snakes.relax_many``)
+  and through its peer, the loop of vectorised kernel calls in ``tests/reference/snakes.py``
+  (the implementation before the kernel); median seconds of each, ratio, and whether the
+  faces and barycentrics agree bit for bit.
 
-Run: ``python benchmarks/snakes.py [--repeats 3]``. Prints JSON and writes
-``benchmarks/results/snakes.json`` atomically.
+Run: ``python benchmarks/snakes.py [--repeats 3] [--only auto]``. Prints JSON and writes
+``benchmarks/results/snakes.json`` atomically; ``--only auto`` measures the last section and
+updates only its entry of the file.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import platform
+import sys
 import time
 
 import numpy as np
-from _common import median_time, mesh_path, write_result
+from _common import RESULTS, ROOT, median_time, mesh_path, write_result
 
 from meshfit.curves.snake import relax_snake
 from meshfit.mesh import load_mesh
@@ -44,6 +54,78 @@ def make_snake(mesh, n_target: int) -> SurfaceCurve:
     return SurfaceCurve(pts[np.unique(idx)])
 
 
+def auto_relaxation(patches: int, repeats: int) -> dict:
+    """`_relax_all` as ``auto_layout(mesh, patches=patches)`` calls it on igea and igea x4:
+    the kernel against the reference loop, median seconds over ``repeats`` replays."""
+    from pipeline import midpoint_subdivide
+
+    import meshfit.layout.auto as auto
+    from meshfit.mesh import Mesh
+
+    sys.path.insert(0, str(ROOT))
+    from tests.reference import snakes as reference
+
+    def by_reference(mesh, curves, iterations):
+        args = auto._relax_inputs(mesh, curves)
+        face, bary, _ = reference.relax_many(**args, iterations=iterations)
+        return auto._relaxed_curves(mesh, curves, args["start"], face, bary)
+
+    igea = load_mesh(mesh_path("igea"))
+    v, f = midpoint_subdivide(igea.vertices, igea.faces)
+    relax_all = auto._relax_all
+    out = {}
+    for label, mesh in (("igea", igea), ("igea_x4", Mesh(v, f, name="igea_x4"))):
+        calls = []
+
+        def record(m, curves, iterations, calls=calls):
+            calls.append((m, curves, int(iterations)))
+            return relax_all(m, curves, iterations)
+
+        auto._relax_all = record
+        try:
+            t0 = time.perf_counter()
+            auto.auto_layout(mesh, patches=patches)
+            layout_s = time.perf_counter() - t0
+        finally:
+            auto._relax_all = relax_all
+
+        identical = True
+        for m, curves, iterations in calls:
+            got, want = relax_all(m, curves, iterations), by_reference(m, curves, iterations)
+            identical &= all(
+                np.array_equal(g.points.face, w.points.face)
+                and np.array_equal(g.points.bary, w.points.bary)
+                for g, w in zip(got, want, strict=True)
+            )
+
+        def replay(fn, calls=calls):
+            for m, curves, iterations in calls:
+                fn(m, curves, iterations)
+
+        t_kernel, times_kernel = median_time(lambda: replay(relax_all), repeats)
+        t_ref, times_ref = median_time(lambda: replay(by_reference), repeats)
+        out[label] = {
+            "n_faces": int(mesh.n_faces),
+            "calls": [
+                {
+                    "n_faces": int(m.n_faces),
+                    "curves": len(c),
+                    "points": sum(map(len, c)),
+                    "iterations": it,
+                }
+                for m, c, it in calls
+            ],
+            "auto_layout_seconds": layout_s,
+            "kernel_seconds_median": t_kernel,
+            "kernel_seconds": times_kernel,
+            "reference_loop_seconds_median": t_ref,
+            "reference_loop_seconds": times_ref,
+            "ratio_reference_over_kernel": t_ref / t_kernel,
+            "bit_identical": bool(identical),
+        }
+    return {"patches": patches, "repeats": repeats, **out}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=2000, help="snake points for the convergence runs")
@@ -53,7 +135,19 @@ def main() -> None:
     ap.add_argument(
         "--impulse", type=float, default=1e-3, help="move that counts as arrival, mean edges"
     )
+    ap.add_argument("--patches", type=int, default=100, help="auto layout patches")
+    ap.add_argument("--only", choices=("all", "auto"), default="all", help="sections to run")
     args = ap.parse_args()
+
+    import numba
+
+    if args.only == "auto":
+        path = RESULTS / "snakes.json"
+        data = json.loads(path.read_text()) if path.is_file() else {}
+        data["auto_layout_relaxation"] = auto_relaxation(args.patches, args.repeats)
+        data["auto_layout_relaxation"]["numba_threads"] = numba.get_num_threads()
+        write_result("snakes", data)
+        return
 
     t0 = time.perf_counter()
     mesh = load_mesh(mesh_path("igea"))
@@ -131,7 +225,8 @@ def main() -> None:
         lambda: relax_snake(mesh, small, max_iter=n_iter, tol_move=0.0), args.repeats
     )
 
-    import numba
+    auto_relax = auto_relaxation(args.patches, args.repeats)
+    auto_relax["numba_threads"] = numba.get_num_threads()
 
     c2f, single = runs["coarse_to_fine"], runs["single_resolution"]
     write_result(
@@ -159,6 +254,7 @@ def main() -> None:
             "one_iteration_1000_points_ms": 1e3 * t_it / n_iter,
             "one_iteration_target_ms": 5.0,
             "one_iteration_runs_ms": [1e3 * t / n_iter for t in times_it],
+            "auto_layout_relaxation": auto_relax,
             "numba_threads": numba.get_num_threads(),
             "cpu_count": os.cpu_count(),
             "python": platform.python_version(),

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import inspect
+from functools import cache
+
 import numpy as np
 import pytest
 
@@ -13,7 +16,7 @@ from meshfit.layout.auto import auto_layout, quad_network
 from meshfit.shrinkwrap import icosahedron
 
 from ..conftest import real_mesh
-from ..shapes import plane, torus
+from ..shapes import icosphere, plane, torus
 
 
 def test_quad_network_of_the_icosahedron():
@@ -112,3 +115,57 @@ def test_batched_snake_kernels_match_oracle(rng):
     )
     assert not got[fixed].any()
     np.testing.assert_array_equal(_kb.curve_max(np.arange(n, dtype=float), start), start[1:] - 1)
+
+
+@cache
+def _relax_case(name: str) -> dict:
+    """Arguments of the batched relaxation for the traced curves of a 60-patch auto layout."""
+    from meshfit.layout.auto import _network, _relax_inputs
+    from meshfit.shrinkwrap import sphere_map
+
+    mesh = icosphere(3) if name == "icosphere" else real_mesh(name)
+    smap = sphere_map(mesh, max_aspect=10.0)
+    _, curves, _, _ = _network(mesh, smap, 20, 0)
+    return _relax_inputs(mesh, curves)
+
+
+_DEFAULT_ITERATIONS = inspect.signature(auto_layout).parameters["relax_iterations"].default
+
+
+@pytest.mark.parametrize("iterations", [1, 5, _DEFAULT_ITERATIONS])
+@pytest.mark.parametrize("name", ["icosphere", "spot"])
+def test_relax_many_matches_oracle_bit_for_bit(name, iterations):
+    from meshfit._kernels import snakes as _kb
+
+    from ..reference import snakes as reference
+
+    args = _relax_case(name)
+    face, bary, stats = _kb.relax_many(**args, iterations=iterations)
+    want_face, want_bary, want_stats = reference.relax_many(**args, iterations=iterations)
+    np.testing.assert_array_equal(face, want_face)
+    np.testing.assert_array_equal(bary, want_bary)  # exact: the same operations in order
+    np.testing.assert_array_equal(stats, want_stats)
+    assert (stats[:, 0] >= 1).all() and (stats[:, 0] <= iterations).all()
+    assert not np.array_equal(bary, args["bary"])  # the curves did move
+
+
+def test_relax_many_halves_and_reverts_like_the_oracle():
+    from meshfit._kernels import snakes as _kb
+
+    from ..reference import snakes as reference
+
+    # spot's ears and horns break segments at the default gain; on the smooth sphere it takes
+    # moves of many spacings (gain 50, cap 20 spacings) for the halvings to fail
+    for name, gain, step in (("spot", None, None), ("icosphere", 50.0, 20.0)):
+        args = dict(_relax_case(name))
+        if gain is not None:
+            args["gain"], args["step"] = gain, step
+        face, bary, stats = _kb.relax_many(**args, iterations=_DEFAULT_ITERATIONS)
+        want_face, want_bary, want_stats = reference.relax_many(
+            **args, iterations=_DEFAULT_ITERATIONS
+        )
+        assert stats[:, 1].sum() > 0, f"{name}: no move was halved"
+        assert stats[:, 2].sum() > 0, f"{name}: no point was put back"
+        np.testing.assert_array_equal(stats, want_stats)
+        np.testing.assert_array_equal(face, want_face)
+        np.testing.assert_array_equal(bary, want_bary)

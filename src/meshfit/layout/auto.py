@@ -21,7 +21,7 @@ re-used.
 4. Each traced curve is relaxed as a surface snake with fixed ends (a tight, evenly sampled
    curve on the surface instead of the image of an arc, which follows the parameterization's
    distortion); if the relaxed network no longer cuts the mesh into disks the traced curves
-   are kept. All curves are relaxed together (one walk per iteration for every point).
+   are kept. One kernel relaxes all curves, each curve on its own thread.
 5. A dense mesh (more than ``PROXY_RATIO * PROXY_FACES`` faces) goes through steps 1-4 on a
    coarse proxy (:func:`meshfit.shrinkwrap.proxy.simplify_mesh`, vertices a subset of the
    input's); corners and curve points are carried to their closest points on the mesh, the
@@ -342,106 +342,77 @@ def _network(mesh: Mesh, smap, n_faces: int, seed: int):
     return corners, curves, ends, quads
 
 
-def _relax_all(mesh: Mesh, curves: list[SurfaceCurve], iterations: int) -> list[SurfaceCurve]:
-    """Every curve relaxed as a snake with fixed ends, densified where the rule breaks.
+def _relax_inputs(mesh: Mesh, curves: list[SurfaceCurve]) -> dict:
+    """Arguments of `_kernels.snakes.relax_many` for ``curves`` on ``mesh`` (keywords).
 
-    The curves are relaxed together, one walk per iteration for all of them: the same forces,
-    moves, sampling guard and per-curve stopping tests as :func:`meshfit.curves.relax_snake`
-    with its default weights (a converged curve stops moving).
+    Negative barycentrics are clipped and renormalised; ``levels`` per curve as
+    :func:`meshfit.curves.relax_snake` chooses them; ``floor`` is a tenth of the curve's mean
+    spacing; ``gain`` is ``1 / max(1, w_fair + w_curv + w_arc)`` with the default weights
+    (1, 0, 1).
     """
     from meshfit import tol
-    from meshfit._kernels import snake as _ks
-    from meshfit._kernels import snakes as _kb
-    from meshfit._kernels import walk as _walk
+    from meshfit._kernels.snake import positions
     from meshfit.curves.snake import _MAX_FACES, SNAKE_MOVE_TOL, _auto_levels
 
-    if not curves:
-        return []
     sizes = np.array([len(c) for c in curves], dtype=np.int64)
     start = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
-    k = len(curves)
-    owner = np.repeat(np.arange(k), sizes)
     face = np.ascontiguousarray(np.concatenate([c.points.face for c in curves]), dtype=np.int64)
     bary = np.array(np.concatenate([c.points.bary for c in curves]), dtype=np.float64, order="C")
     neg = (bary < 0).any(axis=1)
     if neg.any():
         c = np.clip(bary[neg], 0.0, None)
         bary[neg] = c / c.sum(axis=1, keepdims=True)
-    ends = np.zeros(face.size, dtype=bool)
-    ends[start[:-1]] = True
-    ends[start[1:] - 1] = True
-    levels = np.array([_auto_levels(int(n), False) for n in sizes], dtype=np.int64)
-    V, F, FN = mesh.vertices, mesh.faces, mesh.face_neighbors
-    VN = mesh.vertex_normals
-    eps = tol.length(mesh, tol.WALK_EPS)
-    gain = 1.0 / 2.0  # 1 / max(1, w_fair + w_curv + w_arc), default weights 1, 0, 1
-    stop = SNAKE_MOVE_TOL * mesh.mean_edge_length
+    x = positions(mesh.vertices, mesh.faces, face, bary)
+    seg_len = np.linalg.norm(np.diff(x, axis=0), axis=1)
     # segments inside a curve (the pair from one curve's end to the next's start is not one)
     inner_seg = np.ones(max(face.size - 1, 0), dtype=bool)
     inner_seg[start[1:-1] - 1] = False
+    owner = np.repeat(np.arange(len(curves)), sizes)
+    sums = np.bincount(owner[:-1][inner_seg], weights=seg_len[inner_seg], minlength=len(curves))
+    return {
+        "V": mesh.vertices,
+        "F": mesh.faces,
+        "FN": mesh.face_neighbors,
+        "VN": mesh.vertex_normals,
+        "face": face,
+        "bary": bary,
+        "start": start,
+        "levels": np.array([_auto_levels(int(n), False) for n in sizes], dtype=np.int64),
+        "floor": 0.1 * np.where(sizes > 1, sums / np.maximum(sizes - 1, 1), 0.0),
+        "gain": 1.0 / 2.0,
+        "step": 0.25,
+        "stop": SNAKE_MOVE_TOL * mesh.mean_edge_length,
+        "max_faces": _MAX_FACES,
+        "eps_len": tol.length(mesh, tol.WALK_EPS),
+        "bary_eps": tol.BARY_EPS,
+    }
 
-    def pairs(fc):
-        return _ks.pairs_ok(F, fc, False) & inner_seg
 
-    def walk(fc, bc, mv):
-        f, b, ln, _, _ = _walk.walk_points(
-            V, F, FN, fc, bc, np.ascontiguousarray(mv), _MAX_FACES, eps, tol.BARY_EPS
-        )
-        return f, b, ln
+def _relax_all(mesh: Mesh, curves: list[SurfaceCurve], iterations: int) -> list[SurfaceCurve]:
+    """Every curve relaxed as a snake with fixed ends, densified where the rule breaks.
 
-    def step(fc, bc, mv):
-        n = fc.shape[0]
-        ok0 = pairs(fc)
-        nf, nb, ln = walk(fc, bc, mv)
-        mv = mv.copy()
-        for _attempt in range(6):
-            bad = ok0 & ~pairs(nf)
-            if not bad.any():
-                return nf, nb, ln
-            seg = np.flatnonzero(bad)
-            pts = np.unique(np.concatenate([seg, seg + 1]))
-            pts = pts[np.linalg.norm(mv[pts], axis=1) > 0]
-            if pts.size == 0:
-                break
-            mv[pts] *= 0.5
-            f2, b2, l2 = walk(fc[pts], np.ascontiguousarray(bc[pts]), mv[pts])
-            nf[pts], nb[pts], ln[pts] = f2, b2, l2
-        while True:
-            bad = ok0 & ~pairs(nf)
-            if not bad.any():
-                return nf, nb, ln
-            seg = np.flatnonzero(bad)
-            pts = np.unique(np.concatenate([seg, seg + 1]))
-            pts = pts[pts < n]
-            nf[pts], nb[pts], ln[pts] = fc[pts], bc[pts], 0.0
+    The same forces, moves, sampling guard and per-curve stopping tests as
+    :func:`meshfit.curves.relax_snake` with its default weights (a converged curve stops
+    moving); one kernel relaxes all curves, one curve per thread.
+    """
+    from meshfit._kernels import snakes as _kb
 
-    x = _ks.positions(V, F, face, bary)
-    seg_len = np.linalg.norm(np.diff(x, axis=0), axis=1)
-    sums = np.bincount(owner[:-1][inner_seg], weights=seg_len[inner_seg], minlength=k)
-    floor = 0.1 * np.where(sizes > 1, sums / np.maximum(sizes - 1, 1), 0.0)
-    active = np.ones(k, dtype=bool)
-    x_prev2 = None
-    x_prev = x
-    for _ in range(int(iterations)):
-        fixed = ends | ~active[owner]
-        force = _kb.forces_many(x, start, levels, 1.0, 0.0, 1.0)
-        nrm = np.einsum("ij,ijk->ik", bary, VN[F[face]])
-        nrm /= np.linalg.norm(nrm, axis=1)[:, None]
-        move = _kb.moves_many(x, force, nrm, fixed, start, gain, 0.25, floor)
-        nf, nb, length = step(face, bary, move)
-        free = ~fixed
-        face = np.where(free, nf, face)
-        bary = np.where(free[:, None], nb, bary)
-        mm = _kb.curve_max(np.where(free, length, 0.0), start)
-        has_free = np.bincount(owner, weights=free, minlength=k) > 0
-        active &= has_free & (mm >= stop)
-        x = _ks.positions(V, F, face, bary)
-        if x_prev2 is not None:
-            net = _kb.curve_max(np.linalg.norm(x - x_prev2, axis=1), start)
-            active &= net >= stop
-        if not active.any():
-            break
-        x_prev2, x_prev = x_prev, x
+    if not curves:
+        return []
+    args = _relax_inputs(mesh, curves)
+    face, bary, _ = _kb.relax_many(**args, iterations=int(iterations))
+    return _relaxed_curves(mesh, curves, args["start"], face, bary)
+
+
+def _relaxed_curves(
+    mesh: Mesh,
+    curves: list[SurfaceCurve],
+    start: NDArray[np.int64],
+    face: NDArray[np.int64],
+    bary: NDArray[np.float64],
+) -> list[SurfaceCurve]:
+    """``curves`` with the relaxed points ``face``, ``bary`` (rows ``start[c]:start[c + 1]``),
+    ends exactly as given, densified where consecutive points stop sharing a face."""
     out = []
     for c, curve in enumerate(curves):
         a, b = int(start[c]), int(start[c + 1])
