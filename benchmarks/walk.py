@@ -1,17 +1,25 @@
-"""Benchmark: walking face points on igea against moving in 3-D and re-projecting.
+"""Benchmark: walking face points on igea against moving in 3-D and re-projecting, and the
+closest-point query that re-projects.
 
 For 1,000,000 random face points with random tangent steps of 2 mean edge lengths:
 
 - throughput of :func:`meshfit.surface.walk_points` (median of several runs after a warm-up
   compile), and of the naive alternative the thesis rejects (appendix A: "points first leave
   the surface and are then re-projected back"): ``x + step`` re-projected with the mesh's own
-  AABB tree (``mesh.closest_points``), timed in the same run;
+  bounding-volume hierarchy (``mesh.closest_points``), timed in the same run;
 - how often the naive result lands on a different part of the surface than the walk: its
   distance to the walk's end point exceeds one mean edge length (fraction), plus the mean
   and 99th percentile of that distance.
 
-Run: ``python benchmarks/walk.py [--n 1000000] [--repeats 3]``. Prints JSON and writes
-``benchmarks/results/walk.json`` atomically.
+Closest points (``closest_points``): on igea (269K faces) and igea refined once by 1-to-4
+midpoint subdivision (1.07M faces), the build of the mesh's tree
+(:func:`meshfit.mesh.locate.build_tree`) and :func:`meshfit.mesh.closest_points` for
+``--closest-n`` points within about a mean edge length of the surface, against the peer
+``igl.AABB`` (``init``, then ``squared_distance``), each the median of ``--repeats`` runs in
+the same process; ratios are ours over the peer's.
+
+Run: ``python benchmarks/walk.py [--n 1000000] [--closest-n 270000] [--repeats 3]``. Prints
+JSON and writes ``benchmarks/results/walk.json`` atomically.
 """
 
 from __future__ import annotations
@@ -23,9 +31,54 @@ import time
 
 import numpy as np
 from _common import median_time, mesh_path, write_result
+from pipeline import midpoint_subdivide
 
-from meshfit.mesh import load_mesh
+from meshfit.mesh import Mesh, closest_points, load_mesh
+from meshfit.mesh.locate import build_tree
 from meshfit.surface import random_surface_points, walk_points
+
+
+def closest_vs_igl(mesh: Mesh, q: np.ndarray, repeats: int) -> dict:
+    """Tree build and closest-point query of ``mesh`` for the points ``q``, ours against
+    ``igl.AABB``, medians of ``repeats`` runs (wall seconds)."""
+    import igl
+
+    from meshfit._kernels.bvh import CLOSEST_LEAF_SIZE
+
+    V, F = mesh.vertices, mesh.faces
+    closest_points(mesh, q[:10])  # compile or load the numba cache; builds mesh's tree
+    t_build, builds = median_time(lambda: build_tree(V, F, leaf_size=CLOSEST_LEAF_SIZE), repeats)
+    t_query, queries = median_time(lambda: closest_points(mesh, q), repeats)
+    peer = igl.AABB()
+    t_peer_build, peer_builds = median_time(lambda: peer.init(V, F), repeats)
+    t_peer_query, peer_queries = median_time(lambda: peer.squared_distance(V, F, q), repeats)
+    ours = closest_points(mesh, q)
+    sq, face, c = peer.squared_distance(V, F, q)
+    diag = mesh.bbox_diagonal
+    return {
+        "faces": mesh.n_faces,
+        "queries": len(q),
+        "build_median_s": round(t_build, 4),
+        "build_times_s": [round(t, 4) for t in builds],
+        "query_median_s": round(t_query, 4),
+        "query_times_s": [round(t, 4) for t in queries],
+        "peer_igl_build_median_s": round(t_peer_build, 4),
+        "peer_igl_build_times_s": [round(t, 4) for t in peer_builds],
+        "peer_igl_query_median_s": round(t_peer_query, 4),
+        "peer_igl_query_times_s": [round(t, 4) for t in peer_queries],
+        "build_ratio_vs_peer": round(t_build / t_peer_build, 3),
+        "query_ratio_vs_peer": round(t_query / t_peer_query, 3),
+        "build_plus_query_ratio_vs_peer": round(
+            (t_build + t_query) / (t_peer_build + t_peer_query), 3
+        ),
+        "max_distance_difference_per_bbox_diagonal": float(
+            np.abs(ours.distance - np.sqrt(np.maximum(sq, 0.0))).max() / diag
+        ),
+        "max_xyz_difference_per_bbox_diagonal": float(np.abs(ours.xyz - c).max() / diag),
+        "different_face_fraction": float(
+            (ours.points.face != np.asarray(face, dtype=np.int64)).mean()
+        ),
+    }
 
 
 def main() -> None:
@@ -33,6 +86,7 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=1_000_000, help="point-steps per run")
     ap.add_argument("--repeats", type=int, default=3, help="timed runs (median reported)")
     ap.add_argument("--step", type=float, default=2.0, help="step length, mean edge lengths")
+    ap.add_argument("--closest-n", type=int, default=270_000, help="closest-point queries")
     args = ap.parse_args()
 
     import numba
@@ -54,8 +108,8 @@ def main() -> None:
     walk_points(mesh, start[:1000], step[:1000])  # warm-up: compile or load the numba cache
     t_compile = time.perf_counter() - t0
     t0 = time.perf_counter()
-    _ = mesh.aabb  # build the tree outside the timed naive runs
-    t_aabb = time.perf_counter() - t0
+    _ = mesh.triangle_tree  # build the tree outside the timed naive runs
+    t_tree = time.perf_counter() - t0
 
     results = {}
 
@@ -86,7 +140,7 @@ def main() -> None:
         "numba": numba.__version__,
         "load_mesh_s": round(t_load, 3),
         "warmup_compile_or_cache_load_s": round(t_compile, 3),
-        "aabb_build_s": round(t_aabb, 3),
+        "tree_build_s": round(t_tree, 3),
         "walk_median_s": round(t_walk, 4),
         "walk_times_s": [round(t, 4) for t in walk_times],
         "walk_steps_per_s": round(args.n / t_walk),
@@ -108,6 +162,15 @@ def main() -> None:
         },
         "naive_gap_mean_model_units": float(gap.mean()),
     }
+    # queries within about a mean edge length of the surface, the same for both meshes
+    cq = mesh.xyz(random_surface_points(mesh, args.closest_n, rng))
+    cq += rng.normal(scale=mel, size=cq.shape)
+    v4, f4 = midpoint_subdivide(mesh.vertices, mesh.faces)
+    data["closest_points_vs_igl_aabb"] = {
+        "igea": closest_vs_igl(mesh, cq, args.repeats),
+        "igea_x4": closest_vs_igl(Mesh(v4, f4, name="igea_x4"), cq, args.repeats),
+    }
+    data["loadavg_1min_start_end"] = [round(load_start, 2), round(os.getloadavg()[0], 2)]
     write_result("walk", data)
 
 

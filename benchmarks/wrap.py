@@ -54,7 +54,7 @@ def main() -> None:
     }
     for key, (name, bopt) in configs.items():
         mesh = load_mesh(mesh_path(name))
-        _ = mesh.aabb
+        _ = mesh.triangle_tree, mesh.aabb  # closest points and rays
         runs = []
         totals = []
         for _ in range(args.repeats):

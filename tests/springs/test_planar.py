@@ -191,8 +191,11 @@ def test_interior_system_matches_the_oracle(which):
     floor = tol.BARY_EPS * mesh.mean_edge_length
     A_ref, rhs_ref = ref.mean_value_system(mesh.vertices, mesh.faces, at, uv, floor, tol.BARY_EPS)
     scale = np.abs(A_ref).max()
-    assert_allclose(A.toarray(), A_ref, rtol=0, atol=1e-12 * scale)
-    assert_allclose(rhs, rhs_ref, rtol=0, atol=1e-12 * scale)
+    # the kernel and the oracle reach the weights by different formulas: igea's patch has
+    # entries near 1e10 (a sliver left by the cut) that differ by up to 1.3e-12 of the largest
+    # as the cut's rounding varies (the ring's closest points on shared edges and vertices)
+    assert_allclose(A.toarray(), A_ref, rtol=0, atol=4e-12 * scale)
+    assert_allclose(rhs, rhs_ref, rtol=0, atol=4e-12 * scale)
     # rows sorted and unique: what the Gauss-Seidel and residual kernels expect
     for i in range(A.shape[0]):
         cols = A.indices[A.indptr[i] : A.indptr[i + 1]]

@@ -1,4 +1,4 @@
-"""Mesh core: the validated :class:`Mesh`, file I/O, validation and AABB queries."""
+"""Mesh core: the validated :class:`Mesh`, file I/O, validation, closest-point and ray queries."""
 
 from meshfit.mesh.core import Mesh
 from meshfit.mesh.io import FORMATS, RawMesh, load_mesh, read_mesh_arrays, save_mesh

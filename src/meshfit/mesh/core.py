@@ -16,7 +16,7 @@ from meshfit.mesh.validate import RepairReport, find_problems, raise_first, repa
 from meshfit.types import SurfacePoints
 
 if TYPE_CHECKING:
-    from meshfit.mesh.locate import ClosestPoints, RayHits
+    from meshfit.mesh.locate import ClosestPoints, RayHits, TriangleTree
 
 __all__ = ["Mesh"]
 
@@ -351,10 +351,23 @@ class Mesh:
         """(n, 3) float64 positions of face points."""
         return np.einsum("ij,ijk->ik", points.bary, self.vertices[self.faces[points.face]])
 
-    # ------------------------------------------------------------ AABB queries
+    # ------------------------------------------------------------ tree queries
+    @cached_property
+    def triangle_tree(self) -> TriangleTree:
+        """The bounding-volume hierarchy over the faces that :meth:`closest_points` searches,
+        built on first use and kept, read-only (see :func:`meshfit.mesh.locate.build_tree`)."""
+        from meshfit._kernels.bvh import CLOSEST_LEAF_SIZE
+        from meshfit.mesh.locate import build_tree
+
+        tree = build_tree(self.vertices, self.faces, leaf_size=CLOSEST_LEAF_SIZE)
+        for a in tree:
+            a.flags.writeable = False
+        return tree
+
     @cached_property
     def aabb(self):
-        """The ``igl.AABB`` tree over the faces, built on first use and kept."""
+        """The ``igl.AABB`` tree over the faces that :meth:`ray_first_hit` uses, built on first
+        use and kept."""
         from meshfit.mesh.locate import build_aabb
 
         return build_aabb(self)

@@ -1,9 +1,14 @@
-"""Closest-point and ray queries on a mesh, answered by one ``igl.AABB`` tree per mesh."""
+"""Closest-point and ray queries on a mesh.
+
+Closest points are answered by the project's bounding-volume hierarchy
+(:mod:`meshfit._kernels.bvh`, one tree per mesh, searched on all cores), first ray hits by
+one ``igl.AABB`` tree per mesh.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -18,6 +23,7 @@ if TYPE_CHECKING:
 __all__ = [
     "ClosestPoints",
     "RayHits",
+    "TriangleTree",
     "barycentric",
     "closest_points",
     "ray_first_hit",
@@ -32,6 +38,68 @@ def build_aabb(mesh: Mesh):
     tree = igl.AABB()
     tree.init(mesh.vertices, mesh.faces)
     return tree
+
+
+class TriangleTree(NamedTuple):
+    """Bounding-volume hierarchy over the triangles of one vertex and face array, as the
+    kernels of :mod:`meshfit._kernels.bvh` take it (see :func:`build_tree`).
+
+    Attributes
+    ----------
+    flat : (m,) bool
+        Triangles of zero area (searched as their three edges).
+    order : (m,) int64
+        Triangles in tree order; node ``k`` holds ``order[start[k]:stop[k]]``.
+    lo, hi : (k, 3) float64
+        Box of each node.
+    child : (k,) int64
+        First child of each node (the second is ``child + 1``), -1 for a leaf.
+    start, stop : (k,) int64
+        Range of ``order`` under each node. Node 0 is the root.
+    """
+
+    flat: NDArray[np.bool_]
+    order: NDArray[np.int64]
+    lo: NDArray[np.float64]
+    hi: NDArray[np.float64]
+    child: NDArray[np.int64]
+    start: NDArray[np.int64]
+    stop: NDArray[np.int64]
+
+
+def build_tree(
+    vertices: NDArray[np.float64], faces: NDArray[np.int64], *, leaf_size: int | None = None
+) -> TriangleTree:
+    """Build the bounding-volume hierarchy over validated triangles.
+
+    Parameters
+    ----------
+    vertices : (k, 3) float64
+        Finite coordinates.
+    faces : (m, 3) int64
+        Triangles, ``m >= 1``, indices in range.
+    leaf_size : int, optional
+        Most triangles per leaf; :data:`meshfit._kernels.bvh.LEAF_SIZE` by default.
+
+    Returns
+    -------
+    TriangleTree
+        Triangles in the Morton order of their centroids, split at the median centroid along
+        the longest axis down to ``leaf_size`` per leaf.
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        ``leaf_size`` below 1.
+    """
+    from meshfit._kernels import bvh
+
+    size = bvh.LEAF_SIZE if leaf_size is None else int(leaf_size)
+    if size < 1:
+        raise InputError(f"leaf_size must be >= 1, got {leaf_size}")
+    order = np.argsort(bvh.morton_codes(vertices, faces), kind="stable")
+    lo, hi, child, start, stop = bvh.build(vertices, faces, order, size)
+    return TriangleTree(bvh.zero_area(vertices, faces), order, lo, hi, child, start, stop)
 
 
 def triangle_distances(
@@ -78,9 +146,7 @@ def triangle_distances(
         raise InputError(f"faces must have shape (m >= 1, 3), got {F.shape}")
     if F.min() < 0 or F.max() >= V.shape[0]:
         raise InputError(f"a face index is out of range 0..{V.shape[0] - 1}")
-    order = np.argsort(bvh.morton_codes(V, F), kind="stable")
-    tree = bvh.build(V, F, order, bvh.LEAF_SIZE)
-    sq, face = bvh.squared_distances(V, F, bvh.zero_area(V, F), order, *tree, Q)
+    sq, face = bvh.squared_distances(V, F, *build_tree(V, F), Q)
     return np.sqrt(sq), face
 
 
@@ -141,7 +207,12 @@ class ClosestPoints:
 
 
 def closest_points(mesh: Mesh, xyz: ArrayLike) -> ClosestPoints:
-    """Closest point on the surface to each query point (global, via the AABB tree).
+    """Closest point on the surface to each query point, on all cores.
+
+    The mesh's bounding-volume hierarchy (``mesh.triangle_tree``, built on first use and kept
+    with the mesh) is searched per point in parallel; the closest point on each triangle is
+    exact (Ericson's region test [1]_). Where the closest point lies on an edge or vertex
+    shared by several faces, the face reported is one of them.
 
     Parameters
     ----------
@@ -152,17 +223,30 @@ def closest_points(mesh: Mesh, xyz: ArrayLike) -> ClosestPoints:
     Returns
     -------
     ClosestPoints
+        ``points`` with barycentrics ``>= 0`` summing to 1 (exact zeros on the far side of a
+        clamped edge or vertex), ``distance``, and ``xyz = mesh.xyz(points)``.
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        Query points not (n, 3) finite numbers.
+
+    References
+    ----------
+    .. [1] Ericson, "Real-Time Collision Detection", 2005, sec. 5.1.5 (closest point on a
+       triangle) and ch. 6 (bounding-volume hierarchies).
     """
+    from meshfit._kernels import bvh
+
     q = as_points(xyz, name="xyz")
     if q.shape[0] == 0:
         return ClosestPoints(
             SurfacePoints(np.zeros(0, np.int64), np.zeros((0, 3))), np.zeros(0), np.zeros((0, 3))
         )
-    sqd, face, c = mesh.aabb.squared_distance(mesh.vertices, mesh.faces, q)
-    face = np.asarray(face, dtype=np.int64)
-    bary = _clip_bary(barycentric(mesh, face, np.asarray(c)))
+    qorder = np.argsort(bvh.point_morton_codes(q), kind="stable")
+    sq, face, bary = bvh.closest_points(mesh.vertices, mesh.faces, *mesh.triangle_tree, q, qorder)
     pts = SurfacePoints(face, bary)
-    return ClosestPoints(pts, np.sqrt(np.maximum(sqd, 0.0)), mesh.xyz(pts))
+    return ClosestPoints(pts, np.sqrt(sq), mesh.xyz(pts))
 
 
 @dataclass(frozen=True)

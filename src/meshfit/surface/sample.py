@@ -55,7 +55,7 @@ def random_surface_points(
 
 
 def closest_surface_points(mesh: Mesh, xyz: ArrayLike) -> SurfacePoints:
-    """The closest face point to each position (global query on the mesh's AABB tree).
+    """The closest face point to each position (global query on the mesh's kept tree).
 
     Parameters
     ----------
