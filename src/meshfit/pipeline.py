@@ -270,8 +270,19 @@ class _Stages:
             self.progress(stage, done, total)
 
 
-def _parallel(fn, items: Sequence, workers: int, stage: str, st: _Stages) -> list:
-    """``[fn(x) for x in items]`` on threads, results in order, progress per item."""
+def _parallel(
+    fn,
+    items: Sequence,
+    workers: int,
+    stage: str,
+    st: _Stages,
+    cost: Sequence[float] | None = None,
+) -> list:
+    """``[fn(x) for x in items]`` on threads, results in order, progress per item.
+
+    With ``cost`` (an estimate per item) the items start in order of decreasing cost, so
+    the largest does not start last and leave the other workers idle at the end.
+    """
     n = len(items)
     st.tick(stage, 0, n)
     if workers <= 1 or n <= 1:
@@ -280,9 +291,10 @@ def _parallel(fn, items: Sequence, workers: int, stage: str, st: _Stages) -> lis
             out.append(fn(x))
             st.tick(stage, i + 1, n)
         return out
+    order = range(n) if cost is None else sorted(range(n), key=lambda i: (-cost[i], i))
     out = [None] * n
     with ThreadPoolExecutor(max_workers=workers) as pool:
-        futures = {pool.submit(fn, x): i for i, x in enumerate(items)}
+        futures = {pool.submit(fn, items[i]): i for i in order}
         done = 0
         from concurrent.futures import as_completed
 
@@ -653,7 +665,14 @@ def run_fit(
         if patch_map is not None:
             res = patch_map(spring_task, [(patch_payload(p), spring_kw) for p in ps])
         else:
-            res = _parallel(lambda p: spring_patch(p, **spring_kw), ps, workers, "springs", st)
+            res = _parallel(
+                lambda p: spring_patch(p, **spring_kw),
+                ps,
+                workers,
+                "springs",
+                st,
+                cost=[p.mesh.n_faces for p in ps],
+            )
         grids = [g for g, _ in res]
         spring_info = [i for _, i in res]
         arrays = {f"grid_{p}": g for p, g in enumerate(grids)}
