@@ -167,3 +167,111 @@ def components(n, a, b):
             count += 1
         labels[i] = labels[r]
     return count, labels
+
+
+@njit(cache=True, nogil=True)
+def simple_ok(vertices, faces):
+    """True when every coordinate is finite, every index in range, no face repeats an index
+    and every vertex is used: the checks of `meshfit.mesh.validate.clean_edge_table` that
+    need no edge table."""
+    nv = vertices.shape[0]
+    nf = faces.shape[0]
+    used = np.zeros(nv, dtype=np.bool_)
+    for f in range(nf):
+        a = faces[f, 0]
+        b = faces[f, 1]
+        c = faces[f, 2]
+        if a < 0 or a >= nv or b < 0 or b >= nv or c < 0 or c >= nv:
+            return False
+        if a == b or b == c or c == a:
+            return False
+        used[a] = True
+        used[b] = True
+        used[c] = True
+    for i in range(nv):
+        if not used[i]:
+            return False
+        for d in range(3):
+            if not np.isfinite(vertices[i, d]):
+                return False
+    return True
+
+
+@njit(cache=True, nogil=True)
+def manifold_ok(vertices, faces, edge_count, order, start, area2_floor):
+    """True when the mesh (which passed `simple_ok`) is manifold and consistently oriented,
+    has no two faces on one vertex set, no face with ``|cross|^2 <= area2_floor`` and one fan
+    of faces around every vertex; kernel of `meshfit.mesh.validate.clean_edge_table`.
+
+    The fans are walked around each vertex across its shared edges: from corner ``3f + k``
+    the next corner is the one of the same vertex in the face across the edge leaving it,
+    the previous one in the face across the edge entering it. On an oriented manifold mesh
+    the next-corner map is one-to-one, so every walk closes on its start or stops at the
+    boundary.
+    """
+    nf = faces.shape[0]
+    nv = vertices.shape[0]
+    nh = 3 * nf
+    twin = np.full(nh, -1, dtype=np.int64)
+    for e in range(edge_count.shape[0]):
+        c = edge_count[e]
+        if c > 2:
+            return False
+        if c == 2:
+            ha = order[start[e]]
+            hb = order[start[e] + 1]
+            fa = ha // 3
+            ka = ha % 3
+            fb = hb // 3
+            kb = hb % 3
+            if faces[fa, ka] == faces[fb, kb]:  # both run the same way
+                return False
+            if faces[fa, (ka + 2) % 3] == faces[fb, (kb + 2) % 3]:  # the same three vertices
+                return False
+            twin[ha] = hb
+            twin[hb] = ha
+    for f in range(nf):
+        p0 = vertices[faces[f, 0]]
+        p1 = vertices[faces[f, 1]]
+        p2 = vertices[faces[f, 2]]
+        ux = p1[0] - p0[0]
+        uy = p1[1] - p0[1]
+        uz = p1[2] - p0[2]
+        wx = p2[0] - p0[0]
+        wy = p2[1] - p0[1]
+        wz = p2[2] - p0[2]
+        cx = uy * wz - uz * wy
+        cy = uz * wx - ux * wz
+        cz = ux * wy - uy * wx
+        if not (cx * cx + cy * cy + cz * cz > area2_floor):
+            return False
+    seen = np.zeros(nh, dtype=np.bool_)
+    has_fan = np.zeros(nv, dtype=np.bool_)
+    for c0 in range(nh):
+        if seen[c0]:
+            continue
+        v = faces[c0 // 3, c0 % 3]
+        if has_fan[v]:
+            return False
+        has_fan[v] = True
+        seen[c0] = True
+        c = c0
+        closed = False
+        while True:  # forward, across the edge leaving v
+            t = twin[c]
+            if t < 0:
+                break
+            c = 3 * (t // 3) + (t % 3 + 1) % 3
+            if c == c0:
+                closed = True
+                break
+            seen[c] = True
+        if not closed:
+            c = c0
+            while True:  # backward, across the edge entering v
+                t = twin[3 * (c // 3) + (c % 3 + 2) % 3]
+                if t < 0:
+                    break
+                c = t
+                seen[c] = True
+    return True

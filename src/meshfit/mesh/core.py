@@ -12,7 +12,13 @@ from scipy import sparse
 
 from meshfit import errors
 from meshfit.mesh import topology
-from meshfit.mesh.validate import RepairReport, find_problems, raise_first, repair_arrays
+from meshfit.mesh.validate import (
+    RepairReport,
+    clean_edge_table,
+    find_problems,
+    raise_first,
+    repair_arrays,
+)
 from meshfit.types import SurfacePoints
 
 if TYPE_CHECKING:
@@ -107,10 +113,14 @@ class Mesh:
         v = _as_vertices(self.vertices)
         f = _as_faces(self.faces)
         c = _as_colors(self.vertex_colors, v.shape[0])
-        raise_first(find_problems(v, f), where=self.name)
+        table = clean_edge_table(v, f)
+        if table is None:
+            raise_first(find_problems(v, f), where=self.name)
         object.__setattr__(self, "vertices", _frozen(v))
         object.__setattr__(self, "faces", _frozen(f))
         object.__setattr__(self, "vertex_colors", None if c is None else _frozen(c))
+        if table is not None:  # the cached property's value, computed by the check
+            object.__setattr__(self, "_edge_table", table)
 
     @classmethod
     def from_arrays(
