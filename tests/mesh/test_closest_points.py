@@ -153,3 +153,17 @@ def test_kernel_on_soups_with_zero_area_triangles_matches_the_reference(rng, lea
     # the same distances as the distance-only query
     sq2, _ = bvh.squared_distances(V, F, *tree, Q)
     assert_array_equal(sq, sq2)
+
+
+@pytest.mark.parametrize(("m", "leaf_size"), [(1, 2), (3, 2), (200, 2), (3000, 2), (3000, 8)])
+def test_tree_equals_the_one_thread_breadth_first_build(rng, m, leaf_size):
+    # 3000 triangles: the top is split on one thread, the subtrees below it in parallel
+    V = rng.normal(size=(3 * m, 3))
+    F = np.arange(3 * m).reshape(m, 3)
+    order = np.argsort(bvh.morton_codes(V, F), kind="stable")
+    got = bvh.build(V, F, order.copy(), leaf_size)
+    want = ref.build(V, F, order, leaf_size)
+    for g, w in zip(got, want, strict=True):
+        assert_array_equal(g, w)
+    tree = build_tree(V, F, leaf_size=leaf_size)
+    assert_array_equal(tree.order, want[0])

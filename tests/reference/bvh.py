@@ -1,6 +1,7 @@
 """Slow reference of the triangle-distance and closest-point queries (`meshfit._kernels.bvh`):
 every point against every triangle, the distance to a triangle as the smaller of the distance
-to its plane (when the projection falls inside) and the distances to its three edges."""
+to its plane (when the projection falls inside) and the distances to its three edges; and the
+tree build on one thread, breadth first."""
 
 from __future__ import annotations
 
@@ -63,3 +64,63 @@ def closest_points(V, F, Q):
         face[i] = int(np.argmin(d))
         sq[i], xyz[i] = d[face[i]], X[face[i]]
     return sq, face, xyz
+
+
+def build(V, F, order, leaf_size):
+    """The tree of `meshfit._kernels.bvh.build` built breadth first on one thread, with the
+    same median splits (longest centroid axis, Hoare quickselect on the centroid sums).
+    Returns ``order, lo, hi, child, start, stop`` as the kernel does."""
+    order = [int(t) for t in order]
+    C = {t: V[F[t, 0]] + V[F[t, 1]] + V[F[t, 2]] for t in order}
+    start, stop, child = [0], [len(order)], [-1]
+    i = 0
+    while i < len(start):
+        s, e = start[i], stop[i]
+        if e - s > leaf_size:
+            mid = (s + e) // 2
+            cs = np.array([C[order[j]] for j in range(s, e)])
+            ext = cs.max(axis=0) - cs.min(axis=0)
+            axis = max(range(3), key=lambda d: (ext[d], -d))
+            lo, hi = s, e - 1
+            while lo < hi:  # Hoare quickselect
+                pivot = C[order[(lo + hi) // 2]][axis]
+                a, b = lo, hi
+                while a <= b:
+                    while C[order[a]][axis] < pivot:
+                        a += 1
+                    while C[order[b]][axis] > pivot:
+                        b -= 1
+                    if a <= b:
+                        order[a], order[b] = order[b], order[a]
+                        a += 1
+                        b -= 1
+                if mid <= b:
+                    hi = b
+                elif mid >= a:
+                    lo = a
+                else:
+                    break
+            child[i] = len(start)
+            start += [s, mid]
+            stop += [mid, e]
+            child += [-1, -1]
+        i += 1
+    n = len(start)
+    lo_box = np.empty((n, 3))
+    hi_box = np.empty((n, 3))
+    for k in range(n - 1, -1, -1):
+        if child[k] < 0:
+            pts = V[F[order[start[k] : stop[k]]]].reshape(-1, 3)
+            lo_box[k], hi_box[k] = pts.min(axis=0), pts.max(axis=0)
+        else:
+            c = child[k]
+            lo_box[k] = np.minimum(lo_box[c], lo_box[c + 1])
+            hi_box[k] = np.maximum(hi_box[c], hi_box[c + 1])
+    return (
+        np.array(order, dtype=np.int64),
+        lo_box,
+        hi_box,
+        np.array(child, dtype=np.int64),
+        np.array(start, dtype=np.int64),
+        np.array(stop, dtype=np.int64),
+    )

@@ -94,72 +94,164 @@ def point_morton_codes(Q):
     return out
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+#: the top of the tree is split on one thread until this many nodes wait; their subtrees
+#: are then split in parallel
+_PARALLEL_FRONTIER = 64
+
+
+@njit(cache=True, nogil=True, parallel=True, fastmath=False)
 def build(V, F, order, leaf_size):
-    """Tree over the triangles ``order`` (Morton-sorted); returns ``lo, hi (k, 3)`` node boxes,
-    ``child (k,)`` first child (-1 for a leaf; the second is ``child + 1``), ``start, stop
-    (k,)`` ranges of ``order`` under each node. Node 0 is the root."""
+    """Tree over the triangles ``order`` (Morton-sorted); returns ``order`` rearranged so
+    each node's triangles are a range, ``lo, hi (k, 3)`` node boxes, ``child (k,)`` first
+    child (-1 for a leaf; the second is ``child + 1``), ``start, stop (k,)`` ranges of the
+    rearranged order under each node. Node 0 is the root; nodes are numbered breadth first.
+
+    The top of the tree is split on one thread, the subtrees below `_PARALLEL_FRONTIER`
+    waiting nodes in parallel, each into its own slice of scratch arrays; a breadth-first
+    pass then numbers the nodes as a one-thread breadth-first build would (the splits of
+    disjoint ranges do not interact, so the tree is the same).
+    """
     m = order.shape[0]
-    # a node splits when it holds more than leaf_size, so every leaf holds at least
-    # (leaf_size + 1) // 2 triangles: at most m // that + 1 leaves, twice as many nodes
-    cap = 2 * (m // max((leaf_size + 1) // 2, 1) + 1) + 1
-    start = np.empty(cap, dtype=np.int64)
-    stop = np.empty(cap, dtype=np.int64)
-    child = np.full(cap, -1, dtype=np.int64)
-    start[0] = 0
-    stop[0] = m
-    n = 1
-    i = 0
-    C = np.empty((F.shape[0], 3))
-    for t in range(F.shape[0]):
+    ords = order.copy()
+    C = np.empty((m, 3))  # centroid sums, row j for triangle ords[j]: moved with it
+    for j in prange(m):
+        t = ords[j]
         for d in range(3):
-            C[t, d] = V[F[t, 0], d] + V[F[t, 1], d] + V[F[t, 2], d]
-    while i < n:  # breadth first: children always follow their parent
-        s, e = start[i], stop[i]
+            C[j, d] = V[F[t, 0], d] + V[F[t, 1], d] + V[F[t, 2], d]
+    minleaf = max((leaf_size + 1) // 2, 1)
+
+    def cap_of(r):
+        # a node splits when it holds more than leaf_size, so every leaf holds at least
+        # minleaf triangles: at most r // minleaf + 1 leaves, twice as many nodes
+        return 2 * (r // minleaf + 1) + 1
+
+    # top: breadth first on one thread until enough nodes wait
+    top_cap = 4 * _PARALLEL_FRONTIER + 3
+    tstart = np.empty(top_cap, dtype=np.int64)
+    tstop = np.empty(top_cap, dtype=np.int64)
+    tchild = np.full(top_cap, -1, dtype=np.int64)
+    tstart[0] = 0
+    tstop[0] = m
+    n_top = 1
+    i = 0
+    while i < n_top and n_top - i < _PARALLEL_FRONTIER:
+        s, e = tstart[i], tstop[i]
         if e - s > leaf_size:
             mid = (s + e) // 2
-            _median_split(order, C, s, e, mid)
-            child[i] = n
-            start[n], stop[n] = s, mid
-            start[n + 1], stop[n + 1] = mid, e
-            n += 2
+            _median_split(ords, C, s, e, mid)
+            tchild[i] = n_top
+            tstart[n_top], tstop[n_top] = s, mid
+            tstart[n_top + 1], tstop[n_top + 1] = mid, e
+            n_top += 2
         i += 1
-    lo = np.empty((n, 3))
-    hi = np.empty((n, 3))
-    for k in range(n - 1, -1, -1):  # children before parents
-        c = child[k]
-        if c < 0:
-            for d in range(3):
-                lo[k, d] = np.inf
-                hi[k, d] = -np.inf
-            for j in range(start[k], stop[k]):
-                t = order[j]
-                for a in range(3):
-                    for d in range(3):
-                        x = V[F[t, a], d]
-                        if x < lo[k, d]:
-                            lo[k, d] = x
-                        if x > hi[k, d]:
-                            hi[k, d] = x
-        else:
-            for d in range(3):
-                lo[k, d] = min(lo[c, d], lo[c + 1, d])
-                hi[k, d] = max(hi[c, d], hi[c + 1, d])
-    return lo, hi, child[:n].copy(), start[:n].copy(), stop[:n].copy()
+    first_wait = i
+    n_wait = n_top - first_wait
+    # scratch: each waiting node's descendants get their own slice after the top nodes
+    off = np.empty(n_wait + 1, dtype=np.int64)
+    off[0] = n_top
+    for w in range(n_wait):
+        q = first_wait + w
+        off[w + 1] = off[w] + cap_of(tstop[q] - tstart[q])
+    total = off[n_wait]
+    start = np.empty(total, dtype=np.int64)
+    stop = np.empty(total, dtype=np.int64)
+    child = np.full(total, -1, dtype=np.int64)
+    lo = np.empty((total, 3))
+    hi = np.empty((total, 3))
+    start[:n_top] = tstart[:n_top]
+    stop[:n_top] = tstop[:n_top]
+    child[:n_top] = tchild[:n_top]
+    used = np.empty(n_wait, dtype=np.int64)  # end of each slice's used part
+    for w in prange(n_wait):
+        q = first_wait + w
+        n = off[w]
+        k = q
+        while True:  # breadth first within the slice: q, then the slice's nodes in order
+            s, e = start[k], stop[k]
+            if e - s > leaf_size:
+                mid = (s + e) // 2
+                _median_split(ords, C, s, e, mid)
+                child[k] = n
+                start[n], stop[n] = s, mid
+                start[n + 1], stop[n + 1] = mid, e
+                n += 2
+            k = off[w] if k == q else k + 1
+            if k >= n:
+                break
+        used[w] = n
+        for k in range(n - 1, off[w] - 1, -1):  # children before parents
+            _node_box(V, F, ords, lo, hi, child, start, stop, k)
+        _node_box(V, F, ords, lo, hi, child, start, stop, q)
+    for k in range(first_wait - 1, -1, -1):
+        _node_box(V, F, ords, lo, hi, child, start, stop, k)
+    # number breadth first: children pairs in the order their parents are reached
+    n_all = n_top
+    for w in range(n_wait):
+        n_all += used[w] - off[w]
+    new_of = np.empty(n_all, dtype=np.int64)  # old index of each new node
+    new_of[0] = 0
+    nn = 1
+    for k in range(n_all):
+        c = child[new_of[k]]
+        if c >= 0:
+            new_of[nn] = c
+            new_of[nn + 1] = c + 1
+            nn += 2
+    olo = np.empty((n_all, 3))
+    ohi = np.empty((n_all, 3))
+    ochild = np.full(n_all, -1, dtype=np.int64)
+    ostart = np.empty(n_all, dtype=np.int64)
+    ostop = np.empty(n_all, dtype=np.int64)
+    nxt = 1
+    for k in range(n_all):
+        o = new_of[k]
+        for d in range(3):
+            olo[k, d] = lo[o, d]
+            ohi[k, d] = hi[o, d]
+        ostart[k] = start[o]
+        ostop[k] = stop[o]
+        if child[o] >= 0:
+            ochild[k] = nxt
+            nxt += 2
+    return ords, olo, ohi, ochild, ostart, ostop
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _node_box(V, F, ords, lo, hi, child, start, stop, k):
+    """Box of node ``k`` from its children's boxes, or from its triangles for a leaf."""
+    c = child[k]
+    if c < 0:
+        for d in range(3):
+            lo[k, d] = np.inf
+            hi[k, d] = -np.inf
+        for j in range(start[k], stop[k]):
+            t = ords[j]
+            for a in range(3):
+                for d in range(3):
+                    x = V[F[t, a], d]
+                    if x < lo[k, d]:
+                        lo[k, d] = x
+                    if x > hi[k, d]:
+                        hi[k, d] = x
+    else:
+        for d in range(3):
+            lo[k, d] = min(lo[c, d], lo[c + 1, d])
+            hi[k, d] = max(hi[c, d], hi[c + 1, d])
 
 
 @njit(cache=True, nogil=True, fastmath=False)
 def _median_split(order, C, s, e, mid):
-    """Reorder ``order[s:e]`` so that ``order[mid]`` has the median centroid coordinate along
-    the longest axis of the range's centroids, smaller ones before it, larger after
-    (quickselect, Hoare partition)."""
+    """Reorder ``order[s:e]`` (and the rows of ``C``, the centroids in that order, with it)
+    so that position ``mid`` holds the median centroid coordinate along the longest axis of
+    the range's centroids, smaller ones before it, larger after (quickselect, Hoare
+    partition)."""
     axis = 0
     best = -1.0
     for d in range(3):
         a = np.inf
         b = -np.inf
         for j in range(s, e):
-            x = C[order[j], d]
+            x = C[j, d]
             a = min(a, x)
             b = max(b, x)
         if b - a > best:
@@ -167,15 +259,17 @@ def _median_split(order, C, s, e, mid):
             axis = d
     lo, hi = s, e - 1
     while lo < hi:
-        pivot = C[order[(lo + hi) // 2], axis]
+        pivot = C[(lo + hi) // 2, axis]
         i, j = lo, hi
         while i <= j:
-            while C[order[i], axis] < pivot:
+            while C[i, axis] < pivot:
                 i += 1
-            while C[order[j], axis] > pivot:
+            while C[j, axis] > pivot:
                 j -= 1
             if i <= j:
                 order[i], order[j] = order[j], order[i]
+                for d in range(3):
+                    C[i, d], C[j, d] = C[j, d], C[i, d]
                 i += 1
                 j -= 1
         if mid <= j:

@@ -98,7 +98,7 @@ def build_tree(
     if size < 1:
         raise InputError(f"leaf_size must be >= 1, got {leaf_size}")
     order = np.argsort(bvh.morton_codes(vertices, faces), kind="stable")
-    lo, hi, child, start, stop = bvh.build(vertices, faces, order, size)
+    order, lo, hi, child, start, stop = bvh.build(vertices, faces, order, size)
     return TriangleTree(bvh.zero_area(vertices, faces), order, lo, hi, child, start, stop)
 
 
