@@ -43,11 +43,9 @@ def closest_vs_igl(mesh: Mesh, q: np.ndarray, repeats: int) -> dict:
     ``igl.AABB``, medians of ``repeats`` runs (wall seconds)."""
     import igl
 
-    from meshfit._kernels.bvh import CLOSEST_LEAF_SIZE
-
     V, F = mesh.vertices, mesh.faces
     closest_points(mesh, q[:10])  # compile or load the numba cache; builds mesh's tree
-    t_build, builds = median_time(lambda: build_tree(V, F, leaf_size=CLOSEST_LEAF_SIZE), repeats)
+    t_build, builds = median_time(lambda: build_tree(V, F), repeats)
     t_query, queries = median_time(lambda: closest_points(mesh, q), repeats)
     peer = igl.AABB()
     t_peer_build, peer_builds = median_time(lambda: peer.init(V, F), repeats)

@@ -112,7 +112,7 @@ def test_tree_is_built_once_per_mesh():
     assert mesh.triangle_tree is tree
     leaves = tree.child < 0
     sizes = tree.stop[leaves] - tree.start[leaves]
-    assert sizes.max() <= bvh.CLOSEST_LEAF_SIZE
+    assert sizes.max() <= bvh.LEAF_SIZE
     assert_array_equal(np.sort(tree.order), np.arange(mesh.n_faces))
     assert not any(a.flags.writeable for a in tree)
     with pytest.raises(InputError, match="leaf_size"):
@@ -151,7 +151,7 @@ def test_kernel_on_soups_with_zero_area_triangles_matches_the_reference(rng, lea
     assert_allclose(bary.sum(axis=1), 1.0, rtol=0, atol=4e-16)
     assert_allclose(np.einsum("ij,ij->i", Q - xyz, Q - xyz), sq, rtol=1e-12, atol=1e-14)
     # the same distances as the distance-only query
-    sq2, _ = bvh.squared_distances(V, F, *tree, Q)
+    sq2, _ = bvh.squared_distances(V, F, *tree, Q, np.arange(len(Q)))
     assert_array_equal(sq, sq2)
 
 

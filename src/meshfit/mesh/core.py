@@ -366,10 +366,9 @@ class Mesh:
     def triangle_tree(self) -> TriangleTree:
         """The bounding-volume hierarchy over the faces that :meth:`closest_points` searches,
         built on first use and kept, read-only (see :func:`meshfit.mesh.locate.build_tree`)."""
-        from meshfit._kernels.bvh import CLOSEST_LEAF_SIZE
         from meshfit.mesh.locate import build_tree
 
-        tree = build_tree(self.vertices, self.faces, leaf_size=CLOSEST_LEAF_SIZE)
+        tree = build_tree(self.vertices, self.faces)
         for a in tree:
             a.flags.writeable = False
         return tree

@@ -146,7 +146,10 @@ def triangle_distances(
         raise InputError(f"faces must have shape (m >= 1, 3), got {F.shape}")
     if F.min() < 0 or F.max() >= V.shape[0]:
         raise InputError(f"a face index is out of range 0..{V.shape[0] - 1}")
-    sq, face = bvh.squared_distances(V, F, *build_tree(V, F), Q)
+    if Q.shape[0] == 0:
+        return np.empty(0), np.empty(0, dtype=np.int64)
+    qorder = np.argsort(bvh.point_morton_codes(Q), kind="stable")
+    sq, face = bvh.squared_distances(V, F, *build_tree(V, F), Q, qorder)
     return np.sqrt(sq), face
 
 
