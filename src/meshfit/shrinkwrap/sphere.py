@@ -98,10 +98,7 @@ def triangle_quality(
         ``l_max (l_0 + l_1 + l_2) / (4 sqrt(3) area)``: 1 for an equilateral triangle,
         ``inf`` for a degenerate one.
     """
-    p = vertices[faces]
-    e = [p[:, (k + 1) % 3] - p[:, k] for k in range(3)]
-    ln = np.stack([np.linalg.norm(x, axis=1) for x in e], axis=1)
-    area = 0.5 * np.linalg.norm(np.cross(e[0], -e[2]), axis=1)
+    e, aspect = _edges_and_aspect(vertices, faces)
     ang = []
     for k in range(3):  # angle at corner k between edges k and k-1 reversed
         u, v = e[k], -e[(k + 2) % 3]
@@ -109,10 +106,21 @@ def triangle_quality(
         s = np.linalg.norm(np.cross(u, v), axis=1)
         ang.append(np.arctan2(s, c))
     min_angle = np.min(np.stack(ang, axis=1), axis=1)
+    return min_angle, aspect
+
+
+def _edges_and_aspect(
+    vertices: NDArray[np.float64], faces: NDArray[np.int64]
+) -> tuple[list[NDArray[np.float64]], NDArray[np.float64]]:
+    """The three edge vectors of each triangle and the aspect ratio of
+    :func:`triangle_quality`."""
+    p = vertices[faces]
+    e = [p[:, (k + 1) % 3] - p[:, k] for k in range(3)]
+    ln = np.stack([np.linalg.norm(x, axis=1) for x in e], axis=1)
+    area = 0.5 * np.linalg.norm(np.cross(e[0], -e[2]), axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):
         aspect = ln.max(axis=1) * ln.sum(axis=1) / (4.0 * np.sqrt(3.0) * area)
-    aspect = np.where(area > 0, aspect, np.inf)
-    return min_angle, aspect
+    return e, np.where(area > 0, aspect, np.inf)
 
 
 @dataclass(frozen=True, eq=False)
@@ -418,9 +426,9 @@ def _bound_aspect(
     faces = mesh.faces
     owner = np.repeat(np.arange(mesh.n_vertices), np.diff(indptr))
     best = s
-    worst = float(triangle_quality(s, faces)[1].max())
+    asp = _edges_and_aspect(s, faces)[1]
+    worst = float(asp.max())
     for r in range(rounds):
-        _, asp = triangle_quality(s, faces)
         bad = asp > bound
         if not bad.any():
             break
@@ -442,7 +450,8 @@ def _bound_aspect(
         else:
             break
         s = new
-        w = float(triangle_quality(s, faces)[1].max())
+        asp = _edges_and_aspect(s, faces)[1]
+        w = float(asp.max())
         if w < worst:
             best, worst = s, w
     return best
