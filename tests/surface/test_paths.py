@@ -330,3 +330,17 @@ def test_path_to_surface_points_rejects_non_edges():
     with pytest.raises(InputError, match=f"vertices\\[0\\] = 0 and vertices\\[1\\] = {far}"):
         path_to_surface_points(mesh, [0, far])
     assert len(path_to_surface_points(mesh, [5])) == 1
+
+
+@pytest.mark.parametrize("name", ["icosphere", "torus", "plane", "igea"])
+def test_vertex_points_equal_at_vertices(name, rng):
+    from meshfit.surface.paths import vertex_points
+    from meshfit.types import SurfacePoints
+
+    mesh = real_mesh(name) if name == "igea" else analytic_mesh(name)
+    for v in (np.array([7]), rng.integers(0, mesh.n_vertices, 300), np.arange(mesh.n_vertices)):
+        got = vertex_points(mesh, v)
+        want = SurfacePoints.at_vertices(mesh.faces, v)
+        np.testing.assert_array_equal(got.face, want.face)
+        np.testing.assert_array_equal(got.bary, want.bary)
+    assert len(vertex_points(mesh, np.zeros(0, dtype=np.int64))) == 0

@@ -26,7 +26,7 @@ from meshfit.curves.base import (
 )
 from meshfit.errors import InputError, PathError
 from meshfit.mesh import Mesh
-from meshfit.surface.paths import greedy_path, path_to_surface_points
+from meshfit.surface.paths import greedy_path, path_to_surface_points, vertex_points
 from meshfit.surface.walk import _i8, attract_points
 from meshfit.types import SurfaceCurve, SurfacePoints
 
@@ -70,20 +70,7 @@ def _as_picks(mesh: Mesh, picks: ArrayLike | SurfacePoints) -> tuple[SurfacePoin
         raise InputError(
             f"picks[{bad[0]}] = {v[bad[0]]} is not a vertex index in [0, {mesh.n_vertices})"
         )
-    return _at_vertices(mesh, v), v
-
-
-def _at_vertices(mesh: Mesh, v: NDArray[np.int64]) -> SurfacePoints:
-    """``SurfacePoints.at_vertices(mesh.faces, v)`` (lowest-index face around each vertex)
-    from the vertex-face table, without a pass over all faces."""
-    indptr, vf = mesh.vertex_faces
-    lo, hi = indptr[v], indptr[v + 1]
-    if (hi <= lo).any():  # a vertex on no face: let at_vertices raise its error
-        return SurfacePoints.at_vertices(mesh.faces, v)
-    face = np.array([vf[i:j].min() for i, j in zip(lo.tolist(), hi.tolist(), strict=True)])
-    face = face.astype(np.int64).reshape(-1)
-    bary = (mesh.faces[face] == v[:, None]).astype(np.float64)
-    return SurfacePoints(face, bary)
+    return vertex_points(mesh, v), v
 
 
 def _segment(

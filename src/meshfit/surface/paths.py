@@ -370,6 +370,36 @@ def _edge_ids(mesh: Mesh, a: NDArray[np.int64], b: NDArray[np.int64]) -> NDArray
     return np.where(keys[i] == q, i, -1)
 
 
+def vertex_points(mesh: Mesh, vertices: NDArray[np.int64]) -> SurfacePoints:
+    """``SurfacePoints.at_vertices(mesh.faces, vertices)`` (the lowest-index face around each
+    vertex) from the mesh's vertex-face table, without a pass over all faces.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    vertices : (n,) int64
+        Vertex indices in range.
+    """
+    v = np.asarray(vertices, dtype=np.int64).reshape(-1)
+    if v.size == 0:
+        return SurfacePoints(np.zeros(0, np.int64), np.zeros((0, 3)))
+    indptr, vf = mesh.vertex_faces
+    lo, hi = indptr[v], indptr[v + 1]
+    if (hi <= lo).any():  # a vertex on no face: at_vertices raises its error
+        return SurfacePoints.at_vertices(mesh.faces, v)
+    face = _segment_min(vf, lo, hi)
+    bary = (mesh.faces[face] == v[:, None]).astype(np.float64)
+    return SurfacePoints(face, bary)
+
+
+def _segment_min(values: NDArray[np.int64], lo: NDArray, hi: NDArray) -> NDArray[np.int64]:
+    """Smallest of ``values[lo[i]:hi[i]]`` for each (non-empty) segment, in any order."""
+    n = hi - lo
+    first = np.concatenate([[0], np.cumsum(n)[:-1]])  # each segment's start once gathered
+    idx = np.repeat(lo - first, n) + np.arange(int(n.sum()))
+    return np.minimum.reduceat(values[idx], first)
+
+
 def path_to_surface_points(mesh: Mesh, vertices: ArrayLike, *, per_edge: int = 0) -> SurfacePoints:
     """Sample a vertex path into face points, the form curves are kept in.
 
@@ -407,7 +437,7 @@ def path_to_surface_points(mesh: Mesh, vertices: ArrayLike, *, per_edge: int = 0
     if v.size == 0:
         return SurfacePoints(np.zeros(0, np.int64), np.zeros((0, 3)))
     if v.size == 1:
-        return SurfacePoints.at_vertices(mesh.faces, v)
+        return vertex_points(mesh, v)
     a, b = v[:-1], v[1:]
     eid = _edge_ids(mesh, a, b)
     bad = np.flatnonzero(eid < 0)
