@@ -94,6 +94,7 @@ def simplify_mesh(mesh: Mesh, target_faces: int) -> SimplifiedMesh:
     V = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
     F = np.array(mesh.faces, dtype=np.int64, order="C")
     alive = np.ones(F.shape[0], dtype=np.bool_)
+    kept = np.arange(V.shape[0], dtype=np.int64)
     n_alive = F.shape[0]
     min_cos = float(np.cos(np.radians(MAX_NORMAL_TURN_DEG)))
     passes = 0
@@ -105,11 +106,25 @@ def simplify_mesh(mesh: Mesh, target_faces: int) -> SimplifiedMesh:
         if done == 0:
             break
         n_alive -= 2 * done
-        F = np.ascontiguousarray(F[alive])  # same order: the next pass sees the same stars
+        # drop the removed faces and vertices, keeping both orders (a monotone renumbering):
+        # the next pass sees the same stars and breaks ties the same way, on fewer elements
+        V, F, kept = _compact(V, F[alive], kept)
         alive = np.ones(F.shape[0], dtype=np.bool_)
-    F = F[alive]
-    used = np.unique(F)
+    V, F, kept = _compact(V, F[alive], kept)
+    coarse = Mesh(V, F, name=f"{mesh.name}_proxy" if mesh.name else "proxy")
+    return SimplifiedMesh(coarse, kept, passes)
+
+
+def _compact(V: NDArray, F: NDArray, kept: NDArray[np.int64]):
+    """The vertices ``F`` uses, in their order: ``(V', F', kept')`` with ``kept'`` the input
+    mesh's index of each remaining vertex."""
+    mask = np.zeros(V.shape[0], dtype=np.bool_)
+    mask[F.reshape(-1)] = True
+    used = np.flatnonzero(mask)
     remap = np.full(V.shape[0], -1, dtype=np.int64)
     remap[used] = np.arange(used.size)
-    coarse = Mesh(V[used], remap[F], name=f"{mesh.name}_proxy" if mesh.name else "proxy")
-    return SimplifiedMesh(coarse, used.astype(np.int64), passes)
+    return (
+        np.ascontiguousarray(V[used]),
+        np.ascontiguousarray(remap[F]),
+        kept[used].astype(np.int64),
+    )
