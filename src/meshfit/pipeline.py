@@ -481,7 +481,7 @@ def _surface_distance(
     reconstruction (a triangle soup ``V, F``)."""
     from meshfit.mesh.locate import triangle_distances
 
-    to_input = mesh.closest_points(V).distance
+    to_input, _ = triangle_distances(V, mesh.vertices, mesh.faces, tree=mesh.triangle_tree)
     from_input, _ = triangle_distances(mesh.vertices, V, F)
     return to_input, from_input
 

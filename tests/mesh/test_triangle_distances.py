@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from numpy.testing import assert_allclose
+from numpy.testing import assert_allclose, assert_array_equal
 
 from meshfit.errors import InputError
 from meshfit.mesh.locate import triangle_distances
@@ -65,3 +65,14 @@ def test_bad_input_is_refused():
         triangle_distances(np.zeros((1, 3)), V, np.array([[0, 1, 3]]))
     with pytest.raises(InputError, match="points"):
         triangle_distances(np.full((1, 3), np.nan), V, np.array([[0, 1, 2]]))
+
+
+def test_a_kept_tree_gives_the_same_distances(rng):
+    mesh = real_mesh("igea")
+    q = rng.uniform(*mesh.bbox, size=(500, 3))
+    want, _ = triangle_distances(q, mesh.vertices, mesh.faces)
+    got, _ = triangle_distances(q, mesh.vertices, mesh.faces, tree=mesh.triangle_tree)
+    assert_array_equal(got, want)
+    assert_array_equal(got, mesh.closest_points(q).distance)
+    with pytest.raises(InputError, match="tree has"):
+        triangle_distances(q, mesh.vertices, mesh.faces[:10], tree=mesh.triangle_tree)

@@ -103,7 +103,11 @@ def build_tree(
 
 
 def triangle_distances(
-    points: ArrayLike, vertices: ArrayLike, faces: ArrayLike
+    points: ArrayLike,
+    vertices: ArrayLike,
+    faces: ArrayLike,
+    *,
+    tree: TriangleTree | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Distance from each point to the nearest of a set of triangles (any soup: no
     connectivity is needed), on all cores.
@@ -119,6 +123,9 @@ def triangle_distances(
     vertices : (k, 3) float64
     faces : (m, 3) int64
         Triangles; ``m >= 1``.
+    tree : TriangleTree, keyword-only, optional
+        A tree already built over these ``vertices`` and ``faces`` (e.g.
+        :attr:`meshfit.mesh.Mesh.triangle_tree` with the mesh's arrays); default: build one.
 
     Returns
     -------
@@ -130,7 +137,8 @@ def triangle_distances(
     Raises
     ------
     meshfit.errors.InputError
-        Points or vertices not (k, 3) finite numbers, no faces, a face index out of range.
+        Points or vertices not (k, 3) finite numbers, no faces, a face index out of range, a
+        ``tree`` over another number of triangles.
 
     References
     ----------
@@ -149,7 +157,11 @@ def triangle_distances(
     if Q.shape[0] == 0:
         return np.empty(0), np.empty(0, dtype=np.int64)
     qorder = np.argsort(bvh.point_morton_codes(Q), kind="stable")
-    sq, face = bvh.squared_distances(V, F, *build_tree(V, F), Q, qorder)
+    if tree is None:
+        tree = build_tree(V, F)
+    elif tree.order.shape[0] != F.shape[0]:
+        raise InputError(f"tree has {tree.order.shape[0]} triangles, faces {F.shape[0]}")
+    sq, face = bvh.squared_distances(V, F, *tree, Q, qorder)
     return np.sqrt(sq), face
 
 
