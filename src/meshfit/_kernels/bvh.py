@@ -5,8 +5,8 @@ inputs already validated. The triangles start in the Morton order of their centr
 (neighbours in space near in memory); each node is split at the median centroid along the
 longest axis of its centroids (quickselect), and the boxes are made in one bottom-up pass.
 Each query descends nearer child first and prunes boxes no nearer than the best triangle so
-far. `closest_points` also takes the queries in Morton order and starts each search from the
-previous query's triangle.
+far. The queries are taken in Morton order, each search starting from the previous query's
+triangle.
 """
 
 from __future__ import annotations
@@ -374,59 +374,15 @@ _BLOCK = 1024
 
 
 @njit(cache=True, nogil=True, parallel=True, fastmath=False)
-def squared_distances(V, F, flat, order, lo, hi, child, start, stop, Q, qorder):
-    """(n,) squared distance from each query point ``Q (n, 3)`` to the nearest triangle, and
-    (n,) that triangle.
-
-    The queries are taken in the order ``qorder (n,)``, each search starting from the
-    distance to the previous query's triangle in the same block, as in `closest_points`.
-    """
-    n = Q.shape[0]
-    out = np.empty(n)
-    tri = np.empty(n, dtype=np.int64)
-    for blk in prange((n + _BLOCK - 1) // _BLOCK):
-        stack = np.empty(_STACK, dtype=np.int64)  # scratch per block, not per point
-        near_sq = np.empty(_STACK)
-        bary = np.empty(3)
-        best = np.empty(3)
-        prev = -1
-        for r in range(blk * _BLOCK, min(n, (blk + 1) * _BLOCK)):
-            i = qorder[r]
-            d0 = np.inf
-            if prev >= 0:
-                d0 = _triangle_sq(V, F, flat, prev, Q[i], best)
-            out[i], tri[i] = _nearest(
-                V,
-                F,
-                flat,
-                order,
-                lo,
-                hi,
-                child,
-                start,
-                stop,
-                Q[i],
-                stack,
-                near_sq,
-                bary,
-                best,
-                d0,
-                prev,
-            )
-            prev = tri[i]
-    return out, tri
-
-
-@njit(cache=True, nogil=True, parallel=True, fastmath=False)
 def closest_points(V, F, flat, order, lo, hi, child, start, stop, Q, qorder):
     """Closest point of the triangles to each query point ``Q (n, 3)``: (n,) squared
     distance, (n,) triangle, (n, 3) barycentrics of the point on that triangle (each >= 0,
     summing to 1).
 
     The queries are taken in the order ``qorder (n,)`` (a permutation; Morton order keeps
-    consecutive queries near each other). Each search is `squared_distances`'s, except that
-    the best distance starts at the distance to the previous query's triangle in the same
-    block, which prunes most of the tree when that query was near.
+    consecutive queries near each other). Each search descends the tree from the distance to
+    the previous query's triangle in the same block, which prunes most of the tree when that
+    query was near. Also the kernel of distance-only queries, which drop the barycentrics.
     """
     n = Q.shape[0]
     out = np.empty(n)

@@ -161,7 +161,7 @@ def triangle_distances(
         tree = build_tree(V, F)
     elif tree.order.shape[0] != F.shape[0]:
         raise InputError(f"tree has {tree.order.shape[0]} triangles, faces {F.shape[0]}")
-    sq, face = bvh.squared_distances(V, F, *tree, Q, qorder)
+    sq, face, _ = bvh.closest_points(V, F, *tree, Q, qorder)
     return np.sqrt(sq), face
 
 

@@ -90,6 +90,12 @@ def _plural(n: int, word: str) -> str:
     return f"{n} {word[:-2] + 'ices' if word.endswith('vertex') else word + 's'}"
 
 
+def _area2_limit(diag: float) -> float:
+    """Largest squared cross-product norm of a degenerate face (twice its area, squared), for
+    a bounding-box diagonal ``diag``."""
+    return (2.0 * tol.DEGENERATE_AREA * diag * diag) ** 2
+
+
 def _degenerate_faces(vertices: NDArray, faces: NDArray) -> NDArray[np.bool_]:
     """Faces with a repeated index or (near-)zero area, relative to the bbox diagonal."""
     rep = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
@@ -102,7 +108,7 @@ def _degenerate_faces(vertices: NDArray, faces: NDArray) -> NDArray[np.bool_]:
     used = vertices[mask]
     finite = used[np.isfinite(used).all(axis=1)]
     diag = float(np.linalg.norm(finite.max(axis=0) - finite.min(axis=0))) if finite.size else 0.0
-    limit = (2.0 * tol.DEGENERATE_AREA * diag * diag) ** 2
+    limit = _area2_limit(diag)
     with np.errstate(invalid="ignore"):
         small = ~(area2 > limit)
     return rep | small
@@ -183,7 +189,7 @@ def clean_edge_table(
     if not _kt.simple_ok(v, f):
         return None
     diag = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
-    floor = (2.0 * tol.DEGENERATE_AREA * diag * diag) ** 2 * (1.0 + _AREA_MARGIN)
+    floor = _area2_limit(diag) * (1.0 + _AREA_MARGIN)
     table = topology.edge_table(f, nv)
     if not _kt.manifold_ok(v, f, table.edge_count, table.order, table.start, floor):
         return None
