@@ -43,6 +43,7 @@ from meshfit import __version__
 from meshfit._atomic import atomic_write, write_text
 from meshfit.errors import InputError, LayoutError
 from meshfit.mesh import Mesh
+from meshfit.mesh.locate import build_tree, refit_tree
 
 __all__ = [
     "FORMATS",
@@ -475,20 +476,20 @@ def _polyline_gap(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
 
 # ---------------------------------------------------------------------------- errors
 def _surface_distance(
-    mesh: Mesh, V: NDArray[np.float64], F: NDArray[np.int64]
+    mesh: Mesh, V: NDArray[np.float64], F: NDArray[np.int64], tree
 ) -> tuple[NDArray, NDArray]:
     """Two-sided distances: reconstruction vertices to the input, input vertices to the
-    reconstruction (a triangle soup ``V, F``)."""
+    reconstruction (a triangle soup ``V, F`` and its tree)."""
     from meshfit.mesh.locate import triangle_distances
 
     to_input, _ = triangle_distances(V, mesh.vertices, mesh.faces, tree=mesh.triangle_tree)
-    from_input, _ = triangle_distances(mesh.vertices, V, F)
+    from_input, _ = triangle_distances(mesh.vertices, V, F, tree=tree)
     return to_input, from_input
 
 
-def _error_figures(mesh: Mesh, V, F) -> tuple[dict[str, float], NDArray[np.float64]]:
+def _error_figures(mesh: Mesh, V, F, tree) -> tuple[dict[str, float], NDArray[np.float64]]:
     """Error figures over the bbox diagonal, and each reconstruction vertex's distance."""
-    a, b = _surface_distance(mesh, V, F)
+    a, b = _surface_distance(mesh, V, F, tree)
     diag = mesh.bbox_diagonal
     both = np.concatenate([a, b])
     return {
@@ -817,10 +818,15 @@ def run_fit(
             )
             for p in range(n_patches)
         ]
-        spline_fig, spline_to_input = _error_figures(mesh, *_soup(spline_grids))
+        Vs, Fs = _soup(spline_grids)
+        tree = build_tree(Vs, Fs)
+        spline_fig, spline_to_input = _error_figures(mesh, Vs, Fs, tree)
+        Vd, Fd = _soup(displaced_grids())
+        # the displaced soup is the spline soup moved by the maps: the same tree, refitted
+        tree = refit_tree(tree, Vd, Fd) if np.array_equal(Fd, Fs) else build_tree(Vd, Fd)
         errors = {
             "spline_only": spline_fig,
-            "displaced": _error_figures(mesh, *_soup(displaced_grids()))[0],
+            "displaced": _error_figures(mesh, Vd, Fd, tree)[0],
             "units": "fraction of the input's bbox diagonal",
         }
         spline_distance.append(spline_to_input)

@@ -11,7 +11,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from meshfit._kernels import bvh
 from meshfit.errors import InputError
 from meshfit.mesh import closest_points
-from meshfit.mesh.locate import build_tree
+from meshfit.mesh.locate import build_tree, refit_tree, triangle_distances
 from meshfit.surface import random_surface_points
 
 from ..conftest import analytic_mesh, real_mesh
@@ -167,3 +167,22 @@ def test_tree_equals_the_one_thread_breadth_first_build(rng, m, leaf_size):
         assert_array_equal(g, w)
     tree = build_tree(V, F, leaf_size=leaf_size)
     assert_array_equal(tree.order, want[0])
+
+
+def test_a_refitted_tree_finds_the_same_distances(rng):
+    # a surface and a displaced copy, as the fit's error stage measures them
+    mesh = real_mesh("spot")
+    V0, F = mesh.vertices, mesh.faces
+    tree = build_tree(V0, F)
+    same = refit_tree(tree, V0, F)
+    for a, b in zip(same, tree, strict=True):
+        assert_array_equal(a, b)  # refitting in place rebuilds the very boxes
+    V1 = V0 + rng.normal(scale=0.3 * mesh.mean_edge_length, size=V0.shape)
+    q = rng.uniform(*mesh.bbox, size=(2000, 3))
+    moved = refit_tree(tree, V1, F)
+    got, _ = triangle_distances(q, V1, F, tree=moved)
+    want, _ = triangle_distances(q, V1, F)
+    assert_array_equal(got, want)
+    assert_allclose(got[:50] ** 2, ref.squared_distances(V1, F, q[:50]), rtol=1e-12, atol=0)
+    with pytest.raises(InputError, match="tree has"):
+        refit_tree(tree, V1, F[:-2])

@@ -215,6 +215,23 @@ def build(V, F, order, leaf_size):
     return ords, olo, ohi, ochild, ostart, ostop
 
 
+@njit(cache=True, nogil=True, parallel=True, fastmath=False)
+def refit(V, F, order, child, start, stop):
+    """Node boxes ``lo, hi (k, 3)`` of a tree from `build` over the same triangles at new
+    vertex positions ``V``: the same nodes, the leaves' boxes in parallel, then the inner
+    nodes' bottom up."""
+    n = child.shape[0]
+    lo = np.empty((n, 3))
+    hi = np.empty((n, 3))
+    for k in prange(n):
+        if child[k] < 0:
+            _node_box(V, F, order, lo, hi, child, start, stop, k)
+    for k in range(n - 1, -1, -1):  # breadth-first numbering: children after parents
+        if child[k] >= 0:
+            _node_box(V, F, order, lo, hi, child, start, stop, k)
+    return lo, hi
+
+
 @njit(cache=True, nogil=True, fastmath=False)
 def _node_box(V, F, ords, lo, hi, child, start, stop, k):
     """Box of node ``k`` from its children's boxes, or from its triangles for a leaf."""

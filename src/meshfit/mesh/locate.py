@@ -102,6 +102,41 @@ def build_tree(
     return TriangleTree(bvh.zero_area(vertices, faces), order, lo, hi, child, start, stop)
 
 
+def refit_tree(
+    tree: TriangleTree, vertices: NDArray[np.float64], faces: NDArray[np.int64]
+) -> TriangleTree:
+    """The same tree over the same faces at new vertex positions (every box rebuilt).
+
+    A tree built for one position of a triangle set serves another nearby one (e.g. a surface
+    and its displaced copy) at the cost of one bottom-up pass; the searches stay exact, only
+    the boxes are less tight than a fresh build's where triangles moved far.
+
+    Parameters
+    ----------
+    tree : TriangleTree
+        From :func:`build_tree` over ``faces``.
+    vertices : (k, 3) float64
+        Finite coordinates.
+    faces : (m, 3) int64
+        The faces the tree was built over.
+
+    Returns
+    -------
+    TriangleTree
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        ``faces`` of another count than the tree's triangles.
+    """
+    from meshfit._kernels import bvh
+
+    if faces.shape[0] != tree.order.shape[0]:
+        raise InputError(f"tree has {tree.order.shape[0]} triangles, faces {faces.shape[0]}")
+    lo, hi = bvh.refit(vertices, faces, tree.order, tree.child, tree.start, tree.stop)
+    return tree._replace(flat=bvh.zero_area(vertices, faces), lo=lo, hi=hi)
+
+
 def triangle_distances(
     points: ArrayLike,
     vertices: ArrayLike,
