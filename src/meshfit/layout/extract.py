@@ -102,10 +102,10 @@ def _compute_partition(
     loops_of: list[list[NDArray[np.int64]]] = [[] for _ in range(n_comp)]
     for loop in cut.boundary_loops:
         loops_of[int(vcomp[loop[0]])].append(loop)
-    first_face = np.full(n_comp, -1, dtype=np.int64)
+    # faces by component, ascending within each: component c's are order[starts[c]:starts[c+1]]
     order = np.argsort(labels, kind="stable")
-    starts = np.searchsorted(labels[order], np.arange(n_comp))
-    first_face[:] = order[starts]
+    starts = np.searchsorted(labels[order], np.arange(n_comp + 1))
+    first_face = order[starts[:-1]]
 
     by_set: dict[frozenset[int], list[int]] = {}
     for p in range(layout.n_patches):
@@ -192,7 +192,7 @@ def _compute_partition(
         start = pos[rot]
         loop = np.roll(loops[0], -start)
         cpos = [(pos[(rot + s) % 4] - start) % loops[0].size for s in range(4)]
-        regions.append(_Region(p, np.flatnonzero(labels == c), loop, cpos))
+        regions.append(_Region(p, order[starts[c] : starts[c + 1]], loop, cpos))
     missing = [p for p in range(layout.n_patches) if p not in claimed]
     if missing:
         raise LayoutError(f"patch {missing[0]} bounds no region of its own")
