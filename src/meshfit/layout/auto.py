@@ -55,7 +55,9 @@ PROXY_FACES = 50_000
 #: a mesh is laid out on a proxy when it has more than this many times ``proxy_faces`` faces
 PROXY_RATIO = 2.0
 #: snake iterations on the full mesh after the curves relaxed on the proxy are carried over
-FINE_RELAX_ITERATIONS = 100
+#: (the stop test does not end them earlier on a dense scan; igea's fit is the same with
+#: 25, 50 or 100: displaced RMS 0.004%, Hausdorff 0.18%, arc-length CV 0.18, no folds)
+FINE_RELAX_ITERATIONS = 50
 #: samples of a base edge's image when it is split at half its surface length
 _SPLIT_SAMPLES = 65
 #: a base triangle's image is split n x n ways to find its area centre
