@@ -762,12 +762,26 @@ def run_fit(
         if options.map_kind == "vector":
             dmaps = _stitch_maps(grids, surfaces, dmaps, notes)
     displaced_cache: list = []
-    displaced_cache: list = []
+    spline_cache: list = []
 
     def displaced_grids() -> list[NDArray[np.float64]]:
         if not displaced_cache:
             displaced_cache.append([reconstruct(surfaces[p], dmaps[p]) for p in range(n_patches)])
         return displaced_cache[0]
+
+    def spline_grids() -> list[NDArray[np.float64]]:
+        """Each spline at its spring grid's parameters (errors and report)."""
+        if not spline_cache:
+            spline_cache.append(
+                [
+                    surfaces[p].evaluate_grid(
+                        np.linspace(0.0, 1.0, grids[p].shape[0]),
+                        np.linspace(0.0, 1.0, grids[p].shape[1]),
+                    )
+                    for p in range(n_patches)
+                ]
+            )
+        return spline_cache[0]
 
     if cached is None:
         seams = _seam_metrics(lay, surfaces, displaced_grids(), diag)
@@ -812,13 +826,7 @@ def run_fit(
         if dist_file.is_file():
             spline_distance.append(_load_npz(dist_file)["spline_to_input"])
     else:
-        spline_grids = [
-            surfaces[p].evaluate_grid(
-                np.linspace(0.0, 1.0, grids[p].shape[0]), np.linspace(0.0, 1.0, grids[p].shape[1])
-            )
-            for p in range(n_patches)
-        ]
-        Vs, Fs = _soup(spline_grids)
+        Vs, Fs = _soup(spline_grids())
         tree = build_tree(Vs, Fs)
         spline_fig, spline_to_input = _error_figures(mesh, Vs, Fs, tree)
         Vd, Fd = _soup(displaced_grids())
@@ -888,6 +896,7 @@ def run_fit(
             grids=grids,
             surfaces=surfaces,
             displaced=displaced_grids,
+            spline=spline_grids,
             dmaps=dmaps,
             summary=summary,
             image_size=options.image_size,

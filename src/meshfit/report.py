@@ -77,6 +77,7 @@ def write_report(
     surfaces: list,
     displaced: Callable[[], list[NDArray[np.float64]]] | list[NDArray[np.float64]],
     dmaps: list,
+    spline: Callable[[], list[NDArray[np.float64]]] | list[NDArray[np.float64]] | None = None,
     summary: dict[str, Any],
     image_size: int = 640,
     render_images: bool = True,
@@ -99,6 +100,9 @@ def write_report(
     displaced : list of (nu, nv, 3) float64, or a callable returning it
         Displaced reconstructions.
     dmaps : list of DisplacementMap
+    spline : list of (nu, nv, 3) float64, or a callable returning it, optional
+        Each surface evaluated at its spring grid's parameters, when already computed;
+        default evaluated here.
     summary : dict
         The fit summary (tables); ``report_images`` is added to it.
     image_size : int
@@ -146,11 +150,12 @@ def write_report(
         jobs["springs"] = lambda: render(
             V, F, vertex_colors=vcol, uv=UV, checker=1.0, shading="flat", **kw
         )
-        spline = [
-            s.evaluate_grid(np.linspace(0, 1, g.shape[0]), np.linspace(0, 1, g.shape[1]))
-            for s, g in zip(surfaces, grids, strict=True)
-        ]
-        Vs, Fs, _, _ = _grid_soup(spline)
+        if spline is None:
+            spline = [
+                s.evaluate_grid(np.linspace(0, 1, g.shape[0]), np.linspace(0, 1, g.shape[1]))
+                for s, g in zip(surfaces, grids, strict=True)
+            ]
+        Vs, Fs, _, _ = _grid_soup(spline() if callable(spline) else spline)
         jobs["spline"] = lambda: render(Vs, Fs, **kw)
         disp = displaced() if callable(displaced) else displaced
         Vd, Fd, _, _ = _grid_soup(disp)
