@@ -33,6 +33,7 @@ import zipfile
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass
+from functools import cache
 from pathlib import Path
 from typing import Any
 
@@ -43,7 +44,7 @@ from meshfit import __version__
 from meshfit._atomic import atomic_write, write_text
 from meshfit.errors import InputError, LayoutError
 from meshfit.mesh import Mesh
-from meshfit.mesh.locate import build_tree, refit_tree
+from meshfit.mesh.locate import build_tree, refit_tree, triangle_distances
 
 __all__ = [
     "FORMATS",
@@ -480,8 +481,6 @@ def _surface_distance(
 ) -> tuple[NDArray, NDArray]:
     """Two-sided distances: reconstruction vertices to the input, input vertices to the
     reconstruction (a triangle soup ``V, F`` and its tree)."""
-    from meshfit.mesh.locate import triangle_distances
-
     to_input, _ = triangle_distances(V, mesh.vertices, mesh.faces, tree=mesh.triangle_tree)
     from_input, _ = triangle_distances(mesh.vertices, V, F, tree=tree)
     return to_input, from_input
@@ -761,27 +760,20 @@ def run_fit(
     else:
         if options.map_kind == "vector":
             dmaps = _stitch_maps(grids, surfaces, dmaps, notes)
-    displaced_cache: list = []
-    spline_cache: list = []
 
+    @cache
     def displaced_grids() -> list[NDArray[np.float64]]:
-        if not displaced_cache:
-            displaced_cache.append([reconstruct(surfaces[p], dmaps[p]) for p in range(n_patches)])
-        return displaced_cache[0]
+        return [reconstruct(surfaces[p], dmaps[p]) for p in range(n_patches)]
 
+    @cache
     def spline_grids() -> list[NDArray[np.float64]]:
         """Each spline at its spring grid's parameters (errors and report)."""
-        if not spline_cache:
-            spline_cache.append(
-                [
-                    surfaces[p].evaluate_grid(
-                        np.linspace(0.0, 1.0, grids[p].shape[0]),
-                        np.linspace(0.0, 1.0, grids[p].shape[1]),
-                    )
-                    for p in range(n_patches)
-                ]
+        return [
+            surfaces[p].evaluate_grid(
+                np.linspace(0.0, 1.0, grids[p].shape[0]), np.linspace(0.0, 1.0, grids[p].shape[1])
             )
-        return spline_cache[0]
+            for p in range(n_patches)
+        ]
 
     if cached is None:
         seams = _seam_metrics(lay, surfaces, displaced_grids(), diag)
