@@ -17,9 +17,11 @@ follows it (end points pinned to the layout corners), and every patch using the 
 its boundary row of control points to that curve's control points (Krishnamurthy 2000,
 sec. 8.1.3: boundary constraints at the fitting step). Control counts are unified across
 curves so that patches sharing a curve agree. ``continuity="g1"`` then makes the network G1
-with :func:`meshfit.stitch.stitch_surfaces`; displacement seams are closed with
-:func:`meshfit.stitch.stitch_displacements` (vector maps). The seams are measured either way
-(gap and normal jump across each curve, in ``summary["seams"]``).
+with :func:`meshfit.stitch.stitch_surfaces`; vector displacement maps take equal texel
+counts along shared curves (:func:`meshfit.stitch.match_map_shapes`) and their seams are
+closed with :func:`meshfit.stitch.stitch_displacements`, crack-free at every output
+resolution. The seams are measured either way (gap and normal jump across each curve, and
+the displaced gap as exported and at any resolution, in ``summary["seams"]``).
 """
 
 from __future__ import annotations
@@ -74,7 +76,7 @@ STAGES = (
 #: output formats of ``FitOptions.formats``
 FORMATS = ("usd", "3dm", "iges", "step", "obj", "glb", "exr", "png")
 #: version of the stage files and the summary
-PIPELINE_FORMAT = 1
+PIPELINE_FORMAT = 2
 
 Progress = Callable[[str, int, int], None]
 
@@ -428,6 +430,7 @@ def _seam_metrics(layout, surfaces, grids_displaced, diag: float, samples: int =
     angle = 0.0
     angle_inner = 0.0
     disp_gap = 0.0
+    disp_any = 0.0
     shared = 0
     for uses in users.values():
         if len(uses) != 2:
@@ -449,18 +452,27 @@ def _seam_metrics(layout, surfaces, grids_displaced, diag: float, samples: int =
         inner = (t > span) & (t < 1.0 - span)
         if inner.any():
             angle_inner = max(angle_inner, float(a[inner].max()))
-        rows = []
-        for p, s, rev in uses:
+        rows, cont = [], []
+        for (p, s, rev), spline_pts in zip(uses, pts, strict=True):
             row = _side_row(grids_displaced[p], s)
-            rows.append(row[::-1] if rev else row)
+            row = row[::-1] if rev else row
+            rows.append(row)
+            # at any output resolution: the spline plus the boundary texels' model-space
+            # vectors read linearly at the curve parameters t
+            tex = np.linspace(0.0, 1.0, len(row))
+            u, v = side_params(s, tex[::-1] if rev else tex)
+            vec = row - surfaces[p].evaluate(u, v)
+            cont.append(spline_pts + np.stack([np.interp(t, tex, vec[:, c]) for c in range(3)], 1))
         # displaced boundaries: distance of each row's points to the other row's polyline
         disp_gap = max(disp_gap, _polyline_gap(rows[0], rows[1]), _polyline_gap(rows[1], rows[0]))
+        disp_any = max(disp_any, float(np.linalg.norm(cont[0] - cont[1], axis=1).max()))
     return {
         "shared_curves": shared,
         "spline_gap_max": gap / diag,
         "spline_normal_jump_max_deg": angle,
         "spline_normal_jump_inner_max_deg": angle_inner,
         "displaced_gap_max": disp_gap / diag,
+        "displaced_gap_any_resolution_max": disp_any / diag,
     }
 
 
@@ -767,10 +779,10 @@ def run_fit(
 
     @cache
     def spline_grids() -> list[NDArray[np.float64]]:
-        """Each spline at its spring grid's parameters (errors and report)."""
+        """Each spline at its map's texels, as the displaced grids (errors and report)."""
         return [
             surfaces[p].evaluate_grid(
-                np.linspace(0.0, 1.0, grids[p].shape[0]), np.linspace(0.0, 1.0, grids[p].shape[1])
+                np.linspace(0.0, 1.0, dmaps[p].shape[0]), np.linspace(0.0, 1.0, dmaps[p].shape[1])
             )
             for p in range(n_patches)
         ]
@@ -842,6 +854,7 @@ def run_fit(
                 "patch": p,
                 **spring_info[p],
                 **fit_info[p],
+                "map_shape": list(dmaps[p].shape),
                 "displacement_max": float(np.abs(d).max() / diag),
             }
         )
@@ -1000,14 +1013,18 @@ def _stitch_g1(grids, surfaces, notes: list[str]) -> list:
 
 
 def _stitch_maps(grids, surfaces, dmaps, notes: list[str]) -> list:
-    """Crack-free displacement seams with :mod:`meshfit.stitch` (unchanged without it)."""
+    """Crack-free displacement seams with :mod:`meshfit.stitch` (unchanged without it).
+
+    The maps first take equal texel counts along shared boundaries (the largest of each
+    equal-count class), so the seams are closed at every output resolution.
+    """
     try:
-        from meshfit.stitch import network_from_grids, stitch_displacements
+        from meshfit.stitch import match_map_shapes, network_from_grids, stitch_displacements
     except ImportError:
         notes.append("meshfit.stitch is not installed: displacement seams left open")
         return dmaps
     net = network_from_grids(grids, continuity="C0")
-    return stitch_displacements(surfaces, dmaps, net)
+    return stitch_displacements(surfaces, match_map_shapes(surfaces, dmaps, net), net)
 
 
 def _face_patch(st: _Stages, k_cut: str, patches_cache: list) -> NDArray[np.int64] | None:

@@ -98,6 +98,24 @@ def test_doubling_normal_map_doubles_normal_component(rng):
     assert_allclose(vector_values(half, d), 0.5 * d.values, atol=1e-15)
 
 
+def test_resampling_with_the_surface_filters_model_space_vectors(fitted):
+    X, s = fitted
+    d = displacement_map(s, X)
+    h, w = d.shape
+    for shape in ((h + 8, w + 5), (h - 7, w + 3), (h, w)):
+        r = resample_map(d, shape, surface=s)
+        assert r.shape == shape and r.kind == "vector"
+        # read at its own resolution: the old map read at that resolution
+        assert_allclose(reconstruct(s, r), reconstruct(s, d, shape=shape), atol=1e-12 * _scale(X))
+    # frame components filtered as channels are a different (frame-dependent) surface
+    plain = resample_map(d, (h + 8, w + 5))
+    assert np.abs(reconstruct(s, plain) - reconstruct(s, d, shape=(h + 8, w + 5))).max() > 1e-9
+    with pytest.raises(InputError, match="vector map"):
+        resample_map(displacement_map(s, X, kind="normal"), (h, w), surface=s)
+    with pytest.raises(InputError, match="2 x 2"):
+        resample_map(d, (1, w), surface=s)
+
+
 def test_reconstruction_at_other_resolutions_is_bilinear(fitted):
     X, s = fitted
     d = displacement_map(s, X)

@@ -8,11 +8,15 @@ from meshfit.displacement import displacement_map, reconstruct
 from meshfit.errors import InputError
 from meshfit.stitch import (
     control_classes,
+    direction_classes,
     displacement_seam_gaps,
+    match_map_shapes,
     network_from_grids,
     seam_report,
+    side_row,
     stitch_displacements,
     stitch_surfaces,
+    texel_shapes,
 )
 from tests.bspline.grids import scan_grid
 from tests.stitch.networks import cube_sphere, height_field, split_grid
@@ -159,8 +163,6 @@ def test_displacement_seams_become_crack_free():
     for g, s, m in zip(grids, surfaces, fixed, strict=True):
         assert_allclose(reconstruct(s, m)[1:-1, 1:-1], g[1:-1, 1:-1], atol=1e-12 * diag)
     # seams of equal resolutions are crack-free at any output resolution too
-    from meshfit.stitch import side_row
-
     cont = displacement_seam_gaps(surfaces, fixed, net, tessellation="continuous")
     equal = np.array([0 not in (b.a, b.b) for b in net.boundaries])
     assert cont[equal].max() <= tol.STITCH_GAP * diag
@@ -176,6 +178,51 @@ def test_displacement_seams_become_crack_free():
         stitch_displacements(
             surfaces, [displacement_map(surfaces[0], grids[0], kind="normal")] * 6, net
         )
+
+
+def test_direction_classes_and_texel_shapes():
+    grids = split_grid(height_field(61), [], [20, 40])  # three patches in a row along v
+    net = network_from_grids(grids)
+    labels = direction_classes(net)
+    # numbered by first appearance; the shared u direction is one class
+    assert labels.tolist() == [[0, 1], [0, 2], [0, 3]]
+    assert texel_shapes(net, [(9, 5), (17, 7), (12, 8)]) == [(17, 5), (17, 7), (17, 8)]
+    sph = network_from_grids(LAYOUTS["cube_sphere"])
+    assert sorted(set(direction_classes(sph).ravel().tolist())) == [0, 1, 2]
+    shapes = texel_shapes(sph, [(17, 17)] * 5 + [(33, 17)])
+    # face 5's u direction runs along four faces (the cube edges parallel to it)
+    wide = direction_classes(sph) == direction_classes(sph)[5, 0]
+    assert (np.array(shapes) == np.where(wide, 33, 17)).all()
+    assert wide.sum() == 4
+    with pytest.raises(InputError, match="3 shapes"):
+        texel_shapes(sph, [(5, 5)] * 3)
+    with pytest.raises(InputError, match="2 x 2"):
+        texel_shapes(net, [(9, 5), (1, 7), (12, 8)])
+
+
+def test_matched_maps_close_seams_at_any_resolution():
+    grids = cube_sphere(17, resolutions={0: 33})  # face 0 finer: seams of 33 against 17
+    net = network_from_grids(grids)
+    surfaces = stitch_surfaces(_fit(grids, net, m=6), net)
+    maps = [displacement_map(s, g) for s, g in zip(surfaces, grids, strict=True)]
+    diag = _diag(grids)
+    matched = match_map_shapes(surfaces, maps, net)
+    assert matched[0] is maps[0]  # the finest map is kept as it is
+    for b in net.boundaries:
+        na = side_row(matched[b.a].values, b.side_a).shape[0]
+        assert na == side_row(matched[b.b].values, b.side_b).shape[0]
+    for s, m, mm in zip(surfaces, maps, matched, strict=True):
+        assert_allclose(reconstruct(s, mm), reconstruct(s, m, shape=mm.shape), atol=1e-12 * diag)
+    fixed = stitch_displacements(surfaces, matched, net)
+    cont = displacement_seam_gaps(surfaces, fixed, net, tessellation="continuous")
+    assert cont.max() <= tol.STITCH_GAP * diag
+    unmatched = stitch_displacements(surfaces, maps, net)
+    cont0 = displacement_seam_gaps(surfaces, unmatched, net, tessellation="continuous")
+    assert cont0.max() > 1e-6 * diag  # the 33 / 17 seams without matching
+    with pytest.raises(InputError, match="vector"):
+        match_map_shapes(surfaces, [displacement_map(surfaces[0], grids[0], kind="normal")] * 6, net)
+    with pytest.raises(InputError, match="5 maps"):
+        match_map_shapes(surfaces, maps[:5], net)
 
 
 @pytest.mark.parametrize("name", ["height_field_2x2", "nefertiti_2x3"])

@@ -45,6 +45,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     from meshfit.export import export_3dm, export_gltf, export_iges, export_obj, export_usd
     from meshfit.stitch import (
         control_classes,
+        match_map_shapes,
         network_from_grids,
         seam_report,
         stitch_displacements,
@@ -77,11 +78,11 @@ def cmd_fit(args: argparse.Namespace) -> int:
     after = seam_report(surfaces, net)
     t = time.perf_counter()
     maps = [displacement_map(s, g) for s, g in zip(surfaces, grids, strict=True)]
-    if net.boundaries:
-        maps = stitch_displacements(surfaces, maps, net)
+    if net.boundaries:  # equal texel counts along shared sides: crack-free at any resolution
+        maps = stitch_displacements(surfaces, match_map_shapes(surfaces, maps, net), net)
     t_maps = time.perf_counter() - t
     rows = []
-    for k, (p, g, s) in enumerate(zip(paths, grids, surfaces, strict=True)):
+    for k, (p, g, s, m) in enumerate(zip(paths, grids, surfaces, maps, strict=True)):
         e = fit_errors(s, g)
         rows.append(
             {
@@ -89,6 +90,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
                 "file": str(p),
                 "grid": list(g.shape[:2]),
                 "controls": list(s.shape),
+                "map": list(m.shape),
                 **{k2: float(f"{v:.6g}") for k2, v in e.as_dict().items()},
             }
         )

@@ -272,11 +272,38 @@ def sample_bilinear(values: ArrayLike, u: ArrayLike, v: ArrayLike) -> NDArray[np
     )
 
 
-def resample_map(dmap: DisplacementMap, shape: tuple[int, int]) -> DisplacementMap:
-    """The map bilinearly resampled to ``shape = (h', w')`` (the thesis' image scaling)."""
+def _world_filtered(surface: BSplineSurface, comp: NDArray, shape: tuple[int, int]) -> NDArray:
+    """Model-space vectors of frame components ``comp``, bilinearly filtered to ``shape``."""
+    _, T, B, N = _grid_frames(surface, *comp.shape[:2])
+    world = comp[..., :1] * T + comp[..., 1:2] * B + comp[..., 2:] * N
+    if tuple(shape) == comp.shape[:2]:
+        return world
+    Wu = _bilinear_weights(shape[0], comp.shape[0])
+    Wv = _bilinear_weights(shape[1], comp.shape[1])
+    return _k.dense_sandwich(Wu, np.ascontiguousarray(world), Wv)
+
+
+def resample_map(
+    dmap: DisplacementMap, shape: tuple[int, int], *, surface: BSplineSurface | None = None
+) -> DisplacementMap:
+    """The map bilinearly resampled to ``shape = (h', w')`` (the thesis' image scaling).
+
+    Without ``surface`` the frame components are filtered as image channels. With the
+    ``surface`` of a ``vector`` map, the model-space vectors are filtered and expressed in
+    the frames at the new texels, as :func:`reconstruct` reads a map at any resolution: the
+    resampled map's reconstruction at its own resolution is the old map's reconstruction
+    at ``shape``.
+    """
     h2, w2 = (int(s) for s in shape)
     if h2 < 2 or w2 < 2:
         raise InputError(f"a map needs at least 2 x 2 texels, got {shape}")
+    if surface is not None:
+        if dmap.kind != "vector":
+            raise InputError(f"resampling with a surface needs a vector map, got {dmap.kind}")
+        world = _world_filtered(surface, dmap.values, (h2, w2))
+        _, T, B, N = _grid_frames(surface, h2, w2)
+        comp = np.stack([(world * T).sum(-1), (world * B).sum(-1), (world * N).sum(-1)], -1)
+        return DisplacementMap(comp, "vector")
     Wu = _bilinear_weights(h2, dmap.shape[0])
     Wv = _bilinear_weights(w2, dmap.shape[1])
     vals = _k.dense_sandwich(Wu, np.ascontiguousarray(dmap.values), Wv)
@@ -359,14 +386,7 @@ def reconstruct(
     h2, w2 = dmap.shape if shape is None else (int(shape[0]), int(shape[1]))
     if h2 < 2 or w2 < 2:
         raise InputError(f"output shape must be at least 2 x 2, got {(h2, w2)}")
-    _, T, B, N = _grid_frames(surface, *dmap.shape)
-    world = comp[..., :1] * T + comp[..., 1:2] * B + comp[..., 2:] * N
-    if (h2, w2) == dmap.shape:
-        S = surface.evaluate_grid(grid_parameters(h2), grid_parameters(w2))
-        return S + world
-    Wu = _bilinear_weights(h2, dmap.shape[0])
-    Wv = _bilinear_weights(w2, dmap.shape[1])
-    world = _k.dense_sandwich(Wu, np.ascontiguousarray(world), Wv)
+    world = _world_filtered(surface, comp, (h2, w2))
     return surface.evaluate_grid(grid_parameters(h2), grid_parameters(w2)) + world
 
 

@@ -3,7 +3,8 @@
 :func:`network_from_grids` finds shared boundaries and corners; :func:`control_classes`
 makes control counts consistent (equal-count classes, user counts per class);
 :func:`stitch_surfaces` enforces C0 or G1 per boundary and G1 at corners of any valence;
-:func:`stitch_displacements` closes displacement seams; :func:`seam_report` and
+:func:`match_map_shapes` gives displacement maps equal texel counts along shared boundaries
+and :func:`stitch_displacements` closes their seams; :func:`seam_report` and
 :func:`displacement_seam_gaps` measure gaps and normal jumps before and after.
 """
 
@@ -13,12 +14,15 @@ from meshfit.stitch.network import (
     Network,
     SharedBoundary,
     control_classes,
+    direction_classes,
     network_from_grids,
     side_row,
+    texel_shapes,
 )
 from meshfit.stitch.stitch import (
     SeamReport,
     displacement_seam_gaps,
+    match_map_shapes,
     seam_report,
     stitch_displacements,
     stitch_surfaces,
@@ -31,10 +35,13 @@ __all__ = [
     "SeamReport",
     "SharedBoundary",
     "control_classes",
+    "direction_classes",
     "displacement_seam_gaps",
+    "match_map_shapes",
     "network_from_grids",
     "seam_report",
     "side_row",
     "stitch_displacements",
     "stitch_surfaces",
+    "texel_shapes",
 ]

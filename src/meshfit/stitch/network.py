@@ -18,8 +18,10 @@ __all__ = [
     "Network",
     "SharedBoundary",
     "control_classes",
+    "direction_classes",
     "network_from_grids",
     "side_row",
+    "texel_shapes",
 ]
 
 #: sides of a grid or control net, each listed in increasing parameter order:
@@ -214,6 +216,51 @@ class ControlClasses:
     controls: list[tuple[int, int]]
 
 
+def direction_classes(network: Network) -> NDArray[np.int64]:
+    """Equal-count classes of patch directions: ``(n_patches, 2)`` labels ``0 .. n_classes - 1``.
+
+    Opposite sides of a patch run along the same direction (its u or v); a shared boundary
+    joins the two directions that run along it. Classes are the connected components of
+    these links (union-find), numbered in order of first appearance (patch 0's u direction is class 0).
+    Any per-direction count that must agree across shared boundaries (control points,
+    texels) is one count per class.
+    """
+    n = network.n_patches
+    parent = list(range(2 * n))
+
+    def find(x: int) -> int:
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+
+    for b in network.boundaries:
+        ra = find(2 * b.a + _direction(b.side_a))
+        rb = find(2 * b.b + _direction(b.side_b))
+        parent[ra] = rb
+    index: dict[int, int] = {}
+    for x in range(2 * n):
+        index.setdefault(find(x), len(index))
+    return np.array([index[find(x)] for x in range(2 * n)], dtype=np.int64).reshape(n, 2)
+
+
+def texel_shapes(network: Network, shapes: Sequence[tuple[int, int]]) -> list[tuple[int, int]]:
+    """Map resolutions with equal texel counts along every shared boundary.
+
+    Each class of :func:`direction_classes` takes the largest count of its members, so no
+    map loses resolution. Returns ``(h, w)`` per patch.
+    """
+    shp = np.asarray(shapes, dtype=np.int64).reshape(-1, 2)
+    if len(shp) != network.n_patches:
+        raise InputError(f"{len(shp)} shapes for a network of {network.n_patches} patches")
+    if (shp < 2).any():
+        raise InputError("a map needs at least 2 x 2 texels")
+    labels = direction_classes(network)
+    best = np.zeros(int(labels.max()) + 1 if len(labels) else 0, dtype=np.int64)
+    np.maximum.at(best, labels.ravel(), shp.ravel())
+    return [(int(best[a]), int(best[b])) for a, b in labels]
+
+
 def control_classes(
     network: Network,
     *,
@@ -235,37 +282,24 @@ def control_classes(
     ControlClasses
     """
     n = network.n_patches
-    parent = list(range(2 * n))
-
-    def find(x: int) -> int:
-        while parent[x] != x:
-            parent[x] = parent[parent[x]]
-            x = parent[x]
-        return x
-
-    for b in network.boundaries:
-        ra = find(2 * b.a + _direction(b.side_a))
-        rb = find(2 * b.b + _direction(b.side_b))
-        parent[ra] = rb
-    roots = sorted({find(x) for x in range(2 * n)})
-    index = {r: c for c, r in enumerate(roots)}
-    labels = np.array([[index[find(2 * k)], index[find(2 * k + 1)]] for k in range(n)])
+    labels = direction_classes(network)
+    n_classes = int(labels.max()) + 1 if n else 0
     if isinstance(default, int):
         req = np.full((n, 2), default, dtype=np.int64)
     else:
         req = np.asarray(default, dtype=np.int64)
         if req.shape != (n, 2):
             raise InputError(f"default must be one count or ({n}, 2) counts, got {req.shape}")
-    cls = np.zeros(len(roots), dtype=np.int64)
-    for c in range(len(roots)):
+    cls = np.zeros(n_classes, dtype=np.int64)
+    for c in range(n_classes):
         cls[c] = req[labels == c].max()
     for c, v in (counts or {}).items():
-        if not 0 <= int(c) < len(roots):
-            raise InputError(f"class {c} does not exist (the network has {len(roots)})")
+        if not 0 <= int(c) < n_classes:
+            raise InputError(f"class {c} does not exist (the network has {n_classes})")
         cls[int(c)] = int(v)
     if grid_shapes is not None:
         shp = np.asarray(grid_shapes, dtype=np.int64)
-        for c in range(len(roots)):
+        for c in range(n_classes):
             cls[c] = min(cls[c], int(shp[labels == c].min()))
     if (cls < 4).any():
         c = int(np.flatnonzero(cls < 4)[0])

@@ -13,11 +13,12 @@ from meshfit.bspline import BSplineSurface
 from meshfit.bspline.basis import DEGREE, basis_local
 from meshfit.displacement import DisplacementMap
 from meshfit.errors import InputError
-from meshfit.stitch.network import Network, SharedBoundary, side_row
+from meshfit.stitch.network import Network, SharedBoundary, side_row, texel_shapes
 
 __all__ = [
     "SeamReport",
     "displacement_seam_gaps",
+    "match_map_shapes",
     "seam_report",
     "stitch_displacements",
     "stitch_surfaces",
@@ -822,6 +823,40 @@ def _seam_rows(t_c, x_c, t_f, x_f, x_f_at_c):
         f = (t_f[j0 : j1 + 1] - t_f[j0]) / (t_f[j1] - t_f[j0])
         out[j0 : j1 + 1] = q[i] + f[:, None] * (q[i + 1] - q[i])
     return q, out
+
+
+def match_map_shapes(
+    surfaces: Sequence[BSplineSurface],
+    maps: Sequence[DisplacementMap],
+    network: Network,
+) -> list[DisplacementMap]:
+    """Vector maps resampled to equal texel counts along every shared boundary.
+
+    Each map takes the resolution :func:`meshfit.stitch.texel_shapes` gives (the largest
+    count of each equal-count class, so no map is made coarser). A map whose resolution
+    changes is resampled as :func:`meshfit.displacement.reconstruct` reads it at any
+    resolution (:func:`meshfit.displacement.resample_map` with the surface): model-space
+    vectors filtered bilinearly, then expressed in the frames at the new texels. The
+    displaced surface of a resampled map at its new resolution is therefore the old map's
+    reconstruction at that resolution.
+
+    Run it before :func:`stitch_displacements` to close the seams at every output
+    resolution, not only with each patch tessellated at its map's own resolution.
+    """
+    from meshfit.displacement import resample_map
+
+    surfaces = _check(surfaces, network)
+    maps = list(maps)
+    if len(maps) != len(surfaces):
+        raise InputError(f"{len(maps)} maps for {len(surfaces)} surfaces")
+    for k, m in enumerate(maps):
+        if not isinstance(m, DisplacementMap) or m.kind != "vector":
+            raise InputError(f"maps[{k}] must be a vector displacement map")
+    shapes = texel_shapes(network, [m.shape for m in maps])
+    return [
+        m if shape == m.shape else resample_map(m, shape, surface=s)
+        for s, m, shape in zip(surfaces, maps, shapes, strict=True)
+    ]
 
 
 def stitch_displacements(
