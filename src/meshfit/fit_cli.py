@@ -69,6 +69,7 @@ def _options(args: argparse.Namespace):
         formats=_formats(args.formats),
         patches=args.patches,
         spring_level=args.level,
+        map_shapes=args.map_shapes,
         workers=args.workers,
         report=not args.no_report,
     )
@@ -172,6 +173,14 @@ def _common(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--level", type=int, default=None, help="final spring-mesh level (default: auto)"
+    )
+    p.add_argument(
+        "--map-shapes",
+        choices=("native", "matched"),
+        default="native",
+        help="displacement map resolutions: each at its spring grid's (native), or equal "
+        "texel counts along shared curves so that the seams are crack-free at any resolution "
+        "(matched; more texels) (default: %(default)s)",
     )
     p.add_argument("--no-report", action="store_true", help="skip report.html and its images")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")

@@ -17,10 +17,10 @@ follows it (end points pinned to the layout corners), and every patch using the 
 its boundary row of control points to that curve's control points (Krishnamurthy 2000,
 sec. 8.1.3: boundary constraints at the fitting step). Control counts are unified across
 curves so that patches sharing a curve agree. ``continuity="g1"`` then makes the network G1
-with :func:`meshfit.stitch.stitch_surfaces`; vector displacement maps take equal texel
-counts along shared curves (:func:`meshfit.stitch.match_map_shapes`) and their seams are
-closed with :func:`meshfit.stitch.stitch_displacements`, crack-free at every output
-resolution. The seams are measured either way (gap and normal jump across each curve, and
+with :func:`meshfit.stitch.stitch_surfaces`; the seams of vector displacement maps are
+closed with :func:`meshfit.stitch.stitch_displacements` (with ``map_shapes="matched"`` the
+maps first take equal texel counts along shared curves, and the seams are crack-free at
+every output resolution). The seams are measured either way (gap and normal jump across each curve, and
 the displaced gap as exported and at any resolution, in ``summary["seams"]``).
 """
 
@@ -104,6 +104,15 @@ class FitOptions:
         Upper bound on a patch's final spring-mesh point count.
     map_kind : {"vector", "normal"}
         Displacement map kind (default ``"vector"``: exact reconstruction of the grid).
+    map_shapes : {"native", "matched"}
+        Resolution of the vector maps. ``"native"`` (default): each map at its spring
+        grid's resolution; the displaced mesh is the spring mesh, and the seams are
+        crack-free as tessellated at the maps' own resolutions (the exported meshes; thesis
+        sec. 8.2). ``"matched"``: equal texel counts along every shared curve, the largest
+        of each equal-count class (:func:`meshfit.stitch.match_map_shapes`), so the seams
+        are crack-free at every output resolution, for a renderer that tessellates the
+        maps at its own rate; it costs texels (1.5x on igea's automatic layout, 2.3x
+        refined to 1.07M faces, 2.5x on nefertiti) and time in the later stages.
     workers : int, optional
         Threads for the per-patch stages (default: all cores).
     report : bool
@@ -122,6 +131,7 @@ class FitOptions:
     spring_level: int | None = None
     spring_max_points: int | None = None
     map_kind: str = "vector"
+    map_shapes: str = "native"
     workers: int | None = None
     report: bool = True
     image_size: int = 640
@@ -151,6 +161,10 @@ class FitOptions:
         object.__setattr__(self, "formats", fm)
         if self.map_kind not in ("vector", "normal"):
             raise InputError(f"map_kind must be 'vector' or 'normal', got {self.map_kind!r}")
+        if self.map_shapes not in ("matched", "native"):
+            raise InputError(
+                f"map_shapes must be 'native' or 'matched', got {self.map_shapes!r}"
+            )
         if self.workers is not None and int(self.workers) < 1:
             raise InputError(f"workers must be >= 1, got {self.workers}")
         if self.patches is not None and int(self.patches) < 1:
@@ -763,7 +777,7 @@ def run_fit(
     # ---- stitch: C0 is built into the fit (pinned boundaries), G1 by meshfit.stitch; here
     # the displacement seams are closed and the seams measured
     t0 = st.start("stitch")
-    k_stitch = _key("stitch", k_disp)
+    k_stitch = _key("stitch", k_disp, options.map_shapes)
     cached = st.cached("stitch", k_stitch, ".npz")
     if cached is not None:
         z = _load_npz(cached)
@@ -771,7 +785,9 @@ def run_fit(
         seams = _from_bytes(z["seams"])
     else:
         if options.map_kind == "vector":
-            dmaps = _stitch_maps(grids, surfaces, dmaps, notes)
+            dmaps = _stitch_maps(
+                grids, surfaces, dmaps, notes, options.map_shapes == "matched", workers, st
+            )
 
     @cache
     def displaced_grids() -> list[NDArray[np.float64]]:
@@ -1012,19 +1028,30 @@ def _stitch_g1(grids, surfaces, notes: list[str]) -> list:
     return stitch_surfaces(surfaces, net)
 
 
-def _stitch_maps(grids, surfaces, dmaps, notes: list[str]) -> list:
+def _stitch_maps(grids, surfaces, dmaps, notes: list[str], match: bool, workers, st) -> list:
     """Crack-free displacement seams with :mod:`meshfit.stitch` (unchanged without it).
 
-    The maps first take equal texel counts along shared boundaries (the largest of each
-    equal-count class), so the seams are closed at every output resolution.
+    With ``match`` the maps first take equal texel counts along shared boundaries (the
+    largest of each equal-count class, as :func:`meshfit.stitch.match_map_shapes`, resampled
+    on the worker threads), so the seams are closed at every output resolution.
     """
     try:
-        from meshfit.stitch import match_map_shapes, network_from_grids, stitch_displacements
+        from meshfit.stitch import network_from_grids, stitch_displacements, texel_shapes
     except ImportError:
         notes.append("meshfit.stitch is not installed: displacement seams left open")
         return dmaps
+    from meshfit.displacement import resample_map
+
     net = network_from_grids(grids, continuity="C0")
-    return stitch_displacements(surfaces, match_map_shapes(surfaces, dmaps, net), net)
+    if match:
+        shapes = texel_shapes(net, [d.shape for d in dmaps])
+
+        def resample(p: int):
+            d = dmaps[p]
+            return d if d.shape == shapes[p] else resample_map(d, shapes[p], surface=surfaces[p])
+
+        dmaps = _parallel(resample, list(range(len(dmaps))), workers, "stitch", st)
+    return stitch_displacements(surfaces, dmaps, net)
 
 
 def _face_patch(st: _Stages, k_cut: str, patches_cache: list) -> NDArray[np.int64] | None:
