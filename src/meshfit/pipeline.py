@@ -20,8 +20,8 @@ curves so that patches sharing a curve agree. ``continuity="g1"`` then makes the
 with :func:`meshfit.stitch.stitch_surfaces`; the seams of vector displacement maps are
 closed with :func:`meshfit.stitch.stitch_displacements` (with ``map_shapes="matched"`` the
 maps first take equal texel counts along shared curves, and the seams are crack-free at
-every output resolution). The seams are measured either way (gap and normal jump across each curve, and
-the displaced gap as exported and at any resolution, in ``summary["seams"]``).
+every output resolution). The seams are measured either way (gap and normal jump across each
+curve, and the displaced gap as exported and at any resolution, in ``summary["seams"]``).
 """
 
 from __future__ import annotations
@@ -162,9 +162,7 @@ class FitOptions:
         if self.map_kind not in ("vector", "normal"):
             raise InputError(f"map_kind must be 'vector' or 'normal', got {self.map_kind!r}")
         if self.map_shapes not in ("matched", "native"):
-            raise InputError(
-                f"map_shapes must be 'native' or 'matched', got {self.map_shapes!r}"
-            )
+            raise InputError(f"map_shapes must be 'native' or 'matched', got {self.map_shapes!r}")
         if self.workers is not None and int(self.workers) < 1:
             raise InputError(f"workers must be >= 1, got {self.workers}")
         if self.patches is not None and int(self.patches) < 1:

@@ -219,8 +219,9 @@ def test_matched_maps_close_seams_at_any_resolution():
     unmatched = stitch_displacements(surfaces, maps, net)
     cont0 = displacement_seam_gaps(surfaces, unmatched, net, tessellation="continuous")
     assert cont0.max() > 1e-6 * diag  # the 33 / 17 seams without matching
+    normal = displacement_map(surfaces[0], grids[0], kind="normal")
     with pytest.raises(InputError, match="vector"):
-        match_map_shapes(surfaces, [displacement_map(surfaces[0], grids[0], kind="normal")] * 6, net)
+        match_map_shapes(surfaces, [normal] * 6, net)
     with pytest.raises(InputError, match="5 maps"):
         match_map_shapes(surfaces, maps[:5], net)
 

@@ -11,6 +11,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import sparse
 
 from meshfit import errors
+from meshfit._kernels import geometry as _geometry
 from meshfit.mesh import topology
 from meshfit.mesh.validate import (
     RepairReport,
@@ -306,8 +307,7 @@ class Mesh:
     # ---------------------------------------------------------------- geometry
     @cached_property
     def _face_cross(self) -> NDArray[np.float64]:
-        p = self.vertices[self.faces]
-        return np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+        return _geometry.face_cross(self.vertices, self.faces)
 
     @cached_property
     def face_areas(self) -> NDArray[np.float64]:
@@ -323,14 +323,8 @@ class Mesh:
     def vertex_normals(self) -> NDArray[np.float64]:
         """(nv, 3) float64: unit vertex normals, the area-weighted mean of the face normals
         around each vertex (a vertex on no face gets a zero row)."""
-        w = self._face_cross  # face normal times twice the face area
-        acc = np.stack(
-            [
-                np.bincount(self.faces.ravel(), np.repeat(w[:, d], 3), self.n_vertices)
-                for d in range(3)
-            ],
-            axis=1,
-        )
+        # face normals times twice the face areas, summed around each vertex
+        acc = _geometry.vertex_sums(self.faces, self._face_cross, self.n_vertices)
         ln = np.linalg.norm(acc, axis=1, keepdims=True)
         return _frozen(acc / np.where(ln > 0, ln, 1.0))
 

@@ -221,9 +221,9 @@ def direction_classes(network: Network) -> NDArray[np.int64]:
 
     Opposite sides of a patch run along the same direction (its u or v); a shared boundary
     joins the two directions that run along it. Classes are the connected components of
-    these links (union-find), numbered in order of first appearance (patch 0's u direction is class 0).
-    Any per-direction count that must agree across shared boundaries (control points,
-    texels) is one count per class.
+    these links (union-find), numbered in order of first appearance (patch 0's u direction
+    is class 0). Any per-direction count that must agree across shared boundaries (control
+    points, texels) is one count per class.
     """
     n = network.n_patches
     parent = list(range(2 * n))
