@@ -206,7 +206,10 @@ def _as_colors(c: ArrayLike, n: int, name: str) -> NDArray[np.float64]:
 
 
 def write_png_rgb(path: str | os.PathLike, image: ArrayLike) -> Path:
-    """Write an ``(h, w, 3) uint8`` (or ``(h, w)`` grey) image as an 8-bit PNG, atomically."""
+    """Write an ``(h, w, 3) uint8`` (or ``(h, w)`` grey) image as an 8-bit PNG, atomically.
+
+    zlib level 3: half the time of the default 6 for about 7% larger report images.
+    """
     import png
 
     img = np.asarray(image)
@@ -220,6 +223,6 @@ def write_png_rgb(path: str | os.PathLike, image: ArrayLike) -> Path:
 
     def write(tmp: str) -> None:
         with open(tmp, "wb") as fh:
-            png.Writer(w, h, greyscale=grey, bitdepth=8, compression=6).write(fh, rows)
+            png.Writer(w, h, greyscale=grey, bitdepth=8, compression=3).write(fh, rows)
 
     return atomic_write(path, write)

@@ -44,20 +44,30 @@ def model_view(vertices: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
     return view, up
 
 
-def _grid_soup(grids: list[NDArray[np.float64]]):
+def _grid_soup(grids: list[NDArray[np.float64]], topology: dict | None = None):
+    """Vertices, triangles, patch of each triangle and (u, v) of each vertex of the grids.
+
+    ``topology`` (a dict) keeps the triangles, patches and (u, v) per list of grid shapes,
+    for the next call with the same shapes.
+    """
     from meshfit.springs import grid_triangles
 
-    V, F, P, UV, base = [], [], [], [], 0
-    for p, X in enumerate(grids):
-        nu, nv = X.shape[:2]
-        V.append(X.reshape(-1, 3))
+    V = np.concatenate([X.reshape(-1, 3) for X in grids]) if grids else np.zeros((0, 3))
+    shapes = tuple(X.shape[:2] for X in grids)
+    if topology is not None and shapes in topology:
+        return (V, *topology[shapes])
+    F, P, UV, base = [], [], [], 0
+    for p, (nu, nv) in enumerate(shapes):
         f = grid_triangles(nu, nv)
         F.append(f + base)
         P.append(np.full(f.shape[0], p))
         i, j = np.meshgrid(np.arange(nu), np.arange(nv), indexing="ij")
         UV.append(np.stack([i.ravel() + 0.01, j.ravel() + 0.01], axis=1).astype(np.float64))
         base += nu * nv
-    return np.vstack(V), np.vstack(F), np.concatenate(P), np.vstack(UV)
+    rest = (np.vstack(F), np.concatenate(P), np.vstack(UV))
+    if topology is not None:
+        topology[shapes] = rest
+    return (V, *rest)
 
 
 def _map_image(values: NDArray[np.float64], scale: float) -> NDArray[np.uint8]:
@@ -141,7 +151,8 @@ def write_report(
                 **kw,
             )
         }
-        V, F, P, UV = _grid_soup(grids)
+        topology: dict = {}  # the grids, splines and displaced grids share their triangles
+        V, F, P, UV = _grid_soup(grids, topology)
         cols = patch_colors(P)
         vcol = np.zeros((V.shape[0], 3))
         vcol[F[:, 0]] = cols
@@ -155,10 +166,10 @@ def write_report(
                 s.evaluate_grid(np.linspace(0, 1, g.shape[0]), np.linspace(0, 1, g.shape[1]))
                 for s, g in zip(surfaces, grids, strict=True)
             ]
-        Vs, Fs, _, _ = _grid_soup(spline() if callable(spline) else spline)
+        Vs, Fs, _, _ = _grid_soup(spline() if callable(spline) else spline, topology)
         jobs["spline"] = lambda: render(Vs, Fs, **kw)
         disp = displaced() if callable(displaced) else displaced
-        Vd, Fd, _, _ = _grid_soup(disp)
+        Vd, Fd, _, _ = _grid_soup(disp, topology)
         jobs["displaced"] = lambda: render(Vd, Fd, **kw)
         dist = spline_distance
         if dist is None or len(dist) != len(Vs):
@@ -166,19 +177,24 @@ def write_report(
         vmax = float(np.quantile(dist, 0.99)) if dist.size else 0.0
         summary["error_map_max"] = vmax / mesh.bbox_diagonal
         jobs["error"] = lambda: render(Vs, Fs, vertex_colors=heat_colors(dist, vmax), **kw)
-        # the rasteriser runs without the GIL: the images are rendered side by side
-        with ThreadPoolExecutor(max_workers=max(1, min(len(jobs), os.cpu_count() or 1))) as pool:
-            futures = {stem: pool.submit(job) for stem, job in jobs.items()}
-            for stem, fut in futures.items():
-                write_png_rgb(folder / f"{stem}.png", fut.result())
         scale = max(float(np.abs(d.values).max()) for d in dmaps) if dmaps else 0.0
-        for p, d in enumerate(dmaps):
-            img = _map_image(d.values, scale)
+
+        def map_png(p: int) -> None:
+            img = _map_image(dmaps[p].values, scale)
             # rows along v, columns along u, magnified to at least 128 pixels
             img = np.transpose(img, (1, 0, 2))[::-1]
             k = max(1, -(-128 // max(img.shape[:2])))
             img = np.repeat(np.repeat(img, k, axis=0), k, axis=1)
             write_png_rgb(folder / f"map_{p:03d}.png", img)
+
+        # the rasteriser and zlib run without the GIL: the images are made side by side
+        with ThreadPoolExecutor(max_workers=max(1, min(len(jobs), os.cpu_count() or 1))) as pool:
+            futures = {stem: pool.submit(job) for stem, job in jobs.items()}
+            maps = [pool.submit(map_png, p) for p in range(len(dmaps))]
+            for stem, fut in futures.items():
+                write_png_rgb(folder / f"{stem}.png", fut.result())
+            for fut in maps:
+                fut.result()
         summary["map_scale"] = scale / mesh.bbox_diagonal
     summary["report_images"] = images
     write_html(out, summary)

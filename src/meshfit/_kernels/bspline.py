@@ -141,3 +141,75 @@ def qr_pinv(B):
             gram_inv[a, b] = s
             gram_inv[b, a] = s
     return pinv, gram_inv
+
+
+@njit(cache=True, nogil=True)
+def basis_local(tc, U, p, d):
+    """Non-zero basis functions and derivatives (Piegl & Tiller A2.3) at clipped parameters.
+
+    tc (n,) f8 inside the knot domain; U (k + p + 1,) f8 clamped knots; d <= p. Returns the
+    first non-zero function (n,) i8 and values (n, d + 1, p + 1) f8; kernel of
+    `bspline.basis.basis_local`, whose docstring has the conventions.
+    """
+    n = tc.shape[0]
+    k = U.shape[0] - p - 1
+    first = np.empty(n, dtype=np.int64)
+    ders = np.zeros((n, d + 1, p + 1))
+    ndu = np.zeros((p + 1, p + 1))
+    left = np.zeros(p + 1)
+    right = np.zeros(p + 1)
+    a = np.zeros((2, p + 1))
+    for i in range(n):
+        t = tc[i]
+        # the last knot <= t (searchsorted side="right" - 1), kept in [p, k - 1]
+        lo, hi = 0, U.shape[0]
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if U[mid] <= t:
+                lo = mid + 1
+            else:
+                hi = mid
+        span = min(max(lo - 1, p), k - 1)
+        first[i] = span - p
+        ndu[:, :] = 0.0
+        ndu[0, 0] = 1.0
+        left[:] = 0.0
+        right[:] = 0.0
+        for j in range(1, p + 1):
+            left[j] = t - U[span + 1 - j]
+            right[j] = U[span + j] - t
+            saved = 0.0
+            for r in range(j):
+                ndu[j, r] = right[r + 1] + left[j - r]
+                temp = ndu[r, j - 1] / ndu[j, r]
+                ndu[r, j] = saved + right[r + 1] * temp
+                saved = left[j - r] * temp
+            ndu[j, j] = saved
+        for r in range(p + 1):
+            ders[i, 0, r] = ndu[r, p]
+        for r in range(p + 1):
+            s1, s2 = 0, 1
+            a[:, :] = 0.0
+            a[0, 0] = 1.0
+            for kk in range(1, d + 1):
+                acc = 0.0
+                rk, pk = r - kk, p - kk
+                if r >= kk:
+                    a[s2, 0] = a[s1, 0] / ndu[pk + 1, rk]
+                    acc += a[s2, 0] * ndu[rk, pk]
+                j1 = 1 if rk >= -1 else -rk
+                j2 = kk - 1 if r - 1 <= pk else p - r
+                for j in range(j1, j2 + 1):
+                    a[s2, j] = (a[s1, j] - a[s1, j - 1]) / ndu[pk + 1, rk + j]
+                    acc += a[s2, j] * ndu[rk + j, pk]
+                if r <= pk:
+                    a[s2, kk] = -a[s1, kk - 1] / ndu[pk + 1, r]
+                    acc += a[s2, kk] * ndu[r, pk]
+                ders[i, kk, r] = acc
+                s1, s2 = s2, s1
+        fac = float(p)
+        for kk in range(1, d + 1):
+            for r in range(p + 1):
+                ders[i, kk, r] *= fac
+            fac *= p - kk
+    return first, ders

@@ -11,6 +11,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from meshfit._kernels import bspline as _k
+
 __all__ = ["DEGREE", "basis_local", "basis_matrix", "clamped_knots"]
 
 #: polynomial degree of every surface in meshfit.bspline (order 4)
@@ -65,55 +67,11 @@ def basis_local(
     end of the domain belongs to the last non-empty span.
     """
     t = np.atleast_1d(np.asarray(t, dtype=np.float64))
-    U = np.asarray(knots, dtype=np.float64)
-    p = degree
+    U = np.ascontiguousarray(knots, dtype=np.float64)
+    p = int(degree)
     k = U.size - p - 1
-    tc = np.clip(t, U[p], U[k])
-    span = np.searchsorted(U, tc, side="right") - 1
-    span = np.clip(span, p, k - 1)
-    n = t.size
-    ndu = np.zeros((n, p + 1, p + 1))
-    ndu[:, 0, 0] = 1.0
-    left = np.zeros((n, p + 1))
-    right = np.zeros((n, p + 1))
-    for j in range(1, p + 1):
-        left[:, j] = tc - U[span + 1 - j]
-        right[:, j] = U[span + j] - tc
-        saved = np.zeros(n)
-        for r in range(j):
-            ndu[:, j, r] = right[:, r + 1] + left[:, j - r]
-            temp = ndu[:, r, j - 1] / ndu[:, j, r]
-            ndu[:, r, j] = saved + right[:, r + 1] * temp
-            saved = left[:, j - r] * temp
-        ndu[:, j, j] = saved
-    d = min(derivatives, p)
-    ders = np.zeros((n, d + 1, p + 1))
-    ders[:, 0, :] = ndu[:, :, p]
-    for r in range(p + 1):
-        s1, s2 = 0, 1
-        a = np.zeros((n, 2, p + 1))
-        a[:, 0, 0] = 1.0
-        for kk in range(1, d + 1):
-            acc = np.zeros(n)
-            rk, pk = r - kk, p - kk
-            if r >= kk:
-                a[:, s2, 0] = a[:, s1, 0] / ndu[:, pk + 1, rk]
-                acc += a[:, s2, 0] * ndu[:, rk, pk]
-            j1 = 1 if rk >= -1 else -rk
-            j2 = kk - 1 if r - 1 <= pk else p - r
-            for j in range(j1, j2 + 1):
-                a[:, s2, j] = (a[:, s1, j] - a[:, s1, j - 1]) / ndu[:, pk + 1, rk + j]
-                acc += a[:, s2, j] * ndu[:, rk + j, pk]
-            if r <= pk:
-                a[:, s2, kk] = -a[:, s1, kk - 1] / ndu[:, pk + 1, r]
-                acc += a[:, s2, kk] * ndu[:, r, pk]
-            ders[:, kk, r] = acc
-            s1, s2 = s2, s1
-    fac = float(p)
-    for kk in range(1, d + 1):
-        ders[:, kk, :] *= fac
-        fac *= p - kk
-    return (span - p).astype(np.int64), ders
+    tc = np.ascontiguousarray(np.clip(t.ravel(), U[p], U[k]))
+    return _k.basis_local(tc, U, p, min(int(derivatives), p))
 
 
 def basis_matrix(
