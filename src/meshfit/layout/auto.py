@@ -272,16 +272,22 @@ def auto_layout(
     iters = int(relax_iterations)
 
     if sphere is None and proxy_faces is not None and mesh.n_faces > PROXY_RATIO * proxy_faces:
+        from concurrent.futures import ThreadPoolExecutor
+
         from meshfit.shrinkwrap.proxy import simplify_mesh
 
-        coarse = simplify_mesh(mesh, int(proxy_faces)).mesh
-        smap = sphere_map(coarse, max_aspect=sphere_max_aspect)
-        c_corners, c_curves, ends, quads = _network(coarse, smap, n_faces, seed)
-        tries = []
-        if relax:
-            c_relaxed = _relax_all(coarse, c_curves, iters)
-            tries.append((c_relaxed, min(iters, FINE_RELAX_ITERATIONS)))
-        tries.append((c_curves, 0))
+        # what the curves need on the full mesh is built on a second thread meanwhile
+        with ThreadPoolExecutor(max_workers=1) as pool:
+            ready = pool.submit(_prepare_fine, mesh)
+            coarse = simplify_mesh(mesh, int(proxy_faces)).mesh
+            smap = sphere_map(coarse, max_aspect=sphere_max_aspect)
+            c_corners, c_curves, ends, quads = _network(coarse, smap, n_faces, seed)
+            tries = []
+            if relax:
+                c_relaxed = _relax_all(coarse, c_curves, iters)
+                tries.append((c_relaxed, min(iters, FINE_RELAX_ITERATIONS)))
+            tries.append((c_curves, 0))
+            ready.result()
         corners = _carry_points(mesh, coarse, c_corners)
         for c_set, fine_iters in tries:
             try:
@@ -308,6 +314,12 @@ def auto_layout(
     except MeshfitError:
         pass
     return _checked(mesh, traced)
+
+
+def _prepare_fine(mesh: Mesh) -> None:
+    """Build the full mesh's cached search tree, normals, vertex stars and edge lengths
+    (carrying, densifying and relaxing the curves use them)."""
+    _ = mesh.triangle_tree, mesh.vertex_normals, mesh.vertex_faces, mesh.mean_edge_length
 
 
 def _network(mesh: Mesh, smap, n_faces: int, seed: int):
