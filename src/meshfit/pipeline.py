@@ -452,8 +452,9 @@ def _seam_metrics(layout, surfaces, grids_displaced, diag: float, samples: int =
         for p, s, rev in uses:
             along = t[::-1] if rev else t  # both in the curve's own direction
             u, v = side_params(s, along)
-            pts.append(surfaces[p].evaluate(u, v))
-            nrm.append(surfaces[p].normals(u, v))
+            S, _, _, N = surfaces[p].points_and_frames(u, v)
+            pts.append(S)
+            nrm.append(N)
         gap = max(gap, float(np.linalg.norm(pts[0] - pts[1], axis=1).max()))
         cos = np.clip((nrm[0] * nrm[1]).sum(axis=1), -1.0, 1.0)
         a = np.degrees(np.arccos(cos))
@@ -490,13 +491,9 @@ def _seam_metrics(layout, surfaces, grids_displaced, diag: float, samples: int =
 
 def _polyline_gap(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
     """Largest distance from the points ``a`` to the polyline ``b``."""
-    p0, p1 = b[:-1], b[1:]
-    d = p1 - p0
-    ln2 = np.maximum((d * d).sum(axis=1), 1e-300)
-    w = a[:, None, :] - p0[None]
-    s = np.clip((w * d[None]).sum(axis=2) / ln2[None], 0.0, 1.0)
-    q = p0[None] + s[..., None] * d[None]
-    return float(np.linalg.norm(a[:, None, :] - q, axis=2).min(axis=1).max())
+    from meshfit._kernels.geometry import polyline_gap
+
+    return float(polyline_gap(np.ascontiguousarray(a), np.ascontiguousarray(b)))
 
 
 # ---------------------------------------------------------------------------- errors

@@ -47,3 +47,13 @@ def test_mesh_normals_equal_the_numpy_expressions(name):
     ln = np.linalg.norm(acc, axis=1, keepdims=True)
     assert_array_equal(mesh.vertex_normals, acc / np.where(ln > 0, ln, 1.0))
     assert_array_equal(mesh.face_areas, 0.5 * np.linalg.norm(cross, axis=1))
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_polyline_gap_matches_the_reference(seed):
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(int(rng.integers(1, 30)), 3))
+    b = rng.normal(size=(int(rng.integers(2, 30)), 3))
+    b[3 % len(b)] = b[2 % len(b)]  # a segment of zero length
+    np.testing.assert_allclose(_g.polyline_gap(a, b), ref.polyline_gap(a, b), rtol=1e-12)
+    assert _g.polyline_gap(b, b) < 1e-14  # every point on its own polyline

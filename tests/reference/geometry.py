@@ -20,3 +20,16 @@ def vertex_sums(F, W, nv):
         for v in tri:
             out[v] += W[f]
     return out
+
+
+def polyline_gap(a, b):
+    """Largest over the points ``a`` of the distance to the nearest segment of ``b``."""
+    worst = 0.0
+    for p in a:
+        best = np.inf
+        for q0, q1 in zip(b[:-1], b[1:], strict=True):
+            d = q1 - q0
+            s = 0.0 if d @ d == 0 else float(np.clip((p - q0) @ d / (d @ d), 0.0, 1.0))
+            best = min(best, float(np.linalg.norm(p - (q0 + s * d))))
+        worst = max(worst, best)
+    return worst

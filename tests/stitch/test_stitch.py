@@ -147,10 +147,15 @@ def test_stitch_rejects_inconsistent_counts():
         stitch_surfaces([bad, *surfaces[1:]], net)
 
 
-def test_displacement_seams_become_crack_free():
-    # faces of different (nested) resolutions: 33 on face 0, 17 elsewhere
+@pytest.mark.parametrize("flipped", [False, True])
+def test_displacement_seams_become_crack_free(flipped):
+    # faces of different (nested) resolutions: 33 on face 0, 17 elsewhere; flipped, face 2
+    # runs against its four neighbours (two of its seams are 33 against 17 and reversed)
     grids = cube_sphere(17, resolutions={0: 33})
+    if flipped:
+        grids[2] = _flip(grids[2])
     net = network_from_grids(grids)
+    assert any(b.reversed and 0 in (b.a, b.b) for b in net.boundaries) == flipped
     surfaces = stitch_surfaces(_fit(grids, net, m=6), net)
     maps = [displacement_map(s, g) for s, g in zip(surfaces, grids, strict=True)]
     diag = _diag(grids)

@@ -44,3 +44,34 @@ def vertex_sums(F, W, nv):
             out[v, 1] += W[f, 1]
             out[v, 2] += W[f, 2]
     return out
+
+
+@njit(cache=True, nogil=True)
+def polyline_gap(a, b):
+    """Largest distance from the points ``a`` (n, 3) to the polyline through ``b`` (m, 3).
+
+    Each point's distance is the smallest over the segments of ``b`` (a segment of zero
+    length is its end point); the largest over the points is returned.
+    """
+    tiny = np.finfo(np.float64).tiny
+    worst = 0.0
+    for i in range(a.shape[0]):
+        best = np.inf
+        for j in range(b.shape[0] - 1):
+            d0 = b[j + 1, 0] - b[j, 0]
+            d1 = b[j + 1, 1] - b[j, 1]
+            d2 = b[j + 1, 2] - b[j, 2]
+            w0 = a[i, 0] - b[j, 0]
+            w1 = a[i, 1] - b[j, 1]
+            w2 = a[i, 2] - b[j, 2]
+            s = (w0 * d0 + w1 * d1 + w2 * d2) / max(d0 * d0 + d1 * d1 + d2 * d2, tiny)
+            s = min(max(s, 0.0), 1.0)
+            e0 = a[i, 0] - (b[j, 0] + s * d0)
+            e1 = a[i, 1] - (b[j, 1] + s * d1)
+            e2 = a[i, 2] - (b[j, 2] + s * d2)
+            dist = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+            if dist < best:
+                best = dist
+        if best > worst:
+            worst = best
+    return worst

@@ -205,6 +205,16 @@ class BSplineSurface:
         _, Su, Sv = self.evaluate(uu, vv, derivatives=1)
         return _frames_from_partials(self, uu, vv, Su, Sv)
 
+    def points_and_frames(
+        self, u: ArrayLike, v: ArrayLike
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """``(S, T, B, N)``: :meth:`evaluate` and :meth:`frames` from one evaluation."""
+        uu, vv = np.broadcast_arrays(
+            np.asarray(u, dtype=np.float64), np.asarray(v, dtype=np.float64)
+        )
+        S, Su, Sv = self.evaluate(uu, vv, derivatives=1)
+        return (S, *_frames_from_partials(self, uu, vv, Su, Sv))
+
 
 def _unit_normals(surface, uu, vv, Su, Sv):
     n = np.cross(Su, Sv)

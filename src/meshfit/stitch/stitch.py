@@ -781,15 +781,16 @@ def seam_report(
 
 
 def _row_world(surface: BSplineSurface, dmap: DisplacementMap, side: str):
-    """World-space displacement vectors of a map's boundary row and the frames there."""
+    """Parameters, world-space displacement vectors, frames and spline points of a map's
+    boundary row (in the side's increasing parameter order)."""
     h, w = dmap.shape
     n = w if side[0] == "u" else h
     t = np.linspace(0.0, 1.0, n)
     u, v = _side_params(side, t)
-    T, B, N = surface.frames(u, v)
+    S, T, B, N = surface.points_and_frames(u, v)
     comp = side_row(dmap.values, side)
     world = comp[:, :1] * T + comp[:, 1:2] * B + comp[:, 2:] * N
-    return t, world, (T, B, N)
+    return t, world, (T, B, N), S
 
 
 def _set_row(values: NDArray, side: str, world: NDArray, frames) -> None:
@@ -926,15 +927,12 @@ def stitch_displacements(
             vals[k][i, j] = [mean @ T, mean @ B, mean @ N]
     for b in network.boundaries:
         cur = [DisplacementMap(vals[b.a]), DisplacementMap(vals[b.b])]
-        ta, wa, fa = _row_world(surfaces[b.a], cur[0], b.side_a)
-        tb, wb, fb = _row_world(surfaces[b.b], cur[1], b.side_b)
+        # rows, frames and the shared boundary curve at the texels, both in a's direction
+        # (t is symmetric: b's texel parameters read backwards are a's)
+        ta, wa, fa, sa = _row_world(surfaces[b.a], cur[0], b.side_a)
+        tb, wb, fb, sb = _row_world(surfaces[b.b], cur[1], b.side_b)
         if b.reversed:
-            wb, fb = wb[::-1], tuple(f[::-1] for f in fb)
-        ua, va = _side_params(b.side_a, ta)
-        sa = surfaces[b.a].evaluate(ua, va)  # the shared boundary curve at a's texels
-        ub, vb = _side_params(b.side_b, tb[::-1] if b.reversed else tb)
-        sb = surfaces[b.b].evaluate(ub, vb)
-        sb = sb[::-1] if b.reversed else sb
+            wb, fb, sb = wb[::-1], tuple(f[::-1] for f in fb), sb[::-1]
         if len(ta) == len(tb):  # equal rows: the mean vector, crack-free at any resolution
             new_a = new_b = 0.5 * (wa + wb)
         else:
@@ -954,12 +952,9 @@ def stitch_displacements(
 
 def _polyline_gap(a: NDArray, b: NDArray) -> float:
     """Largest distance from the points ``a`` to the polyline through the points ``b``."""
-    p0, d = b[:-1], np.diff(b, axis=0)
-    ln2 = np.maximum((d * d).sum(axis=1), np.finfo(float).tiny)
-    w = a[:, None, :] - p0[None]
-    f = np.clip((w * d[None]).sum(axis=2) / ln2[None], 0.0, 1.0)
-    q = p0[None] + f[..., None] * d[None]
-    return float(np.linalg.norm(a[:, None, :] - q, axis=2).min(axis=1).max())
+    from meshfit._kernels.geometry import polyline_gap
+
+    return float(polyline_gap(np.ascontiguousarray(a), np.ascontiguousarray(b)))
 
 
 def displacement_seam_gaps(
@@ -991,10 +986,9 @@ def displacement_seam_gaps(
     for b in network.boundaries:
         pts = []
         for k, side, rev in ((b.a, b.side_a, False), (b.b, b.side_b, b.reversed)):
-            tr, wr, _ = _row_world(surfaces[k], maps[k], side)
+            tr, wr, _, sr = _row_world(surfaces[k], maps[k], side)
             if tessellation == "texels":
-                u, v = _side_params(side, tr)
-                row = surfaces[k].evaluate(u, v) + wr
+                row = sr + wr
                 pts.append(row[::-1] if rev else row)
                 continue
             tt = t[::-1] if rev else t
