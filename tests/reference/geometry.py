@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 
@@ -27,7 +29,7 @@ def polyline_gap(a, b):
     worst = 0.0
     for p in a:
         best = np.inf
-        for q0, q1 in zip(b[:-1], b[1:], strict=True):
+        for q0, q1 in itertools.pairwise(b):
             d = q1 - q0
             s = 0.0 if d @ d == 0 else float(np.clip((p - q0) @ d / (d @ d), 0.0, 1.0))
             best = min(best, float(np.linalg.norm(p - (q0 + s * d))))
