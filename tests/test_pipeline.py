@@ -204,6 +204,61 @@ def test_matched_map_shapes(spot_fit, tmp_path):
     assert near < far
 
 
+def test_control_classes_and_chosen_counts(spot_fit, tmp_path):
+    mesh, out, first = spot_fit
+    classes = first["control_classes"]
+    # every patch direction in exactly one class; a class's members share its count
+    members = sorted((q, d) for c in classes for q, d in c["members"])
+    assert members == sorted((q, d) for q in range(24) for d in "uv")
+    ctl = {p["patch"]: p["controls"] for p in first["patches"]}
+    for c in classes:
+        assert all(ctl[q]["uv".index(d)] == c["controls"] for q, d in c["members"])
+        assert c["controls"] == min(6, c["max"])
+    assert classes[0]["members"][0] == [0, "u"]
+    # choose a class's count; the spring meshes are reused
+    big = max(classes, key=lambda c: c["max"])
+    copy = tmp_path / "classes"
+    shutil.copytree(out, copy)
+    base = OPTIONS.key(*OPTIONS.__dataclass_fields__)
+    opts = FitOptions(**{**base, "class_controls": {big["class"]: 9}, "formats": ()})
+    again = run_fit(mesh, copy, layout=LAYOUT, options=opts, resume=True)
+    assert again["stages"]["springs"]["cached"] and not again["stages"]["fit"]["cached"]
+    ctl2 = {p["patch"]: p["controls"] for p in again["patches"]}
+    chosen = {(q, d) for q, d in big["members"]}
+    for q in range(24):
+        for k, d in enumerate("uv"):
+            assert ctl2[q][k] == (9 if (q, d) in chosen else ctl[q][k])
+    assert again["seams"]["spline_gap_max"] <= tol.STITCH_GAP
+    assert again["options"]["class_controls"] == [[big["class"], 9]]
+    # above the smallest spring grid of the class: capped, with a note
+    opts = FitOptions(**{**base, "class_controls": {big["class"]: 500}, "formats": ()})
+    capped = run_fit(mesh, copy, layout=LAYOUT, options=opts, resume=True)
+    assert capped["control_classes"][big["class"]]["controls"] == big["max"]
+    assert any(f"control class {big['class']}" in n for n in capped["notes"])
+    opts = FitOptions(**{**base, "class_controls": {len(classes): 8}, "formats": ()})
+    with pytest.raises(InputError, match=f"{len(classes)} equal-count classes"):
+        run_fit(mesh, copy, layout=LAYOUT, options=opts, resume=True)
+
+
+def test_class_controls_are_validated():
+    assert FitOptions(class_controls={"3": "12", 1: 8}).class_controls == ((1, 8), (3, 12))
+    assert FitOptions(class_controls=[[2, 5]]).class_controls == ((2, 5),)
+    for bad, match in (
+        ({0: 3}, "at least 4"),
+        ({-1: 8}, "negative"),
+        ([(1, 8), (1, 9)], "twice"),
+        ("3=12", "map class indices"),
+    ):
+        with pytest.raises(InputError, match=match):
+            FitOptions(class_controls=bad)
+    from meshfit.fit_cli import parse_class_controls
+
+    assert parse_class_controls("3=12, 7=8") == {3: 12, 7: 8}
+    assert parse_class_controls(None) == {}
+    with pytest.raises(InputError, match="CLASS=COUNT"):
+        parse_class_controls("3:12")
+
+
 def test_cli_fit(tmp_path, capsys):
     from meshfit import cli
 

@@ -24,6 +24,23 @@ def parse_controls(text: str) -> tuple[int, int]:
     return vals[0], vals[1]
 
 
+def parse_class_controls(text: str | None) -> dict[int, int]:
+    """``"3=12,7=8"`` -> ``{3: 12, 7: 8}`` (control counts of equal-count classes)."""
+    out: dict[int, int] = {}
+    for item in str(text or "").split(","):
+        if not item.strip():
+            continue
+        try:
+            c, n = (int(x) for x in item.split("="))
+        except ValueError:
+            raise InputError(
+                f"--class-cv must look like CLASS=COUNT[,CLASS=COUNT...] (e.g. 3=12,7=8), "
+                f"got {text!r}"
+            ) from None
+        out[c] = n
+    return out
+
+
 def _formats(text: str) -> tuple[str, ...]:
     return tuple(f.strip().lower() for f in str(text).split(",") if f.strip())
 
@@ -65,6 +82,7 @@ def _options(args: argparse.Namespace):
 
     return FitOptions(
         controls=parse_controls(args.cv),
+        class_controls=parse_class_controls(getattr(args, "class_cv", None)),
         continuity=args.continuity,
         formats=_formats(args.formats),
         patches=args.patches,
@@ -201,6 +219,7 @@ def _fit_grids(grid_func, args: argparse.Namespace) -> int:
     ns = argparse.Namespace(
         grids=args.mesh,
         controls=[mu, mv],
+        class_controls=parse_class_controls(getattr(args, "class_cv", None)),
         continuity=args.continuity.upper(),
         out=args.out,
         formats=",".join(f for f in _formats(args.formats) if f != "png") if args.out else "",
@@ -230,6 +249,13 @@ def add_commands(sub) -> None:
     )
     p.add_argument("--out", default=None, help="output folder (default: <mesh name>-fit)")
     _common(p)
+    p.add_argument(
+        "--class-cv",
+        default=None,
+        metavar="CLASS=COUNT,...",
+        help="control counts of equal-count classes (listed in summary.json under "
+        "'control_classes'), e.g. 3=12,7=8; with --resume the stages before the fit are reused",
+    )
     p.add_argument("--resume", action="store_true", help="re-use finished stages in --out")
     p.add_argument("--workers", type=int, default=None, help="threads (default: all cores)")
     p.add_argument("--repair", action="store_true", help="repair the mesh where possible")

@@ -32,7 +32,7 @@ import json
 import os
 import time
 import zipfile
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass
 from functools import cache
@@ -91,6 +91,12 @@ class FitOptions:
         Requested control resolution ``(mu, mv)`` per patch (default 16 x 16). A patch never
         gets more controls than its spring grid has points; with C0 stitching the counts along
         each shared curve are unified (the smallest wins).
+    class_controls : mapping of int to int, or pairs
+        Control counts of chosen equal-count classes, ``{class: count}`` (default none). The
+        classes (patch directions linked by shared curves and opposite sides, which must
+        share one count) are listed in ``summary["control_classes"]`` with their members and
+        the largest count their spring grids allow; a count above that is capped (with a
+        note). Stored as sorted ``(class, count)`` pairs.
     continuity : {"c0", "g1"}
         Continuity across shared boundaries (default ``"c0"``; see the module notes).
     formats : tuple of str
@@ -125,6 +131,7 @@ class FitOptions:
     """
 
     controls: tuple[int, int] = (16, 16)
+    class_controls: Any = ()
     continuity: str = "c0"
     formats: tuple[str, ...] = ("usd", "obj", "glb", "exr", "png")
     patches: int | None = None
@@ -145,6 +152,7 @@ class FitOptions:
         if mu < 4 or mv < 4:
             raise InputError(f"controls must be at least 4 x 4, got {mu} x {mv}")
         object.__setattr__(self, "controls", (mu, mv))
+        object.__setattr__(self, "class_controls", _class_pairs(self.class_controls))
         if self.continuity not in ("c0", "g1"):
             raise InputError(f"continuity must be 'c0' or 'g1', got {self.continuity!r}")
         fm = tuple(str(f).strip().lower() for f in self.formats if str(f).strip())
@@ -173,6 +181,27 @@ class FitOptions:
     def key(self, *names: str) -> dict[str, Any]:
         d = asdict(self)
         return {k: d[k] for k in names}
+
+
+def _class_pairs(value: Any) -> tuple[tuple[int, int], ...]:
+    """``class_controls`` as sorted ``(class, count)`` pairs, validated."""
+    items = value.items() if isinstance(value, Mapping) else value
+    try:
+        pairs = [(int(c), int(n)) for c, n in items]
+    except (TypeError, ValueError):
+        raise InputError(
+            f"class_controls must map class indices to counts, got {value!r}"
+        ) from None
+    seen: set[int] = set()
+    for c, n in pairs:
+        if c < 0:
+            raise InputError(f"class_controls: class {c} is negative")
+        if n < 4:
+            raise InputError(f"class_controls: class {c} needs at least 4 controls, got {n}")
+        if c in seen:
+            raise InputError(f"class_controls: class {c} is given twice")
+        seen.add(c)
+    return tuple(sorted(pairs))
 
 
 # ---------------------------------------------------------------------------- small helpers
@@ -333,12 +362,27 @@ def _side_row(grid: NDArray[np.float64], s: int) -> NDArray[np.float64]:
     return grid[0, ::-1]
 
 
-def _unified_counts(layout, shapes: list[tuple[int, int]], controls: tuple[int, int]):
+def _control_classes(
+    layout,
+    shapes: list[tuple[int, int]],
+    controls: tuple[int, int],
+    chosen: tuple[tuple[int, int], ...] = (),
+) -> tuple[list[tuple[int, int]], list[dict[str, Any]], list[str]]:
     """Control counts per patch direction, equal along every shared curve.
 
-    Direction 0 (u) of patch p holds sides 0 and 2, direction 1 (v) sides 1 and 3; classes
-    sharing a curve are merged and get the smallest requested count that fits every member's
-    grid.
+    Direction 0 (u) of patch p holds sides 0 and 2, direction 1 (v) sides 1 and 3; the
+    directions sharing a curve form one class (union-find), numbered in order of first
+    appearance (patch 0's u is class 0). A class gets the smallest requested count that fits
+    every member's grid, or its count from ``chosen`` capped by the smallest member grid.
+
+    Returns
+    -------
+    counts : list of (mu, mv) per patch
+    classes : list of dict
+        ``class``, ``controls``, ``max`` (smallest member grid size) and ``members`` (pairs
+        ``[patch, "u" | "v"]``) per class.
+    notes : list of str
+        Chosen counts that were capped.
     """
     n = len(shapes)
     parent = list(range(2 * n))
@@ -360,13 +404,39 @@ def _unified_counts(layout, shapes: list[tuple[int, int]], controls: tuple[int, 
                     parent[ra] = rb
             else:
                 first[c] = node
-    limit: dict[int, int] = {}
+    label: dict[int, int] = {}
+    for node in range(2 * n):
+        label.setdefault(find(node), len(label))
+    n_cls = len(label)
+    cap = [np.inf] * n_cls
+    want = [np.inf] * n_cls
+    members: list[list[list]] = [[] for _ in range(n_cls)]
     for p in range(n):
         for d in (0, 1):
-            r = find(2 * p + d)
-            want = min(controls[d], shapes[p][d])
-            limit[r] = min(limit.get(r, want), want)
-    return [(limit[find(2 * p)], limit[find(2 * p + 1)]) for p in range(n)]
+            c = label[find(2 * p + d)]
+            members[c].append([p, "uv"[d]])
+            cap[c] = min(cap[c], shapes[p][d])
+            want[c] = min(want[c], controls[d], shapes[p][d])
+    notes = []
+    for c, m in chosen:
+        if c >= n_cls:
+            raise InputError(
+                f"class_controls: class {c} does not exist (the layout's patches have "
+                f"{n_cls} equal-count classes, 0..{n_cls - 1}; see summary['control_classes'])"
+            )
+        want[c] = min(m, cap[c])
+        if m > cap[c]:
+            notes.append(
+                f"control class {c}: {m} controls asked, {int(cap[c])} used (the smallest "
+                "spring grid of the class)"
+            )
+    count = [int(w) for w in want]
+    classes = [
+        {"class": c, "controls": count[c], "max": int(cap[c]), "members": members[c]}
+        for c in range(n_cls)
+    ]
+    out = [(count[label[find(2 * p)]], count[label[find(2 * p + 1)]]) for p in range(n)]
+    return out, classes, notes
 
 
 def _fit_curve(
@@ -706,17 +776,19 @@ def run_fit(
 
     # ---- fit (with the C0 boundary pins)
     t0 = st.start("fit")
-    fit_opts = options.key("controls", "continuity", "normal_errors")
+    fit_opts = options.key("controls", "class_controls", "continuity", "normal_errors")
     k_fit = _key("fit", k_springs, fit_opts)
     cached = st.cached("fit", k_fit, ".npz")
     corner_xyz = mesh.xyz(lay.corners)
+    counts, control_classes, class_notes = _control_classes(
+        lay, [g.shape[:2] for g in grids], options.controls, options.class_controls
+    )
+    notes.extend(class_notes)
     if cached is not None:
         z = _load_npz(cached)
         surfaces = [BSplineSurface(z[f"ctrl_{p}"]) for p in range(n_patches)]
         fit_info = _from_bytes(z["info"])
     else:
-        shapes = [g.shape[:2] for g in grids]
-        counts = _unified_counts(lay, shapes, options.controls)
         pins = _boundary_pins(lay, corner_xyz, grids, counts)
 
         def fit(p):
@@ -880,11 +952,10 @@ def run_fit(
             "bbox_diagonal": diag,
             "sha256": mhash,
         },
-        "options": {
-            k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(options).items()
-        },
+        "options": json.loads(json.dumps(asdict(options))),  # tuples as JSON lists
         "layout": {"source": source if not source.startswith("auto") else "auto"},
         "patches_total": n_patches,
+        "control_classes": control_classes,
         "stages": st.info,
         "patches": patch_rows,
         "errors": errors,

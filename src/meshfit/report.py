@@ -307,5 +307,22 @@ def write_html(out: str | os.PathLike, summary: dict[str, Any]) -> Path:
     ]
     parts.append("<p>Fit errors and displacements as fractions of the bbox diagonal.</p>")
     parts.append(_table(s["patches"], cols))
+    if s.get("control_classes"):
+        parts.append("<h2>Control classes</h2>")
+        parts.append(
+            "<p>Patch directions that must share one control count (linked by shared curves "
+            "and opposite sides); set a class's count with <code>--class-cv CLASS=COUNT</code> "
+            "(at most <i>max</i>, its smallest spring grid).</p>"
+        )
+        rows = [
+            {
+                "class": c["class"],
+                "controls": c["controls"],
+                "max": c["max"],
+                "members": " ".join(f"{q}{d}" for q, d in c["members"]),
+            }
+            for c in s["control_classes"]
+        ]
+        parts.append(_table(rows))
     parts.append("</body></html>\n")
     return write_text(out / "report.html", "\n".join(parts))

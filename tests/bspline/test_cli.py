@@ -51,6 +51,13 @@ def test_meshfit_fit_reaches_the_grid_fit(grid_files, tmp_path, capsys):
     res = json.loads(capsys.readouterr().out)
     assert [p["controls"] for p in res["patches"]] == [[6, 7]] * 4
     assert res["seams_after"]["angle_max_deg"] <= 0.5
+    # one class's count chosen: the patches sharing it follow, the seams stay closed
+    assert main(["fit", *grid_files, "--cv", "6x7", "--class-cv", "0=9", "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["control_classes"][0] == 9
+    # two patches share class 0 (their u direction) across the 2 x 2 split
+    assert sorted(tuple(p["controls"]) for p in res["patches"]) == [(6, 7)] * 2 + [(9, 7)] * 2
+    assert res["seams_after"]["gap_max"] <= 1e-12
 
 
 def test_fit_command_bad_input(grid_files, tmp_path, capsys):

@@ -65,7 +65,10 @@ def cmd_fit(args: argparse.Namespace) -> int:
     net = network_from_grids(grids, continuity="C0" if args.continuity == "C0" else "G1")
     mu, mv = (args.controls[0], args.controls[-1])
     cc = control_classes(
-        net, default=[(mu, mv)] * len(grids), grid_shapes=[g.shape[:2] for g in grids]
+        net,
+        default=[(mu, mv)] * len(grids),
+        counts=getattr(args, "class_controls", None) or None,
+        grid_shapes=[g.shape[:2] for g in grids],
     )
     t = time.perf_counter()
     surfaces = [fit_bspline(g, controls=c) for g, c in zip(grids, cc.controls, strict=True)]
