@@ -80,6 +80,9 @@ def test_exports_read_back(spot_fit):
     assert read_png(out / "maps" / "patch_003.vector.png").shape == shapes[3]
     obj = trimesh.load(out / "displaced.obj", process=False, force="mesh")
     assert len(obj.vertices) == sum(a * b for a, b in shapes.values())
+    # the spline-only surface on the same vertex grid
+    spline = trimesh.load(out / "spline.obj", process=False, force="mesh")
+    assert len(spline.vertices) == len(obj.vertices)
     # the displaced OBJ holds the spring points: inside the patches on the input surface
     d = mesh.closest_points(np.asarray(obj.vertices)).distance
     assert np.median(d) < 1e-9 * mesh.bbox_diagonal

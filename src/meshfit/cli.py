@@ -155,6 +155,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args.func(args))
     except errors.MeshfitError as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        if isinstance(exc, errors.MeshValidationError) and hasattr(args, "repair"):
+            from meshfit.mesh.validate import REPAIR_HINT
+
+            msg = msg.replace(REPAIR_HINT, " (run with --repair)")
         sys.stderr.write(f"meshfit: error: {msg}\n")
         return EXIT_ERROR
     except BrokenPipeError:  # output piped into a pager or head that closed early

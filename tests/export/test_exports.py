@@ -158,6 +158,19 @@ def test_obj_at_map_resolution_is_the_grid(network, tmp_path):
     assert_allclose(m.vertices.reshape(left.shape), left, rtol=0, atol=1e-15 * 8)
 
 
+def test_obj_with_a_vertex_grid_per_patch(network, tmp_path):
+    surfaces, _, _ = network
+    shapes = [(9, 7), (5, 11), (6, 6)]
+    path = export_obj(tmp_path / "per.obj", surfaces, shape=shapes)
+    m = trimesh.load(path, process=False, maintain_order=True)
+    V = np.concatenate(
+        [tessellate(s, None, shape=sh)[0] for s, sh in zip(surfaces, shapes, strict=True)]
+    )
+    np.testing.assert_array_equal(m.vertices, V)
+    with pytest.raises(InputError, match="2 shapes for 3 patches"):
+        export_obj(tmp_path / "bad.obj", surfaces, shape=shapes[:2])
+
+
 def test_gltf_round_trip(network, tmp_path):
     surfaces, disps, _ = network
     path = export_gltf(tmp_path / "net.glb", surfaces, displacements=disps, shape=(12, 10))

@@ -6,8 +6,11 @@ import os
 from collections.abc import Sequence
 from pathlib import Path
 
+import numpy as np
+
 from meshfit.bspline import BSplineSurface
 from meshfit.displacement import DisplacementMap
+from meshfit.errors import InputError
 from meshfit.export._common import (
     as_displacements,
     as_names,
@@ -23,7 +26,22 @@ def _tessellations(surfaces, displacements, names, shape):
     surfaces = as_surfaces(surfaces)
     names = as_names(names, len(surfaces))
     disps = as_displacements(displacements, len(surfaces))
-    return names, [tessellate(s, d, shape=shape) for s, d in zip(surfaces, disps, strict=True)]
+    shapes = _shapes(shape, len(surfaces))
+    return names, [
+        tessellate(s, d, shape=sh) for s, d, sh in zip(surfaces, disps, shapes, strict=True)
+    ]
+
+
+def _shapes(shape, n: int) -> list:
+    """``shape`` as one vertex grid (or None) per patch: a pair applies to every patch."""
+    if shape is None:
+        return [None] * n
+    arr = np.asarray(shape, dtype=object)
+    if arr.ndim == 1:
+        return [tuple(shape)] * n
+    if len(shape) != n:
+        raise InputError(f"{len(shape)} shapes for {n} patches")
+    return [tuple(sh) for sh in shape]
 
 
 def export_obj(
@@ -32,7 +50,7 @@ def export_obj(
     *,
     displacements: DisplacementMap | Sequence[DisplacementMap | None] | None = None,
     names: Sequence[str] | None = None,
-    shape: tuple[int, int] | None = None,
+    shape: tuple[int, int] | Sequence[tuple[int, int]] | None = None,
 ) -> Path:
     """Write the patches as triangulated grids to a Wavefront OBJ file.
 
@@ -46,8 +64,9 @@ def export_obj(
         (so ``None`` writes the spline-only surfaces).
     names : sequence of str, optional
         One object (``o``) per patch; default ``patch_0, ...``.
-    shape : (int, int), optional
-        Vertex grid per patch; default the map's resolution, else 8 per control point.
+    shape : (int, int) or sequence of them, optional
+        Vertex grid of every patch, or one per patch; default the map's resolution, else 8
+        per control point.
 
     Returns
     -------
@@ -63,9 +82,10 @@ def export_obj(
     base = 1
     for name, (V, F, UV) in zip(names, tess, strict=True):
         lines.append(f"o {name}")
-        lines.extend(f"v {x:.17g} {y:.17g} {z:.17g}" for x, y, z in V)
-        lines.extend(f"vt {a:.17g} {b:.17g}" for a, b in UV)
-        lines.extend(f"f {a}/{a} {b}/{b} {c}/{c}" for a, b, c in (F + base))
+        # Python floats and ints format 2-3x faster than numpy scalars (the same text)
+        lines.extend(map("v {:.17g} {:.17g} {:.17g}".format, *V.T.tolist()))
+        lines.extend(map("vt {:.17g} {:.17g}".format, *UV.T.tolist()))
+        lines.extend(map("f {0}/{0} {1}/{1} {2}/{2}".format, *(F + base).T.tolist()))
         base += V.shape[0]
 
     def write(tmp: str) -> None:

@@ -26,6 +26,11 @@ __all__ = [
 ]
 
 
+#: the end of the message of a validation error that ``repair=True`` fixes (the command line
+#: replaces it with its own flag)
+REPAIR_HINT = " (load with repair=True to fix it)"
+
+
 @dataclass(frozen=True)
 class Finding:
     """One validation problem.
@@ -55,7 +60,7 @@ class Finding:
         return _ERRORS[self.kind]
 
     def to_error(self) -> errors.MeshValidationError:
-        hint = " (load with repair=True to fix it)" if self.repairable else ""
+        hint = REPAIR_HINT if self.repairable else ""
         return self.error_class(self.message + hint, first=self.first, count=self.count)
 
     def to_dict(self) -> dict:
