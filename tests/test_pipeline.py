@@ -55,6 +55,22 @@ def test_c0_seams_are_closed(spot_fit):
     assert seams["displaced_gap_max"] <= tol.STITCH_GAP  # the displaced seams as exported
 
 
+def test_input_distance_per_patch(spot_fit, monkeypatch):
+    _, _, summary = spot_fit
+    per = [p["input_distance_max"] for p in summary["patches"]]
+    assert all(v is not None and v >= 0 for v in per)
+    # every input vertex is in some patch: the largest over patches is the one-sided max
+    assert max(per) == pytest.approx(summary["errors"]["displaced"]["from_input_max"], rel=1e-12)
+    import meshfit.pipeline as pl
+
+    worst = int(np.argmax(per))
+    monkeypatch.setattr(pl, "FAR_INPUT", 0.5 * max(per))
+    notes = pl._quality_notes(summary["patches"])
+    assert any(f"patch {worst}: " in n and "layout file" in n for n in notes)
+    monkeypatch.setattr(pl, "FAR_INPUT", max(per))
+    assert not any("displaced surface in" in n for n in pl._quality_notes(summary["patches"]))
+
+
 def test_displaced_reconstruction_is_closer_than_the_spline(spot_fit):
     _, _, summary = spot_fit
     err = summary["errors"]

@@ -577,18 +577,39 @@ def _surface_distance(
     return to_input, from_input
 
 
-def _error_figures(mesh: Mesh, V, F, tree) -> tuple[dict[str, float], NDArray[np.float64]]:
-    """Error figures over the bbox diagonal, and each reconstruction vertex's distance."""
+def _error_figures(
+    mesh: Mesh, V, F, tree
+) -> tuple[dict[str, float], NDArray[np.float64], NDArray[np.float64]]:
+    """Error figures over the bbox diagonal, each reconstruction vertex's distance to the
+    input and each input vertex's distance to the reconstruction."""
     a, b = _surface_distance(mesh, V, F, tree)
     diag = mesh.bbox_diagonal
     both = np.concatenate([a, b])
-    return {
-        "rms": float(np.sqrt(np.mean(both**2)) / diag),
-        "hausdorff": float(both.max() / diag),
-        "mean": float(both.mean() / diag),
-        "to_input_max": float(a.max() / diag),
-        "from_input_max": float(b.max() / diag),
-    }, a
+    return (
+        {
+            "rms": float(np.sqrt(np.mean(both**2)) / diag),
+            "hausdorff": float(both.max() / diag),
+            "mean": float(both.mean() / diag),
+            "to_input_max": float(a.max() / diag),
+            "from_input_max": float(b.max() / diag),
+        },
+        a,
+        b,
+    )
+
+
+def _per_patch_max(
+    mesh: Mesh, face_patch: NDArray[np.int64] | None, value: NDArray, n: int
+) -> list[float]:
+    """Largest ``value`` (one per input vertex) over each patch's input vertices (a vertex on
+    a patch boundary counts for every patch of its faces); None without the face labels."""
+    if face_patch is None or len(face_patch) != mesh.n_faces:
+        return [None] * n
+    out = np.zeros(n)
+    ok = face_patch >= 0
+    for c in range(3):
+        np.maximum.at(out, face_patch[ok], value[mesh.faces[ok, c]])
+    return out.tolist()
 
 
 def _soup(arrays: list[NDArray[np.float64]]) -> tuple[NDArray, NDArray]:
@@ -915,14 +936,22 @@ def run_fit(
     else:
         Vs, Fs = _soup(spline_grids())
         tree = build_tree(Vs, Fs)
-        spline_fig, spline_to_input = _error_figures(mesh, Vs, Fs, tree)
+        spline_fig, spline_to_input, _ = _error_figures(mesh, Vs, Fs, tree)
         Vd, Fd = _soup(displaced_grids())
         # the displaced soup is the spline soup moved by the maps: the same tree, refitted
         tree = refit_tree(tree, Vd, Fd) if np.array_equal(Fd, Fs) else build_tree(Vd, Fd)
+        disp_fig, _, from_input = _error_figures(mesh, Vd, Fd, tree)
         errors = {
             "spline_only": spline_fig,
-            "displaced": _error_figures(mesh, Vd, Fd, tree)[0],
+            "displaced": disp_fig,
             "units": "fraction of the input's bbox diagonal",
+            # per patch: its input vertices' largest distance to the displaced surface
+            "displaced_from_input_max_per_patch": [
+                None if v is None else v / diag
+                for v in _per_patch_max(
+                    mesh, _face_patch(st, k_cut, patches_cache), from_input, n_patches
+                )
+            ],
         }
         spline_distance.append(spline_to_input)
         _save_npz(st.path("errors", k_err, ".npz"), {"spline_to_input": spline_to_input})
@@ -938,6 +967,9 @@ def run_fit(
                 **spring_info[p],
                 **fit_info[p],
                 "map_shape": list(dmaps[p].shape),
+                "input_distance_max": errors.get(
+                    "displaced_from_input_max_per_patch", [None] * n_patches
+                )[p],
                 "displacement_max": float(np.abs(d).max() / diag),
             }
         )
@@ -1006,9 +1038,28 @@ def run_fit(
     return summary
 
 
+#: a patch whose input vertices lie this far (fraction of the bbox diagonal) from the
+#: displaced surface gets a note in the summary
+FAR_INPUT = 0.01
+
+
 def _quality_notes(rows: list[dict]) -> list[str]:
     """Warnings about patches whose spring mesh cannot be trusted."""
     notes = []
+    far = {
+        r["patch"]: r["input_distance_max"]
+        for r in rows
+        if (r.get("input_distance_max") or 0.0) > FAR_INPUT
+    }
+    if far:
+        worst = sorted(far.items(), key=lambda kv: -kv[1])[:5]
+        notes.append(
+            f"input vertices up to {100 * max(far.values()):.3g}% of the bbox diagonal from the "
+            f"displaced surface in {len(far)} patches "
+            f"({', '.join(f'patch {p}: {100 * v:.3g}%' for p, v in worst)}): the spring "
+            "mesh does not reach part of the patch (a protrusion or pleat inside it): give a "
+            "layout file with corners along that feature, or try more patches"
+        )
     collapsed = [r["patch"] for r in rows if not np.isfinite(r.get("area_ratio", 1.0))]
     if collapsed:
         notes.append(

@@ -303,9 +303,13 @@ def write_html(out: str | os.PathLike, summary: dict[str, Any]) -> Path:
         "fit_parametric_rms",
         "fit_parametric_max",
         "displacement_max",
+        "input_distance_max",
         "seconds",
     ]
-    parts.append("<p>Fit errors and displacements as fractions of the bbox diagonal.</p>")
+    parts.append(
+        "<p>Fit errors, displacements and the largest distance of the patch's input vertices "
+        "to the displaced surface, as fractions of the bbox diagonal.</p>"
+    )
     parts.append(_table(s["patches"], cols))
     if s.get("control_classes"):
         parts.append("<h2>Control classes</h2>")
