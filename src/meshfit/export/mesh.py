@@ -44,6 +44,16 @@ def _shapes(shape, n: int) -> list:
     return [tuple(sh) for sh in shape]
 
 
+def _uv_lines(UV) -> list[str]:
+    """``vt`` lines of parameters ``UV (n, 2)``: each distinct u and v formatted once (a grid
+    has few), the same text as formatting every pair."""
+    u, iu = np.unique(UV[:, 0], return_inverse=True)
+    v, iv = np.unique(UV[:, 1], return_inverse=True)
+    su = [f"vt {x:.17g} " for x in u.tolist()]
+    sv = [f"{x:.17g}" for x in v.tolist()]
+    return [su[i] + sv[j] for i, j in zip(iu.ravel().tolist(), iv.ravel().tolist(), strict=True)]
+
+
 def export_obj(
     path: str | os.PathLike,
     surfaces: BSplineSurface | Sequence[BSplineSurface],
@@ -84,7 +94,7 @@ def export_obj(
         lines.append(f"o {name}")
         # Python floats and ints format 2-3x faster than numpy scalars (the same text)
         lines.extend(map("v {:.17g} {:.17g} {:.17g}".format, *V.T.tolist()))
-        lines.extend(map("vt {:.17g} {:.17g}".format, *UV.T.tolist()))
+        lines.extend(_uv_lines(UV))
         lines.extend(map("f {0}/{0} {1}/{1} {2}/{2}".format, *(F + base).T.tolist()))
         base += V.shape[0]
 
