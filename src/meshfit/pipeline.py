@@ -384,36 +384,27 @@ def _control_classes(
     notes : list of str
         Chosen counts that were capped.
     """
+    from meshfit._unionfind import DisjointSets
+
     n = len(shapes)
-    parent = list(range(2 * n))
-
-    def find(a: int) -> int:
-        while parent[a] != a:
-            parent[a] = parent[parent[a]]
-            a = parent[a]
-        return a
-
+    sets = DisjointSets(2 * n)
     first: dict[int, int] = {}
     for p in range(n):
         for s in range(4):
             c = int(layout.patch_curves[p, s])
             node = 2 * p + (s % 2)
             if c in first:
-                ra, rb = find(first[c]), find(node)
-                if ra != rb:
-                    parent[ra] = rb
+                sets.union(first[c], node)
             else:
                 first[c] = node
-    label: dict[int, int] = {}
-    for node in range(2 * n):
-        label.setdefault(find(node), len(label))
-    n_cls = len(label)
+    labels = sets.labels()
+    n_cls = max(labels) + 1 if labels else 0
     cap = [np.inf] * n_cls
     want = [np.inf] * n_cls
     members: list[list[list]] = [[] for _ in range(n_cls)]
     for p in range(n):
         for d in (0, 1):
-            c = label[find(2 * p + d)]
+            c = labels[2 * p + d]
             members[c].append([p, "uv"[d]])
             cap[c] = min(cap[c], shapes[p][d])
             want[c] = min(want[c], controls[d], shapes[p][d])
@@ -435,7 +426,7 @@ def _control_classes(
         {"class": c, "controls": count[c], "max": int(cap[c]), "members": members[c]}
         for c in range(n_cls)
     ]
-    out = [(count[label[find(2 * p)]], count[label[find(2 * p + 1)]]) for p in range(n)]
+    out = [(count[labels[2 * p]], count[labels[2 * p + 1]]) for p in range(n)]
     return out, classes, notes
 
 

@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from meshfit import tol
+from meshfit._unionfind import DisjointSets
 from meshfit.errors import InputError
 
 __all__ = [
@@ -226,22 +227,10 @@ def direction_classes(network: Network) -> NDArray[np.int64]:
     points, texels) is one count per class.
     """
     n = network.n_patches
-    parent = list(range(2 * n))
-
-    def find(x: int) -> int:
-        while parent[x] != x:
-            parent[x] = parent[parent[x]]
-            x = parent[x]
-        return x
-
+    sets = DisjointSets(2 * n)
     for b in network.boundaries:
-        ra = find(2 * b.a + _direction(b.side_a))
-        rb = find(2 * b.b + _direction(b.side_b))
-        parent[ra] = rb
-    index: dict[int, int] = {}
-    for x in range(2 * n):
-        index.setdefault(find(x), len(index))
-    return np.array([index[find(x)] for x in range(2 * n)], dtype=np.int64).reshape(n, 2)
+        sets.union(2 * b.a + _direction(b.side_a), 2 * b.b + _direction(b.side_b))
+    return np.array(sets.labels(), dtype=np.int64).reshape(n, 2)
 
 
 def texel_shapes(network: Network, shapes: Sequence[tuple[int, int]]) -> list[tuple[int, int]]:

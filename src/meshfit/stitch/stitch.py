@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from meshfit import tol
+from meshfit._unionfind import DisjointSets
 from meshfit.bspline import BSplineSurface
 from meshfit.bspline.basis import DEGREE, basis_local
 from meshfit.displacement import DisplacementMap
@@ -616,20 +617,11 @@ def stitch_surfaces(surfaces: Sequence[BSplineSurface], network: Network) -> lis
     offs = np.concatenate([[0], np.cumsum([mu * mv for mu, mv in shapes])])
 
     # 1. C0: union-find over boundary slots
-    parent = np.arange(P.shape[0])
-
-    def find(x: int) -> int:
-        while parent[x] != x:
-            parent[x] = parent[parent[x]]
-            x = parent[x]
-        return x
-
+    sets = DisjointSets(P.shape[0])
     for b in network.boundaries:
         ia, ib = _slot_rows(shapes, b, 0)
         for x, y in zip(ia, ib, strict=True):
-            rx, ry = find(int(x)), find(int(y))
-            if rx != ry:
-                parent[rx] = ry
+            sets.union(int(x), int(y))
     corner_slot = {}
     for c, slots in enumerate(network.corners):
         for k, i, j in slots:
@@ -638,11 +630,9 @@ def stitch_surfaces(surfaces: Sequence[BSplineSurface], network: Network) -> lis
             corner_slot[(k, i, j)] = int(s)
         first = corner_slot[slots[0]]
         for sl in slots[1:]:
-            rx, ry = find(corner_slot[sl]), find(first)
-            if rx != ry:
-                parent[rx] = ry
+            sets.union(corner_slot[sl], first)
         del c
-    roots = np.array([find(x) for x in range(P.shape[0])])
+    roots = np.array([sets.find(x) for x in range(P.shape[0])])
     sums = np.zeros_like(P)
     np.add.at(sums, roots, P)
     cnt = np.bincount(roots, minlength=P.shape[0]).astype(float)
@@ -826,6 +816,18 @@ def _seam_rows(t_c, x_c, t_f, x_f, x_f_at_c):
     return q, out
 
 
+def _check_maps(surfaces, maps, network: Network):
+    """The surfaces (checked by `_check`) and one vector map per surface, as lists."""
+    surfaces = _check(surfaces, network)
+    maps = list(maps)
+    if len(maps) != len(surfaces):
+        raise InputError(f"{len(maps)} maps for {len(surfaces)} surfaces")
+    for k, m in enumerate(maps):
+        if not isinstance(m, DisplacementMap) or m.kind != "vector":
+            raise InputError(f"maps[{k}] must be a vector displacement map")
+    return surfaces, maps
+
+
 def match_map_shapes(
     surfaces: Sequence[BSplineSurface],
     maps: Sequence[DisplacementMap],
@@ -846,13 +848,7 @@ def match_map_shapes(
     """
     from meshfit.displacement import resample_map
 
-    surfaces = _check(surfaces, network)
-    maps = list(maps)
-    if len(maps) != len(surfaces):
-        raise InputError(f"{len(maps)} maps for {len(surfaces)} surfaces")
-    for k, m in enumerate(maps):
-        if not isinstance(m, DisplacementMap) or m.kind != "vector":
-            raise InputError(f"maps[{k}] must be a vector displacement map")
+    surfaces, maps = _check_maps(surfaces, maps, network)
     shapes = texel_shapes(network, [m.shape for m in maps])
     return [
         m if shape == m.shape else resample_map(m, shape, surface=s)
@@ -902,13 +898,7 @@ def stitch_displacements(
     different counts the seams are not closed at other output resolutions (the spline
     between texels is not straight); with equal counts they are at every resolution.
     """
-    surfaces = _check(surfaces, network)
-    maps = list(maps)
-    if len(maps) != len(surfaces):
-        raise InputError(f"{len(maps)} maps for {len(surfaces)} surfaces")
-    for k, m in enumerate(maps):
-        if not isinstance(m, DisplacementMap) or m.kind != "vector":
-            raise InputError(f"maps[{k}] must be a vector displacement map")
+    surfaces, maps = _check_maps(surfaces, maps, network)
     vals = [m.values.copy() for m in maps]
     # corners: mean model-space vector of the corner texels
     for slots in network.corners:
