@@ -1193,11 +1193,15 @@ def _write_exports(out: Path, names, surfaces, dmaps, formats, st: _Stages) -> d
             export.export_step(out / "patches.step", surfaces, names=names)
             files = ["patches.step"]
         elif fmt == "obj":
-            export.export_obj(out / "displaced.obj", surfaces, displacements=dmaps, names=names)
             # the spline on the displaced surface's vertex grid (8 per control point would
             # make the file about 15 times larger on a fit of 16 x 16 controls)
             shapes = [d.shape[:2] for d in dmaps]
-            export.export_obj(out / "spline.obj", surfaces, names=names, shape=shapes)
+            export.export_objs(
+                {out / "displaced.obj": dmaps, out / "spline.obj": None},
+                surfaces,
+                names=names,
+                shape=shapes,
+            )
             files = ["displaced.obj", "spline.obj"]
         elif fmt == "glb":
             export.export_gltf(out / "displaced.glb", surfaces, displacements=dmaps, names=names)

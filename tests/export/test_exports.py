@@ -171,6 +171,22 @@ def test_obj_with_a_vertex_grid_per_patch(network, tmp_path):
         export_obj(tmp_path / "bad.obj", surfaces, shape=shapes[:2])
 
 
+def test_objs_share_their_topology_text(network, tmp_path):
+    from meshfit.export import export_objs
+
+    surfaces, disps, _ = network
+    shapes = [disps[0].shape, (5, 11), (6, 6)]
+    both = export_objs(
+        {tmp_path / "d.obj": disps, tmp_path / "s.obj": None}, surfaces, shape=shapes
+    )
+    assert [p.name for p in both] == ["d.obj", "s.obj"]
+    one_d = export_obj(tmp_path / "d1.obj", surfaces, displacements=disps, shape=shapes)
+    one_s = export_obj(tmp_path / "s1.obj", surfaces, shape=shapes)
+    assert both[0].read_bytes() == one_d.read_bytes()
+    assert both[1].read_bytes() == one_s.read_bytes()
+    assert both[0].read_bytes() != both[1].read_bytes()
+
+
 def test_gltf_round_trip(network, tmp_path):
     surfaces, disps, _ = network
     path = export_gltf(tmp_path / "net.glb", surfaces, displacements=disps, shape=(12, 10))

@@ -7,7 +7,7 @@ binary preview; STEP needs the optional extra ``meshfit[cad]``.
 
 from meshfit.export._common import grid_faces, tessellate
 from meshfit.export.iges import export_iges
-from meshfit.export.mesh import export_gltf, export_obj
+from meshfit.export.mesh import export_gltf, export_obj, export_objs
 from meshfit.export.rhino import export_3dm, rhino_knots
 from meshfit.export.step import export_step, step_available
 from meshfit.export.usd import export_usd
@@ -17,6 +17,7 @@ __all__ = [
     "export_gltf",
     "export_iges",
     "export_obj",
+    "export_objs",
     "export_step",
     "export_usd",
     "grid_faces",

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +19,7 @@ from meshfit.export._common import (
     tessellate,
 )
 
-__all__ = ["export_gltf", "export_obj"]
+__all__ = ["export_gltf", "export_obj", "export_objs"]
 
 
 def _tessellations(surfaces, displacements, names, shape):
@@ -87,22 +87,49 @@ def export_obj(
     Coordinates are written with 17 significant digits (exact float64); ``vt`` holds the
     (u, v) parameters; triangles turn like ``S_u x S_v``.
     """
-    names, tess = _tessellations(surfaces, displacements, names, shape)
-    lines = ["# meshfit: tessellated B-spline patches; vt = (u, v) parameters"]
-    base = 1
-    for name, (V, F, UV) in zip(names, tess, strict=True):
-        lines.append(f"o {name}")
-        # Python floats and ints format 2-3x faster than numpy scalars (the same text)
-        lines.extend(map("v {:.17g} {:.17g} {:.17g}".format, *V.T.tolist()))
-        lines.extend(_uv_lines(UV))
-        lines.extend(map("f {0}/{0} {1}/{1} {2}/{2}".format, *(F + base).T.tolist()))
-        base += V.shape[0]
+    return export_objs({path: displacements}, surfaces, names=names, shape=shape)[0]
 
-    def write(tmp: str) -> None:
-        with open(tmp, "w", encoding="ascii", newline="\n") as fh:
-            fh.write("\n".join(lines) + "\n")
 
-    return atomic_write(path, write)
+def export_objs(
+    outputs: Mapping[str | os.PathLike, DisplacementMap | Sequence[DisplacementMap | None] | None],
+    surfaces: BSplineSurface | Sequence[BSplineSurface],
+    *,
+    names: Sequence[str] | None = None,
+    shape: tuple[int, int] | Sequence[tuple[int, int]] | None = None,
+) -> list[Path]:
+    """Several OBJ files of the same patches, e.g. the displaced and the spline-only surface:
+    ``{path: displacements}``, each as :func:`export_obj` writes it. Files whose patches have
+    the same vertex grids share the text of their texture coordinates and faces, which is
+    formatted once. Returns the paths in order."""
+    topology: dict[tuple, list[tuple[list[str], list[str]]]] = {}
+    out = []
+    for path, displacements in outputs.items():
+        names_, tess = _tessellations(surfaces, displacements, names, shape)
+        key = tuple(V.shape[0] for V, _, _ in tess) + tuple(F.shape[0] for _, F, _ in tess)
+        if key not in topology or not all(
+            np.array_equal(a[2], b[2]) for a, b in zip(topology[key][1], tess, strict=True)
+        ):
+            text, base = [], 1
+            for V, F, UV in tess:
+                faces = map("f {0}/{0} {1}/{1} {2}/{2}".format, *(F + base).T.tolist())
+                text.append((_uv_lines(UV), list(faces)))
+                base += V.shape[0]
+            topology[key] = (text, tess)
+        text = topology[key][0]
+        lines = ["# meshfit: tessellated B-spline patches; vt = (u, v) parameters"]
+        for name, (V, _, _), (vt, faces) in zip(names_, tess, text, strict=True):
+            lines.append(f"o {name}")
+            # Python floats format 2-3x faster than numpy scalars (the same text)
+            lines.extend(map("v {:.17g} {:.17g} {:.17g}".format, *V.T.tolist()))
+            lines.extend(vt)
+            lines.extend(faces)
+
+        def write(tmp: str, lines=lines) -> None:
+            with open(tmp, "w", encoding="ascii", newline="\n") as fh:
+                fh.write("\n".join(lines) + "\n")
+
+        out.append(atomic_write(path, write))
+    return out
 
 
 def export_gltf(
