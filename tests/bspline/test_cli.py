@@ -57,6 +57,8 @@ def test_meshfit_fit_reaches_the_grid_fit(grid_files, tmp_path, capsys):
     assert res["control_classes"][0] == 9
     # two patches share class 0 (their u direction) across the 2 x 2 split
     assert sorted(tuple(p["controls"]) for p in res["patches"]) == [(6, 7)] * 2 + [(9, 7)] * 2
+    for p in res["patches"]:
+        assert (p["controls"][0] == 9) == (p["control_classes"][0] == 0)
     assert res["seams_after"]["gap_max"] <= 1e-12
 
 

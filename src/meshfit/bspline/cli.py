@@ -93,6 +93,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
                 "file": str(p),
                 "grid": list(g.shape[:2]),
                 "controls": list(s.shape),
+                "control_classes": [int(c) for c in cc.labels[k]],  # of u and v
                 "map": list(m.shape),
                 **{k2: float(f"{v:.6g}") for k2, v in e.as_dict().items()},
             }
