@@ -351,17 +351,25 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
         x_ax = np.cross(normal, [0.0, 1.0, 0.0])
     x_ax /= np.linalg.norm(x_ax)
     y_ax = np.cross(normal, x_ax)
-    phi = {wedges[0].first: 0.0}
-    for w, t in zip(wedges, flat, strict=True):
-        phi.setdefault(w.second, phi[w.first] + t)
     length = {k: float(np.linalg.norm(e3[k])) for k in keys}
     proj = {k: np.array([e3[k] @ x_ax, e3[k] @ y_ax]) for k in keys}
     beta = {k: np.arctan2(p[1], p[0]) for k, p in proj.items()}
-    wsum = np.array([0.0, 0.0])
-    for k in keys:
-        wgt = length[k] * float(np.linalg.norm(proj[k]))
-        wsum += wgt * np.array([np.cos(beta[k] - phi[k]), np.sin(beta[k] - phi[k])])
-    psi = float(np.arctan2(wsum[1], wsum[0]))
+
+    def spoke_angles(wedge_angles: NDArray) -> tuple[dict, float]:
+        """Angle of every spoke in the fan, and the turn that fits the old spokes best."""
+        phi = {wedges[0].first: 0.0}
+        for w, t in zip(wedges, wedge_angles, strict=True):
+            phi.setdefault(w.second, phi[w.first] + t)
+        wsum = np.array([0.0, 0.0])
+        for k in keys:
+            wgt = length[k] * float(np.linalg.norm(proj[k]))
+            wsum += wgt * np.array([np.cos(beta[k] - phi[k]), np.sin(beta[k] - phi[k])])
+        return phi, float(np.arctan2(wsum[1], wsum[0]))
+
+    phi, psi = spoke_angles(flat)
+    # the last resort at an interior corner: equal wedges (where the patches' own corner
+    # angles, far from a full turn in sum, give a fan the constraints collapse)
+    even = spoke_angles(np.full(len(wedges), 2 * np.pi / len(wedges))) if cycle else None
     # unknowns: spokes (in ``keys`` order) then diagonals, 2 coordinates each
     ks = {k: n for n, k in enumerate(keys)}
     nd = len(keys)
@@ -412,12 +420,12 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
             J.append(row)
         return np.array(r) / scale**2, np.array(J).reshape(-1, nx) / scale**2
 
-    def flat_fan(equal: bool, rot: float):
+    def flat_fan(equal: bool, rot: float, angles: dict):
         ln = dict(length)
         if equal:  # a symmetric start when the patches' own spokes fold the fan
             mean = float(np.mean(list(length.values())))
             ln = dict.fromkeys(keys, mean)
-        s2 = {k: ln[k] * np.array([np.cos(phi[k] + rot), np.sin(phi[k] + rot)]) for k in keys}
+        s2 = {k: ln[k] * np.array([np.cos(angles[k] + rot), np.sin(angles[k] + rot)]) for k in keys}
         d2 = []
         for w in wedges:
             A = np.stack([e3[w.first], e3[w.second]], axis=1)
@@ -428,9 +436,16 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
         return s2, np.array(d2)
 
     def place(rot: float) -> NDArray | None:
-        """The control array with the corner rule applied, the fan turned by ``rot``."""
-        for equal, with_row0 in ((False, True), (True, True), (False, False), (True, False)):
-            s2, d2 = flat_fan(equal, rot)
+        """The control array with the corner rule applied, the fan turned by ``rot`` from
+        its best fit to the old spokes."""
+        tries = [
+            (equal, with_row0, phi, psi)
+            for equal, with_row0 in ((False, True), (True, True), (False, False), (True, False))
+        ]
+        if even is not None:
+            tries += [(True, True, *even), (True, False, *even)]
+        for equal, with_row0, angles, fit in tries:
+            s2, d2 = flat_fan(equal, fit + rot, angles)
             if _fan_folded(s2, wedges, d2):
                 continue
             x0 = np.concatenate([np.array([s2[k] for k in keys]).ravel(), d2.ravel()])
@@ -449,7 +464,7 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
             return Q
         return None
 
-    best = place(psi)
+    best = place(0.0)
     if best is None:
         return False
     if not exact:
@@ -464,7 +479,7 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
 
         def trial(rot: float) -> float:
             if rot not in seen:
-                Q = place(psi + rot)
+                Q = place(rot)
                 seen[rot] = (np.inf, None) if Q is None else (zone(Q), Q)
             return seen[rot][0]
 
