@@ -502,6 +502,7 @@ def _seam_metrics(layout, surfaces, grids_displaced, diag: float, samples: int =
     gap = 0.0
     angle = 0.0
     angle_inner = 0.0
+    angle_ends = 0.0
     disp_gap = 0.0
     disp_any = 0.0
     shared = 0
@@ -520,6 +521,7 @@ def _seam_metrics(layout, surfaces, grids_displaced, diag: float, samples: int =
         cos = np.clip((nrm[0] * nrm[1]).sum(axis=1), -1.0, 1.0)
         a = np.degrees(np.arccos(cos))
         angle = max(angle, float(a.max()))
+        angle_ends = max(angle_ends, float(a[0]), float(a[-1]))
         p0, s0, _ = uses[0]
         m = surfaces[p0].shape[0 if s0 % 2 == 0 else 1]
         span = 1.0 / max(m - 3, 1)  # one knot span: the corner zone
@@ -545,6 +547,7 @@ def _seam_metrics(layout, surfaces, grids_displaced, diag: float, samples: int =
         "spline_gap_max": gap / diag,
         "spline_normal_jump_max_deg": angle,
         "spline_normal_jump_inner_max_deg": angle_inner,
+        "spline_normal_jump_corner_point_max_deg": angle_ends,
         "displaced_gap_max": disp_gap / diag,
         "displaced_gap_any_resolution_max": disp_any / diag,
     }

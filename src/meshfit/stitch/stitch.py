@@ -428,6 +428,9 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
         s2 = {k: ln[k] * np.array([np.cos(angles[k] + rot), np.sin(angles[k] + rot)]) for k in keys}
         d2 = []
         for w in wedges:
+            if angles is not phi:  # the equal fan: each diagonal point at its wedge's middle
+                d2.append(s2[w.first] + s2[w.second])
+                continue
             A = np.stack([e3[w.first], e3[w.second]], axis=1)
             ab = np.linalg.lstsq(A, P[w.diag] - c0, rcond=None)[0]
             floor = 0.05 * float(np.abs(ab).sum())
