@@ -206,22 +206,11 @@ def test_nefertiti_one_tangent_plane_at_every_corner_with_16_controls(nefertiti_
     assert after.corner_point_deg.max() <= 1e-5
 
 
-_NEFERTITI_CORNER_ZONES = (
-    "a valence-3 corner of the layout (patches 6, 20, 45) sits on a sharp vertex of the "
-    "surface (within 0.8% of the bbox diagonal the mesh normals spread 94 degrees from their "
-    "mean; the three spring grids' corner angles four samples in sum to 218 degrees): its "
-    "control ring flattened into one plane twists the first knot span, whichever way the fan "
-    "is turned; the largest corner-zone jump there is "
-)
-
-
 @pytest.mark.parametrize(
     "m",
     [
-        8,  # 1.9975 degrees at that corner
-        pytest.param(
-            16, marks=pytest.mark.xfail(strict=True, reason=_NEFERTITI_CORNER_ZONES + "2.19 deg")
-        ),
+        8,  # 1.56 degrees (1.9975 with the patches' own corner angles alone)
+        16,  # 1.22 degrees at a valence-3 corner on a sharp vertex (2.19 with own angles)
     ],
 )
 def test_nefertiti_corner_zones_within_two_degrees(nefertiti_test_layout, m):

@@ -305,6 +305,14 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
          of the boundary's normal curvature there times the row-0 defect.
     If the constraints fold a patch corner, only the row-1 constraints are kept; if they
     fold too (or the corner is not a simple fan) nothing is changed.
+
+    At an interior corner a second family of flat fans is tried as well: equal wedges, each
+    diagonal point in the middle of its wedge. Where row 0 cannot be collinear the family
+    with the smaller corner-zone jump wins (the patches' own angles on a tie); at an exact
+    corner the equal fan is used only where every own fan folds. Where the patches' corner
+    angles are far from a full turn in sum (a cone point of the surface: nefertiti's
+    automatic layout has valence-3 corners whose angles sum to 63 degrees), the own fans
+    collapse under the constraints and only the equal fan gives a corner rule.
     """
     fan = _corner_fan(shapes, offs, slots, bound_of)
     if fan is None:
@@ -438,15 +446,15 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
             d2.append(ab[0] * s2[w.first] + ab[1] * s2[w.second])
         return s2, np.array(d2)
 
-    def place(rot: float) -> NDArray | None:
+    own = [
+        (equal, with_row0, phi, psi)
+        for equal, with_row0 in ((False, True), (True, True), (False, False), (True, False))
+    ]
+    equal_fan = [] if even is None else [(True, True, *even), (True, False, *even)]
+
+    def place(rot: float, tries) -> NDArray | None:
         """The control array with the corner rule applied, the fan turned by ``rot`` from
-        its best fit to the old spokes."""
-        tries = [
-            (equal, with_row0, phi, psi)
-            for equal, with_row0 in ((False, True), (True, True), (False, False), (True, False))
-        ]
-        if even is not None:
-            tries += [(True, True, *even), (True, False, *even)]
+        its best fit to the old spokes: the first of ``tries`` that folds no corner."""
         for equal, with_row0, angles, fit in tries:
             s2, d2 = flat_fan(equal, fit + rot, angles)
             if _fan_folded(s2, wedges, d2):
@@ -467,22 +475,25 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
             return Q
         return None
 
-    best = place(0.0)
-    if best is None:
-        return False
-    if not exact:
+    def turned(tries) -> tuple[float, NDArray] | None:
+        """The best placement of one family of fans over the turns about the normal, and
+        its corner-zone jump."""
+        first = place(0.0, tries)
+        if first is None:
+            return None
+        if exact:
+            return 0.0, first
         # row 0 is not collinear: the normal jump within the first knot span depends on how
         # the fan is turned about the normal against the fixed rows beyond it; keep the turn
         # with the smallest jump (the fitted turn first, so it stays on a tie)
-        zone = _corner_zone_jump(surfaces, shapes, offs, keys, spoke_index, boundaries)
-        seen: dict[float, tuple[float, NDArray | None]] = {0.0: (zone(best), best)}
+        seen: dict[float, tuple[float, NDArray | None]] = {0.0: (zone(first), first)}
 
         def best_turn() -> float:  # the fitted turn (0) wins a tie
             return min(seen, key=lambda r: (seen[r][0], r != 0.0))
 
         def trial(rot: float) -> float:
             if rot not in seen:
-                Q = place(rot)
+                Q = place(rot, tries)
                 seen[rot] = (np.inf, None) if Q is None else (zone(Q), Q)
             return seen[rot][0]
 
@@ -501,7 +512,20 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
             else:
                 a, c = c, d
                 d = a + g * (b - a)
-        best = seen[best_turn()][1]
+        return seen[best_turn()]
+
+    zone = _corner_zone_jump(surfaces, shapes, offs, keys, spoke_index, boundaries)
+    # the fans from the patches' own corner angles, and (at an interior corner) the fan of
+    # equal wedges: where row 0 cannot be collinear the one with the smaller corner-zone
+    # jump wins (the own fans on a tie), else the equal fan only where every own fan folds
+    found = turned(own)
+    if equal_fan and (found is None or not exact):
+        other = turned(equal_fan)
+        if other is not None and (found is None or other[0] < found[0]):
+            found = other
+    if found is None:
+        return False
+    best = found[1]
     P[:] = best
     return True
 
