@@ -867,13 +867,16 @@ def run_fit(
         seams = _from_bytes(z["seams"])
     else:
         if options.map_kind == "vector":
-            dmaps = _stitch_maps(
-                grids, surfaces, dmaps, notes, options.map_shapes == "matched", workers, st
-            )
+            dmaps = _stitch_maps(grids, surfaces, dmaps, notes, options.map_shapes == "matched")
 
     @cache
     def displaced_grids() -> list[NDArray[np.float64]]:
         return [reconstruct(surfaces[p], dmaps[p]) for p in range(n_patches)]
+
+    @cache
+    def face_patch() -> NDArray[np.int64] | None:
+        """Patch of every input face (errors and report), read once."""
+        return _face_patch(st, k_cut)
 
     @cache
     def spline_grids() -> list[NDArray[np.float64]]:
@@ -942,9 +945,7 @@ def run_fit(
             # per patch: its input vertices' largest distance to the displaced surface
             "displaced_from_input_max_per_patch": [
                 None if v is None else v / diag
-                for v in _per_patch_max(
-                    mesh, _face_patch(st, k_cut, patches_cache), from_input, n_patches
-                )
+                for v in _per_patch_max(mesh, face_patch(), from_input, n_patches)
             ],
         }
         spline_distance.append(spline_to_input)
@@ -1005,7 +1006,7 @@ def run_fit(
             out,
             mesh=mesh,
             layout=lay,
-            face_patch=_face_patch(st, k_cut, patches_cache),
+            face_patch=face_patch(),
             grids=grids,
             surfaces=surfaces,
             displaced=displaced_grids,
@@ -1139,33 +1140,26 @@ def _stitch_g1(grids, surfaces, notes: list[str]) -> list:
     return stitch_surfaces(surfaces, net)
 
 
-def _stitch_maps(grids, surfaces, dmaps, notes: list[str], match: bool, workers, st) -> list:
+def _stitch_maps(grids, surfaces, dmaps, notes: list[str], match: bool) -> list:
     """Crack-free displacement seams with :mod:`meshfit.stitch` (unchanged without it).
 
-    With ``match`` the maps first take equal texel counts along shared boundaries (the
-    largest of each equal-count class, as :func:`meshfit.stitch.match_map_shapes`, resampled
-    on the worker threads), so the seams are closed at every output resolution.
+    With ``match`` the maps first take equal texel counts along shared boundaries
+    (:func:`meshfit.stitch.match_map_shapes`), so the seams are closed at every output
+    resolution.
     """
     try:
-        from meshfit.stitch import network_from_grids, stitch_displacements, texel_shapes
+        from meshfit.stitch import match_map_shapes, network_from_grids, stitch_displacements
     except ImportError:
         notes.append("meshfit.stitch is not installed: displacement seams left open")
         return dmaps
-    from meshfit.displacement import resample_map
-
     net = network_from_grids(grids, continuity="C0")
     if match:
-        shapes = texel_shapes(net, [d.shape for d in dmaps])
-
-        def resample(p: int):
-            d = dmaps[p]
-            return d if d.shape == shapes[p] else resample_map(d, shapes[p], surface=surfaces[p])
-
-        dmaps = _parallel(resample, list(range(len(dmaps))), workers, "stitch", st)
+        dmaps = match_map_shapes(surfaces, dmaps, net)
     return stitch_displacements(surfaces, dmaps, net)
 
 
-def _face_patch(st: _Stages, k_cut: str, patches_cache: list) -> NDArray[np.int64] | None:
+def _face_patch(st: _Stages, k_cut: str) -> NDArray[np.int64] | None:
+    """Patch of every input face, from the cut stage's file (None without it)."""
     p = st.path("cut", k_cut, ".npz")
     if p.is_file():
         return _load_npz(p)["face_patch"]

@@ -208,7 +208,18 @@ class BSplineSurface:
     def points_and_frames(
         self, u: ArrayLike, v: ArrayLike
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-        """``(S, T, B, N)``: :meth:`evaluate` and :meth:`frames` from one evaluation."""
+        """Points and orthonormal frames at parameter pairs from one evaluation.
+
+        Parameters
+        ----------
+        u, v : array_like float64
+            Parameters in [0, 1] (clipped), broadcast against each other to a shape ``s``.
+
+        Returns
+        -------
+        S, T, B, N : (*s, 3) float64
+            :meth:`evaluate` and :meth:`frames` at the same parameters.
+        """
         uu, vv = np.broadcast_arrays(
             np.asarray(u, dtype=np.float64), np.asarray(v, dtype=np.float64)
         )

@@ -143,6 +143,11 @@ class DisplacementMap:
         return read_png(path)
 
 
+def _components(vec: NDArray, T: NDArray, B: NDArray, N: NDArray) -> NDArray:
+    """Components ``(..., 3)`` of model-space vectors ``(..., 3)`` in the frames T, B, N."""
+    return np.stack([(vec * T).sum(-1), (vec * B).sum(-1), (vec * N).sum(-1)], axis=-1)
+
+
 def _grid_frames(surface: BSplineSurface, h: int, w: int):
     u, v = grid_parameters(h), grid_parameters(w)
     S, Su, Sv = surface.evaluate_grid(u, v, derivatives=1)
@@ -182,7 +187,7 @@ def displacement_map(
     X = _as_grid(grid_xyz)
     S, T, B, N = _grid_frames(surface, *X.shape[:2])
     d = X - S
-    comp = np.stack([(d * T).sum(-1), (d * B).sum(-1), (d * N).sum(-1)], axis=-1)
+    comp = _components(d, T, B, N)
     if kind == "vector":
         return DisplacementMap(comp, "vector")
     if kind == "normal":
@@ -302,8 +307,7 @@ def resample_map(
             raise InputError(f"resampling with a surface needs a vector map, got {dmap.kind}")
         world = _world_filtered(surface, dmap.values, (h2, w2))
         _, T, B, N = _grid_frames(surface, h2, w2)
-        comp = np.stack([(world * T).sum(-1), (world * B).sum(-1), (world * N).sum(-1)], -1)
-        return DisplacementMap(comp, "vector")
+        return DisplacementMap(_components(world, T, B, N), "vector")
     Wu = _bilinear_weights(h2, dmap.shape[0])
     Wv = _bilinear_weights(w2, dmap.shape[1])
     vals = _k.dense_sandwich(Wu, np.ascontiguousarray(dmap.values), Wv)

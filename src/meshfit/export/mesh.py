@@ -36,8 +36,7 @@ def _shapes(shape, n: int) -> list:
     """``shape`` as one vertex grid (or None) per patch: a pair applies to every patch."""
     if shape is None:
         return [None] * n
-    arr = np.asarray(shape, dtype=object)
-    if arr.ndim == 1:
+    if all(isinstance(x, (int, np.integer)) for x in shape):  # one (h, w) for all
         return [tuple(shape)] * n
     if len(shape) != n:
         raise InputError(f"{len(shape)} shapes for {n} patches")
@@ -97,10 +96,29 @@ def export_objs(
     names: Sequence[str] | None = None,
     shape: tuple[int, int] | Sequence[tuple[int, int]] | None = None,
 ) -> list[Path]:
-    """Several OBJ files of the same patches, e.g. the displaced and the spline-only surface:
-    ``{path: displacements}``, each as :func:`export_obj` writes it. Files whose patches have
-    the same vertex grids share the text of their texture coordinates and faces, which is
-    formatted once. Returns the paths in order."""
+    """Several OBJ files of the same patches, e.g. the displaced and the spline-only surface.
+
+    Parameters
+    ----------
+    outputs : mapping of path to displacements
+        ``{path: displacements}``: each file as :func:`export_obj` writes it with those
+        displacements (None: the splines alone). Files whose patches have the same vertex
+        grids share the text of their texture coordinates and faces, formatted once.
+    surfaces : BSplineSurface or sequence of them
+    names : sequence of str, optional
+    shape : (int, int) or sequence of them, optional
+        As for :func:`export_obj`, for every file.
+
+    Returns
+    -------
+    list of Path
+        The files, in the order of ``outputs`` (each written atomically).
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        Bad names, displacements or shapes (as :func:`export_obj`).
+    """
     topology: dict[tuple, list[tuple[list[str], list[str]]]] = {}
     out = []
     for path, displacements in outputs.items():

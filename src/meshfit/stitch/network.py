@@ -225,6 +225,19 @@ def direction_classes(network: Network) -> NDArray[np.int64]:
     these links (union-find), numbered in order of first appearance (patch 0's u direction
     is class 0). Any per-direction count that must agree across shared boundaries (control
     points, texels) is one count per class.
+
+    Parameters
+    ----------
+    network : Network
+
+    Returns
+    -------
+    (n_patches, 2) int64
+        Class of each patch's u and v direction.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 8.1.3 (consistent control counts across a network).
     """
     n = network.n_patches
     sets = DisjointSets(2 * n)
@@ -237,7 +250,28 @@ def texel_shapes(network: Network, shapes: Sequence[tuple[int, int]]) -> list[tu
     """Map resolutions with equal texel counts along every shared boundary.
 
     Each class of :func:`direction_classes` takes the largest count of its members, so no
-    map loses resolution. Returns ``(h, w)`` per patch.
+    map loses resolution.
+
+    Parameters
+    ----------
+    network : Network
+    shapes : sequence of (int, int)
+        Texel counts ``(h, w)`` of each patch's map, at least 2 x 2.
+
+    Returns
+    -------
+    list of (int, int)
+        ``(h, w)`` per patch, equal along every shared boundary.
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        Not one shape per patch, or a shape below 2 x 2.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 8.2 (displacement seams), with the count classes of
+       sec. 8.1.3.
     """
     shp = np.asarray(shapes, dtype=np.int64).reshape(-1, 2)
     if len(shp) != network.n_patches:

@@ -887,6 +887,30 @@ def match_map_shapes(
 
     Run it before :func:`stitch_displacements` to close the seams at every output
     resolution, not only with each patch tessellated at its map's own resolution.
+
+    Parameters
+    ----------
+    surfaces : sequence of BSplineSurface
+        The (stitched) surfaces, control counts consistent across ``network``.
+    maps : sequence of DisplacementMap
+        One ``vector`` map ``(h, w, 3)`` per patch, any resolutions.
+    network : Network
+
+    Returns
+    -------
+    list of DisplacementMap
+        ``vector`` maps at :func:`meshfit.stitch.texel_shapes`; a map already at its shape is
+        returned as it is.
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        Not one vector map per surface, or inconsistent control counts.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 7.2 (bilinear reconstruction) and sec. 8.2 (crack-free
+       displacement seams).
     """
     from meshfit.displacement import resample_map
 
