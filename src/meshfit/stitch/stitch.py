@@ -304,7 +304,11 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
          first control leg, so the normal jump within the first knot span is of the order
          of the boundary's normal curvature there times the row-0 defect.
     If the constraints fold a patch corner, only the row-1 constraints are kept; if they
-    fold too (or the corner is not a simple fan) nothing is changed.
+    fold too (or the corner is not a simple fan) nothing is changed. Folds are judged in
+    the tangent plane only: a patch whose surface turns by a right angle or more within two
+    knot spans of the corner (the near-triangular patches of spot's test layout) still gets
+    the rule (a plane checked against the patch's normal two knot spans in left such a
+    corner C0, with a 51 degree normal jump).
 
     At an interior corner a second family of flat fans is tried as well: equal wedges, each
     diagonal point in the middle of its wedge. Where row 0 cannot be collinear the family
@@ -336,19 +340,6 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
     if np.linalg.norm(normal) <= tol.BSPLINE_DEGENERATE:
         return False
     normal /= np.linalg.norm(normal)
-    # the plane must face the way every patch does beyond the corner's own control ring,
-    # unless the patch already turns over between its corner point and there (a fit curling
-    # over a sharp feature next to the corner): that fold is not the corner rule's, and
-    # leaving the corner C0 would not undo it
-    for k, i, j in slots:
-        mu, mv = shapes[k]
-        n_c = surfaces[k].normals(np.array([float(i == -1)]), np.array([float(j == -1)]))[0]
-        u = 2.0 / (mu - 3) if i == 0 else 1.0 - 2.0 / (mu - 3)
-        v = 2.0 / (mv - 3) if j == 0 else 1.0 - 2.0 / (mv - 3)
-        uv = np.clip([u, v], 0.0, 1.0)
-        n_in = surfaces[k].normals(uv[:1], uv[1:])[0]
-        if n_in @ normal <= 0 and n_in @ n_c > 0:
-            return False
     theta = np.array([np.arccos(np.clip(unit[w.first] @ unit[w.second], -1, 1)) for w in wedges])
     flat = _flat_angles(theta, cycle)
     if flat is None:
