@@ -46,7 +46,7 @@ from meshfit import __version__
 from meshfit._atomic import atomic_write, write_text
 from meshfit.errors import InputError, LayoutError
 from meshfit.mesh import Mesh
-from meshfit.mesh.locate import build_tree, refit_tree, triangle_distances
+from meshfit.mesh.locate import grid_tree, triangle_distances
 
 __all__ = [
     "FORMATS",
@@ -932,12 +932,11 @@ def run_fit(
             spline_distance.append(_load_npz(dist_file)["spline_to_input"])
     else:
         Vs, Fs = _soup(spline_grids())
-        tree = build_tree(Vs, Fs)
-        spline_fig, spline_to_input, _ = _error_figures(mesh, Vs, Fs, tree)
+        shapes = [g.shape[:2] for g in spline_grids()]
+        spline_fig, spline_to_input, _ = _error_figures(mesh, Vs, Fs, grid_tree(Vs, Fs, shapes))
         Vd, Fd = _soup(displaced_grids())
-        # the displaced soup is the spline soup moved by the maps: the same tree, refitted
-        tree = refit_tree(tree, Vd, Fd) if np.array_equal(Fd, Fs) else build_tree(Vd, Fd)
-        disp_fig, _, from_input = _error_figures(mesh, Vd, Fd, tree)
+        shapes = [g.shape[:2] for g in displaced_grids()]
+        disp_fig, _, from_input = _error_figures(mesh, Vd, Fd, grid_tree(Vd, Fd, shapes))
         errors = {
             "spline_only": spline_fig,
             "displaced": disp_fig,

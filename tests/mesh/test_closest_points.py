@@ -11,7 +11,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from meshfit._kernels import bvh
 from meshfit.errors import InputError
 from meshfit.mesh import closest_points
-from meshfit.mesh.locate import build_tree, refit_tree, triangle_distances
+from meshfit.mesh.locate import build_tree, grid_tree, triangle_distances
 from meshfit.surface import random_surface_points
 
 from ..conftest import analytic_mesh, real_mesh
@@ -169,20 +169,40 @@ def test_tree_equals_the_one_thread_breadth_first_build(rng, m, leaf_size):
     assert_array_equal(tree.order, want[0])
 
 
-def test_a_refitted_tree_finds_the_same_distances(rng):
-    # a surface and a displaced copy, as the fit's error stage measures them
-    mesh = real_mesh("spot")
-    V0, F = mesh.vertices, mesh.faces
-    tree = build_tree(V0, F)
-    same = refit_tree(tree, V0, F)
-    for a, b in zip(same, tree, strict=True):
-        assert_array_equal(a, b)  # refitting in place rebuilds the very boxes
-    V1 = V0 + rng.normal(scale=0.3 * mesh.mean_edge_length, size=V0.shape)
-    q = rng.uniform(*mesh.bbox, size=(2000, 3))
-    moved = refit_tree(tree, V1, F)
-    got, _ = triangle_distances(q, V1, F, tree=moved)
-    want, _ = triangle_distances(q, V1, F)
+def _grid_soup(rng, shapes):
+    """Bumpy grids side by side, stacked as the fit's error stage stacks its patch grids."""
+    from meshfit.springs import grid_triangles
+
+    Vs, Fs, base = [], [], 0
+    for k, (nu, nv) in enumerate(shapes):
+        u, v = np.meshgrid(np.linspace(0, 1, nu), np.linspace(0, 1, nv), indexing="ij")
+        z = 0.1 * np.sin(5 * u + 3 * v) + 0.02 * rng.standard_normal(u.shape)
+        Vs.append(np.stack([u + 1.1 * k, 2 * v, z], axis=-1).reshape(-1, 3))
+        Fs.append(grid_triangles(nu, nv) + base)
+        base += nu * nv
+    return np.vstack(Vs), np.vstack(Fs)
+
+
+def test_grid_tree_matches_its_reference_and_finds_the_same_distances(rng):
+    # the spline and displaced grids of a fit, as the error stage measures them
+    shapes = [(2, 2), (5, 3), (17, 9), (2, 30), (12, 12)]
+    V, F = _grid_soup(rng, shapes)
+    tree = grid_tree(V, F, shapes)
+    for got, want in zip(tree[1:], ref.build_grids(V, F, shapes), strict=True):
+        assert_array_equal(got, want)
+    assert_array_equal(np.sort(tree.order), np.arange(len(F)))
+    q = rng.uniform(V.min(axis=0) - 0.5, V.max(axis=0) + 0.5, size=(3000, 3))
+    got, _ = triangle_distances(q, V, F, tree=tree)
+    want, _ = triangle_distances(q, V, F)
     assert_array_equal(got, want)
-    assert_allclose(got[:50] ** 2, ref.squared_distances(V1, F, q[:50]), rtol=1e-12, atol=0)
-    with pytest.raises(InputError, match="tree has"):
-        refit_tree(tree, V1, F[:-2])
+    assert_allclose(got[:50] ** 2, ref.squared_distances(V, F, q[:50]), rtol=1e-12, atol=0)
+    # exact for any faces of the right count, only looser
+    shuffled = F[rng.permutation(len(F))]
+    got, _ = triangle_distances(q, V, shuffled, tree=grid_tree(V, shuffled, shapes))
+    assert_array_equal(got, want)
+    with pytest.raises(InputError, match="triangles"):
+        grid_tree(V, F[:-2], shapes)
+    with pytest.raises(InputError, match="points"):
+        grid_tree(V[:-1], F, shapes)
+    with pytest.raises(InputError, match="every size >= 2"):
+        grid_tree(V, F, [(1, 4), *shapes])

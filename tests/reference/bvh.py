@@ -105,6 +105,11 @@ def build(V, F, order, leaf_size):
             stop += [mid, e]
             child += [-1, -1]
         i += 1
+    return _with_boxes(V, F, order, child, start, stop)
+
+
+def _with_boxes(V, F, order, child, start, stop):
+    """``order, lo, hi, child, start, stop`` as arrays, the boxes made bottom up."""
     n = len(start)
     lo_box = np.empty((n, 3))
     hi_box = np.empty((n, 3))
@@ -124,3 +129,60 @@ def build(V, F, order, leaf_size):
         np.array(start, dtype=np.int64),
         np.array(stop, dtype=np.int64),
     )
+
+
+def build_grids(V, F, shapes):
+    """The tree of `meshfit._kernels.bvh.build_grids` over stacked grid triangulations
+    (first triangles of grid ``g``'s cells, row-major, then their second ones), built breadth
+    first from explicit node descriptions: a list of grids, split at the median of the grid
+    centroids along their longest axis (a stable sort), or one grid's cell rectangle, halved
+    across its longer side. Returns ``order, lo, hi, child, start, stop``."""
+    shapes = [(int(a), int(b)) for a, b in shapes]
+    cells = [(a - 1) * (b - 1) for a, b in shapes]
+    tbase = np.concatenate([[0], np.cumsum([2 * c for c in cells])]).tolist()
+    vbase = np.concatenate([[0], np.cumsum([a * b for a, b in shapes])]).tolist()
+    cent = [V[vbase[g] : vbase[g + 1]].mean(axis=0) for g in range(len(shapes))]
+
+    def size(node) -> int:
+        if node[0] == "grids":
+            return sum(2 * cells[g] for g in node[1])
+        _, _, r0, r1, c0, c1 = node
+        return 2 * (r1 - r0) * (c1 - c0)
+
+    nodes = [("grids", list(range(len(shapes))))]
+    start, stop, child = [0], [sum(2 * c for c in cells)], [-1]
+    order = [0] * stop[0]
+    i = 0
+    while i < len(nodes):
+        node = nodes[i]
+        if node[0] == "grids" and len(node[1]) == 1:
+            g = node[1][0]
+            node = nodes[i] = ("cells", g, 0, shapes[g][0] - 1, 0, shapes[g][1] - 1)
+        if node[0] == "grids":
+            gs = node[1]
+            cs = np.array([cent[g] for g in gs])
+            ext = cs.max(axis=0) - cs.min(axis=0)
+            axis = max(range(3), key=lambda d: (ext[d], -d))
+            gs = [gs[j] for j in np.argsort(cs[:, axis], kind="stable")]
+            halves = [("grids", gs[: len(gs) // 2]), ("grids", gs[len(gs) // 2 :])]
+        else:
+            _, g, r0, r1, c0, c1 = node
+            if (r1 - r0) * (c1 - c0) == 1:
+                t = tbase[g] + r0 * (shapes[g][1] - 1) + c0
+                order[start[i]], order[start[i] + 1] = t, t + cells[g]
+                i += 1
+                continue
+            if r1 - r0 >= c1 - c0:
+                m = (r0 + r1) // 2
+                halves = [("cells", g, r0, m, c0, c1), ("cells", g, m, r1, c0, c1)]
+            else:
+                m = (c0 + c1) // 2
+                halves = [("cells", g, r0, r1, c0, m), ("cells", g, r0, r1, m, c1)]
+        child[i] = len(nodes)
+        split = start[i] + size(halves[0])
+        nodes += halves
+        start += [start[i], split]
+        stop += [split, stop[i]]
+        child += [-1, -1]
+        i += 1
+    return _with_boxes(V, F, order, child, start, stop)

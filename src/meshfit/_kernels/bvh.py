@@ -215,21 +215,109 @@ def build(V, F, order, leaf_size):
     return ords, olo, ohi, ochild, ostart, ostop
 
 
-@njit(cache=True, nogil=True, parallel=True, fastmath=False)
-def refit(V, F, order, child, start, stop):
-    """Node boxes ``lo, hi (k, 3)`` of a tree from `build` over the same triangles at new
-    vertex positions ``V``: the same nodes, the leaves' boxes in parallel, then the inner
-    nodes' bottom up."""
-    n = child.shape[0]
+@njit(cache=True, nogil=True, fastmath=False)
+def build_grids(V, F, shapes, tbase, centroid):
+    """Tree over a soup of stacked row-major grids, each triangulated as
+    `meshfit.springs.grid_triangles` does (grid ``g`` of ``shapes[g] = (nu, nv)`` points has
+    its ``(nu - 1) (nv - 1)`` cells' first triangles from ``tbase[g]``, then their second
+    ones), in the arrays of `build`.
+
+    The grids are split at the median of their ``centroid (n_grids, 3)`` along the longest
+    axis of those, down to one grid; a grid's cell rectangle in halves across its longer
+    index direction, down to one cell (a leaf of its two triangles). No triangle is sorted;
+    the nodes are numbered breadth first.
+    """
+    n_grids = shapes.shape[0]
+    cells = np.empty(n_grids, dtype=np.int64)
+    m = 0
+    for g in range(n_grids):
+        cells[g] = (shapes[g, 0] - 1) * (shapes[g, 1] - 1)
+        m += 2 * cells[g]
+    cap = 2 * m + 2 * n_grids + 1
+    # a node is a range [a, b) of ``perm`` (grids, kind 0) or a cell rectangle of one grid
+    # (kind 1: grid ga, rows [a, b), columns [c0, c1))
+    kind = np.empty(cap, dtype=np.int64)
+    ga = np.empty(cap, dtype=np.int64)
+    na = np.empty(cap, dtype=np.int64)
+    nb = np.empty(cap, dtype=np.int64)
+    nc0 = np.empty(cap, dtype=np.int64)
+    nc1 = np.empty(cap, dtype=np.int64)
+    child = np.full(cap, -1, dtype=np.int64)
+    start = np.empty(cap, dtype=np.int64)
+    stop = np.empty(cap, dtype=np.int64)
+    order = np.empty(m, dtype=np.int64)
+    perm = np.arange(n_grids)
+    kind[0], na[0], nb[0], start[0], stop[0] = 0, 0, n_grids, 0, m
+    n = 1
+    k = 0
+    while k < n:
+        if kind[k] == 0 and nb[k] - na[k] == 1:  # one grid: its whole cell rectangle
+            g = perm[na[k]]
+            kind[k], ga[k], na[k], nb[k] = 1, g, 0, shapes[g, 0] - 1
+            nc0[k], nc1[k] = 0, shapes[g, 1] - 1
+        if kind[k] == 0:
+            a, b = na[k], nb[k]
+            axis = 0
+            best = -1.0
+            for d in range(3):
+                lo_d = np.inf
+                hi_d = -np.inf
+                for j in range(a, b):
+                    x = centroid[perm[j], d]
+                    lo_d = min(lo_d, x)
+                    hi_d = max(hi_d, x)
+                if hi_d - lo_d > best:
+                    best = hi_d - lo_d
+                    axis = d
+            keys = np.empty(b - a)
+            for j in range(a, b):
+                keys[j - a] = centroid[perm[j], axis]
+            srt = np.argsort(keys, kind="mergesort")
+            part = perm[a:b].copy()
+            for j in range(b - a):
+                perm[a + j] = part[srt[j]]
+            mid = (a + b) // 2
+            left = 0
+            for j in range(a, mid):
+                left += 2 * cells[perm[j]]
+            child[k] = n
+            kind[n], na[n], nb[n] = 0, a, mid
+            kind[n + 1], na[n + 1], nb[n + 1] = 0, mid, b
+            start[n], stop[n] = start[k], start[k] + left
+            start[n + 1], stop[n + 1] = start[k] + left, stop[k]
+            n += 2
+        else:
+            g = ga[k]
+            r0, r1, c0, c1 = na[k], nb[k], nc0[k], nc1[k]
+            if (r1 - r0) * (c1 - c0) == 1:  # one cell: a leaf of its two triangles
+                t = tbase[g] + r0 * (shapes[g, 1] - 1) + c0
+                order[start[k]] = t
+                order[start[k] + 1] = t + cells[g]
+            else:
+                child[k] = n
+                for h in range(2):
+                    kind[n + h], ga[n + h] = 1, g
+                    na[n + h], nb[n + h], nc0[n + h], nc1[n + h] = r0, r1, c0, c1
+                if r1 - r0 >= c1 - c0:
+                    mid = (r0 + r1) // 2
+                    nb[n], na[n + 1] = mid, mid
+                    left = 2 * (mid - r0) * (c1 - c0)
+                else:
+                    mid = (c0 + c1) // 2
+                    nc1[n], nc0[n + 1] = mid, mid
+                    left = 2 * (r1 - r0) * (mid - c0)
+                start[n], stop[n] = start[k], start[k] + left
+                start[n + 1], stop[n + 1] = start[k] + left, stop[k]
+                n += 2
+        k += 1
     lo = np.empty((n, 3))
     hi = np.empty((n, 3))
-    for k in prange(n):
-        if child[k] < 0:
-            _node_box(V, F, order, lo, hi, child, start, stop, k)
+    child = child[:n].copy()
+    start = start[:n].copy()
+    stop = stop[:n].copy()
     for k in range(n - 1, -1, -1):  # breadth-first numbering: children after parents
-        if child[k] >= 0:
-            _node_box(V, F, order, lo, hi, child, start, stop, k)
-    return lo, hi
+        _node_box(V, F, order, lo, hi, child, start, stop, k)
+    return order, lo, hi, child, start, stop
 
 
 @njit(cache=True, nogil=True, fastmath=False)

@@ -102,23 +102,26 @@ def build_tree(
     return TriangleTree(bvh.zero_area(vertices, faces), order, lo, hi, child, start, stop)
 
 
-def refit_tree(
-    tree: TriangleTree, vertices: NDArray[np.float64], faces: NDArray[np.int64]
+def grid_tree(
+    vertices: NDArray[np.float64], faces: NDArray[np.int64], shapes: ArrayLike
 ) -> TriangleTree:
-    """The same tree over the same faces at new vertex positions (every box rebuilt).
+    """Build the bounding-volume hierarchy over a soup of grids without sorting triangles.
 
-    A tree built for one position of a triangle set serves another nearby one (e.g. a surface
-    and its displaced copy) at the cost of one bottom-up pass; the searches stay exact, only
-    the boxes are less tight than a fresh build's where triangles moved far.
+    For the triangulations of stacked row-major grids (:func:`meshfit.springs.grid_triangles`
+    of each grid, offset by the points before it; e.g. spline or displaced patch grids):
+    the grids are split at the median of their centroids, each grid's cells in halves
+    across its longer index direction down to single cells. Searches are exact for any
+    ``faces`` of the right count (each box holds its triangles as ``faces`` gives them); the
+    tree is tight when ``faces`` are laid out as above.
 
     Parameters
     ----------
-    tree : TriangleTree
-        From :func:`build_tree` over ``faces``.
     vertices : (k, 3) float64
-        Finite coordinates.
+        Finite coordinates: the grids' points, grid after grid.
     faces : (m, 3) int64
-        The faces the tree was built over.
+        The grids' triangles, ``m = sum 2 (nu - 1) (nv - 1)``.
+    shapes : (n, 2) int
+        Each grid's ``(nu, nv)``, every one at least 2 x 2.
 
     Returns
     -------
@@ -127,14 +130,28 @@ def refit_tree(
     Raises
     ------
     meshfit.errors.InputError
-        ``faces`` of another count than the tree's triangles.
+        No grid, a grid under 2 x 2, or a face count that does not match the shapes.
     """
     from meshfit._kernels import bvh
 
-    if faces.shape[0] != tree.order.shape[0]:
-        raise InputError(f"tree has {tree.order.shape[0]} triangles, faces {faces.shape[0]}")
-    lo, hi = bvh.refit(vertices, faces, tree.order, tree.child, tree.start, tree.stop)
-    return tree._replace(flat=bvh.zero_area(vertices, faces), lo=lo, hi=hi)
+    sh = np.asarray(shapes, dtype=np.int64).reshape(-1, 2)
+    if sh.shape[0] == 0 or (sh < 2).any():
+        raise InputError(f"grid shapes must be (n >= 1, 2) with every size >= 2, got {sh.tolist()}")
+    tris = 2 * (sh[:, 0] - 1) * (sh[:, 1] - 1)
+    if int(tris.sum()) != faces.shape[0]:
+        raise InputError(
+            f"the grid shapes have {int(tris.sum())} triangles, faces {faces.shape[0]}"
+        )
+    pts = sh[:, 0] * sh[:, 1]
+    vbase = np.concatenate([[0], np.cumsum(pts)])
+    if vbase[-1] != vertices.shape[0]:
+        raise InputError(
+            f"the grid shapes have {int(vbase[-1])} points, vertices {vertices.shape[0]}"
+        )
+    tbase = np.concatenate([[0], np.cumsum(tris)[:-1]]).astype(np.int64)
+    centroid = np.add.reduceat(vertices, vbase[:-1], axis=0) / pts[:, None]
+    order, lo, hi, child, start, stop = bvh.build_grids(vertices, faces, sh, tbase, centroid)
+    return TriangleTree(bvh.zero_area(vertices, faces), order, lo, hi, child, start, stop)
 
 
 def triangle_distances(
