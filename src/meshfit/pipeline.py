@@ -601,8 +601,12 @@ def _per_patch_max(
         return [None] * n
     out = np.zeros(n)
     ok = face_patch >= 0
-    for c in range(3):
-        np.maximum.at(out, face_patch[ok], value[mesh.faces[ok, c]])
+    worst = value[mesh.faces[ok]].max(axis=1)  # per face
+    order = np.argsort(face_patch[ok], kind="stable")
+    label = face_patch[ok][order]
+    first = np.flatnonzero(np.concatenate([[True], label[1:] != label[:-1]]))
+    if first.size:
+        out[label[first]] = np.maximum(0.0, np.maximum.reduceat(worst[order], first))
     return out.tolist()
 
 

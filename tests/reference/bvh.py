@@ -133,10 +133,12 @@ def _with_boxes(V, F, order, child, start, stop):
 
 def build_grids(V, F, shapes):
     """The tree of `meshfit._kernels.bvh.build_grids` over stacked grid triangulations
-    (first triangles of grid ``g``'s cells, row-major, then their second ones), built breadth
-    first from explicit node descriptions: a list of grids, split at the median of the grid
-    centroids along their longest axis (a stable sort), or one grid's cell rectangle, halved
-    across its longer side. Returns ``order, lo, hi, child, start, stop``."""
+    (first triangles of grid ``g``'s cells, row-major, then their second ones), built
+    recursively from explicit node descriptions: a list of grids, split at the median of the
+    grid centroids along their longest axis (a stable sort), or one grid's cell rectangle,
+    halved across its longer side; a split node's children take the next two numbers and the
+    first child's subtree is numbered before the second's. Returns
+    ``order, lo, hi, child, start, stop``."""
     shapes = [(int(a), int(b)) for a, b in shapes]
     cells = [(a - 1) * (b - 1) for a, b in shapes]
     tbase = np.concatenate([[0], np.cumsum([2 * c for c in cells])]).tolist()
@@ -149,15 +151,13 @@ def build_grids(V, F, shapes):
         _, _, r0, r1, c0, c1 = node
         return 2 * (r1 - r0) * (c1 - c0)
 
-    nodes = [("grids", list(range(len(shapes))))]
     start, stop, child = [0], [sum(2 * c for c in cells)], [-1]
     order = [0] * stop[0]
-    i = 0
-    while i < len(nodes):
-        node = nodes[i]
+
+    def split(i: int, node) -> None:
         if node[0] == "grids" and len(node[1]) == 1:
             g = node[1][0]
-            node = nodes[i] = ("cells", g, 0, shapes[g][0] - 1, 0, shapes[g][1] - 1)
+            node = ("cells", g, 0, shapes[g][0] - 1, 0, shapes[g][1] - 1)
         if node[0] == "grids":
             gs = node[1]
             cs = np.array([cent[g] for g in gs])
@@ -170,19 +170,20 @@ def build_grids(V, F, shapes):
             if (r1 - r0) * (c1 - c0) == 1:
                 t = tbase[g] + r0 * (shapes[g][1] - 1) + c0
                 order[start[i]], order[start[i] + 1] = t, t + cells[g]
-                i += 1
-                continue
+                return
             if r1 - r0 >= c1 - c0:
                 m = (r0 + r1) // 2
                 halves = [("cells", g, r0, m, c0, c1), ("cells", g, m, r1, c0, c1)]
             else:
                 m = (c0 + c1) // 2
                 halves = [("cells", g, r0, r1, c0, m), ("cells", g, r0, r1, m, c1)]
-        child[i] = len(nodes)
-        split = start[i] + size(halves[0])
-        nodes += halves
-        start += [start[i], split]
-        stop += [split, stop[i]]
-        child += [-1, -1]
-        i += 1
+        c = child[i] = len(start)
+        cut = start[i] + size(halves[0])
+        start.extend([start[i], cut])
+        stop.extend([cut, stop[i]])
+        child.extend([-1, -1])
+        split(c, halves[0])
+        split(c + 1, halves[1])
+
+    split(0, ("grids", list(range(len(shapes)))))
     return _with_boxes(V, F, order, child, start, stop)

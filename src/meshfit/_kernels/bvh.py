@@ -223,9 +223,11 @@ def build_grids(V, F, shapes, tbase, centroid):
     ones), in the arrays of `build`.
 
     The grids are split at the median of their ``centroid (n_grids, 3)`` along the longest
-    axis of those, down to one grid; a grid's cell rectangle in halves across its longer
-    index direction, down to one cell (a leaf of its two triangles). No triangle is sorted;
-    the nodes are numbered breadth first.
+    axis of those (a stable sort), down to one grid; a grid's cell rectangle in halves across
+    its longer index direction, down to one cell (a leaf of its two triangles). No triangle
+    is sorted. Depth first: a node's two children get the next two numbers when it is split,
+    and the first child's subtree is built before the second's (only the open nodes are
+    kept, on a stack).
     """
     n_grids = shapes.shape[0]
     cells = np.empty(n_grids, dtype=np.int64)
@@ -233,30 +235,42 @@ def build_grids(V, F, shapes, tbase, centroid):
     for g in range(n_grids):
         cells[g] = (shapes[g, 0] - 1) * (shapes[g, 1] - 1)
         m += 2 * cells[g]
-    cap = 2 * m + 2 * n_grids + 1
-    # a node is a range [a, b) of ``perm`` (grids, kind 0) or a cell rectangle of one grid
-    # (kind 1: grid ga, rows [a, b), columns [c0, c1))
-    kind = np.empty(cap, dtype=np.int64)
-    ga = np.empty(cap, dtype=np.int64)
-    na = np.empty(cap, dtype=np.int64)
-    nb = np.empty(cap, dtype=np.int64)
-    nc0 = np.empty(cap, dtype=np.int64)
-    nc1 = np.empty(cap, dtype=np.int64)
+    cap = m + 2 * n_grids + 1  # a leaf per cell (m / 2), fewer than twice as many nodes
     child = np.full(cap, -1, dtype=np.int64)
     start = np.empty(cap, dtype=np.int64)
     stop = np.empty(cap, dtype=np.int64)
     order = np.empty(m, dtype=np.int64)
     perm = np.arange(n_grids)
-    kind[0], na[0], nb[0], start[0], stop[0] = 0, 0, n_grids, 0, m
+    # open nodes: number, then a range [a, b) of ``perm`` (kind 0: grids) or a cell
+    # rectangle of grid g (kind 1: rows [a, b), columns [c0, c1))
+    st = np.empty((_STACK, 7), dtype=np.int64)
+    st[0, 0], st[0, 1], st[0, 2], st[0, 3], st[0, 4] = 0, 0, -1, 0, n_grids
+    start[0], stop[0] = 0, m
+    top = 1
     n = 1
-    k = 0
-    while k < n:
-        if kind[k] == 0 and nb[k] - na[k] == 1:  # one grid: its whole cell rectangle
-            g = perm[na[k]]
-            kind[k], ga[k], na[k], nb[k] = 1, g, 0, shapes[g, 0] - 1
-            nc0[k], nc1[k] = 0, shapes[g, 1] - 1
-        if kind[k] == 0:
-            a, b = na[k], nb[k]
+    while top > 0:
+        top -= 1
+        k, kind, g, a, b, c0, c1 = st[top]
+        if kind == 0 and b - a == 1:  # one grid: its whole cell rectangle
+            g = perm[a]
+            kind, a, b, c0, c1 = 1, 0, shapes[g, 0] - 1, 0, shapes[g, 1] - 1
+        if kind == 1 and (b - a) * (c1 - c0) == 1:  # one cell: a leaf of its two triangles
+            t = tbase[g] + a * (shapes[g, 1] - 1) + c0
+            order[start[k]] = t
+            order[start[k] + 1] = t + cells[g]
+            continue
+        child[k] = n
+        # the second child below the first on the stack: the first one's subtree is built
+        # first (entry top + 1 is the first child, n; entry top the second, n + 1)
+        for h in range(2):
+            st[top + h, 0] = n + 1 - h
+            st[top + h, 1] = kind
+            st[top + h, 2] = g
+            st[top + h, 3] = a
+            st[top + h, 4] = b
+            st[top + h, 5] = c0
+            st[top + h, 6] = c1
+        if kind == 0:
             axis = 0
             best = -1.0
             for d in range(3):
@@ -280,42 +294,28 @@ def build_grids(V, F, shapes, tbase, centroid):
             left = 0
             for j in range(a, mid):
                 left += 2 * cells[perm[j]]
-            child[k] = n
-            kind[n], na[n], nb[n] = 0, a, mid
-            kind[n + 1], na[n + 1], nb[n + 1] = 0, mid, b
-            start[n], stop[n] = start[k], start[k] + left
-            start[n + 1], stop[n + 1] = start[k] + left, stop[k]
-            n += 2
+            st[top + 1, 4] = mid
+            st[top, 3] = mid
+        elif b - a >= c1 - c0:
+            mid = (a + b) // 2
+            st[top + 1, 4] = mid
+            st[top, 3] = mid
+            left = 2 * (mid - a) * (c1 - c0)
         else:
-            g = ga[k]
-            r0, r1, c0, c1 = na[k], nb[k], nc0[k], nc1[k]
-            if (r1 - r0) * (c1 - c0) == 1:  # one cell: a leaf of its two triangles
-                t = tbase[g] + r0 * (shapes[g, 1] - 1) + c0
-                order[start[k]] = t
-                order[start[k] + 1] = t + cells[g]
-            else:
-                child[k] = n
-                for h in range(2):
-                    kind[n + h], ga[n + h] = 1, g
-                    na[n + h], nb[n + h], nc0[n + h], nc1[n + h] = r0, r1, c0, c1
-                if r1 - r0 >= c1 - c0:
-                    mid = (r0 + r1) // 2
-                    nb[n], na[n + 1] = mid, mid
-                    left = 2 * (mid - r0) * (c1 - c0)
-                else:
-                    mid = (c0 + c1) // 2
-                    nc1[n], nc0[n + 1] = mid, mid
-                    left = 2 * (r1 - r0) * (mid - c0)
-                start[n], stop[n] = start[k], start[k] + left
-                start[n + 1], stop[n + 1] = start[k] + left, stop[k]
-                n += 2
-        k += 1
+            mid = (c0 + c1) // 2
+            st[top + 1, 6] = mid
+            st[top, 5] = mid
+            left = 2 * (b - a) * (mid - c0)
+        start[n], stop[n] = start[k], start[k] + left
+        start[n + 1], stop[n + 1] = start[k] + left, stop[k]
+        n += 2
+        top += 2
     lo = np.empty((n, 3))
     hi = np.empty((n, 3))
-    child = child[:n].copy()
-    start = start[:n].copy()
-    stop = stop[:n].copy()
-    for k in range(n - 1, -1, -1):  # breadth-first numbering: children after parents
+    child = child[:n]
+    start = start[:n]
+    stop = stop[:n]
+    for k in range(n - 1, -1, -1):  # children are numbered after their parents
         _node_box(V, F, order, lo, hi, child, start, stop, k)
     return order, lo, hi, child, start, stop
 
