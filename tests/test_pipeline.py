@@ -312,12 +312,7 @@ G1_INNER_DEG = 0.5
 
 #: measured gaps of the automatic layout (strict xfails; remove when fixed)
 E2E_KNOWN = {
-    ("nefertiti", "folds"): "1 folded cell at the final level: patch 1, a cell across a "
-    "knife edge (the surface normals at its corners 178 degrees apart)",
-    ("nefertiti", "corners"): "corner zones above 2 degrees on 2 of 120 shared curves, up to "
-    "2.7 degrees, at one valence-3 centre of a base triangle (patches 30-32); every corner "
-    "point is G1",
-    ("nefertiti", "accuracy"): "displaced RMS 0.033% meets 0.05%, Hausdorff 1.46% misses 0.5%: "
+    ("nefertiti", "accuracy"): "displaced RMS 0.029% meets 0.05%, Hausdorff 1.46% misses 0.5%: "
     "input vertices of patch 24 (a pleat: 3.7% of the patch's area on 0.21% of its square map) "
     "lie 2.7-4.2 grid spacings from the nearest spring point (one more spring level: 1.07%); "
     "the reconstruction-to-input direction stays within 0.12%",
