@@ -271,22 +271,8 @@ def build_grids(V, F, shapes, tbase, centroid):
             st[top + h, 5] = c0
             st[top + h, 6] = c1
         if kind == 0:
-            axis = 0
-            best = -1.0
-            for d in range(3):
-                lo_d = np.inf
-                hi_d = -np.inf
-                for j in range(a, b):
-                    x = centroid[perm[j], d]
-                    lo_d = min(lo_d, x)
-                    hi_d = max(hi_d, x)
-                if hi_d - lo_d > best:
-                    best = hi_d - lo_d
-                    axis = d
-            keys = np.empty(b - a)
-            for j in range(a, b):
-                keys[j - a] = centroid[perm[j], axis]
-            srt = np.argsort(keys, kind="mergesort")
+            sub = centroid[perm[a:b]]
+            srt = np.argsort(sub[:, _longest_axis(sub, 0, b - a)], kind="mergesort")
             part = perm[a:b].copy()
             for j in range(b - a):
                 perm[a + j] = part[srt[j]]
@@ -344,11 +330,9 @@ def _node_box(V, F, ords, lo, hi, child, start, stop, k):
 
 
 @njit(cache=True, nogil=True, fastmath=False)
-def _median_split(order, C, s, e, mid):
-    """Reorder ``order[s:e]`` (and the rows of ``C``, the centroids in that order, with it)
-    so that position ``mid`` holds the median centroid coordinate along the longest axis of
-    the range's centroids, smaller ones before it, larger after (quickselect, Hoare
-    partition)."""
+def _longest_axis(C, s, e):
+    """Axis (0, 1, 2) along which rows ``s:e`` of ``C (n, 3)`` spread the most (the first
+    on a tie)."""
     axis = 0
     best = -1.0
     for d in range(3):
@@ -361,6 +345,16 @@ def _median_split(order, C, s, e, mid):
         if b - a > best:
             best = b - a
             axis = d
+    return axis
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _median_split(order, C, s, e, mid):
+    """Reorder ``order[s:e]`` (and the rows of ``C``, the centroids in that order, with it)
+    so that position ``mid`` holds the median centroid coordinate along the longest axis of
+    the range's centroids, smaller ones before it, larger after (quickselect, Hoare
+    partition)."""
+    axis = _longest_axis(C, s, e)
     lo, hi = s, e - 1
     while lo < hi:
         pivot = C[(lo + hi) // 2, axis]
