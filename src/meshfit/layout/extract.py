@@ -22,10 +22,9 @@ Method
 
 from __future__ import annotations
 
-import itertools
 import threading
 import weakref
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -83,14 +82,11 @@ def _compute_partition(
         raise LayoutError(str(exc)) from None
     cut = res.mesh
     copy_of = res.copy_of
-    corner_of = {int(v): c for c, v in enumerate(res.corners.tolist())}
-    # directed refined edge -> (curve, reversed)
-    along: dict[tuple[int, int], tuple[int, bool]] = {}
-    for i, path in enumerate(res.curve_vertices):
-        p = path.tolist()
-        for a, b in itertools.pairwise(p):
-            along[(a, b)] = (i, False)
-            along[(b, a)] = (i, True)
+    # refined vertices: every one has a copy in the cut mesh
+    n_ref = int(max([copy_of.max(initial=0), *(p.max(initial=0) for p in res.curve_vertices)])) + 1
+    along = _Along(res.curve_vertices, n_ref)
+    is_corner = np.zeros(n_ref, dtype=bool)
+    is_corner[res.corners] = True
 
     labels = cut.face_components
     n_comp = cut.n_components
@@ -115,21 +111,17 @@ def _compute_partition(
         return int(res.face_parent[first_face[c]])
 
     def chains(loop: NDArray[np.int64], c: int) -> tuple[list[tuple[int, bool]], list[int]]:
-        ref = copy_of[loop].tolist()
-        pos = [k for k, v in enumerate(ref) if v in corner_of]
-        seq: list[tuple[int, bool]] = []
-        n = len(ref)
-        for k in range(n):
-            e = (ref[k], ref[(k + 1) % n])
-            if e not in along:
-                raise LayoutError(
-                    f"the region containing face {orig_face(c)} reaches the mesh boundary away "
-                    f"from the curves (at vertex {int(loop[k])} of the cut mesh): a hole of "
-                    "the mesh inside a patch, or a patch side that is no curve"
-                )
-        for k in pos:
-            seq.append(along[(ref[k], ref[(k + 1) % n])])
-        return seq, pos
+        ref = copy_of[loop]
+        curve, rev = along.lookup(ref)
+        missing = np.flatnonzero(curve < 0)
+        if missing.size:
+            raise LayoutError(
+                f"the region containing face {orig_face(c)} reaches the mesh boundary away "
+                f"from the curves (at vertex {int(loop[missing[0]])} of the cut mesh): a hole "
+                "of the mesh inside a patch, or a patch side that is no curve"
+            )
+        pos = np.flatnonzero(is_corner[ref]).tolist()
+        return [(int(curve[k]), bool(rev[k])) for k in pos], pos
 
     regions: list[_Region] = []
     claimed: dict[int, int] = {}
@@ -139,11 +131,8 @@ def _compute_partition(
         loops = loops_of[c]
         curves_seen: set[int] = set()
         for loop in loops:
-            ref = copy_of[loop].tolist()
-            for k in range(len(ref)):
-                e = (ref[k], ref[(k + 1) % len(ref)])
-                if e in along:
-                    curves_seen.add(along[e][0])
+            curve, _ = along.lookup(copy_of[loop])
+            curves_seen.update(np.unique(curve[curve >= 0]).tolist())
         cand = [
             p
             for p in range(layout.n_patches)
@@ -198,6 +187,40 @@ def _compute_partition(
         raise LayoutError(f"patch {missing[0]} bounds no region of its own")
     regions.sort(key=lambda r: r.patch)
     return res, regions
+
+
+class _Along:
+    """Which curve each directed edge of the refined mesh follows, and in which direction:
+    the edges of the curves' vertex paths as sorted keys ``a * n + b`` (a later curve wins
+    an edge two curves share, as it would in a dict)."""
+
+    def __init__(self, paths: Sequence[NDArray[np.int64]], n: int) -> None:
+        a = [np.asarray(p[:-1], dtype=np.int64) for p in paths]
+        b = [np.asarray(p[1:], dtype=np.int64) for p in paths]
+        curve = np.concatenate(
+            [np.full(x.size, i, dtype=np.int64) for i, x in enumerate(a)] or [[]]
+        )
+        a_all = np.concatenate(a or [[]]).astype(np.int64)
+        b_all = np.concatenate(b or [[]]).astype(np.int64)
+        # forward then backward per curve, curves in order: a stable sort keeps that order
+        # among equal keys and the last of them is the one a dict would hold
+        keys = np.stack([a_all * n + b_all, b_all * n + a_all], axis=1).ravel()
+        self.n = n
+        order = np.argsort(keys, kind="stable")
+        self.keys = keys[order]
+        self.curve = np.repeat(curve, 2)[order]
+        self.reversed = np.tile([False, True], curve.size)[order]
+
+    def lookup(self, ref: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
+        """For the closed loop of refined vertices ``ref``: the curve each edge
+        ``ref[k] -> ref[k + 1]`` follows (-1 for none) and whether it runs against it."""
+        q = ref * self.n + np.roll(ref, -1)
+        at = np.searchsorted(self.keys, q, side="right") - 1
+        ok = at >= 0
+        ok[ok] = self.keys[at[ok]] == q[ok]
+        curve = np.where(ok, self.curve[np.maximum(at, 0)], -1)
+        rev = np.where(ok, self.reversed[np.maximum(at, 0)], False)
+        return curve, rev
 
 
 def _match(
