@@ -412,15 +412,15 @@ def resample_patch(
         Sweeps of the arc-length force alone (guarded) after the relaxation of level 0
         (``polish`` times `COARSE_SWEEPS`) and of level 1 (``2 * polish``), when they are
         not the final level (default ``POLISH_SWEEPS`` = 10; 0: none). The fairness force's
-        equilibrium spaces grid lines unevenly on curved patches; these cheap coarse sweeps
-        even the spacing out before subdivision. A polished level is kept only where no more
-        of its cells fold and its median cell aspect ratio stays within ``POLISH_ASPECT``
-        (1.4) or does not grow: on bulging and near-triangular patches the even spacing
-        stretches the cells (always polished, nefertiti's and spot's test layouts reach
-        median aspect ratios of 1.50 and 1.87). On the test layouts the patches with an
-        arc-length CV above 0.15 go from 5 to 0 of 24 (igea), 13 to 11 of 54 (nefertiti)
-        and 10 to 7 of 24 (spot); no cell more folds, no patch more exceeds an aspect ratio
-        of 1.5.
+        equilibrium spaces grid lines unevenly on curved patches; these coarse sweeps even
+        the spacing out before subdivision (on igea refined to 1.07M faces they add 10-25% to
+        the spring meshes' CPU time). A polished level is kept only where no more of its
+        cells fold and its median cell aspect ratio stays within ``POLISH_ASPECT`` (1.4) or
+        does not grow: on bulging and near-triangular patches the even spacing stretches the
+        cells (polished regardless, nefertiti's and spot's test layouts reach median aspect
+        ratios of 1.71 and 1.87). On the test layouts the patches with an arc-length CV
+        above 0.15 go from 5 to 0 of 24 (igea), 13 to 11 of 54 (nefertiti) and 10 to 7 of 24
+        (spot); no more cells fold and no more patches exceed an aspect ratio of 1.5.
     repair : bool, keyword-only
         After each subdivision and each level's relaxation, re-place the free points around
         folded cells harmonically in the planar map (`meshfit.springs.relax.unfold_in_map`,
