@@ -253,6 +253,9 @@ def test_multigrid_solve_matches_the_direct_solve(which, monkeypatch):
     assert_allclose(x, want, rtol=0, atol=tol.TEST_ATOL)
     r = rhs - A @ x
     assert np.abs(r / A.diagonal()[:, None]).max() <= planar._SOLVE_TOL
+    # above the direct solve's size the iterative one answers
+    monkeypatch.setattr(planar, "_DIRECT_MAX", 0)
+    assert_allclose(planar._solve_interior(mesh, uv, fixed, free), x, rtol=0, atol=0)
     # no convergence within the cap: the direct solve answers
     monkeypatch.setattr(planar, "_MAX_ITER", 0)
     assert planar._gmres(A, rhs, planar._Multigrid(A)) is None
