@@ -311,12 +311,7 @@ DISPLACED_HAUSDORFF = 5e-3
 G1_INNER_DEG = 0.5
 
 #: measured gaps of the automatic layout (strict xfails; remove when fixed)
-E2E_KNOWN = {
-    ("nefertiti", "accuracy"): "displaced RMS 0.029% meets 0.05%, Hausdorff 1.46% misses 0.5%: "
-    "input vertices of patch 24 (a pleat: 3.7% of the patch's area on 0.21% of its square map) "
-    "lie 2.7-4.2 grid spacings from the nearest spring point (one more spring level: 1.07%); "
-    "the reconstruction-to-input direction stays within 0.12%",
-}
+E2E_KNOWN: dict[tuple[str, str], str] = {}
 
 
 @pytest.fixture(scope="module", params=["igea", "nefertiti"])

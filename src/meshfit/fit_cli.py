@@ -87,6 +87,7 @@ def _options(args: argparse.Namespace):
         formats=_formats(args.formats),
         patches=args.patches,
         spring_level=args.level,
+        spring_rescue=not getattr(args, "no_rescue", False),
         map_shapes=args.map_shapes,
         workers=args.workers,
         report=not args.no_report,
@@ -191,6 +192,12 @@ def _common(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--level", type=int, default=None, help="final spring-mesh level (default: auto)"
+    )
+    p.add_argument(
+        "--no-rescue",
+        action="store_true",
+        help="keep every relaxed spring mesh, also where it misses its patch (a pleat, a "
+        "squeezed bulge) by more than a grid spacing",
     )
     p.add_argument(
         "--map-shapes",

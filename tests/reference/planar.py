@@ -5,9 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 
-def mean_value_system(V, F, at, uv, floor, eps):
+def mean_value_system(V, F, at, uv, floor, eps, scale=None):
     """The interior mean-value system as a dense matrix (m, m) and right-hand side (m, 2),
-    face corner by face corner."""
+    face corner by face corner; ``scale`` (n,) multiplies each weight ``w_ij`` by
+    ``scale[j]`` (default 1)."""
+    scale = np.ones(len(V)) if scale is None else scale
     m = int((at >= 0).sum())
     A = np.zeros((m, m))
     rhs = np.zeros((m, 2))
@@ -22,7 +24,7 @@ def mean_value_system(V, F, at, uv, floor, eps):
             theta = np.arccos(np.clip(eij @ eik / (lij * lik), -1.0, 1.0))
             half = max(np.tan(theta / 2), eps)
             for q, length in ((j, lij), (k, lik)):
-                w = half / length
+                w = half / length * scale[q]
                 A[at[i], at[i]] += w
                 if at[q] >= 0:
                     A[at[i], at[q]] -= w

@@ -220,6 +220,52 @@ def test_gauss_seidel_matches_the_oracle(backward):
     assert_allclose(worst, np.abs(r / A.diagonal()[:, None]).max(), rtol=1e-12)
 
 
+def test_reweighted_interior_system_matches_the_oracle():
+    from ..reference import planar as ref
+
+    planar, mesh, uv, fixed, free = _interior("cap")
+    scale = np.random.default_rng(3).uniform(0.2, 5.0, mesh.n_vertices)
+    A, rhs = planar._interior_system(mesh, uv, fixed, free, scale)
+    at = np.full(mesh.n_vertices, -1)
+    at[free] = np.arange(free.size)
+    floor = tol.BARY_EPS * mesh.mean_edge_length
+    A_ref, rhs_ref = ref.mean_value_system(
+        mesh.vertices, mesh.faces, at, uv, floor, tol.BARY_EPS, scale
+    )
+    big = np.abs(A_ref).max()
+    assert_allclose(A.toarray(), A_ref, rtol=0, atol=4e-12 * big)
+    assert_allclose(rhs, rhs_ref, rtol=0, atol=4e-12 * big)
+    # the weights differ from the plain system's
+    A0, _ = planar._interior_system(mesh, uv, fixed, free)
+    assert np.abs(A.toarray() - A0.toarray()).max() > 0.1 * big
+
+
+def test_balanced_map_spreads_a_squeezed_patch_and_stays_a_bijection():
+    from meshfit.layout import extract_patches, load_layout
+    from meshfit.springs import planar
+
+    from ..conftest import ROOT
+
+    mesh = real_mesh("spot")
+    # spot's near-triangular patch 1: the mean-value map squeezes a third of it into a tenth
+    # of the square
+    patch = extract_patches(mesh, load_layout(ROOT / "examples" / "layouts" / "spot.json", mesh))[1]
+    sides = _sides(patch)
+    plain = square_map(patch.mesh, sides)
+    balanced = square_map(patch.mesh, sides, balanced=True)
+    assert square_map(patch.mesh, sides, balanced=True) is balanced  # kept per mesh
+    assert balanced is not plain
+    _, before = planar._vertex_stretch(patch.mesh, plain.uv)
+    _, after = planar._vertex_stretch(patch.mesh, balanced.uv)
+    assert after < 0.8 * before
+    area = _signed_areas(balanced.uv, patch.mesh.faces)
+    assert area.min() >= -1e-15
+    assert_allclose(0.5 * area.sum(), 1.0, rtol=1e-9)
+    # the sides keep their arc-length parameters
+    for name in ("bottom", "right", "top", "left"):
+        assert_allclose(balanced.uv[sides.chains[name]], plain.uv[sides.chains[name]], atol=0)
+
+
 def test_aggregates_cover_every_unknown_once():
     from meshfit._kernels import planar as kp
 

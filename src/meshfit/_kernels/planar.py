@@ -12,12 +12,13 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
-def mean_value_system(V, F, at, uv, floor, eps):
+def mean_value_system(V, F, at, uv, floor, eps, scale):
     """Interior mean-value system of `springs.planar.square_map`.
 
     V (n, 3) f8; F (nf, 3) i8; at (n,) i8 (row of a free vertex, -1 for a fixed one);
     uv (n, 2) f8 (fixed vertices' parameters); floor (shortest edge length used), eps
-    (smallest ``tan(theta / 2)``) -> indptr, indices, data (CSR, m x m), rhs (m, 2) f8.
+    (smallest ``tan(theta / 2)``); scale (n,) f8 (each weight ``w_ij`` is multiplied by
+    ``scale[j]``) -> indptr, indices, data (CSR, m x m), rhs (m, 2) f8.
     Row ``at[i]``: ``sum_j w_ij (x_i - x_j) = 0`` with ``w_ij`` the mean-value weights summed
     over the faces at edge ``ij``, fixed ``x_j`` moved to the right-hand side.
     """
@@ -50,8 +51,8 @@ def mean_value_system(V, F, at, uv, floor, eps):
             cs = min(max(cs, -1.0), 1.0)
             half = np.sqrt(max(1.0 - cs, 0.0) / max(1.0 + cs, 1e-12))
             half = max(half, eps)
-            wa = half / la
-            wb = half / lb
+            wa = half / la * scale[j]
+            wb = half / lb * scale[k]
             deg[i] += wa + wb
             er[t] = i
             ec[t] = j

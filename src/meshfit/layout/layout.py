@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import hashlib
+import threading
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,8 +18,14 @@ from meshfit.types import SurfaceCurve, SurfacePoints, _readonly
 __all__ = ["Layout", "layout_from_curves", "mesh_fingerprint"]
 
 
+#: fingerprints already computed, per mesh object (its arrays are read-only)
+_FINGERPRINTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_FINGERPRINTS_LOCK = threading.Lock()
+
+
 def mesh_fingerprint(mesh: Mesh) -> str:
-    """SHA-256 (hex) of a mesh's vertex and face arrays and their counts.
+    """SHA-256 (hex) of a mesh's vertex and face arrays and their counts (kept per mesh
+    object: hashing a million-face mesh takes about 30 ms).
 
     Parameters
     ----------
@@ -29,11 +37,18 @@ def mesh_fingerprint(mesh: Mesh) -> str:
         64 hex digits; equal for meshes with bit-identical ``vertices (nv, 3) float64`` and
         ``faces (nf, 3) int64`` arrays.
     """
+    with _FINGERPRINTS_LOCK:
+        hit = _FINGERPRINTS.get(mesh)
+    if hit is not None:
+        return hit
     h = hashlib.sha256()
     h.update(f"meshfit-mesh:{mesh.n_vertices}:{mesh.n_faces}:".encode())
     h.update(np.ascontiguousarray(mesh.vertices, dtype="<f8").tobytes())
     h.update(np.ascontiguousarray(mesh.faces, dtype="<i8").tobytes())
-    return h.hexdigest()
+    digest = h.hexdigest()
+    with _FINGERPRINTS_LOCK:
+        _FINGERPRINTS[mesh] = digest
+    return digest
 
 
 @dataclass(frozen=True, eq=False)

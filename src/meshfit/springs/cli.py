@@ -86,7 +86,7 @@ def cmd_springs(args: argparse.Namespace) -> int:
     try:
         for patch in patches:
             t = time.perf_counter()
-            res = resample_patch(patch, level=args.level, metrics=False)
+            res = resample_patch(patch, level=args.level, rescue=args.rescue, metrics=False)
             seconds = time.perf_counter() - t
             met = spring_metrics(patch.mesh, res.final, scale=mesh.bbox_diagonal)
             row = {
@@ -95,6 +95,7 @@ def cmd_springs(args: argparse.Namespace) -> int:
                 "level": res.final.level,
                 "grid": list(res.final.shape),
                 "seconds": round(seconds, 4),
+                "rescued": bool(res.rescued),
                 **{k: v for k, v in met.items() if k not in ("nu", "nv")},
             }
             if args.out:
@@ -140,6 +141,12 @@ def add_commands(sub) -> None:
         default=None,
         help="final subdivision level (default: spring points comparable to the patch's "
         "vertex count)",
+    )
+    p.add_argument(
+        "--rescue",
+        action="store_true",
+        help="resample again from an area-balanced map, lightly relaxed, where the spring "
+        "mesh misses its patch by more than a grid spacing (a pleat, a squeezed bulge)",
     )
     p.add_argument("--out", default=None, help="folder for one .npz and .ply per patch")
     p.add_argument("--json", action="store_true", help="print JSON instead of tables")

@@ -56,11 +56,14 @@ class PlanarMap:
         return SurfacePoints(face, bary)
 
 
-def _interior_system(mesh: Mesh, uv: NDArray, fixed: NDArray, free: NDArray):
+def _interior_system(
+    mesh: Mesh, uv: NDArray, fixed: NDArray, free: NDArray, scale: NDArray | None = None
+):
     """The mean-value equations of the interior vertices: ``A`` (m, m) CSR over ``free`` and
     the right-hand side (m, 2) from the fixed boundary parameters ``uv[fixed]``.
 
-    Row ``i``: ``sum_j w_ij (x_i - x_j) = 0``, the fixed ``x_j`` moved to the right.
+    Row ``i``: ``sum_j w_ij (x_i - x_j) = 0``, the fixed ``x_j`` moved to the right; with
+    ``scale`` (n,) each weight ``w_ij`` is multiplied by ``scale[j]``.
     """
     import scipy.sparse as sp
 
@@ -75,6 +78,7 @@ def _interior_system(mesh: Mesh, uv: NDArray, fixed: NDArray, free: NDArray):
         np.ascontiguousarray(uv, dtype=np.float64),
         floor,
         tol.BARY_EPS,
+        np.ones(n) if scale is None else np.ascontiguousarray(scale, dtype=np.float64),
     )
     A = sp.csr_matrix((data, indices, indptr), shape=(m, m))
     A.has_sorted_indices = True
@@ -197,14 +201,17 @@ def _gmres(A, b: NDArray, mg: _Multigrid) -> NDArray | None:
         _kp.gmres_update(x, Z, H, g, k)
 
 
-def _solve_interior(mesh: Mesh, uv: NDArray, fixed: NDArray, free: NDArray) -> NDArray:
+def _solve_interior(
+    mesh: Mesh, uv: NDArray, fixed: NDArray, free: NDArray, scale: NDArray | None = None
+) -> NDArray:
     """Parameters (m, 2) of the interior vertices ``free``.
 
     A sparse LU solve up to :data:`_DIRECT_MAX` unknowns; above, multigrid-preconditioned
     GMRES to :data:`_SOLVE_TOL` (the map agrees with a direct solve to round-off times the
-    system's conditioning), and the LU solve when that does not converge.
+    system's conditioning), and the LU solve when that does not converge. ``scale``
+    reweights the equations (see `_interior_system`).
     """
-    A, rhs = _interior_system(mesh, uv, fixed, free)
+    A, rhs = _interior_system(mesh, uv, fixed, free, scale)
     x = _gmres(A, rhs, _Multigrid(A)) if A.shape[0] > max(_COARSEST, _DIRECT_MAX) else None
     if x is None:
         x = _direct_solve(A, rhs)
@@ -251,16 +258,22 @@ def clear_map_cache() -> None:
         _MAPS.clear()
 
 
-def square_map(mesh: Mesh, sides: Sides) -> PlanarMap:
+def square_map(mesh: Mesh, sides: Sides, *, balanced: bool = False) -> PlanarMap:
     """Mean-value map of a four-sided disk patch onto the unit square.
 
     Boundary vertices go to the square's sides by arc length along each side; interior
     vertices are the mean-value convex combinations of their neighbours (one solve for both
     coordinates: a sparse LU factorization up to 30,000 interior vertices, above that
     smoothed-aggregation multigrid-preconditioned GMRES to a residual at round-off, the LU
-    factorization if that does not converge). The map is kept while
-    ``mesh`` lives: asking again for the same mesh object and sides (the next level of a
+    factorization if that does not converge). The map is kept while ``mesh`` lives: asking
+    again for the same mesh object, sides and ``balanced`` (the next level of a
     coarse-to-fine preview) returns it at once.
+
+    With ``balanced`` (keyword-only, default False) the weights are then reweighted by the
+    vertices' stretch, solve after solve while the patch's overall stretch falls (at most
+    ``STRETCH_ROUNDS`` = 6 solves): parts of the patch that the mean-value map squeezes
+    into a sliver of the square (a pleat, a bulge, the wide end of a near-triangular patch)
+    get their share of it. Still a bijection (positive weights).
 
     References
     ----------
@@ -269,19 +282,24 @@ def square_map(mesh: Mesh, sides: Sides) -> PlanarMap:
     .. [2] Vanek, Mandel & Brezina, "Algebraic multigrid by smoothed aggregation for second
        and fourth order elliptic problems", Computing 56 (1996); Saad & Schultz, "GMRES",
        SIAM J. Sci. Stat. Comput. 7 (1986).
+    .. [3] Yoshizawa, Belyaev & Seidel, "A fast and simple stretch-minimizing mesh
+       parameterization", Shape Modeling International 2004; Sander, Snyder, Gortler &
+       Hoppe, "Texture mapping progressive meshes", SIGGRAPH 2001 (the L2 stretch).
     """
-    key = _sides_key(sides)
+    key = _sides_key(sides) + (b"b" if balanced else b"m")
     with _MAPS_LOCK:
         hit = _MAPS.get(mesh, {}).get(key)
     if hit is not None:
         return hit
-    pmap = _square_map(mesh, sides)
+    pmap = _square_map(mesh, sides, balanced=balanced)
     with _MAPS_LOCK:
         _MAPS.setdefault(mesh, {})[key] = pmap
     return pmap
 
 
-def _square_map(mesh: Mesh, sides: Sides, index: NDArray[np.int64] | None = None) -> PlanarMap:
+def _square_map(
+    mesh: Mesh, sides: Sides, index: NDArray[np.int64] | None = None, *, balanced: bool = False
+) -> PlanarMap:
     """:func:`square_map` without the cache. ``index`` maps the sides' vertex numbers to
     ``mesh``'s (a coarse copy of the patch that keeps its boundary vertices)."""
     n = mesh.n_vertices
@@ -302,4 +320,67 @@ def _square_map(mesh: Mesh, sides: Sides, index: NDArray[np.int64] | None = None
     free = np.flatnonzero(~fixed)
     if free.size:
         uv[free] = _solve_interior(mesh, uv, fixed, free)
+        if balanced:
+            uv = _balanced(mesh, uv, fixed, free)
     return PlanarMap(mesh, uv)
+
+
+#: most reweighting rounds (each one solve)
+STRETCH_ROUNDS = 6
+
+
+def _vertex_stretch(mesh: Mesh, uv: NDArray) -> tuple[NDArray, float]:
+    """Per vertex, the area-weighted root mean square of its faces' L2 stretch (Sander et
+    al. 2001; the square scaled to the patch's area; 1 where no face has an area in the
+    square); and the same over the whole patch."""
+    F = mesh.faces
+    X = mesh.vertices
+    a3 = mesh.face_areas
+    s, t = uv[:, 0], uv[:, 1]
+    s1, s2, s3 = s[F[:, 0]], s[F[:, 1]], s[F[:, 2]]
+    t1, t2, t3 = t[F[:, 0]], t[F[:, 1]], t[F[:, 2]]
+    auv2 = (s2 - s1) * (t3 - t1) - (s3 - s1) * (t2 - t1)  # twice the signed area
+    auv = 0.5 * np.abs(auv2)
+    total3, total_uv = float(a3.sum()), float(auv.sum())
+    ok = auv > tol.BARY_EPS * total_uv / max(len(F), 1)
+    q1, q2, q3 = X[F[:, 0]], X[F[:, 1]], X[F[:, 2]]
+    den = np.where(ok, auv2, 1.0)[:, None]
+    Ss = (q1 * (t2 - t3)[:, None] + q2 * (t3 - t1)[:, None] + q3 * (t1 - t2)[:, None]) / den
+    St = (q1 * (s3 - s2)[:, None] + q2 * (s1 - s3)[:, None] + q3 * (s2 - s1)[:, None]) / den
+    # the square scaled to the patch's area: the partials shrink by sqrt(total3 / total_uv)
+    gamma2 = np.where(ok, 0.5 * ((Ss * Ss).sum(axis=1) + (St * St).sum(axis=1)), 1.0)
+    gamma2 *= total_uv / total3
+    w = np.where(ok, a3, 0.0)
+    num = np.zeros(mesh.n_vertices)
+    den_v = np.zeros(mesh.n_vertices)
+    for c in range(3):
+        num += np.bincount(F[:, c], weights=w * gamma2, minlength=mesh.n_vertices)
+        den_v += np.bincount(F[:, c], weights=w, minlength=mesh.n_vertices)
+    sigma = np.sqrt(np.where(den_v > 0, num / np.where(den_v > 0, den_v, 1.0), 1.0))
+    overall = float(np.sqrt((w * gamma2).sum() / max(w.sum(), 1e-300)))
+    return sigma, overall
+
+
+def _balanced(mesh: Mesh, uv: NDArray, fixed: NDArray, free: NDArray) -> NDArray:
+    """The mean-value map ``uv`` reweighted where it squeezes part of the patch into a small
+    part of the square (a bulge, a pleat): each neighbour's weight is divided by its vertex
+    stretch, round after round, while the overall stretch falls (at most
+    :data:`STRETCH_ROUNDS` solves). The weights stay positive, so every map is still a
+    bijection onto the square.
+
+    References
+    ----------
+    .. [1] Yoshizawa, Belyaev & Seidel, "A fast and simple stretch-minimizing mesh
+       parameterization", Shape Modeling International 2004.
+    """
+    sigma, best = _vertex_stretch(mesh, uv)
+    scale = np.ones(mesh.n_vertices)
+    for _ in range(STRETCH_ROUNDS):
+        scale = scale / sigma
+        trial = uv.copy()
+        trial[free] = _solve_interior(mesh, uv, fixed, free, scale)
+        sigma, overall = _vertex_stretch(mesh, trial)
+        if not overall < best:
+            break
+        uv, best = trial, overall
+    return uv
