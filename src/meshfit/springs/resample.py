@@ -501,6 +501,20 @@ def resample_patch(
     mesh = patch.mesh
     sides = _sides(patch)
 
+    def settle(state: State, pmap, reach: int, sweeps: int) -> None:
+        """Untangling rounds around folded cells (``reach`` rings), then the fold repair."""
+        if untangle_rounds:
+            untangle(
+                state,
+                rounds=untangle_rounds,
+                sweeps=sweeps,
+                reach=reach,
+                tangent=forces == "tangent",
+                guard=guard,
+            )
+        if repair:
+            _repair(state, pmap)
+
     def run(balanced: bool, fairness: float, max_iter: int, polish: int, progress) -> SpringResult:
         """The coarse-to-fine resampling with these settings (the rest as given)."""
         t0 = time.perf_counter()
@@ -523,17 +537,7 @@ def resample_patch(
             if k > 0:
                 t = time.perf_counter()
                 subdivide(state, n_fair=n_fair, pmap=pmap if midpoints == "map" else None)
-                if untangle_rounds:  # mid-points placed across a fold: smooth them out first
-                    untangle(
-                        state,
-                        rounds=untangle_rounds,
-                        sweeps=max_iter,
-                        reach=1,
-                        tangent=forces == "tangent",
-                        guard=guard,
-                    )
-                if repair:
-                    _repair(state, pmap)
+                settle(state, pmap, 1, max_iter)  # mid-points placed across a fold: smooth them out
                 seconds["subdivide"] += time.perf_counter() - t
             t = time.perf_counter()
             # level 0 starts from graph paths and must travel far: it is relaxed to a tighter
@@ -553,17 +557,7 @@ def resample_patch(
             )
             if polish and k <= 1 and k < final:  # arc-length sweeps on the coarse levels
                 _polish(state, int(polish) * (coarse[0] if k == 0 else 2), omega, forces, guard)
-            if untangle_rounds:
-                untangle(
-                    state,
-                    rounds=untangle_rounds,
-                    sweeps=max_iter,
-                    reach=2,
-                    tangent=forces == "tangent",
-                    guard=guard,
-                )
-            if repair:
-                _repair(state, pmap)
+            settle(state, pmap, 2, max_iter)
             seconds["relax"] += time.perf_counter() - t
             sweeps.append(done)
             snap = state.snapshot()
