@@ -87,7 +87,7 @@ def _options(args: argparse.Namespace):
         formats=_formats(args.formats),
         patches=args.patches,
         spring_level=args.level,
-        spring_rescue=not getattr(args, "no_rescue", False),
+        spring_rescue=not args.no_rescue,
         map_shapes=args.map_shapes,
         workers=args.workers,
         report=not args.no_report,
