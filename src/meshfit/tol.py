@@ -56,6 +56,9 @@ FEATURE_END_ON_SIDE = 1e-3
 #: relaxation of a level stops when the root-mean-square move of its points is below this,
 #: times their spring lengths (dimensionless)
 SPRING_CONVERGED = 5e-3
+#: ... and the arc-length sweeps that even out a relaxed level's spacing (its polish) stop
+#: below this (they make small moves that still even the spacing out)
+SPRING_POLISHED = 2e-3
 
 # --- meshfit.layout
 #: a curve end is at its corner when this close to it, times the mean edge length

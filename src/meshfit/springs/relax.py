@@ -81,6 +81,7 @@ def relax(
     eps: float = tol.SPRING_CONVERGED,
     tangent: bool = True,
     guard: bool = True,
+    only: np.ndarray | None = None,
 ) -> tuple[int, float]:
     """Relax the spring mesh of ``state`` at its current level, in place.
 
@@ -93,7 +94,8 @@ def relax(
     ``tangent`` the spring vectors are turned into each point's tangent plane keeping their
     lengths (see `meshfit._kernels.springs.spring_force`), else they are Euclidean. With
     ``guard`` a move that folds more triangles of the point's cells than before is halved
-    (up to three times) or dropped.
+    (up to three times) or dropped. ``only`` ((nu, nv) bool) limits the moving free points
+    to those it marks.
 
     Returns
     -------
@@ -106,6 +108,8 @@ def relax(
     """
     mesh = state.mesh
     movable = (state.kind() == FREE).ravel()
+    if only is not None:
+        movable &= np.asarray(only, dtype=bool).ravel()
     args = (mesh.vertices, mesh.faces, mesh.face_neighbors)
     alpha = np.ones(state.nu * state.nv)
     prev = np.zeros((state.nu * state.nv, 3))

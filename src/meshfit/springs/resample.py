@@ -36,6 +36,17 @@ COARSE_EPS = 0.01
 COARSE_OMEGA = 1.7
 #: default ``polish`` of :func:`resample_patch`: arc-length sweeps on the coarse levels
 POLISH_SWEEPS = 10
+#: multiple of ``polish`` swept on the final level (above level 0)
+FINAL_POLISH = 3
+#: the final level's polish moves only the grid lines whose spacing's coefficient of
+#: variation exceeds this, and the points within `POLISH_REACH` lines of them
+POLISH_LINE_CV = 0.1
+POLISH_REACH = 2
+#: ... and is kept only if it brings every line's coefficient of variation within this (on
+#: a patch whose spacing the sweeps cannot even out, e.g. a pleat, they only cost fairness:
+#: nefertiti's test patch 45 goes from 0.51 to 0.48, and its stitched corners with 8 x 8
+#: controls from 1.4 to 3.5 degrees)
+POLISH_CV_GOAL = 0.15
 #: ``rescue`` of :func:`resample_patch`: a final spring mesh that misses a vertex of its patch
 #: by more than this many mean grid spacings is made again from the area-balanced map ...
 RESCUE_SPACINGS = 1.0
@@ -293,10 +304,47 @@ def _level0_sections(patch, sides: Sides, init_intervals: int, sections_u=None, 
 POLISH_ASPECT = 1.4
 
 
-def _polish(state: State, sweeps: int, omega: float, forces: str, guard: bool) -> bool:
+def _polish_factor(k: int, final: int) -> int:
+    """Multiple of ``polish`` swept on level ``k`` (of ``final``): `COARSE_SWEEPS` on level
+    0, 2 on level 1, `FINAL_POLISH` on a final level above 0 (its new points start
+    unevenly)."""
+    if k == 0:
+        return COARSE_SWEEPS
+    return FINAL_POLISH if k == final else 2
+
+
+def _uneven_lines(X: np.ndarray, cv: float, reach: int) -> np.ndarray:
+    """(nu, nv) bool: the points of the grid lines of ``X (nu, nv, 3)`` whose spacing's
+    coefficient of variation exceeds ``cv``, and those within ``reach`` steps of them."""
+    from scipy.ndimage import binary_dilation
+
+    du = np.linalg.norm(np.diff(X, axis=0), axis=2)  # (nu-1, nv): along each column
+    dv = np.linalg.norm(np.diff(X, axis=1), axis=2)  # (nu, nv-1): along each row
+    mu, mv = du.mean(axis=0), dv.mean(axis=1)
+    col = du.std(axis=0) > cv * mu
+    row = dv.std(axis=1) > cv * mv
+    out = np.zeros(X.shape[:2], dtype=bool)
+    out[:, col] = True
+    out[row, :] = True
+    return binary_dilation(out, iterations=reach) if reach > 0 and out.any() else out
+
+
+def _polish(
+    state: State, sweeps: int, omega: float, forces: str, guard: bool, lines: bool = False
+) -> bool:
     """Sweeps of the arc-length force alone on the current level, kept only when they fold
     no more cells and leave the median cell aspect ratio within :data:`POLISH_ASPECT` (or
-    no higher than before); returns whether they were kept."""
+    no higher than before); returns whether they were kept. With ``lines`` only the grid
+    lines spaced unevenly (coefficient of variation above :data:`POLISH_LINE_CV`) and their
+    neighbours within :data:`POLISH_REACH` lines move (nothing happens when there are none),
+    and the sweeps are kept only if every line's coefficient of variation ends within
+    :data:`POLISH_CV_GOAL`.
+    """
+    only = None
+    if lines:
+        only = _uneven_lines(state.snapshot().xyz, POLISH_LINE_CV, POLISH_REACH)
+        if not only.any():
+            return True
     before = spring_metrics(state.mesh, state.snapshot(), fidelity=False)
     saved = (
         state.face.copy(),
@@ -311,14 +359,17 @@ def _polish(state: State, sweeps: int, omega: float, forces: str, guard: bool) -
         fairness=0.0,
         omega=omega,
         start=0,
-        eps=0.0,
+        eps=tol.SPRING_POLISHED,
         tangent=forces == "tangent",
         guard=guard,
+        only=only,
     )
     after = spring_metrics(state.mesh, state.snapshot(), fidelity=False)
     ok = after["folded"] <= before["folded"] and after["aspect_median"] <= max(
         POLISH_ASPECT, before["aspect_median"]
     )
+    if lines:  # an uneven level the sweeps cannot even out (a pleat) keeps its fairness
+        ok = ok and after["arc_cv_max"] <= POLISH_CV_GOAL
     if not ok:
         state.face, state.bary = saved[0], saved[1]
         state.s_u, state.s_v = saved[2], saved[3]
@@ -422,17 +473,23 @@ def resample_patch(
         around folded cells (default 3; 0 turns it off).
     polish : int, keyword-only
         Sweeps of the arc-length force alone (guarded) after the relaxation of level 0
-        (``polish`` times `COARSE_SWEEPS`) and of level 1 (``2 * polish``), when they are
-        not the final level (default ``POLISH_SWEEPS`` = 10; 0: none). The fairness force's
-        equilibrium spaces grid lines unevenly on curved patches; these coarse sweeps even
-        the spacing out before subdivision (on igea refined to 1.07M faces they add 10-25% to
-        the spring meshes' CPU time). A polished level is kept only where no more of its
-        cells fold and its median cell aspect ratio stays within ``POLISH_ASPECT`` (1.4) or
-        does not grow: on bulging and near-triangular patches the even spacing stretches the
-        cells (polished regardless, nefertiti's and spot's test layouts reach median aspect
-        ratios of 1.71 and 1.87). On the test layouts the patches with an arc-length CV
-        above 0.15 go from 5 to 0 of 24 (igea), 13 to 11 of 54 (nefertiti) and 10 to 7 of 24
-        (spot); no more cells fold and no more patches exceed an aspect ratio of 1.5.
+        (``polish`` times `COARSE_SWEEPS`) and of level 1 (``2 * polish``) when they are not
+        the final level, and of the final level above 0 (``FINAL_POLISH * polish``, moving
+        only the grid lines whose spacing's coefficient of variation exceeds
+        ``POLISH_LINE_CV`` (0.1) and the points within ``POLISH_REACH`` (2) lines of them);
+        each stops once the moves fall below `meshfit.tol.SPRING_POLISHED` (default
+        ``POLISH_SWEEPS`` = 10; 0: none). The final sweeps are kept only if they bring
+        every line within ``POLISH_CV_GOAL`` (0.15). The fairness force's equilibrium
+        spaces grid lines unevenly on curved patches; the coarse sweeps even the spacing out
+        before subdivision, the final ones where the new points of the last subdivision
+        left it uneven. A polished level is kept only where no more of its cells fold and
+        its median cell aspect ratio stays within ``POLISH_ASPECT`` (1.4) or does not grow:
+        on bulging and near-triangular patches the even spacing stretches the cells
+        (polished regardless, nefertiti's and spot's test layouts reach median aspect ratios
+        of 1.71 and 1.87). On the test layouts the patches with an arc-length CV above 0.15
+        go from 5 to 0 of 24 (igea), 13 to 7 of 54 (nefertiti) and 10 to 4 of 24 (spot); no
+        more cells fold and no more patches exceed an aspect ratio of 1.5. The spring meshes
+        of igea's test layout take about as long as without any polish (the early stop).
     repair : bool, keyword-only
         After each subdivision and each level's relaxation, re-place the free points around
         folded cells harmonically in the planar map (`meshfit.springs.relax.unfold_in_map`,
@@ -555,8 +612,9 @@ def resample_patch(
                 tangent=forces == "tangent",
                 guard=guard,
             )
-            if polish and k <= 1 and k < final:  # arc-length sweeps on the coarse levels
-                _polish(state, int(polish) * (coarse[0] if k == 0 else 2), omega, forces, guard)
+            if polish and ((k <= 1 and k < final) or 0 < k == final):  # arc-length sweeps
+                n = int(polish) * _polish_factor(k, final)
+                _polish(state, n, omega, forces, guard, lines=k == final)
             settle(state, pmap, 2, max_iter)
             seconds["relax"] += time.perf_counter() - t
             sweeps.append(done)
