@@ -38,8 +38,9 @@ COARSE_OMEGA = 1.7
 POLISH_SWEEPS = 10
 #: multiple of ``polish`` swept on the final level (above level 0)
 FINAL_POLISH = 3
-#: the final level's polish moves only the grid lines whose spacing's coefficient of
-#: variation exceeds this, and the points within `POLISH_REACH` lines of them
+#: the final level's polish (tried when a grid line's spacing has a coefficient of
+#: variation above `POLISH_CV_GOAL`) moves only the grid lines whose coefficient exceeds
+#: this, and the points within `POLISH_REACH` lines of them
 POLISH_LINE_CV = 0.1
 POLISH_REACH = 2
 #: ... and is kept only if it brings every line's coefficient of variation within this (on
@@ -47,6 +48,10 @@ POLISH_REACH = 2
 #: nefertiti's test patch 45 goes from 0.51 to 0.48, and its stitched corners with 8 x 8
 #: controls from 1.4 to 3.5 degrees)
 POLISH_CV_GOAL = 0.15
+#: ... which a level with a line above this does not reach (the sweeps are not tried:
+#: nefertiti's test patches 4 and 45, at 1.58 and 0.51, spent most of that layout's
+#: final sweeps for nothing)
+POLISH_CV_HOPELESS = 0.3
 #: ``rescue`` of :func:`resample_patch`: a final spring mesh that misses a vertex of its patch
 #: by more than this many mean grid spacings is made again from the area-balanced map ...
 RESCUE_SPACINGS = 1.0
@@ -313,20 +318,22 @@ def _polish_factor(k: int, final: int) -> int:
     return FINAL_POLISH if k == final else 2
 
 
-def _uneven_lines(X: np.ndarray, cv: float, reach: int) -> np.ndarray:
+def _uneven_lines(X: np.ndarray, cv: float, reach: int) -> tuple[np.ndarray, float]:
     """(nu, nv) bool: the points of the grid lines of ``X (nu, nv, 3)`` whose spacing's
-    coefficient of variation exceeds ``cv``, and those within ``reach`` steps of them."""
+    coefficient of variation exceeds ``cv``, and those within ``reach`` steps of them; and
+    the largest coefficient of variation of a line."""
     from scipy.ndimage import binary_dilation
 
     du = np.linalg.norm(np.diff(X, axis=0), axis=2)  # (nu-1, nv): along each column
     dv = np.linalg.norm(np.diff(X, axis=1), axis=2)  # (nu, nv-1): along each row
-    mu, mv = du.mean(axis=0), dv.mean(axis=1)
-    col = du.std(axis=0) > cv * mu
-    row = dv.std(axis=1) > cv * mv
+    cu = du.std(axis=0) / np.maximum(du.mean(axis=0), np.finfo(float).tiny)
+    cw = dv.std(axis=1) / np.maximum(dv.mean(axis=1), np.finfo(float).tiny)
     out = np.zeros(X.shape[:2], dtype=bool)
-    out[:, col] = True
-    out[row, :] = True
-    return binary_dilation(out, iterations=reach) if reach > 0 and out.any() else out
+    out[:, cu > cv] = True
+    out[cw > cv, :] = True
+    if reach > 0 and out.any():
+        out = binary_dilation(out, iterations=reach)
+    return out, float(max(cu.max(initial=0.0), cw.max(initial=0.0)))
 
 
 def _polish(
@@ -336,15 +343,15 @@ def _polish(
     no more cells and leave the median cell aspect ratio within :data:`POLISH_ASPECT` (or
     no higher than before); returns whether they were kept. With ``lines`` only the grid
     lines spaced unevenly (coefficient of variation above :data:`POLISH_LINE_CV`) and their
-    neighbours within :data:`POLISH_REACH` lines move (nothing happens when there are none),
-    and the sweeps are kept only if every line's coefficient of variation ends within
-    :data:`POLISH_CV_GOAL`.
+    neighbours within :data:`POLISH_REACH` lines move, and the sweeps are kept only if every
+    line's coefficient of variation ends within :data:`POLISH_CV_GOAL`; they are tried only
+    when some line is above that goal and none above :data:`POLISH_CV_HOPELESS`.
     """
     only = None
     if lines:
-        only = _uneven_lines(state.snapshot().xyz, POLISH_LINE_CV, POLISH_REACH)
-        if not only.any():
-            return True
+        only, worst = _uneven_lines(state.snapshot().xyz, POLISH_LINE_CV, POLISH_REACH)
+        if not POLISH_CV_GOAL < worst <= POLISH_CV_HOPELESS:
+            return False
     before = spring_metrics(state.mesh, state.snapshot(), fidelity=False)
     saved = (
         state.face.copy(),
@@ -474,9 +481,11 @@ def resample_patch(
     polish : int, keyword-only
         Sweeps of the arc-length force alone (guarded) after the relaxation of level 0
         (``polish`` times `COARSE_SWEEPS`) and of level 1 (``2 * polish``) when they are not
-        the final level, and of the final level above 0 (``FINAL_POLISH * polish``, moving
-        only the grid lines whose spacing's coefficient of variation exceeds
-        ``POLISH_LINE_CV`` (0.1) and the points within ``POLISH_REACH`` (2) lines of them);
+        the final level, and of the final level above 0 when a grid line's spacing has a
+        coefficient of variation above ``POLISH_CV_GOAL`` (0.15) and none above
+        ``POLISH_CV_HOPELESS`` (0.3) (``FINAL_POLISH * polish``, moving only the grid lines
+        whose coefficient exceeds ``POLISH_LINE_CV`` (0.1) and the points within
+        ``POLISH_REACH`` (2) lines of them);
         each stops once the moves fall below `meshfit.tol.SPRING_POLISHED` (default
         ``POLISH_SWEEPS`` = 10; 0: none). The final sweeps are kept only if they bring
         every line within ``POLISH_CV_GOAL`` (0.15). The fairness force's equilibrium
