@@ -21,6 +21,35 @@ def _pieces(n: int, lines: NDArray[np.int64]) -> list[tuple[int, int]]:
     return [(ends[k], ends[k + 1]) for k in range(len(ends) - 1)]
 
 
+def spacing(
+    X: NDArray[np.float64], u_lines: ArrayLike = (), v_lines: ArrayLike = ()
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Spacing figures of :func:`grid_metrics` for a grid ``X (nu, nv, 3)``: the coefficient
+    of variation of the point spacing along each iso-curve piece inside one section
+    (flattened, u pieces first), and each cell's aspect ratio ``(nu - 1, nv - 1)``."""
+    nu, nv = X.shape[:2]
+    u_lines = np.asarray(u_lines, dtype=np.int64)
+    v_lines = np.asarray(v_lines, dtype=np.int64)
+    du = np.linalg.norm(np.diff(X, axis=0), axis=2)  # (nu-1, nv) spacing along u
+    dv = np.linalg.norm(np.diff(X, axis=1), axis=2)  # (nu, nv-1)
+    cvs = []
+    for a, b in _pieces(nu, u_lines):
+        seg = du[a:b]
+        m = seg.mean(axis=0)
+        cvs.append(np.where(m > 0, seg.std(axis=0) / np.where(m > 0, m, 1.0), 0.0))
+    for a, b in _pieces(nv, v_lines):
+        seg = dv[:, a:b]
+        m = seg.mean(axis=1)
+        cvs.append(np.where(m > 0, seg.std(axis=1) / np.where(m > 0, m, 1.0), 0.0))
+    cv = np.concatenate(cvs)
+    a_len = 0.5 * (du[:, :-1] + du[:, 1:])
+    b_len = 0.5 * (dv[:-1, :] + dv[1:, :])
+    lo = np.minimum(a_len, b_len)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        aspect = np.maximum(a_len, b_len) / np.where(lo > 0, lo, np.nan)
+    return cv, np.where(np.isfinite(aspect), aspect, np.inf)
+
+
 def grid_metrics(
     mesh: Mesh,
     xyz: ArrayLike,
@@ -70,25 +99,7 @@ def grid_metrics(
     X = np.asarray(xyz, dtype=np.float64)
     N = np.asarray(normals, dtype=np.float64)
     nu, nv = X.shape[:2]
-    u_lines = np.asarray(u_lines, dtype=np.int64)
-    v_lines = np.asarray(v_lines, dtype=np.int64)
-    du = np.linalg.norm(np.diff(X, axis=0), axis=2)  # (nu-1, nv) spacing along u
-    dv = np.linalg.norm(np.diff(X, axis=1), axis=2)  # (nu, nv-1)
-    cvs = []
-    for a, b in _pieces(nu, u_lines):
-        seg = du[a:b]
-        m = seg.mean(axis=0)
-        cvs.append(np.where(m > 0, seg.std(axis=0) / np.where(m > 0, m, 1.0), 0.0))
-    for a, b in _pieces(nv, v_lines):
-        seg = dv[:, a:b]
-        m = seg.mean(axis=1)
-        cvs.append(np.where(m > 0, seg.std(axis=1) / np.where(m > 0, m, 1.0), 0.0))
-    cv = np.concatenate(cvs)
-    a_len = 0.5 * (du[:, :-1] + du[:, 1:])
-    b_len = 0.5 * (dv[:-1, :] + dv[1:, :])
-    lo = np.minimum(a_len, b_len)
-    aspect = np.maximum(a_len, b_len) / np.where(lo > 0, lo, np.nan)
-    aspect = np.where(np.isfinite(aspect), aspect, np.inf)
+    cv, aspect = spacing(X, u_lines, v_lines)
     p00, p10, p11, p01 = X[:-1, :-1], X[1:, :-1], X[1:, 1:], X[:-1, 1:]
     area = 0.5 * np.linalg.norm(np.cross(p11 - p00, p01 - p10), axis=2)
     n1 = np.cross(p10 - p00, p11 - p00)
