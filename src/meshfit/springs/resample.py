@@ -17,6 +17,7 @@ from meshfit.springs.init import chain_arc, chain_edge_faces, closest_approach, 
 from meshfit.springs.metrics import spacing, spring_metrics
 from meshfit.springs.planar import PlanarMap, square_map
 from meshfit.springs.relax import (
+    folded_cells,
     relax,
     repair_folds,
     slide_side_points,
@@ -318,31 +319,35 @@ def _polish_factor(k: int, final: int) -> int:
     return FINAL_POLISH if k == final else 2
 
 
-def _uneven_lines(X: np.ndarray, cv: float, reach: int) -> tuple[np.ndarray, float]:
-    """(nu, nv) bool: the points of the grid lines of ``X (nu, nv, 3)`` whose spacing's
-    coefficient of variation exceeds ``cv``, and those within ``reach`` steps of them; and
-    the largest coefficient of variation of a line."""
+def _line_cvs(grid: SpringMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The largest arc-length coefficient of variation along each grid column (nv,) and
+    row (nu,) over its sections, and the cell aspect ratios (nu - 1, nv - 1), as
+    :func:`meshfit.springs.spring_metrics` counts them."""
+    nu, nv = grid.shape
+    cv, aspect = spacing(grid.xyz, grid.u_lines, grid.v_lines)
+    n_u = (len(grid.u_lines) + 1) * nv  # the u pieces come first, nv per section
+    return cv[:n_u].reshape(-1, nv).max(axis=0), cv[n_u:].reshape(-1, nu).max(axis=0), aspect
+
+
+def _shape(state: State) -> tuple[int, float, np.ndarray, np.ndarray]:
+    """Folded cells and median cell aspect ratio of the current level, and the columns' and
+    rows' arc-length coefficients of variation (`_line_cvs`)."""
+    col, row, aspect = _line_cvs(state.snapshot())
+    return int(folded_cells(state).sum()), float(np.median(aspect)), col, row
+
+
+def _uneven_lines(col: np.ndarray, row: np.ndarray, cv: float, reach: int) -> np.ndarray:
+    """(nu, nv) bool: the points of the grid columns and rows whose spacing's coefficient of
+    variation (``col`` (nv,), ``row`` (nu,), see `_line_cvs`) exceeds ``cv``, and those within
+    ``reach`` steps of them."""
     from scipy.ndimage import binary_dilation
 
-    du = np.linalg.norm(np.diff(X, axis=0), axis=2)  # (nu-1, nv): along each column
-    dv = np.linalg.norm(np.diff(X, axis=1), axis=2)  # (nu, nv-1): along each row
-    cu = du.std(axis=0) / np.maximum(du.mean(axis=0), np.finfo(float).tiny)
-    cw = dv.std(axis=1) / np.maximum(dv.mean(axis=1), np.finfo(float).tiny)
-    out = np.zeros(X.shape[:2], dtype=bool)
-    out[:, cu > cv] = True
-    out[cw > cv, :] = True
+    out = np.zeros((row.size, col.size), dtype=bool)
+    out[:, col > cv] = True
+    out[row > cv, :] = True
     if reach > 0 and out.any():
         out = binary_dilation(out, iterations=reach)
-    return out, float(max(cu.max(initial=0.0), cw.max(initial=0.0)))
-
-
-def _shape(state: State) -> tuple[int, float, float]:
-    """Folded cells, median cell aspect ratio and largest arc-length coefficient of
-    variation of the current level (as :func:`meshfit.springs.spring_metrics` counts them)."""
-    from meshfit.springs.relax import folded_cells
-
-    cv, aspect = spacing(state.snapshot().xyz, state.u_lines, state.v_lines)
-    return int(folded_cells(state).sum()), float(np.median(aspect)), float(cv.max(initial=0.0))
+    return out
 
 
 def _polish(
@@ -356,12 +361,13 @@ def _polish(
     line's coefficient of variation ends within :data:`POLISH_CV_GOAL`; they are tried only
     when some line is above that goal and none above :data:`POLISH_CV_HOPELESS`.
     """
+    before = _shape(state)
     only = None
     if lines:
-        only, worst = _uneven_lines(state.snapshot().xyz, POLISH_LINE_CV, POLISH_REACH)
+        worst = max(before[2].max(), before[3].max())
         if not POLISH_CV_GOAL < worst <= POLISH_CV_HOPELESS:
             return False
-    before = _shape(state)
+        only = _uneven_lines(before[2], before[3], POLISH_LINE_CV, POLISH_REACH)
     saved = (
         state.face.copy(),
         state.bary.copy(),
@@ -383,7 +389,7 @@ def _polish(
     after = _shape(state)
     ok = after[0] <= before[0] and after[1] <= max(POLISH_ASPECT, before[1])
     if lines:  # an uneven level the sweeps cannot even out (a pleat) keeps its fairness
-        ok = ok and after[2] <= POLISH_CV_GOAL
+        ok = ok and max(after[2].max(), after[3].max()) <= POLISH_CV_GOAL
     if not ok:
         state.face, state.bary = saved[0], saved[1]
         state.s_u, state.s_v = saved[2], saved[3]
