@@ -1087,20 +1087,28 @@ def _quality_notes(rows: list[dict]) -> list[str]:
 
 
 def spring_patch(patch, *, level=None, max_points=None, rescue=True):
-    """Spring mesh of one patch: ``(xyz (nu, nv, 3) float64, metrics dict)``."""
-    from meshfit.springs import resample_patch
+    """Spring mesh of one patch: ``(xyz (nu, nv, 3) float64, metrics dict)``: the final
+    level's :func:`meshfit.springs.spring_metrics` (without fidelity) and every level's
+    folded cells (the same test, by the fold kernel alone)."""
+    from meshfit._kernels.springs import folded_cells
+    from meshfit.springs import resample_patch, spring_metrics
 
     t = time.perf_counter()
-    res = resample_patch(patch, level=level, max_points=max_points, rescue=rescue, fidelity=False)
-    fin = res.metrics[-1] if res.metrics else {}
+    res = resample_patch(patch, level=level, max_points=max_points, rescue=rescue, metrics=False)
+    m = patch.mesh
+    fin = spring_metrics(m, res.final, fidelity=False)
+    folds = [
+        int(folded_cells(m.vertices, m.faces, s.points.face, s.points.bary, *s.shape).sum())
+        for s in res.levels[:-1]
+    ]
     return res.final.xyz.copy(), {
         "shape": list(res.final.shape),
         "levels": len(res.levels),
-        "folded": int(fin.get("folded", 0)),
-        "folded_any_level": int(sum(m.get("folded", 0) for m in res.metrics)),
-        "arc_cv_max": float(fin.get("arc_cv_max", float("nan"))),
-        "aspect_max": float(fin.get("aspect_max", float("nan"))),
-        "area_ratio": float(fin.get("area_ratio", float("nan"))),
+        "folded": int(fin["folded"]),
+        "folded_any_level": int(sum(folds) + fin["folded"]),
+        "arc_cv_max": float(fin["arc_cv_max"]),
+        "aspect_max": float(fin["aspect_max"]),
+        "area_ratio": float(fin["area_ratio"]),
         "sweeps": [int(s) for s in res.sweeps],
         "rescued": bool(res.rescued),
         "seconds": round(time.perf_counter() - t, 4),
