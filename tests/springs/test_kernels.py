@@ -250,3 +250,48 @@ def test_side_points_slide_back_between_their_neighbours():
     assert before[3 * nv, 0] < x < before[5 * nv, 0]
     assert np.abs(after[::nv][:, 1]).max() <= 1e-12
     assert (np.diff(after[::nv][:, 0]) > 0).all()
+
+
+def test_pinched_side_points_slide_apart():
+    # a side point nearly on top of its neighbour (a side stepping back over about one grid
+    # spacing) folds nothing, but leaves a near-zero interval on the boundary iso-curve:
+    # unpinch_side_points slides it apart along the side, folding nothing
+    from meshfit.springs.relax import PINCH_RATIO, unpinch_side_points
+    from meshfit.springs.resample import _sides
+    from meshfit.springs.state import State
+    from meshfit.types import SurfacePoints as SP
+
+    from .patches import plane_map
+
+    patch = param_patch(plane_map(), 24, 24, jitter=0.0)
+    mesh = patch.mesh
+    sm = resample_patch(patch, level=1, metrics=False).final
+    nu, nv = sm.shape
+    sides = _sides(patch)
+    breaks = {n: [0.0, float(sides.arcs[n][-1])] for n in sides.chains}
+    state = State(mesh, 0, sides, [], [], breaks, [nu - 1], [nv - 1])
+    state.face = sm.points.face.copy()
+    state.bary = sm.points.bary.copy()
+    bottom = np.arange(nu) * nv
+    X = mesh.xyz(SP(state.face, state.bary))
+    # bottom side point 4 moved 95% of the way to point 5, on the side
+    p = mesh.closest_points((0.05 * X[bottom[4]] + 0.95 * X[bottom[5]])[None]).points
+    state.face[bottom[4]], state.bary[bottom[4]] = p.face[0], p.bary[0]
+    K_fold = K.folded_cells(mesh.vertices, mesh.faces, state.face, state.bary, nu, nv)
+    assert not K_fold.any()
+
+    def chords():
+        Y = mesh.xyz(SP(state.face[bottom], state.bary[bottom]))
+        return np.linalg.norm(np.diff(Y, axis=0), axis=1), Y
+
+    d0, _ = chords()
+    assert d0.min() < PINCH_RATIO * np.median(d0)
+    assert unpinch_side_points(state) >= 1
+    d1, Y = chords()
+    assert d1.min() >= PINCH_RATIO * np.median(d1)  # 0.05 -> 0.97 of the median here
+    assert not K.folded_cells(mesh.vertices, mesh.faces, state.face, state.bary, nu, nv).any()
+    assert np.abs(Y[:, 1]).max() <= 1e-12 and (np.diff(Y[:, 0]) > 0).all()
+    # no pinch left: nothing moves
+    before = state.face.copy(), state.bary.copy()
+    assert unpinch_side_points(state) == 0
+    assert (state.face == before[0]).all() and (state.bary == before[1]).all()

@@ -29,6 +29,10 @@ SLIDE_FRACTIONS = tuple(float(f) for f in np.linspace(-0.9, 0.9, 19) if abs(f) >
 #: (4 places unfold the same nefertiti cells, but on spot's near-triangular patch 1 the
 #: rescued grid then folds a cell and the stitched 8 x 8 fit faces away from it at a node)
 SLIDE_TAPER = 2
+#: a side point closer than this fraction of its side's median spacing to a neighbouring side
+#: point is slid apart (`unpinch_side_points`; at 0.5 a side of a patch cut from igea slides
+#: where the grid then misses the surface by 0.053% of the bbox diagonal instead of 0.042%)
+PINCH_RATIO = 0.4
 
 
 def _curve_step(state: State, X: np.ndarray, w_arc: float, w_fair: float) -> float:
@@ -275,78 +279,114 @@ def slide_side_points(state: State) -> int:
     .. [1] Krishnamurthy 2000, sec. 5.6 (boundary points resampled statically along the
        patch's sides) and sec. 5.5.3, fig. 5.5 (folded spring cells).
     """
-    from meshfit.springs.init import chain_points
-
     folds = folded_cells(state)
     if not folds.any():
         return 0
-    nu, nv = state.nu, state.nv
     count = int(folds.sum())
-    idx = np.arange(nu * nv).reshape(nu, nv)
-    fixed_u, fixed_v = set(state.u_lines.tolist()), set(state.v_lines.tolist())
-    movable = {}  # flat grid index -> (side, position along it) of every side point that may slide
-    for name, pts, fixed in (
-        ("bottom", idx[:, 0], fixed_u),
-        ("top", idx[:, -1], fixed_u),
-        ("left", idx[0, :], fixed_v),
-        ("right", idx[-1, :], fixed_v),
-    ):
-        for k in range(1, len(pts) - 1):
-            if k not in fixed:
-                movable[int(pts[k])] = (name, k)
+    idx, movable, ends = _side_slots(state)
     i, j = np.nonzero(folds)
     cells = np.stack([idx[i, j], idx[i + 1, j], idx[i, j + 1], idx[i + 1, j + 1]], axis=1)
     todo = [movable[g] for g in dict.fromkeys(cells.ravel().tolist()) if g in movable]
-    mesh = state.mesh
-    ends = {  # side indices that never move: the corners and the feature-curve ends
-        name: np.array(sorted({0, n - 1} | fixed))
-        for name, n, fixed in (
-            ("bottom", nu, fixed_u),
-            ("top", nu, fixed_u),
-            ("left", nv, fixed_v),
-            ("right", nv, fixed_v),
-        )
-    }
-    cur = {}  # each side's point positions (arc length) as slid so far
     for name, k in todo:
-        if name not in cur:
-            cur[name] = state.side_positions(name)
-        pos = cur[name]
-        e = ends[name]
-        lo, hi = int(e[e < k].max()), int(e[e > k].min())
-        left, right = min(SLIDE_TAPER + 1, k - lo), min(SLIDE_TAPER + 1, hi - k)
-        js = np.arange(k - left + 1, k + right)
-        w = 1.0 - np.abs(js - k) / np.where(js < k, left, right)
-        win = _side_window(idx, name, k - left, k + right)
-        rows, cols = win.shape
-        sub = win.ravel()
-        chain, arc = state.sides.chains[name], state.sides.arcs[name]
-        gs = _side_points(idx, name, js)
-        here = _window_folds(state, sub, rows, cols)
-        best, best_pos = (here, 0.0), None
-        best_face, best_bary = state.face[gs].copy(), state.bary[gs].copy()
-        alone = (js == k).astype(np.float64)
-        for f, wt in itertools.product(SLIDE_FRACTIONS, (w, alone)):
-            other = pos[k + 1] if f > 0 else pos[k - 1]
-            trial = pos[js] + wt * (abs(f) * (other - pos[k]))
-            pt = chain_points(mesh, chain, arc, trial, state.sides.edge_faces[name])
-            state.face[gs], state.bary[gs] = pt.face, pt.bary
-            c = _window_folds(state, sub, rows, cols)
-            if c > best[0] or c == here:
-                continue
-            # fewest folds; of those, the trial whose shortest cell edge is longest (a side
-            # point slid right under its interior neighbour leaves a sliver cell)
-            score = (c, -_shortest_edge(mesh, state, win))
-            if best_pos is None or score < best:
-                best, best_pos = score, trial
-                best_face, best_bary = pt.face.copy(), pt.bary.copy()
-        state.face[gs], state.bary[gs] = best_face, best_bary
-        if best_pos is not None:
-            pos[js] = best_pos
-        count -= here - best[0]
+        here, after, _ = _slide(state, idx, ends, name, k, pinched=False)
+        count -= here - after
         if count == 0:
             break
     return count
+
+
+def unpinch_side_points(state: State, ratio: float | None = None) -> int:
+    """Slide side points that sit much closer to a neighbouring side point than the side's
+    median spacing, in place (as :func:`slide_side_points` slides those of folded cells);
+    returns how many were moved.
+
+    Where a side steps back over a stretch about as short as the grid spacing, points at
+    equal arc lengths fall on the two legs of the step, nearly on top of each other: the
+    boundary iso-curve's spacing has a gap and a near-zero interval (nefertiti's test patch
+    26: 0.67 : 0.08 : 0.71 of the median). A side point whose shorter chord to a neighbour is
+    below ``ratio`` (default `PINCH_RATIO`) of its side's median chord tries the same
+    places as a fold's side point, and takes the one whose shortest cell edge beside the
+    moved points is longest, if that is longer than now and folds no more cells there.
+    """
+    ratio = PINCH_RATIO if ratio is None else float(ratio)
+    idx, movable, ends = _side_slots(state)
+    mesh = state.mesh
+    moved = 0
+    for name, pts in _side_lines(idx).items():
+        X = mesh.xyz(SurfacePoints(state.face[pts], state.bary[pts]))
+        d = np.linalg.norm(np.diff(X, axis=0), axis=1)
+        short = np.minimum(d[:-1], d[1:]) < ratio * np.median(d)
+        for k in np.flatnonzero(short) + 1:
+            if int(pts[k]) in movable:
+                moved += _slide(state, idx, ends, name, int(k), pinched=True)[2]
+    return moved
+
+
+def _side_lines(idx: np.ndarray) -> dict[str, np.ndarray]:
+    """Flat grid indices of the points of each side, in order."""
+    return {"bottom": idx[:, 0], "top": idx[:, -1], "left": idx[0, :], "right": idx[-1, :]}
+
+
+def _side_slots(state: State):
+    """The grid's flat index array, the side points that may slide (flat index -> (side,
+    place along it): not patch corners, not feature-curve ends) and each side's places that
+    never move."""
+    nu, nv = state.nu, state.nv
+    idx = np.arange(nu * nv).reshape(nu, nv)
+    fixed = {"u": set(state.u_lines.tolist()), "v": set(state.v_lines.tolist())}
+    movable, ends = {}, {}
+    for name, pts in _side_lines(idx).items():
+        keep = fixed["u" if name in ("bottom", "top") else "v"]
+        ends[name] = np.array(sorted({0, len(pts) - 1} | keep))
+        for k in range(1, len(pts) - 1):
+            if k not in keep:
+                movable[int(pts[k])] = (name, k)
+    return idx, movable, ends
+
+
+def _slide(state: State, idx, ends, name: str, k: int, *, pinched: bool) -> tuple[int, int, bool]:
+    """Try the places of side point ``k`` of side ``name`` (alone or with its neighbours by
+    tapering amounts) and keep the best: for a fold's side point (``pinched`` False) the
+    trial folding the fewest cells beside the moved points, fewer than now, of those the
+    one whose shortest cell edge there is longest; for a pinched point, the trial with the
+    longest shortest edge, if longer than now and folding no more cells. Returns the folded
+    cells beside the moved points before and after, and whether the points moved."""
+    from meshfit.springs.init import chain_points
+
+    mesh = state.mesh
+    pos = state.slid_positions(name)
+    e = ends[name]
+    lo, hi = int(e[e < k].max()), int(e[e > k].min())
+    left, right = min(SLIDE_TAPER + 1, k - lo), min(SLIDE_TAPER + 1, hi - k)
+    js = np.arange(k - left + 1, k + right)
+    w = 1.0 - np.abs(js - k) / np.where(js < k, left, right)
+    win = _side_window(idx, name, k - left, k + right)
+    rows, cols = win.shape
+    sub = win.ravel()
+    chain, arc = state.sides.chains[name], state.sides.arcs[name]
+    gs = _side_points(idx, name, js)
+    here = _window_folds(state, sub, rows, cols)
+    best, best_pos = (here, -_shortest_edge(mesh, state, win) if pinched else 0.0), None
+    best_face, best_bary = state.face[gs].copy(), state.bary[gs].copy()
+    alone = (js == k).astype(np.float64)
+    for f, wt in itertools.product(SLIDE_FRACTIONS, (w, alone)):
+        other = pos[k + 1] if f > 0 else pos[k - 1]
+        trial = pos[js] + wt * (abs(f) * (other - pos[k]))
+        pt = chain_points(mesh, chain, arc, trial, state.sides.edge_faces[name])
+        state.face[gs], state.bary[gs] = pt.face, pt.bary
+        c = _window_folds(state, sub, rows, cols)
+        if c > here or (c == here and not pinched):
+            continue
+        # fewest folds; of those, the trial whose shortest cell edge is longest (a side
+        # point slid right under its interior neighbour leaves a sliver cell)
+        score = (c, -_shortest_edge(mesh, state, win))
+        if (best_pos is None and not pinched) or score < best:
+            best, best_pos = score, trial
+            best_face, best_bary = pt.face.copy(), pt.bary.copy()
+    state.face[gs], state.bary[gs] = best_face, best_bary
+    if best_pos is not None:
+        pos[js] = best_pos
+    return here, best[0], best_pos is not None
 
 
 def _side_window(idx: np.ndarray, name: str, a: int, b: int) -> np.ndarray:

@@ -22,6 +22,7 @@ from meshfit.springs.relax import (
     repair_folds,
     slide_side_points,
     unfold_in_map,
+    unpinch_side_points,
     untangle,
 )
 from meshfit.springs.state import State
@@ -518,7 +519,9 @@ def resample_patch(
         when there is a map), then move the free corners of cells still folded to fold-free
         places nearby (`meshfit.springs.relax.repair_folds`), then slide the side points of
         cells still folded along their sides and move the free corners again
-        (`meshfit.springs.relax.slide_side_points`; default True).
+        (`meshfit.springs.relax.slide_side_points`), and slide apart side points that
+        nearly coincide with a neighbour where a side steps back
+        (`meshfit.springs.relax.unpinch_side_points`; default True).
     rescue : bool, keyword-only
         Where a vertex of the patch lies more than ``RESCUE_SPACINGS`` (1) mean grid
         spacings from the final spring mesh, make the spring mesh again from the
@@ -593,6 +596,7 @@ def resample_patch(
             )
         if repair:
             _repair(state, pmap)
+            unpinch_side_points(state)
 
     def run(balanced: bool, fairness: float, max_iter: int, polish: int, progress) -> SpringResult:
         """The coarse-to-fine resampling with these settings (the rest as given)."""

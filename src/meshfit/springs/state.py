@@ -75,6 +75,7 @@ class State:
     s_v: list[NDArray[np.float64]] = field(default_factory=list)  # (nu,) per v feature
     chords: bool = True  # sides resampled at equal chords (else equal arc lengths)
     _side_cache: dict = field(default_factory=dict)
+    _slid: dict = field(default_factory=dict)
 
     def side_positions(self, name: str) -> NDArray[np.float64]:
         """Arc-length positions of the grid points along side ``name`` at this level."""
@@ -83,6 +84,16 @@ class State:
         if key not in self._side_cache:
             self._side_cache[key] = self._side_positions(name, counts)
         return self._side_cache[key].copy()
+
+    def slid_positions(self, name: str) -> NDArray[np.float64]:
+        """Arc-length positions of the grid points along side ``name`` as slid so far on this
+        level (:func:`meshfit.springs.relax.slide_side_points`): the array itself, which the
+        slides update; the static positions until a point slides."""
+        counts = self.counts_u if name in ("bottom", "top") else self.counts_v
+        key = (name, tuple(counts))
+        if key not in self._slid:
+            self._slid[key] = self.side_positions(name)
+        return self._slid[key]
 
     def _side_positions(self, name: str, counts: list[int]) -> NDArray[np.float64]:
         chain = self.sides.chains[name]
