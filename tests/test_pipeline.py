@@ -71,6 +71,17 @@ def test_input_distance_per_patch(spot_fit, monkeypatch):
     assert not any("displaced surface in" in n for n in pl._quality_notes(summary["patches"]))
 
 
+def test_bulging_patches_get_a_note(spot_fit):
+    _, _, summary = spot_fit
+    import meshfit.pipeline as pl
+
+    rows = summary["patches"]
+    assert all("bulge" in r for r in rows)
+    assert not any("bulge" in n for n in pl._quality_notes(rows))
+    rows = [dict(r, bulge=7.5) if r["patch"] == 2 else r for r in rows]
+    assert any("patch 2: 7.5" in n for n in pl._quality_notes(rows))
+
+
 def test_displaced_reconstruction_is_closer_than_the_spline(spot_fit):
     _, _, summary = spot_fit
     err = summary["errors"]

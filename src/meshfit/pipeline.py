@@ -1076,6 +1076,9 @@ def _quality_notes(rows: list[dict]) -> list[str]:
             f"spring meshes with collapsed (zero-area) cells in patches {collapsed}: their "
             "fit does not cover the whole patch; split those patches in the layout"
         )
+    from meshfit.layout.patch import bulge_notes
+
+    notes.extend(bulge_notes({r["patch"]: r["bulge"] for r in rows if "bulge" in r}))
     folded = {r["patch"]: r["folded"] for r in rows if r.get("folded", 0)}
     if folded:
         worst = sorted(folded.items(), key=lambda kv: -kv[1])[:5]
@@ -1113,6 +1116,7 @@ def spring_patch(patch, *, level=None, max_points=None, rescue=True):
         "rescued": bool(res.rescued),
         "seconds": round(time.perf_counter() - t, 4),
         "patch_faces": int(patch.mesh.n_faces),
+        "bulge": round(patch.bulge, 3),
     }
 
 

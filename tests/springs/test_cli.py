@@ -32,6 +32,8 @@ def test_springs_command_writes_grids_and_prints_metrics(tmp_path, capsys):
     ):
         assert key in row
     assert row["level"] == 2
+    assert all(0.5 < r["bulge"] < 3.0 for r in data["patches"])
+    assert data["notes"] == []  # no patch of this layout bulges beyond meshfit.layout.BULGY
     with np.load(out / "patch_000.npz", allow_pickle=False) as z:
         assert int(z["version"]) == 1
         nu, nv = z["kind"].shape
@@ -49,6 +51,14 @@ def test_springs_command_prints_tables(capsys):
     assert main(["springs", str(mesh_path("spot")), "--layout", str(layout), "--level", "0"]) == 0
     text = capsys.readouterr().out
     assert "patch 23" in text and "seconds" in text
+
+
+def test_springs_command_warns_of_a_bulging_patch(capsys):
+    layout = ROOT / "examples" / "layouts" / "nefertiti.json"
+    args = ["springs", str(mesh_path("nefertiti")), "--layout", str(layout), "--level", "0"]
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert "note: 1 patch bulges far beyond its boundary" in text and "patch 4: 11" in text
 
 
 def test_springs_command_rejects_a_layout_of_another_mesh(capsys):

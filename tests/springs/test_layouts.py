@@ -263,3 +263,14 @@ def test_pinched_side_points_of_nefertiti_26_slide_apart(monkeypatch):
     X = res.final.xyz[-1]  # the right side
     d = np.linalg.norm(np.diff(X, axis=0), axis=1)
     assert d.min() >= RL.PINCH_RATIO * np.median(d)
+
+
+def test_only_the_crown_of_nefertiti_bulges():
+    # the projected cube's crown patch balloons out of a short boundary: the one patch of the
+    # test layouts above BULGY (where its spring mesh misses the surface, see KNOWN)
+    from meshfit.layout.patch import BULGY
+
+    bulges = {name: [p.bulge for p, _, _ in layout_springs(name)] for name in LAYOUTS}
+    assert bulges["nefertiti"][4] > 10.0
+    assert max(b for k, b in enumerate(bulges["nefertiti"]) if k != 4) < 1.5
+    assert max(bulges["igea"]) < BULGY and max(bulges["spot"]) < BULGY

@@ -96,6 +96,7 @@ def cmd_springs(args: argparse.Namespace) -> int:
                 "grid": list(res.final.shape),
                 "seconds": round(seconds, 4),
                 "rescued": bool(res.rescued),
+                "bulge": round(patch.bulge, 3),
                 **{k: v for k, v in met.items() if k not in ("nu", "nv")},
             }
             if args.out:
@@ -107,10 +108,13 @@ def cmd_springs(args: argparse.Namespace) -> int:
     finally:
         if progress is not None:
             progress.stop()
+    from meshfit.layout.patch import bulge_notes
+
     out = {
         "mesh": str(args.mesh),
         "layout": str(args.layout),
         "patches": rows,
+        "notes": bulge_notes({r["patch"]: r["bulge"] for r in rows}),
         "seconds": {
             "load": round(t_load, 3),
             "extract": round(t_extract, 3),
@@ -124,6 +128,8 @@ def cmd_springs(args: argparse.Namespace) -> int:
         for r in rows:
             print_table(f"patch {r['patch']}", {k: v for k, v in r.items() if k != "files"})
         print_table("seconds", out["seconds"])
+        for note in out["notes"]:
+            print(f"note: {note}")
     return EXIT_OK
 
 

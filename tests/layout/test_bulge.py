@@ -1,0 +1,34 @@
+"""Patch.bulge: area over that of a square with the same perimeter, and its warning."""
+
+from __future__ import annotations
+
+import pytest
+
+from meshfit.layout.patch import BULGY, bulge_notes
+
+from ..springs.patches import cap_map, param_patch, plane_map
+
+
+def test_flat_patches_have_their_plane_figure():
+    assert param_patch(plane_map(1.0, 1.0), jitter=0.0).bulge == pytest.approx(1.0, abs=1e-12)
+    # a 2 x 1 rectangle: 2 / (6 / 4)^2
+    assert param_patch(plane_map(2.0, 1.0)).bulge == pytest.approx(2.0 / 1.5**2, abs=1e-12)
+
+
+def test_spherical_caps_bulge_more_as_they_grow_towards_a_hemisphere():
+    # gnomonic squares on the unit sphere: half-width 0.3 is nearly flat, and as the square
+    # grows its sides approach the equator (a hemisphere: 2 pi / (2 pi / 4)^2 = 8 / pi)
+    b = [param_patch(cap_map(1.0, h), 40, 40, jitter=0.0).bulge for h in (0.3, 1.0, 3.0, 30.0)]
+    assert 1.0 < b[0] < 1.06
+    assert b[0] < b[1] < b[2] < b[3] < 8.0 / 3.14159265
+    assert b[3] > 2.2  # 2.26: the 40 x 40 triangulation of the cap falls short of the sphere
+    assert b[3] < BULGY
+
+
+def test_bulge_notes_name_the_bulging_patches_most_first():
+    assert bulge_notes({0: 1.0, 1: 2.9}) == []
+    (one,) = bulge_notes({0: 1.0, 3: 11.06})
+    assert one.startswith("1 patch bulges far beyond its boundary") and "patch 3: 11.1" in one
+    (two,) = bulge_notes({5: 4.0, 3: 11.06, 7: 1.0})
+    assert two.startswith("2 patches bulge") and two.index("patch 3:") < two.index("patch 5:")
+    assert "patch 7" not in two
