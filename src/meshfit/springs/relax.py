@@ -2,15 +2,12 @@
 
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 
 from meshfit import tol
 from meshfit._kernels import springs as _k
 from meshfit.springs.grid import FREE
 from meshfit.springs.state import State
-from meshfit.types import SurfacePoints
 
 __all__ = ["folded_cells", "relax", "repair_folds", "unfold_in_map", "untangle"]
 
@@ -312,13 +309,17 @@ def unpinch_side_points(state: State, ratio: float | None = None) -> int:
     idx, movable, ends = _side_slots(state)
     mesh = state.mesh
     moved = 0
+    tried = state.pinch_tried()
     for name, pts in _side_lines(idx).items():
-        X = mesh.xyz(SurfacePoints(state.face[pts], state.bary[pts]))
+        X = _xyz(mesh, state.face[pts], state.bary[pts])
         d = np.linalg.norm(np.diff(X, axis=0), axis=1)
         short = np.minimum(d[:-1], d[1:]) < ratio * np.median(d)
         for k in np.flatnonzero(short) + 1:
-            if int(pts[k]) in movable:
-                moved += _slide(state, idx, ends, name, int(k), pinched=True)[2]
+            if int(pts[k]) in movable and (name, int(k)) not in tried:
+                ok = _slide(state, idx, ends, name, int(k), pinched=True)[2]
+                moved += ok
+                if not ok:  # not again on this level
+                    tried.add((name, int(k)))
     return moved
 
 
@@ -348,9 +349,10 @@ def _slide(state: State, idx, ends, name: str, k: int, *, pinched: bool) -> tupl
     """Try the places of side point ``k`` of side ``name`` (alone or with its neighbours by
     tapering amounts) and keep the best: for a fold's side point (``pinched`` False) the
     trial folding the fewest cells beside the moved points, fewer than now, of those the
-    one whose shortest cell edge there is longest; for a pinched point, the trial with the
-    longest shortest edge, if longer than now and folding no more cells. Returns the folded
-    cells beside the moved points before and after, and whether the points moved."""
+    one whose shortest cell edge there is longest; for a pinched point (trying only places
+    away from its nearer neighbour), the trial with the longest shortest edge, if longer
+    than now and folding no more cells. Returns the folded cells beside the moved points
+    before and after, and whether the points moved."""
     from meshfit.springs.init import chain_points
 
     mesh = state.mesh
@@ -365,28 +367,41 @@ def _slide(state: State, idx, ends, name: str, k: int, *, pinched: bool) -> tupl
     sub = win.ravel()
     chain, arc = state.sides.chains[name], state.sides.arcs[name]
     gs = _side_points(idx, name, js)
+    fracs = np.array(SLIDE_FRACTIONS)
+    if pinched:  # away from the nearer neighbour
+        X = _xyz(mesh, state.face[_side_points(idx, name, np.array([k - 1, k, k + 1]))],
+                 state.bary[_side_points(idx, name, np.array([k - 1, k, k + 1]))])  # fmt: skip
+        nearer_next = np.linalg.norm(X[2] - X[1]) < np.linalg.norm(X[1] - X[0])
+        fracs = fracs[fracs < 0] if nearer_next else fracs[fracs > 0]
+    # every trial's places at once: (trials, len(js)) arc lengths along the side
+    step = np.where(fracs > 0, pos[k + 1] - pos[k], pos[k - 1] - pos[k]) * np.abs(fracs)
+    weights = np.stack([w, (js == k).astype(np.float64)])
+    trials = (pos[js][None, None, :] + step[:, None, None] * weights[None, :, :]).reshape(
+        -1, js.size
+    )
+    pts = chain_points(mesh, chain, arc, trials.ravel(), state.sides.edge_faces[name])
+    faces = pts.face.reshape(trials.shape)
+    barys = pts.bary.reshape(*trials.shape, 3)
     here = _window_folds(state, sub, rows, cols)
-    best, best_pos = (here, -_shortest_edge(mesh, state, win) if pinched else 0.0), None
-    best_face, best_bary = state.face[gs].copy(), state.bary[gs].copy()
-    alone = (js == k).astype(np.float64)
-    for f, wt in itertools.product(SLIDE_FRACTIONS, (w, alone)):
-        other = pos[k + 1] if f > 0 else pos[k - 1]
-        trial = pos[js] + wt * (abs(f) * (other - pos[k]))
-        pt = chain_points(mesh, chain, arc, trial, state.sides.edge_faces[name])
-        state.face[gs], state.bary[gs] = pt.face, pt.bary
+    best = (here, -_shortest_edge(mesh, state, win) if pinched else 0.0)
+    best_t = None
+    keep_face, keep_bary = state.face[gs].copy(), state.bary[gs].copy()
+    for t in range(trials.shape[0]):
+        state.face[gs], state.bary[gs] = faces[t], barys[t]
         c = _window_folds(state, sub, rows, cols)
         if c > here or (c == here and not pinched):
             continue
         # fewest folds; of those, the trial whose shortest cell edge is longest (a side
         # point slid right under its interior neighbour leaves a sliver cell)
         score = (c, -_shortest_edge(mesh, state, win))
-        if (best_pos is None and not pinched) or score < best:
-            best, best_pos = score, trial
-            best_face, best_bary = pt.face.copy(), pt.bary.copy()
-    state.face[gs], state.bary[gs] = best_face, best_bary
-    if best_pos is not None:
-        pos[js] = best_pos
-    return here, best[0], best_pos is not None
+        if (best_t is None and not pinched) or score < best:
+            best, best_t = score, t
+    if best_t is None:
+        state.face[gs], state.bary[gs] = keep_face, keep_bary
+    else:
+        state.face[gs], state.bary[gs] = faces[best_t], barys[best_t]
+        pos[js] = trials[best_t]
+    return here, best[0], best_t is not None
 
 
 def _side_window(idx: np.ndarray, name: str, a: int, b: int) -> np.ndarray:
@@ -408,10 +423,14 @@ def _side_points(idx: np.ndarray, name: str, js: np.ndarray) -> np.ndarray:
     return idx[0 if name == "left" else -1, js]
 
 
+def _xyz(mesh, face: np.ndarray, bary: np.ndarray) -> np.ndarray:
+    """Positions of face points (arrays known to be valid)."""
+    return np.einsum("ij,ijk->ik", bary, mesh.vertices[mesh.faces[face]])
+
+
 def _shortest_edge(mesh, state: State, win: np.ndarray) -> float:
     """Shortest edge between neighbouring grid points of the window ``win`` (flat indices)."""
-    X = mesh.xyz(SurfacePoints(state.face[win.ravel()], state.bary[win.ravel()]))
-    X = X.reshape(*win.shape, 3)
+    X = _xyz(mesh, state.face[win.ravel()], state.bary[win.ravel()]).reshape(*win.shape, 3)
     du = np.linalg.norm(np.diff(X, axis=0), axis=2)
     dv = np.linalg.norm(np.diff(X, axis=1), axis=2)
     return float(min(du.min(initial=np.inf), dv.min(initial=np.inf)))

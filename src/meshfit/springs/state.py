@@ -85,6 +85,12 @@ class State:
             self._side_cache[key] = self._side_positions(name, counts)
         return self._side_cache[key].copy()
 
+    def pinch_tried(self) -> set:
+        """The (side, place) pairs :func:`meshfit.springs.relax.unpinch_side_points` could not
+        improve on this level (a set it updates)."""
+        key = ("pinch", tuple(self.counts_u), tuple(self.counts_v))
+        return self._slid.setdefault(key, set())
+
     def slid_positions(self, name: str) -> NDArray[np.float64]:
         """Arc-length positions of the grid points along side ``name`` as slid so far on this
         level (:func:`meshfit.springs.relax.slide_side_points`): the array itself, which the
