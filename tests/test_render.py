@@ -36,6 +36,29 @@ def test_kernel_matches_oracle(rng, checker):
     np.testing.assert_allclose(out[0][1], out[1][1], atol=1e-12)
 
 
+def test_kernel_matches_oracle_on_triangles_smaller_than_a_pixel(rng):
+    # a dense mesh drawn small: most triangles cover no pixel centre, some cover one, and
+    # corners on pixel centres and half-pixel lines exercise the bounding box's ends
+    m, size = 400, 16
+    base = rng.uniform(-1, size + 1, size=(m, 1, 3))
+    P = base + rng.uniform(-0.7, 0.7, size=(m, 3, 3))
+    P[::7, 0, :2] = np.floor(P[::7, 0, :2]) + 0.5  # a corner exactly on a pixel centre
+    P[::11, 1, 0] = np.floor(P[::11, 1, 0])  # a corner on a pixel edge
+    P[:, :, 2] = rng.uniform(-1, 1, size=(m, 3))
+    color = rng.uniform(0, 1, size=(m, 3, 3))
+    shade = rng.uniform(0.2, 1, size=(m, 3))
+    uv = rng.uniform(0, 3, size=(m, 3, 2))
+    out = []
+    for fn in (kernel.raster, oracle.raster):
+        image = np.ones((size, size, 3))
+        depth = np.full((size, size), -np.inf)
+        fn(P, color, shade, uv, 2.0, image, depth)
+        out.append((image, depth))
+    assert np.isfinite(out[1][1]).sum() > size  # some pixels are drawn
+    np.testing.assert_allclose(out[0][0], out[1][0], atol=1e-12)
+    np.testing.assert_allclose(out[0][1], out[1][1], atol=1e-12)
+
+
 @pytest.mark.parametrize("flat", [False, True])
 @pytest.mark.parametrize("colours", ["face", "vertex", "none"])
 def test_mesh_kernel_matches_the_gathered_oracle(rng, flat, colours):

@@ -17,10 +17,14 @@ def _fill(P, color, shade, uv, checker, image, depth):
     area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
     if area == 0.0 or not np.isfinite(area):
         return
-    xmin = max(int(np.floor(min(x0, min(x1, x2)))), 0)
-    xmax = min(int(np.ceil(max(x0, max(x1, x2)))), w - 1)
-    ymin = max(int(np.floor(min(y0, min(y1, y2)))), 0)
-    ymax = min(int(np.ceil(max(y0, max(y1, y2)))), h - 1)
+    # the pixels whose centres (px + 0.5, py + 0.5) lie in the triangle's bounding box: a
+    # triangle smaller than a pixel usually has none (most of a dense mesh's triangles)
+    xmin = max(int(np.ceil(min(x0, min(x1, x2)) - 0.5)), 0)
+    xmax = min(int(np.floor(max(x0, max(x1, x2)) - 0.5)), w - 1)
+    ymin = max(int(np.ceil(min(y0, min(y1, y2)) - 0.5)), 0)
+    ymax = min(int(np.floor(max(y0, max(y1, y2)) - 0.5)), h - 1)
+    if xmin > xmax or ymin > ymax:
+        return
     inv = 1.0 / area
     for py in range(ymin, ymax + 1):
         cy = py + 0.5
