@@ -73,6 +73,19 @@ def _light(nx, ny, nz, view, ambient):
 
 
 @njit(cache=True, nogil=True, fastmath=False)
+def _covers_a_centre(X, a, b, c, w, h):
+    """Whether the screen bounding box of triangle (a, b, c) holds a pixel centre of the
+    (h, w) image (the test `_fill` starts with)."""
+    xmin = max(int(np.ceil(min(X[a, 0], min(X[b, 0], X[c, 0])) - 0.5)), 0)
+    xmax = min(int(np.floor(max(X[a, 0], max(X[b, 0], X[c, 0])) - 0.5)), w - 1)
+    if xmin > xmax:
+        return False
+    ymin = max(int(np.ceil(min(X[a, 1], min(X[b, 1], X[c, 1])) - 0.5)), 0)
+    ymax = min(int(np.floor(max(X[a, 1], max(X[b, 1], X[c, 1])) - 0.5)), h - 1)
+    return ymin <= ymax
+
+
+@njit(cache=True, nogil=True, fastmath=False)
 def raster_mesh(V, X, F, view, ambient, flat, face_color, vertex_color, uv, checker, image, depth):
     """Rasterise an indexed mesh (what `meshfit.render.render` draws), in place.
 
@@ -102,7 +115,10 @@ def raster_mesh(V, X, F, view, ambient, flat, face_color, vertex_color, uv, chec
     shade = np.empty(3)
     cuv = np.zeros((3, 2))
     use_uv = checker > 0.0 and uv.shape[0] == V.shape[0]
+    h, w = depth.shape
     for t in range(m):
+        if not _covers_a_centre(X, F[t, 0], F[t, 1], F[t, 2], w, h):
+            continue  # no pixel centre in its bounding box: nothing to gather
         for k in range(3):
             v = F[t, k]
             for d in range(3):
