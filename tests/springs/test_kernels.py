@@ -213,26 +213,33 @@ def test_chord_positions_match_oracle(rng, rounds):
         assert (np.diff(got) >= 0).all()
 
 
-def test_side_points_slide_back_between_their_neighbours():
-    # a side point pushed past its neighbour folds the two boundary cells beside it whatever
-    # the free points do; sliding it along the side (between its static neighbours) unfolds
-    # them; the side points within SLIDE_TAPER places go along by tapering amounts, in order
-    # and on the side, and nothing else moves
-    from meshfit.springs.relax import SLIDE_TAPER, repair_folds, slide_side_points
+def _plane_state():
+    """The building state of a flat 2 x 1 patch's level-1 spring mesh (33 x 17 points)."""
     from meshfit.springs.resample import _sides
     from meshfit.springs.state import State
 
     from .patches import plane_map
 
     patch = param_patch(plane_map(), 24, 24, jitter=0.0)
-    mesh = patch.mesh
     sm = resample_patch(patch, level=1, metrics=False).final
     nu, nv = sm.shape
     sides = _sides(patch)
     breaks = {n: [0.0, float(sides.arcs[n][-1])] for n in sides.chains}
-    state = State(mesh, 0, sides, [], [], breaks, [nu - 1], [nv - 1])
+    state = State(patch.mesh, 0, sides, [], [], breaks, [nu - 1], [nv - 1])
     state.face = sm.points.face.copy()
     state.bary = sm.points.bary.copy()
+    return state
+
+
+def test_side_points_slide_back_between_their_neighbours():
+    # a side point pushed past its neighbour folds the two boundary cells beside it whatever
+    # the free points do; sliding it along the side (between its static neighbours) unfolds
+    # them; the side points within SLIDE_TAPER places go along by tapering amounts, in order
+    # and on the side, and nothing else moves
+    from meshfit.springs.relax import SLIDE_TAPER, repair_folds, slide_side_points
+
+    state = _plane_state()
+    mesh, nu, nv = state.mesh, state.nu, state.nv
     g, g2 = 4 * nv, 6 * nv  # bottom side points 4 and 6
     before = mesh.xyz(SurfacePoints(state.face, state.bary))
     state.face[g], state.bary[g] = state.face[g2], state.bary[g2]
@@ -257,21 +264,10 @@ def test_pinched_side_points_slide_apart():
     # spacing) folds nothing, but leaves a near-zero interval on the boundary iso-curve:
     # unpinch_side_points slides it apart along the side, folding nothing
     from meshfit.springs.relax import PINCH_RATIO, unpinch_side_points
-    from meshfit.springs.resample import _sides
-    from meshfit.springs.state import State
     from meshfit.types import SurfacePoints as SP
 
-    from .patches import plane_map
-
-    patch = param_patch(plane_map(), 24, 24, jitter=0.0)
-    mesh = patch.mesh
-    sm = resample_patch(patch, level=1, metrics=False).final
-    nu, nv = sm.shape
-    sides = _sides(patch)
-    breaks = {n: [0.0, float(sides.arcs[n][-1])] for n in sides.chains}
-    state = State(mesh, 0, sides, [], [], breaks, [nu - 1], [nv - 1])
-    state.face = sm.points.face.copy()
-    state.bary = sm.points.bary.copy()
+    state = _plane_state()
+    mesh, nu, nv = state.mesh, state.nu, state.nv
     bottom = np.arange(nu) * nv
     X = mesh.xyz(SP(state.face, state.bary))
     # bottom side point 4 moved 95% of the way to point 5, on the side
