@@ -276,6 +276,29 @@ def test_status_reports_crossing_curves(painted, spot):
     assert "cross" in st.error or any(not r.valid for r in st.regions)
 
 
+def test_status_measures_how_each_region_bulges():
+    # the nefertiti test layout loaded for editing: the crown region balloons out of its
+    # sides (as Patch.bulge measures the extracted patch), every other region is flat-ish
+    from meshfit.layout import extract_patches
+    from meshfit.ui.app import _region_text
+
+    from ..conftest import ROOT
+
+    mesh = real_mesh("nefertiti")
+    layout = load_layout(ROOT / "examples" / "layouts" / "nefertiti.json", mesh)
+    s = Session(mesh)
+    s.set_layout(layout)
+    st = s.status()
+    assert st.complete
+    bulges = sorted(r.bulge for r in st.regions)
+    patches = sorted(p.bulge for p in extract_patches(mesh, layout))
+    np.testing.assert_allclose(bulges, patches, rtol=1e-9)
+    crown = max(st.regions, key=lambda r: r.bulge)
+    assert crown.bulge > 10 and bulges[-2] < 1.5
+    assert "bulging" in _region_text(crown) and st.as_dict()["regions"][0]["bulge"] > 0
+    assert _region_text(min(st.regions, key=lambda r: r.bulge)) == "patch"
+
+
 # ------------------------------------------------------------------------------ files
 def test_autosave_every_change_and_restore(painted, tmp_path, spot):
     path = tmp_path / "auto.json"

@@ -484,10 +484,7 @@ class App:
         else:
             n_ok = sum(r.valid for r in st.regions)
             rows = [f"**{n_ok} of {len(st.regions)} regions are four-sided patches**", ""]
-            rows += [
-                f"- region {r.index}: " + ("patch" if r.valid else f"**{r.reason}**")
-                for r in st.regions[:40]
-            ]
+            rows += [f"- region {r.index}: " + _region_text(r) for r in st.regions[:40]]
             text = "\n".join(rows)
         self.gui_status.content = text
         self.say(text.splitlines()[0])
@@ -657,3 +654,18 @@ class App:
             self._clear("/preview/springs")
             self._clear("/preview/spline")
             self.say(f"opened {mesh.name}: {mesh.n_vertices} vertices, {mesh.n_faces} faces")
+
+
+def _region_text(r) -> str:
+    """A region's line in the layout status: "patch", a bulging patch's warning, or why the
+    region is no patch."""
+    from meshfit.layout.patch import BULGY
+
+    if not r.valid:
+        return f"**{r.reason}**"
+    if r.bulge > BULGY:
+        return (
+            f"patch, **bulging** ({r.bulge:.3g} times the area of a square with its "
+            "perimeter): its grid will crowd at the sides; add curves across it"
+        )
+    return "patch"

@@ -44,6 +44,10 @@ class RegionStatus:
         Faces of the input mesh that (partly) lie in the region.
     area : float
         Area of the region, model units squared.
+    bulge : float
+        Area over that of a square with the region's perimeter (as
+        :attr:`meshfit.layout.Patch.bulge`; NaN unless the region has one boundary loop): a
+        patch above :data:`meshfit.layout.patch.BULGY` balloons out of its sides.
     """
 
     index: int
@@ -52,6 +56,7 @@ class RegionStatus:
     sides: tuple[tuple[int, bool], ...]
     faces: NDArray[np.int64]
     area: float
+    bulge: float = float("nan")
 
     def as_dict(self) -> dict:
         return {
@@ -61,6 +66,7 @@ class RegionStatus:
             "sides": [[c, r] for c, r in self.sides],
             "faces": int(self.faces.size),
             "area": self.area,
+            "bulge": None if np.isnan(self.bulge) else self.bulge,
         }
 
 
@@ -184,7 +190,14 @@ def network_status(
             reason = f"not a disk: Euler characteristic {int(chi[c])} (a handle inside it)"
         else:
             sides, reason = _sides(copy_of[loops[0]].tolist(), along, corner_v)
-        regions.append(RegionStatus(c, not reason, reason, tuple(sides), faces, float(areas[c])))
+        bulge = float("nan")
+        if len(loops) == 1:
+            X = cut.vertices[np.append(loops[0], loops[0][0])]
+            perimeter = float(np.linalg.norm(np.diff(X, axis=0), axis=1).sum())
+            bulge = float(areas[c] / (perimeter / 4.0) ** 2) if perimeter > 0 else bulge
+        regions.append(
+            RegionStatus(c, not reason, reason, tuple(sides), faces, float(areas[c]), bulge)
+        )
     return NetworkStatus(regions, "", region_of_face)
 
 
