@@ -17,6 +17,16 @@ def test_layout_command_prints_json(capsys):
     out = json.loads(capsys.readouterr().out)
     assert out["patches"] == 24 and len(out["per_patch"]) == 24
     assert out["patch_area_sum"] == pytest.approx(out["mesh_area"], rel=1e-9)
+    assert out["bulge_max"] == max(p["bulge"] for p in out["per_patch"]) < 3.0
+    assert out["notes"] == []
+
+
+def test_layout_command_notes_a_bulging_patch(capsys):
+    args = ["layout", str(mesh_path("nefertiti")), str(LAYOUTS / "nefertiti.json")]
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert "bulge max" in text and "note: 1 patch bulges far beyond its boundary" in text
+    assert "patch 4: 11" in text
 
 
 def test_layout_command_table(capsys):

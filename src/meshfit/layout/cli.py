@@ -29,6 +29,7 @@ def add_commands(sub) -> None:
 def cmd_layout(args: argparse.Namespace) -> int:
     from meshfit.cli import print_json, print_table
     from meshfit.layout import extract_patches, load_layout
+    from meshfit.layout.patch import bulge_notes
     from meshfit.mesh import load_mesh
 
     mesh = load_mesh(args.mesh)
@@ -68,12 +69,20 @@ def cmd_layout(args: argparse.Namespace) -> int:
                 "vertices": p.mesh.n_vertices,
                 "side_vertices": [int(s.size) for s in p.sides],
                 "features": [list(fs) for fs in p.feature_sides],
+                "bulge": round(p.bulge, 3),
             }
             for p in patches
         ],
     }
+    summary["bulge_max"] = max(r["bulge"] for r in summary["per_patch"])
+    summary["notes"] = bulge_notes({r["patch"]: r["bulge"] for r in summary["per_patch"]})
     if args.json:
         print_json(summary)
     else:
-        print_table(f"layout {args.layout}", {k: v for k, v in summary.items() if k != "per_patch"})
+        print_table(
+            f"layout {args.layout}",
+            {k: v for k, v in summary.items() if k not in ("per_patch", "notes")},
+        )
+        for note in summary["notes"]:
+            print(f"note: {note}")
     return 0
