@@ -23,8 +23,8 @@ SLIDE_FRACTIONS = tuple(float(f) for f in np.linspace(-0.9, 0.9, 19) if abs(f) >
 #: a sliding side point may take the side points within this many places along, by amounts
 #: tapering linearly to zero (stopping at patch corners and feature-curve ends), so that the
 #: side's spacing changes by a fraction of the slide per interval instead of all of it at once
-#: (4 places unfold the same nefertiti cells, but on spot's near-triangular patch 1 the
-#: rescued grid then folds a cell and the stitched 8 x 8 fit faces away from it at a node)
+#: (4 places unfold the same nefertiti cells, but the stitched 8 x 8 fit of spot's
+#: near-triangular patch 1 then faces away from its grid at a node)
 SLIDE_TAPER = 2
 #: a side point closer than this fraction of its side's median spacing to a neighbouring side
 #: point is slid apart (`unpinch_side_points`; at 0.5 a side of a patch cut from igea slides
@@ -369,8 +369,8 @@ def _slide(state: State, idx, ends, name: str, k: int, *, pinched: bool) -> tupl
     gs = _side_points(idx, name, js)
     fracs = np.array(SLIDE_FRACTIONS)
     if pinched:  # away from the nearer neighbour
-        X = _xyz(mesh, state.face[_side_points(idx, name, np.array([k - 1, k, k + 1]))],
-                 state.bary[_side_points(idx, name, np.array([k - 1, k, k + 1]))])  # fmt: skip
+        near = _side_points(idx, name, np.array([k - 1, k, k + 1]))
+        X = _xyz(mesh, state.face[near], state.bary[near])
         nearer_next = np.linalg.norm(X[2] - X[1]) < np.linalg.norm(X[1] - X[0])
         fracs = fracs[fracs < 0] if nearer_next else fracs[fracs > 0]
     # every trial's places at once: (trials, len(js)) arc lengths along the side
