@@ -1055,6 +1055,8 @@ FAR_INPUT = 0.01
 
 def _quality_notes(rows: list[dict]) -> list[str]:
     """Warnings about patches whose spring mesh cannot be trusted."""
+    from meshfit.layout.patch import bulge_notes
+
     notes = []
     far = {
         r["patch"]: r["input_distance_max"]
@@ -1076,8 +1078,6 @@ def _quality_notes(rows: list[dict]) -> list[str]:
             f"spring meshes with collapsed (zero-area) cells in patches {collapsed}: their "
             "fit does not cover the whole patch; split those patches in the layout"
         )
-    from meshfit.layout.patch import bulge_notes
-
     notes.extend(bulge_notes({r["patch"]: r["bulge"] for r in rows if "bulge" in r}))
     folded = {r["patch"]: r["folded"] for r in rows if r.get("folded", 0)}
     if folded:

@@ -7,6 +7,18 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True, fastmath=False)
+def _centre_box(x0, x1, x2, y0, y1, y2, w, h):
+    """The pixels of a (h, w) image whose centres (px + 0.5, py + 0.5) lie in a triangle's
+    bounding box: ``xmin, xmax, ymin, ymax`` (empty when min > max, as for most triangles
+    of a dense mesh, which are smaller than a pixel)."""
+    xmin = max(int(np.ceil(min(x0, min(x1, x2)) - 0.5)), 0)
+    xmax = min(int(np.floor(max(x0, max(x1, x2)) - 0.5)), w - 1)
+    ymin = max(int(np.ceil(min(y0, min(y1, y2)) - 0.5)), 0)
+    ymax = min(int(np.floor(max(y0, max(y1, y2)) - 0.5)), h - 1)
+    return xmin, xmax, ymin, ymax
+
+
+@njit(cache=True, nogil=True, fastmath=False)
 def _fill(P, color, shade, uv, checker, image, depth):
     """Rasterise one triangle: P (3, 3) screen x, y and depth per corner, color (3, 3),
     shade (3,), uv (3, 2); see `raster`."""
@@ -17,12 +29,7 @@ def _fill(P, color, shade, uv, checker, image, depth):
     area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
     if area == 0.0 or not np.isfinite(area):
         return
-    # the pixels whose centres (px + 0.5, py + 0.5) lie in the triangle's bounding box: a
-    # triangle smaller than a pixel usually has none (most of a dense mesh's triangles)
-    xmin = max(int(np.ceil(min(x0, min(x1, x2)) - 0.5)), 0)
-    xmax = min(int(np.floor(max(x0, max(x1, x2)) - 0.5)), w - 1)
-    ymin = max(int(np.ceil(min(y0, min(y1, y2)) - 0.5)), 0)
-    ymax = min(int(np.floor(max(y0, max(y1, y2)) - 0.5)), h - 1)
+    xmin, xmax, ymin, ymax = _centre_box(x0, x1, x2, y0, y1, y2, w, h)
     if xmin > xmax or ymin > ymax:
         return
     inv = 1.0 / area
@@ -73,19 +80,6 @@ def _light(nx, ny, nz, view, ambient):
 
 
 @njit(cache=True, nogil=True, fastmath=False)
-def _covers_a_centre(X, a, b, c, w, h):
-    """Whether the screen bounding box of triangle (a, b, c) holds a pixel centre of the
-    (h, w) image (the test `_fill` starts with)."""
-    xmin = max(int(np.ceil(min(X[a, 0], min(X[b, 0], X[c, 0])) - 0.5)), 0)
-    xmax = min(int(np.floor(max(X[a, 0], max(X[b, 0], X[c, 0])) - 0.5)), w - 1)
-    if xmin > xmax:
-        return False
-    ymin = max(int(np.ceil(min(X[a, 1], min(X[b, 1], X[c, 1])) - 0.5)), 0)
-    ymax = min(int(np.floor(max(X[a, 1], max(X[b, 1], X[c, 1])) - 0.5)), h - 1)
-    return ymin <= ymax
-
-
-@njit(cache=True, nogil=True, fastmath=False)
 def raster_mesh(V, X, F, view, ambient, flat, face_color, vertex_color, uv, checker, image, depth):
     """Rasterise an indexed mesh (what `meshfit.render.render` draws), in place.
 
@@ -117,7 +111,11 @@ def raster_mesh(V, X, F, view, ambient, flat, face_color, vertex_color, uv, chec
     use_uv = checker > 0.0 and uv.shape[0] == V.shape[0]
     h, w = depth.shape
     for t in range(m):
-        if not _covers_a_centre(X, F[t, 0], F[t, 1], F[t, 2], w, h):
+        a, b, c = F[t, 0], F[t, 1], F[t, 2]
+        xmin, xmax, ymin, ymax = _centre_box(
+            X[a, 0], X[b, 0], X[c, 0], X[a, 1], X[b, 1], X[c, 1], w, h
+        )
+        if xmin > xmax or ymin > ymax:
             continue  # no pixel centre in its bounding box: nothing to gather
         for k in range(3):
             v = F[t, k]
@@ -135,7 +133,6 @@ def raster_mesh(V, X, F, view, ambient, flat, face_color, vertex_color, uv, chec
             if not flat:
                 shade[k] = lit[v]
         if flat:
-            a, b, c = F[t, 0], F[t, 1], F[t, 2]
             ux, uy, uz = V[b, 0] - V[a, 0], V[b, 1] - V[a, 1], V[b, 2] - V[a, 2]
             wx, wy, wz = V[c, 0] - V[a, 0], V[c, 1] - V[a, 1], V[c, 2] - V[a, 2]
             s = _light(uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx, view, ambient)

@@ -12,7 +12,7 @@ from meshfit.errors import InputError
 from meshfit.mesh import Mesh
 from meshfit.types import SurfaceCurve, SurfacePoints, _readonly
 
-__all__ = ["BULGY", "Patch", "bulge_notes"]
+__all__ = ["BULGY", "Patch", "bulge_notes", "loop_bulge"]
 
 #: a patch whose :attr:`Patch.bulge` exceeds this bulges far beyond its boundary (a flat
 #: disk has 1.27, a hemisphere 2.55): a tensor-product grid anchored on its sides crowds
@@ -100,15 +100,38 @@ class Patch:
         square-ish patch (1.27 for a flat disk), 2.55 for a hemisphere, far more for a patch
         that balloons out of a short boundary (`BULGY` and above: split it with more curves).
         """
-        loop = self.boundary
-        X = self.mesh.vertices[np.append(loop, loop[0])]
-        perimeter = float(np.linalg.norm(np.diff(X, axis=0), axis=1).sum())
-        return float(self.mesh.area / (perimeter / 4.0) ** 2) if perimeter > 0 else 0.0
+        return loop_bulge(self.mesh.area, self.mesh.vertices[self.boundary])
 
     @property
     def boundary(self) -> NDArray[np.int64]:
         """(k,) int64: the closed boundary loop, sides 0..3 joined (each corner once)."""
         return np.concatenate([s[:-1] for s in self.sides])
+
+
+def loop_bulge(area: float, loop: NDArray[np.float64]) -> float:
+    """Area over that of a square whose perimeter is the closed polyline ``loop``.
+
+    Parameters
+    ----------
+    area : float
+        Area of the region the loop bounds, model units squared.
+    loop : (k, 3) float64
+        The boundary's points in order, the first not repeated at the end.
+
+    Returns
+    -------
+    float
+        1 for a flat square, 1.27 for a flat disk, 2.55 for a hemisphere (see `BULGY`); 0
+        for a loop of zero length.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 5.1 (parametric distortion of a patch's spring mesh).
+    """
+    X = np.asarray(loop, dtype=np.float64)
+    X = np.vstack([X, X[:1]])
+    perimeter = float(np.linalg.norm(np.diff(X, axis=0), axis=1).sum())
+    return float(area / (perimeter / 4.0) ** 2) if perimeter > 0 else 0.0
 
 
 def bulge_notes(bulge: dict[int, float]) -> list[str]:

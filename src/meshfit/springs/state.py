@@ -76,6 +76,7 @@ class State:
     chords: bool = True  # sides resampled at equal chords (else equal arc lengths)
     _side_cache: dict = field(default_factory=dict)
     _slid: dict = field(default_factory=dict)
+    _pinch_tried: dict = field(default_factory=dict)
 
     def side_positions(self, name: str) -> NDArray[np.float64]:
         """Arc-length positions of the grid points along side ``name`` at this level."""
@@ -88,8 +89,8 @@ class State:
     def pinch_tried(self) -> set:
         """The (side, place) pairs :func:`meshfit.springs.relax.unpinch_side_points` could not
         improve on this level (a set it updates)."""
-        key = ("pinch", tuple(self.counts_u), tuple(self.counts_v))
-        return self._slid.setdefault(key, set())
+        key = (tuple(self.counts_u), tuple(self.counts_v))
+        return self._pinch_tried.setdefault(key, set())
 
     def slid_positions(self, name: str) -> NDArray[np.float64]:
         """Arc-length positions of the grid points along side ``name`` as slid so far on this

@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from meshfit.errors import CutError, InputError
+from meshfit.layout.patch import loop_bulge
 from meshfit.mesh import Mesh
 from meshfit.surface.cut import cut_mesh_network
 from meshfit.types import SurfaceCurve, SurfacePoints
@@ -190,11 +191,7 @@ def network_status(
             reason = f"not a disk: Euler characteristic {int(chi[c])} (a handle inside it)"
         else:
             sides, reason = _sides(copy_of[loops[0]].tolist(), along, corner_v)
-        bulge = float("nan")
-        if len(loops) == 1:
-            X = cut.vertices[np.append(loops[0], loops[0][0])]
-            perimeter = float(np.linalg.norm(np.diff(X, axis=0), axis=1).sum())
-            bulge = float(areas[c] / (perimeter / 4.0) ** 2) if perimeter > 0 else bulge
+        bulge = loop_bulge(areas[c], cut.vertices[loops[0]]) if len(loops) == 1 else np.nan
         regions.append(
             RegionStatus(c, not reason, reason, tuple(sides), faces, float(areas[c]), bulge)
         )
