@@ -510,7 +510,7 @@ def resample_patch(
         on bulging and near-triangular patches the even spacing stretches the cells
         (polished regardless, nefertiti's and spot's test layouts reach median aspect ratios
         of 1.71 and 1.87). On the test layouts the patches with an arc-length CV above 0.15
-        go from 5 to 0 of 24 (igea), 12 to 5 of 54 (nefertiti) and 10 to 4 of 24 (spot); no
+        go from 5 to 0 of 24 (igea), 11 to 4 of 54 (nefertiti) and 10 to 4 of 24 (spot); no
         more cells fold and no more patches exceed an aspect ratio of 1.5. The spring meshes
         of igea's test layout take about as long as without any polish (the early stop).
     repair : bool, keyword-only
@@ -584,7 +584,8 @@ def resample_patch(
     sides = _sides(patch)
 
     def settle(state: State, pmap, reach: int, sweeps: int) -> None:
-        """Untangling rounds around folded cells (``reach`` rings), then the fold repair."""
+        """Untangling rounds around folded cells (``reach`` rings), then the fold repair and
+        the sliding apart of pinched side points."""
         if untangle_rounds:
             untangle(
                 state,
