@@ -135,8 +135,19 @@ def loop_bulge(area: float, loop: NDArray[np.float64]) -> float:
 
 
 def bulge_notes(bulge: dict[int, float]) -> list[str]:
-    """A warning naming the patches (index -> :attr:`Patch.bulge`) that bulge more than
-    `BULGY` (an empty list when none does)."""
+    """The warning of a fit or a layout check about bulging patches.
+
+    Parameters
+    ----------
+    bulge : dict of int to float
+        Patch index -> :attr:`Patch.bulge`.
+
+    Returns
+    -------
+    list of str
+        One note naming the patches above `BULGY`, most bulging first (at most five), with
+        what to do; empty when no patch bulges that much.
+    """
     big = sorted(((p, b) for p, b in bulge.items() if b > BULGY), key=lambda kv: -kv[1])
     if not big:
         return []

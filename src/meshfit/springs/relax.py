@@ -303,7 +303,27 @@ def unpinch_side_points(state: State, ratio: float | None = None) -> int:
     26: 0.67 : 0.08 : 0.71 of the median). A side point whose shorter chord to a neighbour is
     below ``ratio`` (default `PINCH_RATIO`) of its side's median chord tries the same
     places as a fold's side point, and takes the one whose shortest cell edge beside the
-    moved points is longest, if that is longer than now and folds no more cells there.
+    moved points is longest, if that is longer than now and folds no more cells there. A
+    point that cannot be improved is not tried again on the same level.
+
+    Parameters
+    ----------
+    state : State
+        The spring mesh being built (``face (nu nv,) int64``, ``bary (nu nv, 3) float64``),
+        changed in place.
+    ratio : float, optional
+        Shorter chord over the side's median chord below which a side point is pinched
+        (default `PINCH_RATIO`).
+
+    Returns
+    -------
+    int
+        Side points moved.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 5.6 (boundary points resampled statically along the
+       patch's sides) and sec. 5.1 (arc-length distortion along iso-curves).
     """
     ratio = PINCH_RATIO if ratio is None else float(ratio)
     idx, movable, ends = _side_slots(state)
