@@ -326,21 +326,37 @@ def unpinch_side_points(state: State, ratio: float | None = None) -> int:
        patch's sides) and sec. 5.1 (arc-length distortion along iso-curves).
     """
     ratio = PINCH_RATIO if ratio is None else float(ratio)
-    idx, movable, ends = _side_slots(state)
-    mesh = state.mesh
+    lines = _side_lines(np.arange(state.nu * state.nv).reshape(state.nu, state.nv))
+    # a slide moves points of its own side only: every side's chords can be read first
+    flat = np.concatenate(list(lines.values()))
+    X = _xyz(state.mesh, state.face[flat], state.bary[flat])
+    slots = None  # built on the first pinched point (most levels have none)
     moved = 0
     tried = state.pinch_tried()
-    for name, pts in _side_lines(idx).items():
-        X = _xyz(mesh, state.face[pts], state.bary[pts])
-        d = np.linalg.norm(np.diff(X, axis=0), axis=1)
-        short = np.minimum(d[:-1], d[1:]) < ratio * np.median(d)
+    at = 0
+    for name, pts in lines.items():
+        d = np.linalg.norm(np.diff(X[at : at + len(pts)], axis=0), axis=1)
+        at += len(pts)
+        short = np.minimum(d[:-1], d[1:]) < ratio * _median(d)
         for k in np.flatnonzero(short) + 1:
-            if int(pts[k]) in movable and (name, int(k)) not in tried:
+            if (name, int(k)) in tried:
+                continue
+            if slots is None:
+                slots = _side_slots(state)
+            idx, movable, ends = slots
+            if int(pts[k]) in movable:
                 ok = _slide(state, idx, ends, name, int(k), pinched=True)[2]
                 moved += ok
                 if not ok:  # not again on this level
                     tried.add((name, int(k)))
     return moved
+
+
+def _median(d: np.ndarray) -> float:
+    """``np.median`` of a short 1-d array (the same value, without its overhead)."""
+    s = np.sort(d)
+    n = s.size
+    return float(s[n // 2]) if n % 2 else float((s[n // 2 - 1] + s[n // 2]) / 2.0)
 
 
 def _side_lines(idx: np.ndarray) -> dict[str, np.ndarray]:
