@@ -224,6 +224,8 @@ def relax_sweeps(
     sb = np.empty(3)
     sx = np.empty(3)
     sn = np.empty(3)
+    kx = np.empty(3)
+    kn = np.empty(3)
     worst = 0.0
     done = 0
     for k in range(n_sweeps):
@@ -251,7 +253,9 @@ def relax_sweeps(
             else:
                 alpha[p] = min(1.0, alpha[p] * 1.25)
             total *= omega * alpha[p]
-            before = _bad_around(X, N, nu, nv, p) if guard else 0
+            # the folds around p before the move: counted only when a move folds some
+            # (a move that folds none cannot fold more), from the saved position
+            before = -1
             f0 = face[p]
             for c in range(3):
                 sb[c] = bary[p, c]
@@ -291,7 +295,20 @@ def relax_sweeps(
                 _face_normal(V, F, f, nrm2)
                 for c in range(3):
                     N[p, c] = nrm2[c]
-                if not guard or _bad_around(X, N, nu, nv, p) <= before:
+                if not guard:
+                    break
+                after = _bad_around(X, N, nu, nv, p)
+                if after > 0 and before < 0:
+                    for c in range(3):
+                        kx[c] = X[p, c]
+                        kn[c] = N[p, c]
+                        X[p, c] = sx[c]
+                        N[p, c] = sn[c]
+                    before = _bad_around(X, N, nu, nv, p)
+                    for c in range(3):
+                        X[p, c] = kx[c]
+                        N[p, c] = kn[c]
+                if after <= max(before, 0):
                     break
                 if attempt == 3:  # every try folds a cell: stay
                     for c in range(3):
