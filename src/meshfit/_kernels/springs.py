@@ -84,16 +84,16 @@ def _pair_arc(D, a, b, out):
 
 
 @njit(cache=True, nogil=True, fastmath=False)
-def spring_force(X, nv, p, w_arc, w_fair, nrm, tangent, out):
+def spring_force(X, nv, p, w_arc, w_fair, nrm, tangent, out, D, arc):
     """Resultant force (eq. 5.4) on interior grid point ``p``; returns its mean spring length.
 
     The spring vectors to the four neighbours are the Euclidean ones (sec. 5.5); with
     ``tangent`` each is turned into the tangent plane of unit normal ``nrm`` (3,) keeping its
     length, a first-order stand-in for the geodesic forces of sec. 5.5.3. ``out`` (3,)
     receives ``w_fair * F_fair / 4 + w_arc * F_arc / 4`` (a Gauss-Seidel step: the fairness
-    part alone moves the point to the centroid of its four neighbours).
+    part alone moves the point to the centroid of its four neighbours). ``D`` (4, 3) and
+    ``arc`` (3,) are scratch (allocated once per sweep loop, not per point).
     """
-    D = np.empty((4, 3))
     nb = (p - nv, p + nv, p - 1, p + 1)  # left, right, down, up
     for k in range(4):
         q = nb[k]
@@ -108,7 +108,8 @@ def spring_force(X, nv, p, w_arc, w_fair, nrm, tangent, out):
             if flat > 0.0:
                 for c in range(3):
                     D[k, c] *= full / flat
-    arc = np.zeros(3)
+    for c in range(3):
+        arc[c] = 0.0
     h = _pair_arc(D, 0, 1, arc)
     h += _pair_arc(D, 2, 3, arc)
     for c in range(3):
@@ -226,6 +227,8 @@ def relax_sweeps(
     sn = np.empty(3)
     kx = np.empty(3)
     kn = np.empty(3)
+    dvec = np.empty((4, 3))
+    arc = np.empty(3)
     worst = 0.0
     done = 0
     for k in range(n_sweeps):
@@ -243,7 +246,7 @@ def relax_sweeps(
                 continue
             if tangent:
                 _face_normal(V, F, face[p], nrm)
-            h = spring_force(X, nv, p, w_arc, w_fair, nrm, tangent, step)
+            h = spring_force(X, nv, p, w_arc, w_fair, nrm, tangent, step, dvec, arc)
             total = _start_direction(V, F, face[p], step, u)
             if total <= 0.0:
                 continue
