@@ -542,9 +542,10 @@ def _split_edge_at(V0, F0, S, TR, FL, NV, NI, OP0, H, P, a, b, s, g, snap, min_a
 
 # ---------------------------------------------------------------------------- insertion
 @njit(cache=True, nogil=True)
-def _insert(V0, F0, FN, S, TR, FL, NV, NI, OP0, H, P, snap, min_area, cf, cb, cv, cx, g):
+def _insert(V0, F0, FN, S, TR, FL, NV, NI, OP0, H, P, snap, min_area, cf, cb, cv, cx, g, tmp):
     """Insert a snapped curve point (face ``cf``, bary ``cb (3,)``, vertex ``cv`` or -1,
-    position ``cx (3,)``) into original face ``g`` (which contains it); returns its vertex."""
+    position ``cx (3,)``) into original face ``g`` (which contains it); returns its vertex.
+    ``tmp (6, 3)`` is scratch (allocated once per curve)."""
     if cv >= 0:
         return cv
     _ensure(F0, FN, S, TR, FL, H, P, g)
@@ -611,22 +612,22 @@ def _insert(V0, F0, FN, S, TR, FL, NV, NI, OP0, H, P, snap, min_area, cf, cb, cv
             bl1 = l1
             bl2 = l2
     abc = TR[best_t, :3]
-    pos = np.empty((3, 3))
+    pos = tmp[0:3]
     for k in range(3):
         qx, qy, qz = _xyz(V0, NV, abc[k])
         pos[k, 0] = qx
         pos[k, 1] = qy
         pos[k, 2] = qz
     # an existing vertex
-    dv = np.empty(3)
+    dv = tmp[3]
     for k in range(3):
         dv[k] = _norm(px - pos[k, 0], py - pos[k, 1], pz - pos[k, 2])
     k = _argmin3(dv[0], dv[1], dv[2])
     if dv[k] < snap and _may_snap(V0, S, NI, OP0, abc[k]):
         return abc[k]
     # an existing edge
-    edge_d = np.empty(3)
-    edge_s = np.empty(3)
+    edge_d = tmp[4]
+    edge_s = tmp[5]
     for k in range(3):
         k1 = (k + 1) % 3
         e0 = pos[k1, 0] - pos[k, 0]
@@ -851,6 +852,7 @@ def insert_curve(
     path = np.empty(2 * n + 16, dtype=np.int64)
     n_path = 0
     empty = np.empty(0, dtype=np.int64)
+    tmp = np.empty((6, 3))
     S, TR, FL, NV, NI, OP0, H, P = reserve(S, TR, FL, NV, NI, OP0, H, P, 1, 32)
     first = _insert(
         V0,
@@ -871,6 +873,7 @@ def insert_curve(
         qv[0],
         qx[0],
         seg_g[0],
+        tmp,
     )
     if S[ERR]:
         return empty, S, TR, FL, NV, NI, OP0, H, P
@@ -906,6 +909,7 @@ def insert_curve(
                 qv[q],
                 qx[q],
                 g,
+                tmp,
             )
         if S[ERR]:
             return empty, S, TR, FL, NV, NI, OP0, H, P
