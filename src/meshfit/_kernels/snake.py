@@ -43,10 +43,14 @@ def snake_forces(x, closed, w_fair, w_curv, w_arc, levels):
     out = np.zeros((n, 3))
     if n < 3:
         return out
+    fair = np.empty(3)
+    arc = np.empty(3)
+    curv = np.empty(3)
     for i in range(n):
-        fair = np.zeros(3)
-        arc = np.zeros(3)
-        curv = np.zeros(3)
+        for c in range(3):
+            fair[c] = 0.0
+            arc[c] = 0.0
+            curv[c] = 0.0
         wf = 0.0
         wc = 0.0
         w = 1.0
