@@ -586,8 +586,9 @@ def resample_patch(
     def settle(state: State, pmap, reach: int, sweeps: int) -> None:
         """Untangling rounds around folded cells (``reach`` rings), then the fold repair and
         the sliding apart of pinched side points."""
+        left = None
         if untangle_rounds:
-            untangle(
+            left = untangle(
                 state,
                 rounds=untangle_rounds,
                 sweeps=sweeps,
@@ -596,7 +597,8 @@ def resample_patch(
                 guard=guard,
             )
         if repair:
-            _repair(state, pmap)
+            if left != 0:  # (with no folded cell left the repair has nothing to do)
+                _repair(state, pmap)
             unpinch_side_points(state)
 
     def run(balanced: bool, fairness: float, max_iter: int, polish: int, progress) -> SpringResult:
