@@ -324,16 +324,21 @@ def _line_cvs(grid: SpringMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The largest arc-length coefficient of variation along each grid column (nv,) and
     row (nu,) over its sections, and the cell aspect ratios (nu - 1, nv - 1), as
     :func:`meshfit.springs.spring_metrics` counts them."""
-    nu, nv = grid.shape
-    cv, aspect = spacing(grid.xyz, grid.u_lines, grid.v_lines)
-    n_u = (len(grid.u_lines) + 1) * nv  # the u pieces come first, nv per section
+    return _grid_cvs(grid.xyz, grid.u_lines, grid.v_lines)
+
+
+def _grid_cvs(X: np.ndarray, u_lines: np.ndarray, v_lines: np.ndarray):
+    """`_line_cvs` of the grid points ``X (nu, nv, 3)`` with these feature lines."""
+    nu, nv = X.shape[:2]
+    cv, aspect = spacing(X, u_lines, v_lines)
+    n_u = (len(u_lines) + 1) * nv  # the u pieces come first, nv per section
     return cv[:n_u].reshape(-1, nv).max(axis=0), cv[n_u:].reshape(-1, nu).max(axis=0), aspect
 
 
 def _shape(state: State) -> tuple[int, float, np.ndarray, np.ndarray]:
     """Folded cells and median cell aspect ratio of the current level, and the columns' and
     rows' arc-length coefficients of variation (`_line_cvs`)."""
-    col, row, aspect = _line_cvs(state.snapshot())
+    col, row, aspect = _grid_cvs(state.xyz(), state.u_lines, state.v_lines)
     return int(folded_cells(state).sum()), float(np.median(aspect)), col, row
 
 

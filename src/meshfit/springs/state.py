@@ -77,6 +77,7 @@ class State:
     _side_cache: dict = field(default_factory=dict)
     _slid: dict = field(default_factory=dict)
     _pinch_tried: dict = field(default_factory=dict)
+    _kind_cache: dict = field(default_factory=dict)
 
     def side_positions(self, name: str) -> NDArray[np.float64]:
         """Arc-length positions of the grid points along side ``name`` at this level."""
@@ -137,13 +138,23 @@ class State:
         return np.array(list(itertools.accumulate(self.counts_v[:-1])), dtype=np.int64)
 
     def kind(self) -> NDArray[np.uint8]:
-        k = np.full((self.nu, self.nv), FREE, dtype=np.uint8)
-        ul, vl = self.u_lines, self.v_lines
-        k[ul, :] = CURVE
-        k[:, vl] = CURVE
-        k[np.ix_(ul, vl)] = ANCHOR
-        k[0, :] = k[-1, :] = k[:, 0] = k[:, -1] = BOUNDARY
-        return k
+        """(nu, nv) uint8: each grid point's kind at this level (a new array each call)."""
+        key = (tuple(self.counts_u), tuple(self.counts_v))
+        k = self._kind_cache.get(key)
+        if k is None:
+            k = np.full((self.nu, self.nv), FREE, dtype=np.uint8)
+            ul, vl = self.u_lines, self.v_lines
+            k[ul, :] = CURVE
+            k[:, vl] = CURVE
+            k[np.ix_(ul, vl)] = ANCHOR
+            k[0, :] = k[-1, :] = k[:, 0] = k[:, -1] = BOUNDARY
+            self._kind_cache[key] = k
+        return k.copy()
+
+    def xyz(self) -> NDArray[np.float64]:
+        """(nu, nv, 3) positions of the grid points now (as :meth:`snapshot` gives them)."""
+        V, F = self.mesh.vertices, self.mesh.faces
+        return np.einsum("ij,ijk->ik", self.bary, V[F[self.face]]).reshape(self.nu, self.nv, 3)
 
     def boundary_points(self) -> dict[str, SurfacePoints]:
         """Static resampling of the four sides at this level (sec. 5.6)."""
