@@ -212,3 +212,18 @@ def test_errors_hierarchy():
     assert len(kinds) == 9  # one distinct kind per validation error
     e = errors.NonManifoldEdgeError("x", first=(1, 2), count=3)
     assert (e.first, e.count, str(e)) == ((1, 2), 3, "x")
+
+
+def test_surface_points_owned_arrays_become_read_only():
+    face = np.array([0, 2], dtype=np.int64)
+    bary = np.array([[1.0, 0.0, 0.0], [0.2, 0.3, 0.5]])
+    pts = SurfacePoints.owned(face, bary)
+    assert len(pts) == 2 and np.array_equal(pts.face, [0, 2])
+    assert np.shares_memory(pts.bary, bary)  # handed over, not copied
+    for a in (pts.face, pts.bary, face, bary):
+        assert not a.flags.writeable
+    with pytest.raises(ValueError):
+        pts.face.flags.writeable = True
+    bad = np.array([[1.0, 0.0, 0.0], [np.nan, 0.5, 0.5]])
+    with pytest.raises(errors.InputError, match="not finite at point 1"):
+        SurfacePoints.owned(np.array([0, 1], dtype=np.int64), bad)

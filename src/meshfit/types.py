@@ -61,6 +61,21 @@ class SurfacePoints:
         object.__setattr__(self, "face", _readonly(face.astype(np.int64, copy=False)))
         object.__setattr__(self, "bary", _readonly(bary))
 
+    @classmethod
+    def owned(cls, face: NDArray[np.int64], bary: NDArray[np.float64]) -> SurfacePoints:
+        """Points from arrays the caller hands over and keeps no use of (contiguous int64
+        ``(n,)`` and float64 ``(n, 3)``, e.g. fresh from a kernel): made read-only in place,
+        without the constructor's shape checks and copies (for hot internal paths); the
+        coordinates must still be finite."""
+        if not np.isfinite(bary).all():
+            bad = int(np.flatnonzero(~np.isfinite(bary).all(axis=1))[0])
+            raise InputError(f"SurfacePoints.bary is not finite at point {bad}")
+        obj = object.__new__(cls)
+        for name, a in (("face", face), ("bary", bary)):
+            a.flags.writeable = False
+            object.__setattr__(obj, name, a.view())
+        return obj
+
     def __len__(self) -> int:
         return int(self.face.shape[0])
 

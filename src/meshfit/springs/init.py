@@ -65,7 +65,7 @@ def chain_points(
     rows = np.arange(len(positions))
     bary[rows, ea[k]] = 1.0 - t
     bary[rows, eb[k]] += t
-    return SurfacePoints(face, bary)
+    return SurfacePoints.owned(np.ascontiguousarray(face, dtype=np.int64), bary)
 
 
 def project_on_chain(

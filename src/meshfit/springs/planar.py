@@ -53,7 +53,7 @@ class PlanarMap:
         square (a point on an edge goes to either face)."""
         q = np.ascontiguousarray(q, dtype=np.float64)
         face, bary = _k.locate_uv(self.uv, self.mesh.faces, *self._buckets, self._g, q)
-        return SurfacePoints(face, bary)
+        return SurfacePoints.owned(face, bary)
 
 
 def _interior_system(

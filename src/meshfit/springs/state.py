@@ -202,6 +202,6 @@ class State:
                 self.bary[idx[cols, row]] = pts.bary
 
     def snapshot(self) -> SpringMesh:
-        sp = SurfacePoints(self.face.copy(), self.bary.copy())
+        sp = SurfacePoints.owned(self.face.astype(np.int64), self.bary.astype(np.float64))
         xyz = self.mesh.xyz(sp).reshape(self.nu, self.nv, 3)
         return SpringMesh(sp, self.kind(), self.level, self.patch, xyz, self.u_lines, self.v_lines)
