@@ -119,6 +119,22 @@ def spring_force(X, nv, p, w_arc, w_fair, nrm, tangent, out, D, arc):
 
 
 @njit(cache=True, nogil=True, fastmath=False)
+def _in_plane(n, step, u):
+    """`meshfit._kernels.walk._start_direction` with the face's unit normal ``n`` (3,)
+    given: ``step`` projected onto the plane, unit direction into ``u``, returns length."""
+    d = step[0] * n[0] + step[1] * n[1] + step[2] * n[2]
+    u[0] = step[0] - d * n[0]
+    u[1] = step[1] - d * n[1]
+    u[2] = step[2] - d * n[2]
+    length = np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+    if length > 0.0:
+        u[0] /= length
+        u[1] /= length
+        u[2] /= length
+    return length
+
+
+@njit(cache=True, nogil=True, fastmath=False)
 def _point_normals(V, F, face):
     """Unit normal of each grid point's face: ``(n, 3)`` float64."""
     N = np.empty((face.shape[0], 3))
@@ -244,10 +260,11 @@ def relax_sweeps(
             p = q if forward else n - 1 - q
             if not movable[p]:
                 continue
-            if tangent:
-                _face_normal(V, F, face[p], nrm)
+            # N[p] is the unit normal of face[p] (kept with every move): no recomputation
+            for c in range(3):
+                nrm[c] = N[p, c]
             h = spring_force(X, nv, p, w_arc, w_fair, nrm, tangent, step, dvec, arc)
-            total = _start_direction(V, F, face[p], step, u)
+            total = _in_plane(nrm, step, u)
             if total <= 0.0:
                 continue
             turn = u[0] * prev[p, 0] + u[1] * prev[p, 1] + u[2] * prev[p, 2]
@@ -275,7 +292,7 @@ def relax_sweeps(
                     face[p] = f0
                     total = (
                         0.5
-                        * _start_direction(V, F, f0, step, u)
+                        * _in_plane(sn, step, u)
                         * omega
                         * alpha[p]
                         / (2.0 ** (attempt - 1))
@@ -295,9 +312,10 @@ def relax_sweeps(
                         + bary[p, 1] * V[F[f, 1], c]
                         + bary[p, 2] * V[F[f, 2], c]
                     )
-                _face_normal(V, F, f, nrm2)
-                for c in range(3):
-                    N[p, c] = nrm2[c]
+                if f != f0:
+                    _face_normal(V, F, f, nrm2)
+                    for c in range(3):
+                        N[p, c] = nrm2[c]
                 if not guard:
                     break
                 after = _bad_around(X, N, nu, nv, p)
