@@ -312,3 +312,17 @@ def chord_positions(xyz, arc, breaks, counts, rounds):
         step = 0.5 * (cb - ca) * span / np.maximum(ca + cb, 1e-300)
         pos[k] = np.clip(pos[k] + 0.5 * step, pos[k - 1], pos[k + 1])
     return pos
+
+
+def chain_points(arc, ef, ea, eb, positions):
+    """Face points at arc lengths along a boundary chain (numpy, all at once)."""
+    positions = np.clip(np.asarray(positions, dtype=np.float64), 0.0, arc[-1])
+    k = np.clip(np.searchsorted(arc, positions, side="right") - 1, 0, len(arc) - 2)
+    seg = arc[k + 1] - arc[k]
+    t = np.where(seg > 0, (positions - arc[k]) / np.where(seg > 0, seg, 1.0), 0.0)
+    t = np.clip(t, 0.0, 1.0)
+    bary = np.zeros((len(positions), 3))
+    rows = np.arange(len(positions))
+    bary[rows, ea[k]] = 1.0 - t
+    bary[rows, eb[k]] += t
+    return ef[k], bary

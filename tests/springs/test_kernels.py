@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from numpy.testing import assert_allclose
+from numpy.testing import assert_allclose, assert_array_equal
 
 from meshfit import tol
 from meshfit._kernels import springs as K
@@ -291,3 +291,20 @@ def test_pinched_side_points_slide_apart():
     before = state.face.copy(), state.bary.copy()
     assert unpinch_side_points(state) == 0
     assert (state.face == before[0]).all() and (state.bary == before[1]).all()
+
+
+def test_chain_points_matches_oracle(rng):
+    k = 12
+    arc = np.concatenate([[0.0], np.cumsum(rng.uniform(0.0, 1.0, k - 1))])
+    arc[5] = arc[4]  # a zero-length edge
+    ef = rng.integers(0, 50, k - 1)
+    ea = rng.integers(0, 3, k - 1)
+    eb = (ea + rng.integers(1, 3, k - 1)) % 3
+    positions = np.concatenate(
+        [rng.uniform(-0.5, arc[-1] + 0.5, 200), arc, [arc[-1], 0.0, -1.0, arc[-1] + 1.0]]
+    )
+    face, bary = K.chain_points(arc, ef, ea, eb, positions)
+    want_face, want_bary = ref.chain_points(arc, ef, ea, eb, positions)
+    assert_array_equal(face, want_face)
+    assert_array_equal(bary, want_bary)
+    assert_allclose(bary.sum(axis=1), 1.0, rtol=0, atol=1e-15)

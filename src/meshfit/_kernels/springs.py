@@ -119,6 +119,30 @@ def spring_force(X, nv, p, w_arc, w_fair, nrm, tangent, out, D, arc):
 
 
 @njit(cache=True, nogil=True, fastmath=False)
+def chain_points(arc, ef, ea, eb, positions):
+    """Face points at arc-length ``positions (m,) f8`` along a boundary vertex chain with
+    cumulative lengths ``arc (k,) f8`` (k >= 2), whose edge ``i`` lies in face ``ef[i]`` at
+    vertex slots ``ea[i]``, ``eb[i]`` (``(k - 1,) i8`` each): ``(face (m,) i8, bary (m, 3)
+    f8)``. Positions are clamped to the chain; a point at a vertex shared by two edges goes
+    to the later edge. Kernel of `meshfit.springs.init.chain_points`."""
+    m = positions.shape[0]
+    k_max = arc.shape[0] - 2
+    face = np.empty(m, dtype=np.int64)
+    bary = np.zeros((m, 3))
+    for i in range(m):
+        x = min(max(positions[i], 0.0), arc[-1])
+        k = np.searchsorted(arc, x, side="right") - 1
+        k = min(max(k, 0), k_max)
+        seg = arc[k + 1] - arc[k]
+        t = (x - arc[k]) / seg if seg > 0 else 0.0
+        t = min(max(t, 0.0), 1.0)
+        face[i] = ef[k]
+        bary[i, ea[k]] = 1.0 - t
+        bary[i, eb[k]] += t
+    return face, bary
+
+
+@njit(cache=True, nogil=True, fastmath=False)
 def _in_plane(n, step, u):
     """`meshfit._kernels.walk._start_direction` with the face's unit normal ``n`` (3,)
     given: ``step`` projected onto the plane, unit direction into ``u``, returns length."""
@@ -290,13 +314,7 @@ def relax_sweeps(
                         X[p, c] = sx[c]
                         N[p, c] = sn[c]
                     face[p] = f0
-                    total = (
-                        0.5
-                        * _in_plane(sn, step, u)
-                        * omega
-                        * alpha[p]
-                        / (2.0 ** (attempt - 1))
-                    )
+                    total = 0.5 * _in_plane(sn, step, u) * omega * alpha[p] / (2.0 ** (attempt - 1))
                 f, moved = walk_inside(
                     V, F, FN, f0, bary[p], u, total, max_faces, bary_eps, 6, s0, s1
                 )

@@ -54,18 +54,17 @@ def chain_points(
     """Face points at arc-length ``positions`` (m,) along a vertex chain (on its edges)."""
     if edge_faces is None:
         edge_faces = chain_edge_faces(mesh, [chain])[0]
-    ef, ea, eb = edge_faces
-    positions = np.clip(np.asarray(positions, dtype=np.float64), 0.0, arc[-1])
-    k = np.clip(np.searchsorted(arc, positions, side="right") - 1, 0, len(chain) - 2)
-    seg = arc[k + 1] - arc[k]
-    t = np.where(seg > 0, (positions - arc[k]) / np.where(seg > 0, seg, 1.0), 0.0)
-    t = np.clip(t, 0.0, 1.0)
-    face = ef[k]
-    bary = np.zeros((len(positions), 3))
-    rows = np.arange(len(positions))
-    bary[rows, ea[k]] = 1.0 - t
-    bary[rows, eb[k]] += t
-    return SurfacePoints.owned(np.ascontiguousarray(face, dtype=np.int64), bary)
+    from meshfit._kernels.springs import chain_points as _chain_points
+
+    ef, ea, eb = (np.ascontiguousarray(a, dtype=np.int64) for a in edge_faces)
+    face, bary = _chain_points(
+        np.ascontiguousarray(arc, dtype=np.float64),
+        ef,
+        ea,
+        eb,
+        np.ascontiguousarray(positions, dtype=np.float64).reshape(-1),
+    )
+    return SurfacePoints.owned(face, bary)
 
 
 def project_on_chain(
