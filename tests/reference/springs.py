@@ -326,3 +326,29 @@ def chain_points(arc, ef, ea, eb, positions):
     bary[rows, ea[k]] = 1.0 - t
     bary[rows, eb[k]] += t
     return ef[k], bary
+
+
+def spacing(X, u_lines=(), v_lines=()):
+    """Coefficients of variation of the spacing per iso-curve piece (u pieces first) and the
+    cells' aspect ratios of a grid X (nu, nv, 3), with numpy."""
+    nu, nv = X.shape[:2]
+
+    def pieces(n, lines):
+        ends = [0, *[int(x) for x in lines], n - 1]
+        return [(ends[k], ends[k + 1]) for k in range(len(ends) - 1)]
+
+    du = np.linalg.norm(np.diff(X, axis=0), axis=2)
+    dv = np.linalg.norm(np.diff(X, axis=1), axis=2)
+    cvs = []
+    for a, b in pieces(nu, u_lines):
+        m = du[a:b].mean(axis=0)
+        cvs.append(np.where(m > 0, du[a:b].std(axis=0) / np.where(m > 0, m, 1.0), 0.0))
+    for a, b in pieces(nv, v_lines):
+        m = dv[:, a:b].mean(axis=1)
+        cvs.append(np.where(m > 0, dv[:, a:b].std(axis=1) / np.where(m > 0, m, 1.0), 0.0))
+    a_len = 0.5 * (du[:, :-1] + du[:, 1:])
+    b_len = 0.5 * (dv[:-1, :] + dv[1:, :])
+    lo = np.minimum(a_len, b_len)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        aspect = np.maximum(a_len, b_len) / np.where(lo > 0, lo, np.nan)
+    return np.concatenate(cvs), np.where(np.isfinite(aspect), aspect, np.inf)

@@ -308,3 +308,19 @@ def test_chain_points_matches_oracle(rng):
     assert_array_equal(face, want_face)
     assert_array_equal(bary, want_bary)
     assert_allclose(bary.sum(axis=1), 1.0, rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize(("u_lines", "v_lines"), [((), ()), ((3,), (2, 5)), ((1, 4), ())])
+def test_grid_spacing_matches_oracle(rng, u_lines, v_lines):
+    from meshfit.springs.metrics import spacing
+
+    X = rng.normal(size=(7, 9, 3))
+    X[2, 3] = X[3, 3]  # a zero spacing: an infinite aspect ratio beside it
+    X[:, 8] = X[0, 8]  # a column of points in one place: zero mean spacing, variation 0
+    cv, aspect = spacing(X, u_lines, v_lines)
+    want_cv, want_aspect = ref.spacing(X, u_lines, v_lines)
+    assert cv.shape == want_cv.shape and aspect.shape == want_aspect.shape
+    assert_allclose(cv, want_cv, rtol=1e-12, atol=1e-15)
+    assert_allclose(aspect, want_aspect, rtol=1e-12)
+    assert np.isinf(aspect).any()
+    assert cv[8] == 0.0  # the first u piece's column 8

@@ -143,6 +143,76 @@ def chain_points(arc, ef, ea, eb, positions):
 
 
 @njit(cache=True, nogil=True, fastmath=False)
+def grid_spacing(X, ends_u, ends_v):
+    """Spacing figures of a grid ``X (nu, nv, 3) f8``: the coefficient of variation (std
+    over mean, 0 for a zero mean) of the point spacing along each iso-curve piece between
+    consecutive ``ends_u`` (row ends along u, ``(su + 1,) i8``: 0, feature rows, nu - 1),
+    per piece ``nv`` values, then those between ``ends_v``, per piece ``nu`` values; and each
+    cell's aspect ratio ``(nu - 1, nv - 1)`` (longer over shorter mean side, inf where the
+    shorter is 0). Kernel of `meshfit.springs.metrics.spacing`."""
+    nu, nv = X.shape[0], X.shape[1]
+    du = np.empty((nu - 1, nv))
+    dv = np.empty((nu, nv - 1))
+    for i in range(nu):
+        for j in range(nv):
+            if i + 1 < nu:
+                a = X[i + 1, j, 0] - X[i, j, 0]
+                b = X[i + 1, j, 1] - X[i, j, 1]
+                c = X[i + 1, j, 2] - X[i, j, 2]
+                du[i, j] = np.sqrt(a * a + b * b + c * c)
+            if j + 1 < nv:
+                a = X[i, j + 1, 0] - X[i, j, 0]
+                b = X[i, j + 1, 1] - X[i, j, 1]
+                c = X[i, j + 1, 2] - X[i, j, 2]
+                dv[i, j] = np.sqrt(a * a + b * b + c * c)
+    nsu = ends_u.shape[0] - 1
+    nsv = ends_v.shape[0] - 1
+    cv = np.empty(nsu * nv + nsv * nu)
+    at = 0
+    for s in range(nsu):
+        lo, hi = ends_u[s], ends_u[s + 1]
+        for j in range(nv):
+            if hi <= lo:  # an empty piece (repeated feature line)
+                cv[at] = 0.0
+                at += 1
+                continue
+            m = 0.0
+            for i in range(lo, hi):
+                m += du[i, j]
+            m /= hi - lo
+            var = 0.0
+            for i in range(lo, hi):
+                var += (du[i, j] - m) ** 2
+            cv[at] = np.sqrt(var / (hi - lo)) / m if m > 0 else 0.0
+            at += 1
+    for s in range(nsv):
+        lo, hi = ends_v[s], ends_v[s + 1]
+        for i in range(nu):
+            if hi <= lo:
+                cv[at] = 0.0
+                at += 1
+                continue
+            m = 0.0
+            for j in range(lo, hi):
+                m += dv[i, j]
+            m /= hi - lo
+            var = 0.0
+            for j in range(lo, hi):
+                var += (dv[i, j] - m) ** 2
+            cv[at] = np.sqrt(var / (hi - lo)) / m if m > 0 else 0.0
+            at += 1
+    aspect = np.empty((nu - 1, nv - 1))
+    for i in range(nu - 1):
+        for j in range(nv - 1):
+            a = 0.5 * (du[i, j] + du[i, j + 1])
+            b = 0.5 * (dv[i, j] + dv[i + 1, j])
+            lo_ = min(a, b)
+            r = max(a, b) / lo_ if lo_ > 0 else np.inf
+            aspect[i, j] = r if np.isfinite(r) else np.inf
+    return cv, aspect
+
+
+@njit(cache=True, nogil=True, fastmath=False)
 def _in_plane(n, step, u):
     """`meshfit._kernels.walk._start_direction` with the face's unit normal ``n`` (3,)
     given: ``step`` projected onto the plane, unit direction into ``u``, returns length."""

@@ -16,38 +16,18 @@ def _cv(d: NDArray[np.float64]) -> float:
     return float(d.std() / m) if m > 0 else 0.0
 
 
-def _pieces(n: int, lines: NDArray[np.int64]) -> list[tuple[int, int]]:
-    ends = [0, *[int(x) for x in lines], n - 1]
-    return [(ends[k], ends[k + 1]) for k in range(len(ends) - 1)]
-
-
 def spacing(
     X: NDArray[np.float64], u_lines: ArrayLike = (), v_lines: ArrayLike = ()
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Spacing figures of :func:`grid_metrics` for a grid ``X (nu, nv, 3)``: the coefficient
     of variation of the point spacing along each iso-curve piece inside one section
     (flattened, u pieces first), and each cell's aspect ratio ``(nu - 1, nv - 1)``."""
+    from meshfit._kernels.springs import grid_spacing
+
     nu, nv = X.shape[:2]
-    u_lines = np.asarray(u_lines, dtype=np.int64)
-    v_lines = np.asarray(v_lines, dtype=np.int64)
-    du = np.linalg.norm(np.diff(X, axis=0), axis=2)  # (nu-1, nv) spacing along u
-    dv = np.linalg.norm(np.diff(X, axis=1), axis=2)  # (nu, nv-1)
-    cvs = []
-    for a, b in _pieces(nu, u_lines):
-        seg = du[a:b]
-        m = seg.mean(axis=0)
-        cvs.append(np.where(m > 0, seg.std(axis=0) / np.where(m > 0, m, 1.0), 0.0))
-    for a, b in _pieces(nv, v_lines):
-        seg = dv[:, a:b]
-        m = seg.mean(axis=1)
-        cvs.append(np.where(m > 0, seg.std(axis=1) / np.where(m > 0, m, 1.0), 0.0))
-    cv = np.concatenate(cvs)
-    a_len = 0.5 * (du[:, :-1] + du[:, 1:])
-    b_len = 0.5 * (dv[:-1, :] + dv[1:, :])
-    lo = np.minimum(a_len, b_len)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        aspect = np.maximum(a_len, b_len) / np.where(lo > 0, lo, np.nan)
-    return cv, np.where(np.isfinite(aspect), aspect, np.inf)
+    ends_u = np.array([0, *np.asarray(u_lines, dtype=np.int64).tolist(), nu - 1], dtype=np.int64)
+    ends_v = np.array([0, *np.asarray(v_lines, dtype=np.int64).tolist(), nv - 1], dtype=np.int64)
+    return grid_spacing(np.ascontiguousarray(X, dtype=np.float64), ends_u, ends_v)
 
 
 def grid_metrics(
