@@ -315,7 +315,7 @@ def test_grid_spacing_matches_oracle(rng, u_lines, v_lines):
     from meshfit.springs.metrics import spacing
 
     X = rng.normal(size=(7, 9, 3))
-    X[2, 3] = X[3, 3]  # a zero spacing: an infinite aspect ratio beside it
+    X[3, 3:5] = X[2, 3:5]  # a cell side of zero length: an infinite aspect ratio
     X[:, 8] = X[0, 8]  # a column of points in one place: zero mean spacing, variation 0
     cv, aspect = spacing(X, u_lines, v_lines)
     want_cv, want_aspect = ref.spacing(X, u_lines, v_lines)
