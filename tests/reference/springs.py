@@ -352,3 +352,15 @@ def spacing(X, u_lines=(), v_lines=()):
     with np.errstate(invalid="ignore", divide="ignore"):
         aspect = np.maximum(a_len, b_len) / np.where(lo > 0, lo, np.nan)
     return np.concatenate(cvs), np.where(np.isfinite(aspect), aspect, np.inf)
+
+
+def pinched_side_points(V, F, face, bary, nu, nv, ratio):
+    """(side, place) of the side points whose shorter chord to a neighbour on their side is
+    below ratio times the side's median chord (sides bottom, top, left, right)."""
+    X = np.einsum("ij,ijk->ik", bary, V[F[face]]).reshape(nu, nv, 3)
+    out = []
+    for side, pts in enumerate((X[:, 0], X[:, -1], X[0, :], X[-1, :])):
+        d = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        short = np.minimum(d[:-1], d[1:]) < ratio * np.median(d)
+        out += [(side, int(k) + 1) for k in np.flatnonzero(short)]
+    return np.array(out, dtype=np.int64).reshape(-1, 2)

@@ -324,3 +324,18 @@ def test_grid_spacing_matches_oracle(rng, u_lines, v_lines):
     assert_allclose(aspect, want_aspect, rtol=1e-12)
     assert np.isinf(aspect).any()
     assert cv[8] == 0.0  # the first u piece's column 8
+
+
+@pytest.mark.parametrize("ratio", [0.0, 0.4, 0.9, 2.0])
+def test_pinched_side_points_match_oracle(patches, rng, ratio):
+    from meshfit.surface import random_surface_points
+
+    mesh = patches["spot"].mesh
+    nu, nv = 6, 9
+    pts = random_surface_points(mesh, nu * nv, rng)
+    args = (mesh.vertices, mesh.faces, np.ascontiguousarray(pts.face), np.array(pts.bary))
+    got = K.pinched_side_points(*args, nu, nv, ratio)
+    want = ref.pinched_side_points(*args, nu, nv, ratio)
+    assert_array_equal(got, want)
+    if ratio >= 2.0:  # the shortest chord of a side is below twice its median
+        assert len(got) > 0

@@ -213,6 +213,51 @@ def grid_spacing(X, ends_u, ends_v):
 
 
 @njit(cache=True, nogil=True, fastmath=False)
+def pinched_side_points(V, F, face, bary, nu, nv, ratio):
+    """Side points of a grid (face (nu nv,) i8, bary (nu nv, 3) f8, row-major) whose shorter
+    chord to a neighbouring side point is below ``ratio`` times the median chord of their
+    side: ``(m, 2) i8`` rows (side, place along it), sides in the order bottom (j = 0), top
+    (j = nv - 1), left (i = 0), right (i = nu - 1), places ascending. Kernel of
+    `meshfit.springs.relax.unpinch_side_points`."""
+    out = np.empty((2 * (nu + nv), 2), dtype=np.int64)
+    m = 0
+    for side in range(4):
+        n = nu if side < 2 else nv
+        x = np.empty((n, 3))
+        for k in range(n):
+            if side == 0:
+                g = k * nv
+            elif side == 1:
+                g = k * nv + nv - 1
+            elif side == 2:
+                g = k
+            else:
+                g = (nu - 1) * nv + k
+            f = face[g]
+            for c in range(3):
+                x[k, c] = (
+                    bary[g, 0] * V[F[f, 0], c]
+                    + bary[g, 1] * V[F[f, 1], c]
+                    + bary[g, 2] * V[F[f, 2], c]
+                )
+        d = np.empty(n - 1)
+        for k in range(n - 1):
+            a = x[k + 1, 0] - x[k, 0]
+            b = x[k + 1, 1] - x[k, 1]
+            c = x[k + 1, 2] - x[k, 2]
+            d[k] = np.sqrt(a * a + b * b + c * c)
+        srt = np.sort(d)
+        h = srt.size // 2
+        med = srt[h] if srt.size % 2 else (srt[h - 1] + srt[h]) / 2.0
+        for k in range(1, n - 1):
+            if min(d[k - 1], d[k]) < ratio * med:
+                out[m, 0] = side
+                out[m, 1] = k
+                m += 1
+    return out[:m]
+
+
+@njit(cache=True, nogil=True, fastmath=False)
 def _in_plane(n, step, u):
     """`meshfit._kernels.walk._start_direction` with the face's unit normal ``n`` (3,)
     given: ``step`` projected onto the plane, unit direction into ``u``, returns length."""

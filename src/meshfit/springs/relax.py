@@ -326,37 +326,27 @@ def unpinch_side_points(state: State, ratio: float | None = None) -> int:
        patch's sides) and sec. 5.1 (arc-length distortion along iso-curves).
     """
     ratio = PINCH_RATIO if ratio is None else float(ratio)
-    lines = _side_lines(np.arange(state.nu * state.nv).reshape(state.nu, state.nv))
+    mesh = state.mesh
     # a slide moves points of its own side only: every side's chords can be read first
-    flat = np.concatenate(list(lines.values()))
-    X = _xyz(state.mesh, state.face[flat], state.bary[flat])
-    slots = None  # built on the first pinched point (most levels have none)
+    pinched = _k.pinched_side_points(
+        mesh.vertices, mesh.faces, state.face, state.bary, state.nu, state.nv, ratio
+    )
+    if not len(pinched):
+        return 0
+    idx, movable, ends = _side_slots(state)
+    lines = _side_lines(idx)
+    names = list(lines)
     moved = 0
     tried = state.pinch_tried()
-    at = 0
-    for name, pts in lines.items():
-        d = np.linalg.norm(np.diff(X[at : at + len(pts)], axis=0), axis=1)
-        at += len(pts)
-        short = np.minimum(d[:-1], d[1:]) < ratio * _median(d)
-        for k in np.flatnonzero(short) + 1:
-            if (name, int(k)) in tried:
-                continue
-            if slots is None:
-                slots = _side_slots(state)
-            idx, movable, ends = slots
-            if int(pts[k]) in movable:
-                ok = _slide(state, idx, ends, name, int(k), pinched=True)[2]
-                moved += ok
-                if not ok:  # not again on this level
-                    tried.add((name, int(k)))
+    for side, k in pinched.tolist():
+        name = names[side]
+        if (name, k) in tried or int(lines[name][k]) not in movable:
+            continue
+        ok = _slide(state, idx, ends, name, k, pinched=True)[2]
+        moved += ok
+        if not ok:  # not again on this level
+            tried.add((name, k))
     return moved
-
-
-def _median(d: np.ndarray) -> float:
-    """``np.median`` of a short 1-d array (the same value, without its overhead)."""
-    s = np.sort(d)
-    n = s.size
-    return float(s[n // 2]) if n % 2 else float((s[n // 2 - 1] + s[n // 2]) / 2.0)
 
 
 def _side_lines(idx: np.ndarray) -> dict[str, np.ndarray]:
