@@ -364,3 +364,13 @@ def pinched_side_points(V, F, face, bary, nu, nv, ratio):
         short = np.minimum(d[:-1], d[1:]) < ratio * np.median(d)
         out += [(side, int(k) + 1) for k in np.flatnonzero(short)]
     return np.array(out, dtype=np.int64).reshape(-1, 2)
+
+
+def red_black_mean(uv, ii, jj, sweeps):
+    """Red-black Gauss-Seidel sweeps of the four-neighbour mean at the listed points."""
+    uv = uv.copy()
+    red = (ii + jj) % 2 == 0
+    for _ in range(sweeps):
+        for a, b in ((ii[red], jj[red]), (ii[~red], jj[~red])):
+            uv[a, b] = 0.25 * (uv[a - 1, b] + uv[a + 1, b] + uv[a, b - 1] + uv[a, b + 1])
+    return uv

@@ -339,3 +339,16 @@ def test_pinched_side_points_match_oracle(patches, rng, ratio):
     assert_array_equal(got, want)
     if ratio >= 2.0:  # the shortest chord of a side is below twice its median
         assert len(got) > 0
+
+
+def test_red_black_mean_matches_oracle(rng):
+    uv = rng.uniform(size=(9, 11, 2))
+    win = np.zeros((9, 11), dtype=bool)
+    win[2:6, 3:9] = True
+    win[7, 1] = True
+    ii, jj = np.nonzero(win)
+    want = ref.red_black_mean(uv, ii, jj, 7)
+    got = uv.copy()
+    K.red_black_mean(got, ii.astype(np.int64), jj.astype(np.int64), 7)
+    assert_array_equal(got, want)
+    assert not np.array_equal(got, uv)

@@ -258,6 +258,25 @@ def pinched_side_points(V, F, face, bary, nu, nv, ratio):
 
 
 @njit(cache=True, nogil=True, fastmath=False)
+def red_black_mean(uv, ii, jj, sweeps):
+    """``sweeps`` red-black Gauss-Seidel sweeps on the grid parameters ``uv (nu, nv, 2) f8``
+    (in place): each listed point ``(ii[k], jj[k])`` (interior) takes the mean of its four
+    neighbours, the points with even ``i + j`` first, then the odd ones. Kernel of
+    `meshfit.springs.relax.unfold_in_map`."""
+    for _ in range(sweeps):
+        for colour in range(2):
+            for k in range(ii.shape[0]):
+                i = ii[k]
+                j = jj[k]
+                if (i + j) % 2 != colour:
+                    continue
+                for c in range(2):
+                    uv[i, j, c] = 0.25 * (
+                        uv[i - 1, j, c] + uv[i + 1, j, c] + uv[i, j - 1, c] + uv[i, j + 1, c]
+                    )
+
+
+@njit(cache=True, nogil=True, fastmath=False)
 def _in_plane(n, step, u):
     """`meshfit._kernels.walk._start_direction` with the face's unit normal ``n`` (3,)
     given: ``step`` projected onto the plane, unit direction into ``u``, returns length."""

@@ -500,13 +500,10 @@ def unfold_in_map(state: State, pmap, *, reach: int = 2, sweeps: int = 40) -> in
         return int(folds.sum())
     nu, nv = state.nu, state.nv
     win = _near_folds(state, folds, reach)
-    uv = pmap.uv_of(state.face, state.bary).reshape(nu, nv, 2)
+    uv = np.ascontiguousarray(pmap.uv_of(state.face, state.bary).reshape(nu, nv, 2))
     ii, jj = np.nonzero(win)
-    red = (ii + jj) % 2 == 0
-    colours = [(ii[red], jj[red]), (ii[~red], jj[~red])]
-    for _ in range(sweeps):
-        for a, b in colours:  # red-black Gauss-Seidel: each colour's neighbours are the other's
-            uv[a, b] = 0.25 * (uv[a - 1, b] + uv[a + 1, b] + uv[a, b - 1] + uv[a, b + 1])
+    # red-black Gauss-Seidel: each colour's neighbours are the other colour's
+    _k.red_black_mean(uv, ii.astype(np.int64), jj.astype(np.int64), int(sweeps))
     flat = (ii * nv + jj).astype(np.int64)
     old_face, old_bary = state.face[flat].copy(), state.bary[flat].copy()
     pts = pmap.locate(uv[ii, jj])
