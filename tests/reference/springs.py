@@ -374,3 +374,15 @@ def red_black_mean(uv, ii, jj, sweeps):
         for a, b in ((ii[red], jj[red]), (ii[~red], jj[~red])):
             uv[a, b] = 0.25 * (uv[a - 1, b] + uv[a + 1, b] + uv[a, b - 1] + uv[a, b + 1])
     return uv
+
+
+def line_spacing(V, F, face, bary, nu, nv, u_lines, v_lines):
+    """Largest spacing CV per grid column and row over its sections, median aspect ratio."""
+    X = np.einsum("ij,ijk->ik", bary, V[F[face]]).reshape(nu, nv, 3)
+    cv, aspect = spacing(X, u_lines, v_lines)
+    n_u = (len(u_lines) + 1) * nv
+    return (
+        cv[:n_u].reshape(-1, nv).max(axis=0),
+        cv[n_u:].reshape(-1, nu).max(axis=0),
+        np.median(aspect),
+    )

@@ -352,3 +352,20 @@ def test_red_black_mean_matches_oracle(rng):
     K.red_black_mean(got, ii.astype(np.int64), jj.astype(np.int64), 7)
     assert_array_equal(got, want)
     assert not np.array_equal(got, uv)
+
+
+@pytest.mark.parametrize(("u_lines", "v_lines"), [((), ()), ((2,), (3, 5))])
+def test_line_spacing_matches_oracle(patches, rng, u_lines, v_lines):
+    from meshfit.surface import random_surface_points
+
+    mesh = patches["spot"].mesh
+    nu, nv = 5, 8
+    pts = random_surface_points(mesh, nu * nv, rng)
+    args = (mesh.vertices, mesh.faces, np.ascontiguousarray(pts.face), np.array(pts.bary), nu, nv)
+    ends_u = np.array([0, *u_lines, nu - 1], dtype=np.int64)
+    ends_v = np.array([0, *v_lines, nv - 1], dtype=np.int64)
+    col, row, med = K.line_spacing(*args, ends_u, ends_v)
+    want_col, want_row, want_med = ref.line_spacing(*args, u_lines, v_lines)
+    assert_allclose(col, want_col, rtol=1e-12)
+    assert_allclose(row, want_row, rtol=1e-12)
+    assert med == pytest.approx(want_med, rel=1e-12)

@@ -277,6 +277,27 @@ def red_black_mean(uv, ii, jj, sweeps):
 
 
 @njit(cache=True, nogil=True, fastmath=False)
+def line_spacing(V, F, face, bary, nu, nv, ends_u, ends_v):
+    """The largest arc-length coefficient of variation along each grid column ``(nv,)``
+    and row ``(nu,)`` over its sections, and the median cell aspect ratio, of the grid of
+    face points (face (nu nv,) i8, bary (nu nv, 3) f8, row-major; `grid_spacing`'s
+    figures). Kernel of `meshfit.springs.resample._shape`."""
+    X = grid_xyz(V, F, face, bary).reshape((nu, nv, 3))
+    cv, aspect = grid_spacing(X, ends_u, ends_v)
+    col = np.full(nv, -np.inf)
+    row = np.full(nu, -np.inf)
+    nsu = ends_u.shape[0] - 1
+    for s in range(nsu):
+        for j in range(nv):
+            col[j] = max(col[j], cv[s * nv + j])
+    at = nsu * nv
+    for s in range(ends_v.shape[0] - 1):
+        for i in range(nu):
+            row[i] = max(row[i], cv[at + s * nu + i])
+    return col, row, np.median(aspect)
+
+
+@njit(cache=True, nogil=True, fastmath=False)
 def _in_plane(n, step, u):
     """`meshfit._kernels.walk._start_direction` with the face's unit normal ``n`` (3,)
     given: ``step`` projected onto the plane, unit direction into ``u``, returns length."""

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from meshfit import tol
+from meshfit._kernels import springs as _k
 from meshfit.errors import InputError
 from meshfit.mesh import Mesh
 from meshfit.springs.features import FeatureLine, Sides, intersect_lines, prepare_features
@@ -338,8 +339,18 @@ def _grid_cvs(X: np.ndarray, u_lines: np.ndarray, v_lines: np.ndarray):
 def _shape(state: State) -> tuple[int, float, np.ndarray, np.ndarray]:
     """Folded cells and median cell aspect ratio of the current level, and the columns' and
     rows' arc-length coefficients of variation (`_line_cvs`)."""
-    col, row, aspect = _grid_cvs(state.xyz(), state.u_lines, state.v_lines)
-    return int(folded_cells(state).sum()), float(np.median(aspect)), col, row
+    mesh, nu, nv = state.mesh, state.nu, state.nv
+    col, row, aspect = _k.line_spacing(
+        mesh.vertices,
+        mesh.faces,
+        state.face,
+        state.bary,
+        nu,
+        nv,
+        np.array([0, *state.u_lines.tolist(), nu - 1], dtype=np.int64),
+        np.array([0, *state.v_lines.tolist(), nv - 1], dtype=np.int64),
+    )
+    return int(folded_cells(state).sum()), float(aspect), col, row
 
 
 def _uneven_lines(col: np.ndarray, row: np.ndarray, cv: float, reach: int) -> np.ndarray:

@@ -151,11 +151,6 @@ class State:
             self._kind_cache[key] = k
         return k.copy()
 
-    def xyz(self) -> NDArray[np.float64]:
-        """(nu, nv, 3) positions of the grid points now (as :meth:`snapshot` gives them)."""
-        V, F = self.mesh.vertices, self.mesh.faces
-        return np.einsum("ij,ijk->ik", self.bary, V[F[self.face]]).reshape(self.nu, self.nv, 3)
-
     def boundary_points(self) -> dict[str, SurfacePoints]:
         """Static resampling of the four sides at this level (sec. 5.6)."""
         out = {}
