@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from meshfit._kernels.walk import DONE, _face_normal, _start_direction, _walk_one
+from meshfit._kernels.walk import DONE, _face_normal, _in_plane, _start_direction, _walk_one
 
 #: fraction of the way to its face's centre that a point stuck on the boundary is moved
 NUDGE = 1e-2
@@ -143,6 +143,22 @@ def chain_points(arc, ef, ea, eb, positions):
 
 
 @njit(cache=True, nogil=True, fastmath=False)
+def _cv(x):
+    """Standard deviation over mean of the values ``x (n,)`` (0 for none or a zero mean)."""
+    n = x.shape[0]
+    if n == 0:  # an empty piece (a repeated feature line)
+        return 0.0
+    m = 0.0
+    for k in range(n):
+        m += x[k]
+    m /= n
+    var = 0.0
+    for k in range(n):
+        var += (x[k] - m) ** 2
+    return np.sqrt(var / n) / m if m > 0 else 0.0
+
+
+@njit(cache=True, nogil=True, fastmath=False)
 def grid_spacing(X, ends_u, ends_v):
     """Spacing figures of a grid ``X (nu, nv, 3) f8``: the coefficient of variation (std
     over mean, 0 for a zero mean) of the point spacing along each iso-curve piece between
@@ -172,34 +188,12 @@ def grid_spacing(X, ends_u, ends_v):
     for s in range(nsu):
         lo, hi = ends_u[s], ends_u[s + 1]
         for j in range(nv):
-            if hi <= lo:  # an empty piece (repeated feature line)
-                cv[at] = 0.0
-                at += 1
-                continue
-            m = 0.0
-            for i in range(lo, hi):
-                m += du[i, j]
-            m /= hi - lo
-            var = 0.0
-            for i in range(lo, hi):
-                var += (du[i, j] - m) ** 2
-            cv[at] = np.sqrt(var / (hi - lo)) / m if m > 0 else 0.0
+            cv[at] = _cv(du[lo:hi, j])
             at += 1
     for s in range(nsv):
         lo, hi = ends_v[s], ends_v[s + 1]
         for i in range(nu):
-            if hi <= lo:
-                cv[at] = 0.0
-                at += 1
-                continue
-            m = 0.0
-            for j in range(lo, hi):
-                m += dv[i, j]
-            m /= hi - lo
-            var = 0.0
-            for j in range(lo, hi):
-                var += (dv[i, j] - m) ** 2
-            cv[at] = np.sqrt(var / (hi - lo)) / m if m > 0 else 0.0
+            cv[at] = _cv(dv[i, lo:hi])
             at += 1
     aspect = np.empty((nu - 1, nv - 1))
     for i in range(nu - 1):
@@ -295,22 +289,6 @@ def line_spacing(V, F, face, bary, nu, nv, ends_u, ends_v):
         for i in range(nu):
             row[i] = max(row[i], cv[at + s * nu + i])
     return col, row, np.median(aspect)
-
-
-@njit(cache=True, nogil=True, fastmath=False)
-def _in_plane(n, step, u):
-    """`meshfit._kernels.walk._start_direction` with the face's unit normal ``n`` (3,)
-    given: ``step`` projected onto the plane, unit direction into ``u``, returns length."""
-    d = step[0] * n[0] + step[1] * n[1] + step[2] * n[2]
-    u[0] = step[0] - d * n[0]
-    u[1] = step[1] - d * n[1]
-    u[2] = step[2] - d * n[2]
-    length = np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
-    if length > 0.0:
-        u[0] /= length
-        u[1] /= length
-        u[2] /= length
-    return length
 
 
 @njit(cache=True, nogil=True, fastmath=False)
@@ -443,7 +421,7 @@ def relax_sweeps(
             for c in range(3):
                 nrm[c] = N[p, c]
             h = spring_force(X, nv, p, w_arc, w_fair, nrm, tangent, step, dvec, arc)
-            total = _in_plane(nrm, step, u)
+            total = _in_plane(nrm[0], nrm[1], nrm[2], step, u)
             if total <= 0.0:
                 continue
             turn = u[0] * prev[p, 0] + u[1] * prev[p, 1] + u[2] * prev[p, 2]
@@ -469,7 +447,13 @@ def relax_sweeps(
                         X[p, c] = sx[c]
                         N[p, c] = sn[c]
                     face[p] = f0
-                    total = 0.5 * _in_plane(sn, step, u) * omega * alpha[p] / (2.0 ** (attempt - 1))
+                    total = (
+                        0.5
+                        * _in_plane(sn[0], sn[1], sn[2], step, u)
+                        * omega
+                        * alpha[p]
+                        / (2.0 ** (attempt - 1))
+                    )
                 f, moved = walk_inside(
                     V, F, FN, f0, bary[p], u, total, max_faces, bary_eps, 6, s0, s1
                 )

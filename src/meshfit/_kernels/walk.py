@@ -210,6 +210,13 @@ def _walk_core(V, F, FN, f, b, u, length, max_faces, bary_eps, tgt, bound):
 def _start_direction(V, F, f, step, u):
     """Project ``step`` (3,) onto face ``f``'s plane; unit direction into ``u``, returns length."""
     n0, n1, n2 = _face_normal3(V, F, f)
+    return _in_plane(n0, n1, n2, step, u)
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _in_plane(n0, n1, n2, step, u):
+    """Project ``step`` (3,) onto the plane of unit normal ``(n0, n1, n2)``; unit direction
+    into ``u``, returns length."""
     d = step[0] * n0 + step[1] * n1 + step[2] * n2
     u[0] = step[0] - d * n0
     u[1] = step[1] - d * n1
