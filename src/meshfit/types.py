@@ -63,10 +63,32 @@ class SurfacePoints:
 
     @classmethod
     def owned(cls, face: NDArray[np.int64], bary: NDArray[np.float64]) -> SurfacePoints:
-        """Points from arrays the caller hands over and keeps no use of (contiguous int64
-        ``(n,)`` and float64 ``(n, 3)``, e.g. fresh from a kernel): made read-only in place,
-        without the constructor's shape checks and copies (for hot internal paths); the
-        coordinates must still be finite."""
+        """Points from arrays the caller hands over and keeps no use of.
+
+        The arrays are made read-only in place, without the constructor's shape checks and
+        copies (for hot internal paths, e.g. arrays fresh from a kernel).
+
+        Parameters
+        ----------
+        face : (n,) int64
+            Contiguous face indices.
+        bary : (n, 3) float64
+            Contiguous barycentric coordinates; they must be finite.
+
+        Returns
+        -------
+        SurfacePoints
+            Sharing the two arrays' memory.
+
+        Raises
+        ------
+        meshfit.errors.InputError
+            A coordinate that is not finite (naming the first such point).
+
+        References
+        ----------
+        .. [1] Krishnamurthy 2000, sec. 3.1 (face points).
+        """
         if not np.isfinite(bary).all():
             bad = int(np.flatnonzero(~np.isfinite(bary).all(axis=1))[0])
             raise InputError(f"SurfacePoints.bary is not finite at point {bad}")

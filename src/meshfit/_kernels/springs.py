@@ -217,23 +217,16 @@ def pinched_side_points(V, F, face, bary, nu, nv, ratio):
     m = 0
     for side in range(4):
         n = nu if side < 2 else nv
-        x = np.empty((n, 3))
-        for k in range(n):
-            if side == 0:
-                g = k * nv
-            elif side == 1:
-                g = k * nv + nv - 1
-            elif side == 2:
-                g = k
-            else:
-                g = (nu - 1) * nv + k
-            f = face[g]
-            for c in range(3):
-                x[k, c] = (
-                    bary[g, 0] * V[F[f, 0], c]
-                    + bary[g, 1] * V[F[f, 1], c]
-                    + bary[g, 2] * V[F[f, 2], c]
-                )
+        along = np.arange(n)
+        if side == 0:
+            g = along * nv
+        elif side == 1:
+            g = along * nv + nv - 1
+        elif side == 2:
+            g = along
+        else:
+            g = (nu - 1) * nv + along
+        x = grid_xyz(V, F, face[g], bary[g])
         d = np.empty(n - 1)
         for k in range(n - 1):
             a = x[k + 1, 0] - x[k, 0]

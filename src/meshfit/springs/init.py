@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from meshfit._kernels.springs import chain_points as _chain_points
 from meshfit.mesh import Mesh
 from meshfit.surface import astar_path
 from meshfit.types import SurfacePoints
@@ -54,8 +55,6 @@ def chain_points(
     """Face points at arc-length ``positions`` (m,) along a vertex chain (on its edges)."""
     if edge_faces is None:
         edge_faces = chain_edge_faces(mesh, [chain])[0]
-    from meshfit._kernels.springs import chain_points as _chain_points
-
     ef, ea, eb = (np.ascontiguousarray(a, dtype=np.int64) for a in edge_faces)
     face, bary = _chain_points(
         np.ascontiguousarray(arc, dtype=np.float64),

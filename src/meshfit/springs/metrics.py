@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from meshfit._kernels.springs import grid_spacing
 from meshfit.mesh import Mesh
 from meshfit.springs.grid import SpringMesh, grid_triangles
 
@@ -22,12 +23,16 @@ def spacing(
     """Spacing figures of :func:`grid_metrics` for a grid ``X (nu, nv, 3)``: the coefficient
     of variation of the point spacing along each iso-curve piece inside one section
     (flattened, u pieces first), and each cell's aspect ratio ``(nu - 1, nv - 1)``."""
-    from meshfit._kernels.springs import grid_spacing
-
     nu, nv = X.shape[:2]
-    ends_u = np.array([0, *np.asarray(u_lines, dtype=np.int64).tolist(), nu - 1], dtype=np.int64)
-    ends_v = np.array([0, *np.asarray(v_lines, dtype=np.int64).tolist(), nv - 1], dtype=np.int64)
-    return grid_spacing(np.ascontiguousarray(X, dtype=np.float64), ends_u, ends_v)
+    X = np.ascontiguousarray(X, dtype=np.float64)
+    return grid_spacing(X, _section_ends(nu, u_lines), _section_ends(nv, v_lines))
+
+
+def _section_ends(n: int, lines: ArrayLike) -> NDArray[np.int64]:
+    """(s + 1,) int64: the grid indices where the sections of ``n`` points along one
+    direction begin and end: 0, the feature lines ``lines`` (s - 1,), n - 1."""
+    inner = np.asarray(lines, dtype=np.int64).reshape(-1)
+    return np.concatenate([[0], inner, [n - 1]]).astype(np.int64)
 
 
 def grid_metrics(

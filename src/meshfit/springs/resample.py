@@ -15,7 +15,7 @@ from meshfit.mesh import Mesh
 from meshfit.springs.features import FeatureLine, Sides, intersect_lines, prepare_features
 from meshfit.springs.grid import FREE, SpringMesh
 from meshfit.springs.init import chain_arc, chain_edge_faces, closest_approach, dijkstra_paths
-from meshfit.springs.metrics import spacing, spring_metrics
+from meshfit.springs.metrics import _section_ends, spring_metrics
 from meshfit.springs.planar import PlanarMap, square_map
 from meshfit.springs.relax import (
     folded_cells,
@@ -321,36 +321,34 @@ def _polish_factor(k: int, final: int) -> int:
     return FINAL_POLISH if k == final else 2
 
 
-def _line_cvs(grid: SpringMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _line_cvs(
+    mesh: Mesh, face: np.ndarray, bary: np.ndarray, shape, u_lines, v_lines
+) -> tuple[np.ndarray, np.ndarray, float]:
     """The largest arc-length coefficient of variation along each grid column (nv,) and
-    row (nu,) over its sections, and the cell aspect ratios (nu - 1, nv - 1), as
-    :func:`meshfit.springs.spring_metrics` counts them."""
-    return _grid_cvs(grid.xyz, grid.u_lines, grid.v_lines)
-
-
-def _grid_cvs(X: np.ndarray, u_lines: np.ndarray, v_lines: np.ndarray):
-    """`_line_cvs` of the grid points ``X (nu, nv, 3)`` with these feature lines."""
-    nu, nv = X.shape[:2]
-    cv, aspect = spacing(X, u_lines, v_lines)
-    n_u = (len(u_lines) + 1) * nv  # the u pieces come first, nv per section
-    return cv[:n_u].reshape(-1, nv).max(axis=0), cv[n_u:].reshape(-1, nu).max(axis=0), aspect
+    row (nu,) over its sections, as :func:`meshfit.springs.spring_metrics` counts them, and
+    the median cell aspect ratio, of the grid of face points ``face``, ``bary`` (row-major,
+    ``shape = (nu, nv)``)."""
+    nu, nv = shape
+    col, row, aspect = _k.line_spacing(
+        mesh.vertices,
+        mesh.faces,
+        np.ascontiguousarray(face, dtype=np.int64),
+        np.ascontiguousarray(bary, dtype=np.float64),
+        nu,
+        nv,
+        _section_ends(nu, u_lines),
+        _section_ends(nv, v_lines),
+    )
+    return col, row, float(aspect)
 
 
 def _shape(state: State) -> tuple[int, float, np.ndarray, np.ndarray]:
     """Folded cells and median cell aspect ratio of the current level, and the columns' and
     rows' arc-length coefficients of variation (`_line_cvs`)."""
-    mesh, nu, nv = state.mesh, state.nu, state.nv
-    col, row, aspect = _k.line_spacing(
-        mesh.vertices,
-        mesh.faces,
-        state.face,
-        state.bary,
-        nu,
-        nv,
-        np.array([0, *state.u_lines.tolist(), nu - 1], dtype=np.int64),
-        np.array([0, *state.v_lines.tolist(), nv - 1], dtype=np.int64),
+    col, row, aspect = _line_cvs(
+        state.mesh, state.face, state.bary, (state.nu, state.nv), state.u_lines, state.v_lines
     )
-    return int(folded_cells(state).sum()), float(aspect), col, row
+    return int(folded_cells(state).sum()), aspect, col, row
 
 
 def _uneven_lines(col: np.ndarray, row: np.ndarray, cv: float, reach: int) -> np.ndarray:
