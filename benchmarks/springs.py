@@ -26,7 +26,6 @@ import argparse
 import os
 import platform
 import statistics
-import time
 
 import numpy as np
 from _common import ROOT, median_time, mesh_path, write_result
@@ -116,12 +115,9 @@ def run_layout(name: str, repeats: int) -> dict:
     rows = []
     resample_patch(_fresh(patches[0]), metrics=False)  # compile the kernels
     for patch in patches:
-        # first call on a patch whose mesh has not built its adjacency tables yet (what a
-        # user's first call pays), then warm medians alternating with the peer
+        # the grid to compare (and a mesh object whose planar map the cached runs reuse)
         cold = _fresh(patch)
-        t0 = time.perf_counter()
         res = resample_patch(cold, metrics=False)
-        t_first = time.perf_counter() - t0
         nu, nv = res.final.shape
         harmonic_grid(patch, nu, nv)
         # alternate the two so that both see the same machine load (the machine is shared)
@@ -144,7 +140,6 @@ def run_layout(name: str, repeats: int) -> dict:
                 "level": res.final.level,
                 "sweeps": res.sweeps,
                 "seconds": round(t_ours, 5),
-                "first_call_seconds": round(t_first, 5),
                 "seconds_cached": round(statistics.median(cached), 5),
                 "peer_seconds": round(t_peer, 5),
                 "ratio": round(t_ours / t_peer, 3),
@@ -154,7 +149,6 @@ def run_layout(name: str, repeats: int) -> dict:
         )
     largest = max(rows, key=lambda r: r["vertices"])
     total = sum(r["seconds"] for r in rows)
-    total_first = sum(r["first_call_seconds"] for r in rows)
     total_peer = sum(r["peer_seconds"] for r in rows)
     worst = {}
     for who in ("springs", "harmonic"):
@@ -174,7 +168,6 @@ def run_layout(name: str, repeats: int) -> dict:
             "vertices": largest["vertices"],
             "grid": largest["grid"],
             "seconds": largest["seconds"],
-            "first_call_seconds": largest["first_call_seconds"],
             "seconds_cached": largest["seconds_cached"],
             "peer_seconds": largest["peer_seconds"],
             "ratio": largest["ratio"],
@@ -182,7 +175,6 @@ def run_layout(name: str, repeats: int) -> dict:
             "target_ratio": 1.5,
         },
         "layout_seconds": round(total, 4),
-        "layout_first_call_seconds": round(total_first, 4),
         "layout_seconds_cached": round(sum(r["seconds_cached"] for r in rows), 4),
         "layout_peer_seconds": round(total_peer, 4),
         "layout_ratio": round(total / total_peer, 3),
