@@ -322,10 +322,14 @@ DISPLACED_HAUSDORFF = 5e-3
 G1_INNER_DEG = 0.5
 
 #: measured gaps of the automatic layout (strict xfails; remove when fixed)
-E2E_KNOWN: dict[tuple[str, str], str] = {}
+E2E_KNOWN: dict[tuple[str, str], str] = {
+    ("spot", "folds"): "4 folded cells: 3 in patch 31 (a horn inside the patch; the rescued grid "
+    "two levels finer, 97 x 65) and 1 in patch 41",
+    ("spot", "corners"): "normal jump 4.2 degrees in a corner zone of the G1 network (2 allowed)",
+}
 
 
-@pytest.fixture(scope="module", params=["igea", "nefertiti"])
+@pytest.fixture(scope="module", params=["igea", "nefertiti", "spot"])
 def auto_fit(request, tmp_path_factory):
     name = request.param
     mesh = real_mesh(name)

@@ -197,7 +197,8 @@ def _common(p: argparse.ArgumentParser) -> None:
         "--no-rescue",
         action="store_true",
         help="keep every relaxed spring mesh, also where it misses its patch (a pleat, a "
-        "squeezed bulge) by more than a grid spacing",
+        "squeezed bulge, a protrusion) by more than a grid spacing: no area-balanced remake "
+        "and no finer grid",
     )
     p.add_argument(
         "--map-shapes",

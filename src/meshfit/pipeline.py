@@ -111,9 +111,11 @@ class FitOptions:
     spring_rescue : bool
         Make a patch's spring mesh again from an area-balanced map with light relaxation
         where the relaxed grid misses the patch by more than a grid spacing (default True;
-        ``rescue`` of :func:`meshfit.springs.resample_patch`): pleats and squeezed bulges
-        are sampled (nefertiti's automatic layout: displaced Hausdorff distance 1.46% ->
-        0.40% of the bbox diagonal, patches 24 and 51 rescued).
+        ``rescue`` of :func:`meshfit.springs.resample_patch`), and up to two levels finer
+        where that still misses (without ``spring_level``): pleats, squeezed bulges and
+        protrusions are sampled (nefertiti's automatic layout: displaced Hausdorff distance
+        1.46% -> 0.40% of the bbox diagonal, patches 24 and 51 rescued; spot's: 2.5% ->
+        0.45%, the grids of patches 31 and 34, a horn and an ear, two levels finer).
     map_kind : {"vector", "normal"}
         Displacement map kind (default ``"vector"``: exact reconstruction of the grid).
     map_shapes : {"native", "matched"}
@@ -1079,6 +1081,13 @@ def _quality_notes(rows: list[dict]) -> list[str]:
             "fit does not cover the whole patch; split those patches in the layout"
         )
     notes.extend(bulge_notes({r["patch"]: r["bulge"] for r in rows if "bulge" in r}))
+    finer = {r["patch"]: r["finer"] for r in rows if r.get("finer", 0)}
+    if finer:
+        notes.append(
+            f"spring meshes made finer than the patch's vertex count to reach a protrusion or "
+            f"pleat inside it ({', '.join(f'patch {p}: {k} levels' for p, k in finer.items())}):"
+            " their displacement maps are larger"
+        )
     folded = {r["patch"]: r["folded"] for r in rows if r.get("folded", 0)}
     if folded:
         worst = sorted(folded.items(), key=lambda kv: -kv[1])[:5]
@@ -1114,6 +1123,7 @@ def spring_patch(patch, *, level=None, max_points=None, rescue=True):
         "area_ratio": float(fin["area_ratio"]),
         "sweeps": [int(s) for s in res.sweeps],
         "rescued": bool(res.rescued),
+        "finer": int(res.finer),
         "seconds": round(time.perf_counter() - t, 4),
         "patch_faces": int(patch.mesh.n_faces),
         "bulge": round(patch.bulge, 3),

@@ -203,29 +203,52 @@ def test_polish_is_dropped_where_it_stretches_the_cells():
 
 def test_rescue_reaches_the_patches_the_grid_misses():
     # spot's near-triangular patches 1 and 3: the relaxed grid misses part of the patch by
-    # several grid spacings; the rescue (area-balanced map, light relaxation) is kept there
-    # and nowhere else on this layout
+    # several grid spacings; the rescue (area-balanced map, light relaxation) is kept there.
+    # Patches 6 and 7 (an ear) are missed by 1.2 spacings: the grid one level finer is kept
     from meshfit.springs.resample import RESCUE_GAIN, RESCUE_SPACINGS, _miss
 
     diag = real_mesh("spot").bbox_diagonal
-    rescued = []
+    changed = []
     for patch, plain, plain_final in layout_springs("spot"):
         res = resample_patch(patch, fidelity=False, rescue=True)
         assert "rescue" in res.seconds
-        if not res.rescued:
+        if not (res.rescued or res.finer):
             assert_allclose(res.final.xyz, plain.final.xyz, rtol=0, atol=0)
             continue
-        rescued.append(patch.index)
+        changed.append((patch.index, res.rescued, res.finer))
         before = _miss(patch.mesh, plain.final)
-        assert before > RESCUE_SPACINGS
-        assert _miss(patch.mesh, res.final) <= RESCUE_GAIN * before
+        assert before[0] > RESCUE_SPACINGS
         final = spring_metrics(patch.mesh, res.final, scale=diag)
-        assert final["fidelity_max"] < 0.2 * plain_final["fidelity_max"]
-        assert final["folded"] <= plain_final["folded"]
-    assert rescued == [1, 3]
+        if res.finer:  # a finer grid: half the distance missed, no larger share folded
+            assert res.final.shape[0] == (plain.final.shape[0] - 1) * 2**res.finer + 1
+            assert _miss(patch.mesh, res.final)[1] <= RESCUE_GAIN * before[1]
+            assert final["fidelity_max"] < 0.3 * plain_final["fidelity_max"]
+            share = final["folded"] / ((res.final.shape[0] - 1) * (res.final.shape[1] - 1))
+            plain_share = plain_final["folded"] / (
+                (plain.final.shape[0] - 1) * (plain.final.shape[1] - 1)
+            )
+            assert share <= plain_share
+        else:
+            assert _miss(patch.mesh, res.final)[0] <= RESCUE_GAIN * before[0]
+            assert final["fidelity_max"] < 0.2 * plain_final["fidelity_max"]
+            assert final["folded"] <= plain_final["folded"]
+    assert changed == [(1, True, 0), (3, True, 0), (6, False, 1), (7, False, 1)]
     # a grid that samples its patch is left alone
     patch = layout_springs("igea")[0][0]
-    assert not resample_patch(patch, fidelity=False, rescue=True).rescued
+    res = resample_patch(patch, fidelity=False, rescue=True)
+    assert not res.rescued and res.finer == 0
+
+
+def test_finer_rescue_keeps_to_the_level_and_point_cap():
+    # spot's patch 6 gets a grid one level finer, but not when the level or a point cap that
+    # the finer grid would exceed is given
+    patch, plain, _ = layout_springs("spot")[6]
+    k, shape = plain.final.level, plain.final.shape
+    assert resample_patch(patch, fidelity=False, rescue=True).finer == 1
+    res = resample_patch(patch, fidelity=False, rescue=True, level=k)
+    assert res.finer == 0 and res.final.shape == shape
+    res = resample_patch(patch, fidelity=False, rescue=True, max_points=shape[0] * shape[1])
+    assert res.finer == 0 and res.final.shape == shape
 
 
 def test_side_slides_taper_and_avoid_slivers(monkeypatch):

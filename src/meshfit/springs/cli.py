@@ -96,6 +96,7 @@ def cmd_springs(args: argparse.Namespace) -> int:
                 "grid": list(res.final.shape),
                 "seconds": round(seconds, 4),
                 "rescued": bool(res.rescued),
+                "finer": int(res.finer),
                 "bulge": round(patch.bulge, 3),
                 **{k: v for k, v in met.items() if k not in ("nu", "nv")},
             }
@@ -152,7 +153,8 @@ def add_commands(sub) -> None:
         "--rescue",
         action="store_true",
         help="resample again from an area-balanced map, lightly relaxed, where the spring "
-        "mesh misses its patch by more than a grid spacing (a pleat, a squeezed bulge)",
+        "mesh misses its patch by more than a grid spacing (a pleat, a squeezed bulge), and "
+        "up to two levels finer where that still misses (without --level)",
     )
     p.add_argument("--out", default=None, help="folder for one .npz and .ply per patch")
     p.add_argument("--json", action="store_true", help="print JSON instead of tables")
