@@ -27,9 +27,12 @@ curve, and the displaced gap as exported and at any resolution, in ``summary["se
 from __future__ import annotations
 
 import hashlib
+import importlib
 import io
 import json
 import os
+import sys
+import threading
 import time
 import zipfile
 from collections.abc import Callable, Mapping, Sequence
@@ -632,6 +635,31 @@ def _soup(arrays: list[NDArray[np.float64]]) -> tuple[NDArray, NDArray]:
 
 
 # ---------------------------------------------------------------------------- the run
+#: modules the exporters of a format import (loaded on a side thread while the fit runs: the
+#: USD ones take about half a second)
+_EXPORT_MODULES = {
+    "usd": ("pxr.Gf", "pxr.Sdf", "pxr.Usd", "pxr.UsdGeom", "pxr.Vt"),
+    "3dm": ("rhino3dm",),
+}
+
+
+def _prefetch_exporters(formats) -> None:
+    """Import the modules of the exporters in ``formats`` on a daemon thread (an import
+    error is left for the exports stage to report)."""
+    names = [m for f in formats for m in _EXPORT_MODULES.get(f, ())]
+    if not names or all(n in sys.modules for n in names):
+        return
+
+    def load() -> None:
+        for name in names:
+            try:
+                importlib.import_module(name)
+            except ImportError:
+                return
+
+    threading.Thread(target=load, name="meshfit-prefetch", daemon=True).start()
+
+
 def _resolve_layout(mesh: Mesh, layout, options: FitOptions):
     """(layout source key, loader) for a Layout, a path, ``"auto"`` or None."""
     from meshfit.layout import Layout, layout_to_json, load_layout
@@ -711,6 +739,7 @@ def run_fit(
     from meshfit.layout import extract_patches, save_layout
 
     options = options or FitOptions()
+    _prefetch_exporters(options.formats)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     st = _Stages(out, resume, progress)
