@@ -50,6 +50,9 @@ DEFAULT_PATCHES = 60
 #: squeezes triangles gives base cells whose images are very uneven (nefertiti unbounded:
 #: aspect 571, 310 folded spring cells in the fit; bounded: 18)
 SPHERE_MAX_ASPECT = 10.0
+#: base-mesh rotations (seeds ``seed``, ``seed + 1``, ...) tried before the automatic layout
+#: gives up on curves that cross (bunny with 90 patches: seeds 0 and 1 cross, 2 does not)
+SEED_TRIES = 3
 #: default face count of the coarse proxy a dense mesh is laid out on (``auto_layout``)
 PROXY_FACES = 25_000
 #: a mesh is laid out on a proxy when it has more than this many times ``proxy_faces`` faces
@@ -209,7 +212,8 @@ def auto_layout(
         A ready parameterization of ``mesh`` over the unit sphere; default
         :func:`meshfit.shrinkwrap.sphere_map` with ``max_aspect=sphere_max_aspect``.
     seed : int, keyword-only
-        Seed of the base mesh's starting rotation.
+        Seed of the base mesh's starting rotation. Where the curves cross, the next
+        ``SEED_TRIES - 1`` seeds are tried (on the proxy first, then on ``mesh``).
     relax : bool, keyword-only
         Relax every traced curve as a surface snake with fixed ends (membrane and arc-length
         forces, :func:`meshfit.curves.relax_snake`; default True). If the relaxed curves
@@ -238,8 +242,9 @@ def auto_layout(
         An open mesh, a mesh with holes or of higher genus: a layout file is needed (or
         ``fill_holes`` first where the holes are small).
     meshfit.errors.LayoutError
-        The traced curves cross (where the sphere map squeezes many base corners together,
-        e.g. nefertiti with 200 patches): fewer patches or a layout file are needed.
+        The traced curves cross with every one of the ``SEED_TRIES`` rotations tried (where
+        the sphere map squeezes many base corners together, e.g. nefertiti with 200
+        patches): fewer patches or a layout file are needed.
 
     References
     ----------
@@ -272,6 +277,7 @@ def auto_layout(
     n_faces += n_faces % 2
     iters = int(relax_iterations)
 
+    seeds = [int(seed) + k for k in range(SEED_TRIES)]
     if sphere is None and proxy_faces is not None and mesh.n_faces > PROXY_RATIO * proxy_faces:
         from concurrent.futures import ThreadPoolExecutor
 
@@ -281,40 +287,56 @@ def auto_layout(
         with ThreadPoolExecutor(max_workers=1) as pool:
             ready = pool.submit(_prepare_fine, mesh)
             coarse = simplify_mesh(mesh, int(proxy_faces)).mesh
-            smap = sphere_map(coarse, max_aspect=sphere_max_aspect)
-            c_corners, c_curves, ends, quads = _network(coarse, smap, n_faces, seed)
-            tries = []
-            if relax:
-                c_relaxed = _relax_all(coarse, c_curves, iters)
-                tries.append((c_relaxed, min(iters, FINE_RELAX_ITERATIONS)))
-            tries.append((c_curves, 0))
+            c_smap = sphere_map(coarse, max_aspect=sphere_max_aspect)
+            first = _proxy_tries(coarse, c_smap, n_faces, seeds[0], relax, iters)
             ready.result()
-        corners = _carry_points(mesh, coarse, c_corners)
-        for c_set, fine_iters in tries:
-            try:
-                curves = _carry_curves(mesh, coarse, c_set, corners, ends)
-                if fine_iters > 0:
-                    curves = _relax_all(mesh, curves, fine_iters)
-                out = layout_from_curves(mesh, corners, curves, ends, quads)
-                check_layout_topology(mesh, out)
-                return out
-            except MeshfitError:
-                continue
+        for k, s in enumerate(seeds):
+            c_corners, ends, quads, tries = (
+                first if k == 0 else _proxy_tries(coarse, c_smap, n_faces, s, relax, iters)
+            )
+            corners = _carry_points(mesh, coarse, c_corners)
+            for c_set, fine_iters in tries:
+                try:
+                    curves = _carry_curves(mesh, coarse, c_set, corners, ends)
+                    if fine_iters > 0:
+                        curves = _relax_all(mesh, curves, fine_iters)
+                    out = layout_from_curves(mesh, corners, curves, ends, quads)
+                    check_layout_topology(mesh, out)
+                    return out
+                except MeshfitError:
+                    continue
         # the carried network does not cut the mesh: lay out on the mesh itself
 
     smap = sphere_map(mesh, max_aspect=sphere_max_aspect) if sphere is None else sphere
-    corners, curves, ends, quads = _network(mesh, smap, n_faces, seed)
-    traced = layout_from_curves(mesh, corners, curves, ends, quads)
-    if not relax:
-        return _checked(mesh, traced)
-    relaxed = _relax_all(mesh, curves, iters)
-    try:
-        out = layout_from_curves(mesh, corners, relaxed, ends, quads)
-        check_layout_topology(mesh, out)
-        return out
-    except MeshfitError:
-        pass
-    return _checked(mesh, traced)
+    failed: LayoutError | None = None
+    for s in seeds:
+        corners, curves, ends, quads = _network(mesh, smap, n_faces, s)
+        traced = layout_from_curves(mesh, corners, curves, ends, quads)
+        if relax:
+            relaxed = _relax_all(mesh, curves, iters)
+            try:
+                out = layout_from_curves(mesh, corners, relaxed, ends, quads)
+                check_layout_topology(mesh, out)
+                return out
+            except MeshfitError:
+                pass
+        try:
+            return _checked(mesh, traced, len(seeds))
+        except LayoutError as exc:  # another rotation of the base mesh
+            failed = failed or exc
+    assert failed is not None
+    raise failed
+
+
+def _proxy_tries(coarse: Mesh, smap, n_faces: int, seed: int, relax: bool, iters: int):
+    """Corners, curve ends, quads and the curve sets to carry (relaxed first, then traced)
+    of the base mesh of ``seed`` on the proxy ``coarse``."""
+    c_corners, c_curves, ends, quads = _network(coarse, smap, n_faces, seed)
+    tries = []
+    if relax:
+        tries.append((_relax_all(coarse, c_curves, iters), min(iters, FINE_RELAX_ITERATIONS)))
+    tries.append((c_curves, 0))
+    return c_corners, ends, quads, tries
 
 
 def _prepare_fine(mesh: Mesh) -> None:
@@ -475,16 +497,23 @@ def _carry_curves(
     return out
 
 
-def _checked(mesh: Mesh, layout: Layout) -> Layout:
+def _checked(mesh: Mesh, layout: Layout, tries: int = 1) -> Layout:
     """The layout if it cuts the mesh into disks, else a LayoutError with a hint."""
     from meshfit.layout.extract import check_layout_topology
 
     try:
         check_layout_topology(mesh, layout)
     except MeshfitError as exc:
+        rotations = (
+            ""
+            if tries < 2
+            else " (nor with another rotation of the base mesh)"
+            if tries == 2
+            else f" (nor with {tries - 1} other rotations of the base mesh)"
+        )
         raise LayoutError(
             f"the automatic layout of {layout.n_patches} patches does not cut the mesh into "
-            f"disks ({str(exc).splitlines()[0]}): ask for fewer patches (--patches) or give "
-            "a layout file"
+            f"disks ({str(exc).splitlines()[0]}){rotations}: ask for fewer patches "
+            "(--patches) or give a layout file"
         ) from None
     return layout
