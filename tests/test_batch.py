@@ -161,3 +161,17 @@ def test_cli_batch_on_a_scheduler_address(inputs, cluster, tmp_path, capsys):
     )
     out = json.loads(capsys.readouterr().out)
     assert code == 0 and out["done"] == 1
+
+
+def test_task_keys_name_the_output_folder(tmp_path):
+    # a scheduler that still holds a finished task returns its result for the same key: the
+    # same mesh and options written elsewhere must be a new task
+    from meshfit.batch import _task_key
+
+    mesh = tmp_path / "cow.ply"
+    a = _task_key(mesh, tmp_path / "one" / "cow", "k", None)
+    assert a == _task_key(mesh, tmp_path / "one" / "cow", "k", None)
+    assert a != _task_key(mesh, tmp_path / "two" / "cow", "k", None)
+    assert a != _task_key(mesh, tmp_path / "one" / "cow", "k", 1)
+    assert a != _task_key(mesh, tmp_path / "one" / "cow", "other", None)
+    assert a.startswith("meshfit-fit-cow-")

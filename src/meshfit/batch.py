@@ -46,6 +46,15 @@ def _job_key(path: Path, layout: str | None, options: dict[str, Any]) -> str:
     return h.hexdigest()
 
 
+def _task_key(path: Path, folder: Path, key: str, patch_tasks_above: int | None) -> str:
+    """Dask key of a mesh's fit task: the job and where it writes (a scheduler returns the
+    result of a task it still holds under the same key instead of running it again)."""
+    h = hashlib.sha256(key.encode())
+    h.update(str(Path(folder).resolve()).encode())
+    h.update(repr(patch_tasks_above).encode())
+    return f"meshfit-fit-{path.stem}-{h.hexdigest()[:16]}"
+
+
 def _remove_leftovers(folder: Path) -> None:
     """Delete temporary files (``.name.*``) a killed attempt left in a mesh's output folder."""
     for p in folder.rglob(".*"):
@@ -224,7 +233,7 @@ def run_batch(
                     opts,
                     key,
                     patch_tasks_above,
-                    key=f"meshfit-fit-{path.stem}-{key[:12]}",
+                    key=_task_key(path, out / path.stem, key, patch_tasks_above),
                     retries=retries,
                     pure=False,
                 ): path
