@@ -325,7 +325,9 @@ G1_INNER_DEG = 0.5
 E2E_KNOWN: dict[tuple[str, str], str] = {
     ("spot", "folds"): "4 folded cells: 3 in patch 31 (a horn inside the patch; the rescued grid "
     "two levels finer, 97 x 65) and 1 in patch 41",
-    ("spot", "corners"): "normal jump 4.2 degrees in a corner zone of the G1 network (2 allowed)",
+    ("spot", "corners"): "normal jump 4.2 degrees in a corner zone of the G1 network (2 allowed): "
+    "curves 17, 6 and 26 next to valence-5 corners, between patches of 9 x 9 controls (spot's "
+    "small patches), whose corner zone is a sixth of the side",
 }
 
 
