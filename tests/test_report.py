@@ -7,6 +7,7 @@ import re
 import numpy as np
 import png
 import pytest
+from numpy.testing import assert_allclose
 
 from meshfit.pipeline import FitOptions, run_fit
 from meshfit.report import REPORT_IMAGES
@@ -91,3 +92,23 @@ def test_resume_keeps_the_images(report, tmp_path):
     assert again["work_done"] == []
     assert (copy / "report/layout.png").stat().st_mtime_ns == before
     assert (copy / "report.html").is_file()
+
+
+def test_model_view_is_upright():
+    from meshfit.report import model_view
+
+    rng = np.random.default_rng(0)
+    # y-up by default: a body about as long (z) as it is tall (y), like spot, is seen from
+    # the side, not stood on its end
+    body = rng.normal(size=(500, 3)) * [0.3, 0.55, 0.6]
+    view, up = model_view(body)
+    assert_allclose(up, [0.0, 1.0, 0.0])
+    assert abs(view @ up) < 1e-9
+    assert abs(view[0]) > abs(view[2])  # along the narrow horizontal axis (x), not the long one
+    # z-up where the model is much taller along z than along y (a bust scanned z-up)
+    bust = rng.normal(size=(500, 3)) * [0.5, 0.7, 1.0]
+    assert_allclose(model_view(bust)[1], [0.0, 0.0, 1.0])
+    # degenerate spreads still give a horizontal view
+    for pts in (np.zeros((4, 3)), np.array([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0]])):
+        view, up = model_view(pts)
+        assert np.isfinite(view).all() and np.linalg.norm(view) > 0 and abs(view @ up) < 1e-9

@@ -33,14 +33,32 @@ REPORT_IMAGES = (
 )
 
 
+#: a model is shown z-up when it is this many times taller along z than along y (scanner and
+#: CAD data); else y-up, the convention of PLY, OBJ and glTF scans
+Z_UP_RATIO = 1.25
+
+
 def model_view(vertices: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
-    """View direction and up vector: look along the axis of least spread, longest axis up."""
-    x = vertices - vertices.mean(axis=0)
-    _, vecs = np.linalg.eigh(x.T @ x)
-    up = vecs[:, 2]
-    view = vecs[:, 0]
-    # a slightly oblique view shows relief better than a straight one
-    view = view + 0.35 * vecs[:, 1]
+    """View direction and up vector of the report's images.
+
+    Up is +y (the convention of PLY, OBJ and glTF), or +z where the model is more than
+    ``Z_UP_RATIO`` times taller along z than along y. The camera looks along the horizontal
+    axis of least spread, turned slightly towards the other one (a slightly oblique view
+    shows relief better than a straight one): spot, bunny and igea are seen upright from the
+    side, nefertiti's bust in profile.
+    """
+    V = np.asarray(vertices, dtype=np.float64)
+    ext = V.max(axis=0) - V.min(axis=0) if len(V) else np.zeros(3)
+    up = np.array([0.0, 0.0, 1.0]) if ext[2] > Z_UP_RATIO * ext[1] else np.array([0.0, 1.0, 0.0])
+    x = V - V.mean(axis=0) if len(V) else np.zeros((1, 3))
+    flat = x - np.outer(x @ up, up)  # the horizontal spread
+    w, vecs = np.linalg.eigh(flat.T @ flat)
+    # of the three axes, the one along ``up`` carries no horizontal spread: drop it
+    horizontal = [vecs[:, i] for i in np.argsort(w) if abs(vecs[:, i] @ up) < 0.5]
+    if len(horizontal) < 2:  # no horizontal spread (a point, a vertical segment)
+        side = np.array([1.0, 0.0, 0.0])
+        horizontal = [side, np.cross(up, side)]
+    view = horizontal[0] + 0.35 * horizontal[1]
     return view, up
 
 
