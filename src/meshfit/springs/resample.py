@@ -710,7 +710,6 @@ def resample_patch(
     finer = 0
     if level is None:
         # still missing: the same, finer (a protrusion inside the patch needs more grid lines)
-        cells = _cells(res.final)
         for extra in range(1, RESCUE_LEVELS + 1):
             if miss[0] <= RESCUE_SPACINGS:
                 break
@@ -723,11 +722,10 @@ def resample_patch(
                 run(False, fairness, max_iter, polish, None, extra),
                 lambda e=extra: run(True, 0.0, 1, 0, None, e),
             )
-            if (
-                c_miss[1] <= RESCUE_GAIN * miss[1]
-                and _folds(mesh, cand) / _cells(cand.final) <= _folds(mesh, kept) / cells
+            if c_miss[1] <= RESCUE_GAIN * miss[1] and _fold_share(mesh, cand) <= _fold_share(
+                mesh, kept
             ):
-                kept, miss, finer, cells = cand, c_miss, extra, _cells(cand.final)
+                kept, miss, finer = cand, c_miss, extra
     spent = time.perf_counter() - t
     seconds = {**kept.seconds, "rescue": spent, "total": res.seconds["total"] + spent}
     return SpringResult(kept.levels, kept.metrics, kept.sweeps, seconds, kept.rescued, finer)
@@ -757,9 +755,10 @@ def _points_at(shape: tuple[int, int], extra: int) -> int:
     return ((shape[0] - 1) * 2**extra + 1) * ((shape[1] - 1) * 2**extra + 1)
 
 
-def _cells(spring: SpringMesh) -> int:
-    nu, nv = spring.shape
-    return (nu - 1) * (nv - 1)
+def _fold_share(mesh: Mesh, res: SpringResult) -> float:
+    """Folded cells of a result's final level over its cell count."""
+    nu, nv = res.final.shape
+    return _folds(mesh, res) / ((nu - 1) * (nv - 1))
 
 
 def _miss(mesh: Mesh, spring: SpringMesh) -> tuple[float, float]:
