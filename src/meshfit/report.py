@@ -46,6 +46,22 @@ def model_view(vertices: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
     axis of least spread, turned slightly towards the other one (a slightly oblique view
     shows relief better than a straight one): spot, bunny and igea are seen upright from the
     side, nefertiti's bust in profile.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+        The model's vertices.
+
+    Returns
+    -------
+    view : (3,) float64
+        Viewing direction (from the camera into the scene), horizontal.
+    up : (3,) float64
+        Unit vector shown upwards: +y or +z.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 7.6 (the fitted and displaced models shown as renders).
     """
     V = np.asarray(vertices, dtype=np.float64)
     ext = V.max(axis=0) - V.min(axis=0) if len(V) else np.zeros(3)
