@@ -604,6 +604,18 @@ def _error_figures(
     )
 
 
+def _spline_errors(mesh: Mesh, surfaces: list, shapes: list[tuple[int, ...]]):
+    """The splines at their maps' texels (``shapes``), their error figures against the
+    input, each grid vertex's distance to the input, and ``shapes``."""
+    grids = [
+        s.evaluate_grid(np.linspace(0.0, 1.0, sh[0]), np.linspace(0.0, 1.0, sh[1]))
+        for s, sh in zip(surfaces, shapes, strict=True)
+    ]
+    V, F = _soup(grids)
+    fig, to_input, _ = _error_figures(mesh, V, F, grid_tree(V, F, [g.shape[:2] for g in grids]))
+    return grids, fig, to_input, list(shapes)
+
+
 def _per_patch_max(
     mesh: Mesh, face_patch: NDArray[np.int64] | None, value: NDArray, n: int
 ) -> list[float]:
@@ -781,7 +793,7 @@ def run_fit(
     def patches():
         if not patches_cache:
             t = time.perf_counter()
-            ps = extract_patches(mesh, lay)
+            ps = extract_patches(mesh, lay, workers=workers)
             face_patch = np.full(mesh.n_faces, -1, dtype=np.int64)
             for p in ps:
                 face_patch[p.face_parent] = p.index
@@ -903,10 +915,20 @@ def run_fit(
         )
     st.done("displacement", t0, cached=cached is not None)
 
+    # the spline-only surface needs the fit and the maps' shapes alone, which the stitch keeps
+    # ("native" shapes): its errors are measured on a thread while the seams are stitched
+    # (mostly serial work), and the exports are written on another while the displaced
+    # surface's errors are measured
+    k_stitch = _key("stitch", k_disp, options.map_shapes)
+    k_err = _key("errors", k_stitch, mhash)
+    background = ThreadPoolExecutor(max_workers=2)
+    early = None
+    if options.map_shapes == "native" and st.cached("errors", k_err, ".json") is None:
+        early = background.submit(_spline_errors, mesh, surfaces, [d.shape for d in dmaps])
+
     # ---- stitch: C0 is built into the fit (pinned boundaries), G1 by meshfit.stitch; here
     # the displacement seams are closed and the seams measured
     t0 = st.start("stitch")
-    k_stitch = _key("stitch", k_disp, options.map_shapes)
     cached = st.cached("stitch", k_stitch, ".npz")
     if cached is not None:
         z = _load_npz(cached)
@@ -928,6 +950,8 @@ def run_fit(
     @cache
     def spline_grids() -> list[NDArray[np.float64]]:
         """Each spline at its map's texels, as the displaced grids (errors and report)."""
+        if early is not None and early.result()[3] == [d.shape for d in dmaps]:
+            return early.result()[0]
         return [
             surfaces[p].evaluate_grid(
                 np.linspace(0.0, 1.0, dmaps[p].shape[0]), np.linspace(0.0, 1.0, dmaps[p].shape[1])
@@ -943,61 +967,76 @@ def run_fit(
         _save_npz(st.path("stitch", k_stitch, ".npz"), arrays)
     st.done("stitch", t0, cached=cached is not None)
 
-    # ---- exports
-    t0 = st.start("exports")
-    names = [f"patch_{p:03d}" for p in range(n_patches)]
-    k_exp = _key("exports", k_stitch, options.formats)
-    cached = st.cached("exports", k_exp, ".json")
-    outputs: dict[str, list[str]] = {}
-    if cached is not None:
-        record = json.loads(cached.read_text())
-        ok = all(
-            (out / f).is_file() and _sha_file(out / f) == h for f, h in record["sha256"].items()
-        )
-        if ok:
-            outputs = record["outputs"]
-        else:
-            cached = None
-    if cached is None:
-        outputs = _write_exports(out, names, surfaces, dmaps, options.formats, st)
-        files = [f for fs in outputs.values() for f in fs]
-        _write_json(
-            st.path("exports", k_exp, ".json"),
-            {"outputs": outputs, "sha256": {f: _sha_file(out / f) for f in files}},
-        )
-    st.done("exports", t0, cached=cached is not None)
-
     # ---- errors against the input
-    t0 = st.start("errors")
-    k_err = _key("errors", k_stitch, mhash)
-    cached = st.cached("errors", k_err, ".json")
-    spline_distance: list = []
-    if cached is not None:
-        errors = json.loads(cached.read_text())
-        dist_file = st.path("errors", k_err, ".npz")
-        if dist_file.is_file():
-            spline_distance.append(_load_npz(dist_file)["spline_to_input"])
-    else:
-        Vs, Fs = _soup(spline_grids())
-        shapes = [g.shape[:2] for g in spline_grids()]
-        spline_fig, spline_to_input, _ = _error_figures(mesh, Vs, Fs, grid_tree(Vs, Fs, shapes))
-        Vd, Fd = _soup(displaced_grids())
-        shapes = [g.shape[:2] for g in displaced_grids()]
-        disp_fig, _, from_input = _error_figures(mesh, Vd, Fd, grid_tree(Vd, Fd, shapes))
-        errors = {
-            "spline_only": spline_fig,
-            "displaced": disp_fig,
-            "units": "fraction of the input's bbox diagonal",
-            # per patch: its input vertices' largest distance to the displaced surface
-            "displaced_from_input_max_per_patch": [
-                None if v is None else v / diag
-                for v in _per_patch_max(mesh, face_patch(), from_input, n_patches)
-            ],
-        }
-        spline_distance.append(spline_to_input)
-        _save_npz(st.path("errors", k_err, ".npz"), {"spline_to_input": spline_to_input})
-        _write_json(st.path("errors", k_err, ".json"), errors)
-    st.done("errors", t0, cached=cached is not None)
+    def _errors_stage() -> tuple[dict[str, Any], list]:
+        t0 = st.start("errors")
+        cached = st.cached("errors", k_err, ".json")
+        spline_distance: list = []
+        if cached is not None:
+            errors = json.loads(cached.read_text())
+            dist_file = st.path("errors", k_err, ".npz")
+            if dist_file.is_file():
+                spline_distance.append(_load_npz(dist_file)["spline_to_input"])
+        else:
+            if early is not None and early.result()[3] == [d.shape for d in dmaps]:
+                _, spline_fig, spline_to_input, _ = early.result()
+            else:
+                _, spline_fig, spline_to_input, _ = _spline_errors(
+                    mesh, surfaces, [d.shape for d in dmaps]
+                )
+            Vd, Fd = _soup(displaced_grids())
+            shapes = [g.shape[:2] for g in displaced_grids()]
+            disp_fig, _, from_input = _error_figures(mesh, Vd, Fd, grid_tree(Vd, Fd, shapes))
+            errors = {
+                "spline_only": spline_fig,
+                "displaced": disp_fig,
+                "units": "fraction of the input's bbox diagonal",
+                # per patch: its input vertices' largest distance to the displaced surface
+                "displaced_from_input_max_per_patch": [
+                    None if v is None else v / diag
+                    for v in _per_patch_max(mesh, face_patch(), from_input, n_patches)
+                ],
+            }
+            spline_distance.append(spline_to_input)
+            _save_npz(st.path("errors", k_err, ".npz"), {"spline_to_input": spline_to_input})
+            _write_json(st.path("errors", k_err, ".json"), errors)
+        st.done("errors", t0, cached=cached is not None)
+        return errors, spline_distance
+
+    # ---- exports, on a thread of their own: writing files is mostly serial work, which the
+    # errors stage's parallel searches hide (their seconds overlap in the summary)
+    def exports() -> dict[str, list[str]]:
+        t0 = st.start("exports")
+        names = [f"patch_{p:03d}" for p in range(n_patches)]
+        k_exp = _key("exports", k_stitch, options.formats)
+        cached = st.cached("exports", k_exp, ".json")
+        outputs: dict[str, list[str]] = {}
+        if cached is not None:
+            record = json.loads(cached.read_text())
+            ok = all(
+                (out / f).is_file() and _sha_file(out / f) == h for f, h in record["sha256"].items()
+            )
+            if ok:
+                outputs = record["outputs"]
+            else:
+                cached = None
+        if cached is None:
+            outputs = _write_exports(out, names, surfaces, dmaps, options.formats, st)
+            files = [f for fs in outputs.values() for f in fs]
+            _write_json(
+                st.path("exports", k_exp, ".json"),
+                {"outputs": outputs, "sha256": {f: _sha_file(out / f) for f in files}},
+            )
+        st.done("exports", t0, cached=cached is not None)
+        return outputs
+
+    exported = background.submit(exports)
+    try:
+        errors, spline_distance = _errors_stage()
+    finally:
+        background.shutdown(wait=True)
+    outputs = exported.result()
+    st.info = {k: st.info[k] for k in STAGES if k in st.info}  # the stage order
 
     patch_rows = []
     for p in range(n_patches):

@@ -12,7 +12,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from meshfit import tol
-from meshfit.errors import LayoutError, MeshfitError
+from meshfit.errors import InputError, LayoutError, MeshfitError
 from meshfit.layout import (
     Layout,
     check_layout_topology,
@@ -292,6 +292,26 @@ def test_sphere_layout_extracts_and_checks():
 
 
 # ------------------------------------------------------------------------- bad layouts
+
+def test_patches_built_on_threads_are_the_same():
+    mesh, layout = real_mesh("igea"), real_layout("igea")
+    one = extract_patches(mesh, layout)
+    calls = []
+    two = extract_patches(mesh, layout, workers=2, progress=lambda d, t: calls.append((d, t)))
+    assert [d for d, _ in calls] == sorted(d for d, _ in calls) and calls[-1][0] == calls[-1][1]
+    assert len(one) == len(two) == layout.n_patches
+    for a, b in zip(one, two, strict=True):
+        assert a.index == b.index
+        np.testing.assert_array_equal(a.mesh.vertices, b.mesh.vertices)
+        np.testing.assert_array_equal(a.mesh.faces, b.mesh.faces)
+        np.testing.assert_array_equal(a.face_parent, b.face_parent)
+        for sa, sb in zip(a.sides, b.sides, strict=True):
+            np.testing.assert_array_equal(sa, sb)
+        for fa, fb in zip(a.features, b.features, strict=True):
+            np.testing.assert_array_equal(fa.points.bary, fb.points.bary)
+    with pytest.raises(InputError, match="workers must be >= 1"):
+        extract_patches(mesh, layout, workers=0)
+
 def _corrupt(tmp_path, edit, name="spot"):
     doc = json.loads((LAYOUTS / f"{name}.json").read_text())
     edit(doc)
