@@ -8,7 +8,8 @@ with about 100 patches, every stage timed (file loading excluded), outputs USD +
 report. Peers are the figures quoted in issue 7 (not measured here): the thesis needed about
 10 minutes for a million polygons; QuadriFlow about 52 s to quad-remesh 1.3M triangles on this
 machine. The growth between the sizes is compared with n log n. With ``--repeats k`` each size
-runs k times (each in a fresh process) and the figures are the medians per stage (the machine
+runs k times (each in a fresh process, with the allocator settings of the meshfit command:
+:mod:`meshfit._malloc`) and the figures are the medians per stage (the machine
 is shared: single runs are noisy).
 """
 
@@ -55,7 +56,10 @@ def midpoint_subdivide(vertices, faces):
 
 
 def run_one(size: str, patches: int) -> dict:
+    from meshfit._malloc import tune_malloc
     from meshfit.mesh import Mesh, load_mesh
+
+    tune_malloc()  # as the meshfit command does
     from meshfit.pipeline import FitOptions, run_fit
 
     mesh = load_mesh(mesh_path("igea"))
