@@ -293,6 +293,7 @@ def test_sphere_layout_extracts_and_checks():
 
 # ------------------------------------------------------------------------- bad layouts
 
+
 def test_patches_built_on_threads_are_the_same():
     mesh, layout = real_mesh("igea"), real_layout("igea")
     one = extract_patches(mesh, layout)
@@ -311,6 +312,7 @@ def test_patches_built_on_threads_are_the_same():
             np.testing.assert_array_equal(fa.points.bary, fb.points.bary)
     with pytest.raises(InputError, match="workers must be >= 1"):
         extract_patches(mesh, layout, workers=0)
+
 
 def _corrupt(tmp_path, edit, name="spot"):
     doc = json.loads((LAYOUTS / f"{name}.json").read_text())
