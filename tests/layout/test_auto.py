@@ -61,8 +61,11 @@ def test_patch_count_and_demo_sphere():
 
 
 def test_open_and_higher_genus_meshes_need_a_layout_file():
-    with pytest.raises(TopologyError, match="layout file"):
+    with pytest.raises(TopologyError, match="has genus 1: give a layout file"):
         auto_layout(torus())
+    # on the proxy path too (the genus is found while the proxy is made)
+    with pytest.raises(TopologyError, match="has genus 1: give a layout file"):
+        auto_layout(torus(), proxy_faces=20)
     with pytest.raises(TopologyError, match="fill"):
         auto_layout(plane(6))
     with pytest.raises(InputError):

@@ -90,6 +90,14 @@ def test_components_match_scipy(rng):
         want_count, want = ref.components(n, a, b)
         assert count == want_count
         np.testing.assert_array_equal(labels, want)
+        # rows of neighbours (-1 for none, not necessarily symmetric)
+        nbr = rng.integers(-n, n, (n, 3))
+        count, labels = kernel.neighbor_components(nbr)
+        rows = np.repeat(np.arange(n), 3)
+        keep = nbr.reshape(-1) >= 0
+        want_count, want = ref.components(n, rows[keep], nbr.reshape(-1)[keep])
+        assert count == want_count
+        np.testing.assert_array_equal(labels, want)
 
 
 @pytest.mark.parametrize("name", ["spot", "bunny"])

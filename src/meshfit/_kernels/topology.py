@@ -142,22 +142,21 @@ def _root(parent, i):
 
 
 @njit(cache=True, nogil=True)
-def components(n, a, b):
-    """Connected components of ``n`` nodes joined by the pairs ``(a[i], b[i])`` (union-find).
+def _union(parent, a, b):
+    """Join the sets of ``a`` and ``b`` under the smaller root."""
+    ra = _root(parent, a)
+    rb = _root(parent, b)
+    if ra != rb:
+        if ra < rb:
+            parent[rb] = ra
+        else:
+            parent[ra] = rb
 
-    Labels are numbered in the order of each component's smallest node, as
-    ``scipy.sparse.csgraph.connected_components`` numbers them. Returns ``(n_components,
-    labels (n,))``.
-    """
-    parent = np.arange(n)
-    for i in range(a.shape[0]):
-        ra = _root(parent, a[i])
-        rb = _root(parent, b[i])
-        if ra != rb:
-            if ra < rb:
-                parent[rb] = ra
-            else:
-                parent[ra] = rb
+
+@njit(cache=True, nogil=True)
+def _labels(parent):
+    """``(count, labels)`` of a union-find forest, numbered by each set's smallest node."""
+    n = parent.shape[0]
     labels = np.full(n, -1, dtype=np.int64)
     count = 0
     for i in range(n):
@@ -167,6 +166,34 @@ def components(n, a, b):
             count += 1
         labels[i] = labels[r]
     return count, labels
+
+
+@njit(cache=True, nogil=True)
+def components(n, a, b):
+    """Connected components of ``n`` nodes joined by the pairs ``(a[i], b[i])`` (union-find).
+
+    Labels are numbered in the order of each component's smallest node, as
+    ``scipy.sparse.csgraph.connected_components`` numbers them. Returns ``(n_components,
+    labels (n,))``.
+    """
+    parent = np.arange(n)
+    for i in range(a.shape[0]):
+        _union(parent, a[i], b[i])
+    return _labels(parent)
+
+
+@njit(cache=True, nogil=True)
+def neighbor_components(neighbors):
+    """`components` of the rows of ``neighbors (n, k)``, row ``i`` joined to every
+    ``neighbors[i, j] >= 0`` (faces across their edges; -1 for none)."""
+    n = neighbors.shape[0]
+    parent = np.arange(n)
+    for i in range(n):
+        for j in range(neighbors.shape[1]):
+            g = neighbors[i, j]
+            if g >= 0:
+                _union(parent, i, g)
+    return _labels(parent)
 
 
 @njit(cache=True, nogil=True)

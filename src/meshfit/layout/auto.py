@@ -259,34 +259,31 @@ def auto_layout(
         raise InputError(f"patches must be >= 1, got {patches}")
     if proxy_faces is not None and int(proxy_faces) < 20:
         raise InputError(f"proxy_faces must be >= 20, got {proxy_faces}")
-    if not mesh.is_closed or mesh.genus != 0 or mesh.n_components != 1:
-        what = (
-            "is open (has boundary loops)"
-            if not mesh.is_closed
-            else f"has genus {mesh.genus}"
-            if mesh.genus != 0
-            else f"has {mesh.n_components} components"
-        )
-        raise TopologyError(
-            f"automatic layout needs one closed genus-0 surface, but {mesh.name or 'the mesh'} "
-            f"{what}: give a layout file (--layout FILE), or fill small holes first "
-            "(--fill-holes / meshfit.shrinkwrap.fill_holes)"
-        )
+    proxy = sphere is None and proxy_faces is not None and mesh.n_faces > PROXY_RATIO * proxy_faces
+    if not mesh.is_closed:
+        raise _topology_error(mesh)
+    if not proxy and not _one_sphere(mesh):
+        raise _topology_error(mesh)
     want = DEFAULT_PATCHES if patches is None else int(patches)
     n_faces = max(20, round(want / PATCHES_PER_TRIANGLE))
     n_faces += n_faces % 2
     iters = int(relax_iterations)
 
     seeds = [int(seed) + k for k in range(SEED_TRIES)]
-    if sphere is None and proxy_faces is not None and mesh.n_faces > PROXY_RATIO * proxy_faces:
+    if proxy:
         from concurrent.futures import ThreadPoolExecutor
 
         from meshfit.shrinkwrap.proxy import simplify_mesh
 
-        # what the curves need on the full mesh is built on a second thread meanwhile
+        # the genus and component count, then what the curves need on the full mesh, are
+        # found on a second thread while the proxy is made (a closed mesh of another genus
+        # keeps it through the simplification, which then goes unused)
         with ThreadPoolExecutor(max_workers=1) as pool:
+            one_sphere = pool.submit(_one_sphere, mesh)
             ready = pool.submit(_prepare_fine, mesh)
             coarse = simplify_mesh(mesh, int(proxy_faces)).mesh
+            if not one_sphere.result():
+                raise _topology_error(mesh)
             c_smap = sphere_map(coarse, max_aspect=sphere_max_aspect)
             first = _proxy_tries(coarse, c_smap, n_faces, seeds[0], relax, iters)
             ready.result()
@@ -326,6 +323,27 @@ def auto_layout(
             failed = failed or exc
     assert failed is not None
     raise failed
+
+
+def _one_sphere(mesh: Mesh) -> bool:
+    """True for one connected genus-0 surface (the mesh is closed)."""
+    return mesh.n_components == 1 and mesh.genus == 0
+
+
+def _topology_error(mesh: Mesh) -> TopologyError:
+    """The error for a mesh that is not one closed genus-0 surface."""
+    what = (
+        "is open (has boundary loops)"
+        if not mesh.is_closed
+        else f"has genus {mesh.genus}"
+        if mesh.genus != 0
+        else f"has {mesh.n_components} components"
+    )
+    return TopologyError(
+        f"automatic layout needs one closed genus-0 surface, but {mesh.name or 'the mesh'} "
+        f"{what}: give a layout file (--layout FILE), or fill small holes first "
+        "(--fill-holes / meshfit.shrinkwrap.fill_holes)"
+    )
 
 
 def _proxy_tries(coarse: Mesh, smap, n_faces: int, seed: int, relax: bool, iters: int):

@@ -141,10 +141,8 @@ def corner_fans(
 
 def face_components(n_faces: int, neighbors: NDArray[np.int64]) -> tuple[int, NDArray[np.int64]]:
     """Connected components of faces joined across manifold edges."""
-    f = np.repeat(np.arange(n_faces), 3)
-    g = np.ascontiguousarray(neighbors, dtype=np.int64).reshape(-1)
-    keep = g >= 0
-    n, labels = _k.components(int(n_faces), f[keep], g[keep])
+    g = np.ascontiguousarray(neighbors, dtype=np.int64).reshape(int(n_faces), -1)
+    n, labels = _k.neighbor_components(g)
     return int(n), labels
 
 
