@@ -978,15 +978,17 @@ def run_fit(
             if dist_file.is_file():
                 spline_distance.append(_load_npz(dist_file)["spline_to_input"])
         else:
+            # the displaced surface's tree is built (serial work) while the spline-only
+            # surface's searches may still run
+            Vd, Fd = _soup(displaced_grids())
+            tree = grid_tree(Vd, Fd, [g.shape[:2] for g in displaced_grids()])
             if early is not None and early.result()[3] == [d.shape for d in dmaps]:
                 _, spline_fig, spline_to_input, _ = early.result()
             else:
                 _, spline_fig, spline_to_input, _ = _spline_errors(
                     mesh, surfaces, [d.shape for d in dmaps]
                 )
-            Vd, Fd = _soup(displaced_grids())
-            shapes = [g.shape[:2] for g in displaced_grids()]
-            disp_fig, _, from_input = _error_figures(mesh, Vd, Fd, grid_tree(Vd, Fd, shapes))
+            disp_fig, _, from_input = _error_figures(mesh, Vd, Fd, tree)
             errors = {
                 "spline_only": spline_fig,
                 "displaced": disp_fig,
