@@ -83,6 +83,12 @@ def _norm(a):
     return math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
 
 
+def _hypot(x, y):
+    """The C library's hypot, as the kernels' ``math.hypot`` (CPython's own algorithm
+    differs from it in the last bit for about one pair in 200 on some machines)."""
+    return float(np.hypot(x, y))
+
+
 def _area(p, q, r):
     u = _sub(q, p)
     v = _sub(r, p)
@@ -418,7 +424,7 @@ class _Cutter:
             L = _norm(D)
             uc = self.uv(cur, g)
             dw = (uw[0] - uc[0], uw[1] - uc[1])
-            nw = math.hypot(dw[0], dw[1])
+            nw = _hypot(dw[0], dw[1])
             best, best_score = None, -math.inf
             for t in self.vtris.get(cur, ()):
                 if self.parent[t] != g:
@@ -429,8 +435,8 @@ class _Cutter:
                 ub, uc2 = self.uv(b, g), self.uv(c, g)
                 db = (ub[0] - uc[0], ub[1] - uc[1])
                 dc = (uc2[0] - uc[0], uc2[1] - uc[1])
-                s1 = _cross2(db, dw) / (math.hypot(*db) * nw)
-                s2 = _cross2(dw, dc) / (math.hypot(*dc) * nw)
+                s1 = _cross2(db, dw) / (_hypot(*db) * nw)
+                s2 = _cross2(dw, dc) / (_hypot(*dc) * nw)
                 score = min(s1, s2)
                 if score > best_score:
                     best, best_score = (b, c, ub, uc2), score
@@ -461,13 +467,23 @@ class _Cutter:
         raise CutError(f"internal: walk from vertex {u} to vertex {w} in face {g} did not end")
 
 
-def _classify(cutter: _Cutter, face: int, bary: NDArray, index: int) -> _CutPoint:
-    """Snap a face point onto a vertex or an edge of its face when within ``CUT_SNAP``."""
+def _classify(
+    cutter: _Cutter, face: int, bary: NDArray, index: int, matmul: bool = False
+) -> _CutPoint:
+    """Snap a face point onto a vertex or an edge of its face when within ``CUT_SNAP``.
+
+    The point is ``b0 p0 + b1 p1 + b2 p2`` summed left to right, as the kernel classifying
+    curve points does; ``matmul`` takes numpy's ``b @ pos`` instead, as the library does for
+    corners (on some CPUs numpy fuses its multiply-adds, so the two differ in the last bit).
+    """
     fv = cutter.face(face)
     b = np.clip(bary, 0.0, None)
     b = b / b.sum()
     pos = [cutter.xyz(v) for v in fv]
-    p = tuple(float(x) for x in b @ np.asarray(pos))
+    if matmul:
+        p = tuple(float(x) for x in b @ np.asarray(pos))
+    else:
+        p = tuple(float(b[0] * pos[0][d] + b[1] * pos[1][d] + b[2] * pos[2][d]) for d in range(3))
     dv = [_norm(_sub(p, q)) for q in pos]
     k = int(np.argmin(dv))
     if dv[k] < cutter.snap:
@@ -918,7 +934,7 @@ def cut_mesh_network(
     corner_cp: list[_CutPoint] = []
     corner_v = np.empty(nc, dtype=np.int64)
     for c in range(nc):
-        cp = _classify(cutter, int(corners.face[c]), corners.bary[c], c)
+        cp = _classify(cutter, int(corners.face[c]), corners.bary[c], c, matmul=True)
         if cp.vertex < 0:  # a corner within CUT_CORNER_MERGE of a vertex is that vertex
             fv = cutter.face(cp.face)
             dv = [_norm(_sub(cutter.xyz(u), cp.xyz)) for u in fv]

@@ -41,6 +41,7 @@ from meshfit._kernels import cut as _k
 from meshfit._validate import as_surface_points
 from meshfit.errors import CutError, InputError
 from meshfit.mesh import Mesh
+from meshfit.surface.paths import vertex_points
 from meshfit.types import SurfaceCurve, SurfacePoints
 
 __all__ = ["CutResult", "NetworkCutResult", "cut_mesh", "cut_mesh_network"]
@@ -475,7 +476,7 @@ def _refined(cutter: _Cutter, mesh: Mesh):
     face_parent = np.concatenate([np.arange(nf0, dtype=np.int64), TR[nf0:n_tri, 3]])
     src = SurfacePoints.concatenate(
         [
-            SurfacePoints.at_vertices(mesh.faces, np.arange(nv0)),
+            vertex_points(mesh, np.arange(nv0)),
             SurfacePoints(NI[:n_new, 0].copy(), NV[:n_new, 3:6].copy()),
         ]
     )
