@@ -409,3 +409,29 @@ def test_cli_fit_mesh_with_a_hole(tmp_path, capsys):
     out = json.loads(capsys.readouterr().out)
     assert out["patches_total"] == 60
     assert out["mesh"]["faces"] == d.n_faces + 2  # the hole closed by a fan of three
+
+
+def test_known_distances_skip_only_points_on_the_input(rng):
+    from meshfit.mesh.locate import triangle_distances
+    from meshfit.pipeline import _surface_distance
+
+    mesh = real_mesh("spot")
+    diag = mesh.bbox_diagonal
+    # points on the input (its vertices) and points off it, as one soup of triangles
+    off = mesh.vertices + rng.normal(scale=1e-3 * diag, size=mesh.vertices.shape)
+    V = np.vstack([mesh.vertices, off])
+    F = np.vstack([mesh.faces, mesh.faces + mesh.n_vertices])
+    exact, _ = triangle_distances(V, mesh.vertices, mesh.faces)
+    # bounds: tiny for the points on the input, the true offset for the others (above the
+    # tolerance: searched)
+    known = np.concatenate(
+        [np.full(mesh.n_vertices, 0.5e-12 * diag), np.linalg.norm(off - mesh.vertices, axis=1)]
+    )
+    got, back = _surface_distance(mesh, V, F, None, known)
+    on = np.arange(mesh.n_vertices)
+    assert (exact[on] <= known[on]).all()
+    np.testing.assert_array_equal(got[on], known[on])  # taken, not searched
+    np.testing.assert_array_equal(got[mesh.n_vertices :], exact[mesh.n_vertices :])
+    assert (np.abs(got - exact) <= tol.KNOWN_DISTANCE * diag).all()
+    want_back, _ = triangle_distances(mesh.vertices, V, F)
+    np.testing.assert_array_equal(back, want_back)

@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from meshfit import __version__
+from meshfit import __version__, tol
 from meshfit._atomic import atomic_write, write_bytes, write_text
 from meshfit.errors import InputError, LayoutError
 from meshfit.mesh import Mesh
@@ -574,21 +574,33 @@ def _polyline_gap(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
 
 # ---------------------------------------------------------------------------- errors
 def _surface_distance(
-    mesh: Mesh, V: NDArray[np.float64], F: NDArray[np.int64], tree
+    mesh: Mesh, V: NDArray[np.float64], F: NDArray[np.int64], tree, known=None
 ) -> tuple[NDArray, NDArray]:
     """Two-sided distances: reconstruction vertices to the input, input vertices to the
-    reconstruction (a triangle soup ``V, F`` and its tree)."""
-    to_input, _ = triangle_distances(V, mesh.vertices, mesh.faces, tree=mesh.triangle_tree)
+    reconstruction (a triangle soup ``V, F`` and its tree). ``known`` (per vertex of ``V``,
+    optional): an upper bound of each one's distance to the input; where it is below
+    ``tol.KNOWN_DISTANCE`` of the diagonal it is the distance (no search)."""
+    todo = np.arange(V.shape[0])
+    to_input = np.zeros(V.shape[0])
+    if known is not None:
+        near = known <= tol.KNOWN_DISTANCE * mesh.bbox_diagonal
+        to_input[near] = known[near]
+        todo = np.flatnonzero(~near)
+    if todo.size:
+        to_input[todo], _ = triangle_distances(
+            V[todo], mesh.vertices, mesh.faces, tree=mesh.triangle_tree
+        )
     from_input, _ = triangle_distances(mesh.vertices, V, F, tree=tree)
     return to_input, from_input
 
 
 def _error_figures(
-    mesh: Mesh, V, F, tree
+    mesh: Mesh, V, F, tree, known=None
 ) -> tuple[dict[str, float], NDArray[np.float64], NDArray[np.float64]]:
     """Error figures over the bbox diagonal, each reconstruction vertex's distance to the
-    input and each input vertex's distance to the reconstruction."""
-    a, b = _surface_distance(mesh, V, F, tree)
+    input and each input vertex's distance to the reconstruction (``known``: see
+    `_surface_distance`)."""
+    a, b = _surface_distance(mesh, V, F, tree, known)
     diag = mesh.bbox_diagonal
     both = np.concatenate([a, b])
     return (
@@ -614,6 +626,21 @@ def _spline_errors(mesh: Mesh, surfaces: list, shapes: list[tuple[int, ...]]):
     V, F = _soup(grids)
     fig, to_input, _ = _error_figures(mesh, V, F, grid_tree(V, F, [g.shape[:2] for g in grids]))
     return grids, fig, to_input, list(shapes)
+
+
+def _spring_bounds(
+    displaced: list[NDArray[np.float64]], grids: list[NDArray[np.float64]]
+) -> NDArray[np.float64]:
+    """Upper bounds of the displaced grids' vertices' distances to the input (stacked as
+    `_soup` stacks them): a map with its spring grid's shape puts each texel where it
+    reproduces that grid's point, which lies on the input (inf for other shapes)."""
+    out = []
+    for D, G in zip(displaced, grids, strict=True):
+        if D.shape == G.shape:
+            out.append(np.linalg.norm(D - G, axis=2).reshape(-1))
+        else:
+            out.append(np.full(D.shape[0] * D.shape[1], np.inf))
+    return np.concatenate(out) if out else np.zeros(0)
 
 
 def _per_patch_max(
@@ -988,7 +1015,9 @@ def run_fit(
                 _, spline_fig, spline_to_input, _ = _spline_errors(
                     mesh, surfaces, [d.shape for d in dmaps]
                 )
-            disp_fig, _, from_input = _error_figures(mesh, Vd, Fd, tree)
+            disp_fig, _, from_input = _error_figures(
+                mesh, Vd, Fd, tree, _spring_bounds(displaced_grids(), grids)
+            )
             errors = {
                 "spline_only": spline_fig,
                 "displaced": disp_fig,

@@ -29,6 +29,10 @@ CUT_SNAP = 1e-7
 CUT_MIN_AREA = 2e-14
 #: absolute-position agreement in tests, times bbox_diagonal
 TEST_ATOL = 1e-9
+#: a displaced-surface vertex within this, times bbox_diagonal, of the spring point it
+#: reproduces (a point of the input surface) is given that distance to the input, no search
+#: (the exact distance lies between 0 and it)
+KNOWN_DISTANCE = 1e-12
 
 
 def length(mesh: Mesh, rel: float, *, scale: str = "mean_edge_length") -> float:
