@@ -8,7 +8,8 @@ import pytest
 import trimesh
 from numpy.testing import assert_allclose, assert_array_equal
 
-from meshfit.curves import check_sampling, densify_curve, paint_curve
+from meshfit.curves import check_sampling, densify_curve, densify_curves, paint_curve
+from meshfit.errors import InputError
 from meshfit.mesh import Mesh
 from meshfit.surface import curve_arc_lengths, greedy_path, path_to_surface_points
 from meshfit.surface.walk import _curve_pieces, _place_on_pieces
@@ -70,6 +71,28 @@ def test_densify_matches_the_reference(rng):
         assert_array_equal(got.points.face, face, err_msg=label)
         assert_allclose(got.points.bary, bary, rtol=0, atol=1e-15, err_msg=label)
         assert check_sampling(mesh, got).size == 0, label
+
+
+def test_densify_curves_equals_one_curve_at_a_time(rng):
+    cases = _densify_cases(rng)
+    by_mesh: dict[int, tuple] = {}
+    for _, mesh, curve in cases:
+        by_mesh.setdefault(id(mesh), (mesh, []))[1].append(curve)
+    for mesh, curves in by_mesh.values():
+        # with curves that need nothing, and a closed one, in between
+        done = densify_curve(mesh, curves[0])
+        closed = SurfaceCurve(curves[0].points, closed=True)
+        batch = [curves[0], done, *curves[1:], closed, curves[-1]]
+        got = densify_curves(mesh, batch)
+        assert len(got) == len(batch)
+        for g, c in zip(got, batch, strict=True):
+            want = densify_curve(mesh, c)
+            assert g.closed == c.closed and g.kind == c.kind
+            assert_array_equal(g.points.face, want.points.face)
+            assert_array_equal(g.points.bary, want.points.bary)
+        assert got[1] is done  # nothing to repair: the curve itself
+    with pytest.raises(InputError, match=r"curves\[1\] must be a SurfaceCurve"):
+        densify_curves(mesh, [curves[0], "not a curve"])
 
 
 def _pieces_cases():

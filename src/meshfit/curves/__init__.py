@@ -1,6 +1,12 @@
 """Face-point curves: painting, CurveAttract, B-spline space curves, surface snakes, colour."""
 
-from meshfit.curves.base import check_sampling, curve_length, densify_curve, resample_curve
+from meshfit.curves.base import (
+    check_sampling,
+    curve_length,
+    densify_curve,
+    densify_curves,
+    resample_curve,
+)
 from meshfit.curves.color import color_force, scalar_field, vertex_gradients, vertex_normals
 from meshfit.curves.paint import attract_curve, extend_to_curve, paint_curve
 from meshfit.curves.snake import SnakeResult, edit_snake, relax_snake, snake_forces
@@ -20,6 +26,7 @@ __all__ = [
     "color_force",
     "curve_length",
     "densify_curve",
+    "densify_curves",
     "edit_snake",
     "extend_to_curve",
     "fit_bspline_curve",

@@ -30,7 +30,13 @@ from meshfit.surface.walk import (
 )
 from meshfit.types import SurfaceCurve, SurfacePoints
 
-__all__ = ["check_sampling", "curve_length", "densify_curve", "resample_curve"]
+__all__ = [
+    "check_sampling",
+    "curve_length",
+    "densify_curve",
+    "densify_curves",
+    "resample_curve",
+]
 
 #: bisection depth before a pair that will not come together is joined by a graph path
 _MAX_BISECT = 12
@@ -223,13 +229,72 @@ def densify_curve(mesh: Mesh, curve: SurfaceCurve) -> SurfaceCurve:
     return _densify(mesh, _as_curve(mesh, curve))
 
 
+def densify_curves(mesh: Mesh, curves: list[SurfaceCurve]) -> list[SurfaceCurve]:
+    """:func:`densify_curve` of every curve, the open ones in one pass.
+
+    The open curves' points are taken as one sequence, whose pairs across two curves are not
+    pairs of a curve; their broken pairs are bridged by one kernel call. Each result is
+    what :func:`densify_curve` gives (a curve without broken pairs is returned as it is).
+
+    Parameters
+    ----------
+    mesh : Mesh
+    curves : list of SurfaceCurve
+
+    Returns
+    -------
+    list of SurfaceCurve
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        A curve that is not a SurfaceCurve on ``mesh``.
+    meshfit.errors.PathError
+        Two consecutive points lie on different components of the mesh.
+    """
+    checked = [_as_curve(mesh, c, name=f"curves[{i}]") for i, c in enumerate(curves)]
+    out: list[SurfaceCurve | None] = [_densify(mesh, c) if c.closed else None for c in checked]
+    open_ = [i for i, c in enumerate(checked) if not c.closed]
+    if not open_:
+        return out  # type: ignore[return-value]
+    sizes = np.array([len(checked[i]) for i in open_], dtype=np.int64)
+    ends = np.cumsum(sizes)
+    allp = SurfacePoints.concatenate([checked[i].points for i in open_])
+    bad = _broken_pairs(mesh, SurfaceCurve(allp))
+    bad = bad[~np.isin(bad, ends - 1)]  # a curve's last point and the next one's first
+    face, bary, inserted = _bridge(mesh, allp, bad)
+    # each curve's share of the inserted points: those after its own points
+    owner = np.searchsorted(ends, bad, side="right")
+    grow = np.bincount(owner, weights=inserted, minlength=len(open_)).astype(np.int64)
+    stop = np.cumsum(sizes + grow)
+    for k, i in enumerate(open_):
+        if grow[k] == 0:
+            out[i] = checked[i]
+            continue
+        a = int(stop[k] - sizes[k] - grow[k])
+        pts = SurfacePoints(face[a : stop[k]], bary[a : stop[k]])
+        out[i] = SurfaceCurve(pts, closed=False, kind=checked[i].kind)
+    return out  # type: ignore[return-value]
+
+
 def _densify(mesh: Mesh, curve: SurfaceCurve) -> SurfaceCurve:
     """:func:`densify_curve` for a curve already checked to be on ``mesh``."""
     bad = _broken_pairs(mesh, curve)
     if bad.size == 0:
         return curve
-    p = curve.points
+    face, bary, _ = _bridge(mesh, curve.points, bad)
+    return SurfaceCurve(SurfacePoints(face, bary), closed=curve.closed, kind=curve.kind)
+
+
+def _bridge(
+    mesh: Mesh, p: SurfacePoints, bad: NDArray[np.int64]
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.int64]]:
+    """The points ``p`` with the points bridging each broken pair ``(bad[e], bad[e] + 1)``
+    (modulo the count) spliced in: ``(face, bary, inserted)``, ``inserted[e]`` the number
+    of points pair ``e`` got."""
     m = len(p)
+    if bad.size == 0:
+        return p.face, p.bary, np.zeros(0, dtype=np.int64)
     nxt = (bad + 1) % m
     indptr, vf = mesh.vertex_faces
     pair, new_face, new_bary, g_face, g_bary = _curves.bridge_pairs(
@@ -264,8 +329,9 @@ def _densify(mesh: Mesh, curve: SurfaceCurve) -> SurfaceCurve:
             bs += [np.asarray(g.bary, dtype=np.float64), parts_b[j + 1][1:]]
             ps += [np.full(len(g), pair[e], dtype=np.int64), parts_p[j + 1][1:]]
         new_face, new_bary, pair = np.concatenate(fs), np.concatenate(bs), np.concatenate(ps)
+    inserted = np.bincount(pair, minlength=bad.size)
     if new_face.size == 0:
-        return SurfaceCurve(p, closed=curve.closed, kind=curve.kind)
+        return p.face, p.bary, inserted
     # the points bridging pair i go right after point i, in order
     face, bary = _curves.splice(
         _i8(p.face),
@@ -274,7 +340,7 @@ def _densify(mesh: Mesh, curve: SurfaceCurve) -> SurfaceCurve:
         _i8(new_face),
         np.ascontiguousarray(new_bary, dtype=np.float64),
     )
-    return SurfaceCurve(SurfacePoints(face, bary), closed=curve.closed, kind=curve.kind)
+    return face, bary, inserted
 
 
 def _positions(total: float, closed: bool, spacing: float | None, n: int | None) -> NDArray:

@@ -34,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from meshfit.curves.base import check_sampling, densify_curve
+from meshfit.curves.base import densify_curves
 from meshfit.errors import InputError, LayoutError, MeshfitError, TopologyError
 from meshfit.layout.layout import Layout, layout_from_curves
 from meshfit.mesh import Mesh
@@ -144,7 +144,8 @@ def quad_network(
 
 
 def _trace(mesh: Mesh, smap, a: NDArray, b: NDArray, pa: SurfacePoints, pb: SurfacePoints):
-    """The image of the great-circle arc a -> b as a face-point curve from pa to pb."""
+    """The image of the great-circle arc a -> b as a face-point curve from pa to pb (to be
+    densified)."""
     w = float(np.arccos(np.clip(a @ b, -1.0, 1.0)))
     # samples: about one per mean edge length of the traced image
     t = np.linspace(0.0, 1.0, 17)
@@ -160,7 +161,7 @@ def _trace(mesh: Mesh, smap, a: NDArray, b: NDArray, pa: SurfacePoints, pb: Surf
     keep[1:] = ~same
     keep[-1] = True
     pts = pts[np.flatnonzero(keep)]
-    return densify_curve(mesh, SurfaceCurve(pts, kind="boundary"))
+    return SurfaceCurve(pts, kind="boundary")
 
 
 def _triangle_grid(tri: NDArray[np.float64], n: int):
@@ -393,8 +394,8 @@ def _network(mesh: Mesh, smap, n_faces: int, seed: int):
 
     pts, ends, quads = quad_network(S, BF, midpoint=midpoint, centroid=centroid)
     corners = smap.locate(pts)
-    curves = [_trace(mesh, smap, pts[a], pts[b], corners[a], corners[b]) for a, b in ends.tolist()]
-    return corners, curves, ends, quads
+    traced = [_trace(mesh, smap, pts[a], pts[b], corners[a], corners[b]) for a, b in ends.tolist()]
+    return corners, densify_curves(mesh, traced), ends, quads
 
 
 def _relax_inputs(mesh: Mesh, curves: list[SurfaceCurve]) -> dict:
@@ -474,9 +475,8 @@ def _relaxed_curves(
         fc, bc = face[a:b].copy(), bary[a:b].copy()
         fc[0], fc[-1] = curve.points.face[0], curve.points.face[-1]
         bc[0], bc[-1] = curve.points.bary[0], curve.points.bary[-1]
-        r = SurfaceCurve(SurfacePoints(fc, bc), curve.closed, curve.kind)
-        out.append(densify_curve(mesh, r) if len(check_sampling(mesh, r)) else r)
-    return out
+        out.append(SurfaceCurve(SurfacePoints(fc, bc), curve.closed, curve.kind))
+    return densify_curves(mesh, out)
 
 
 def _carry_points(mesh: Mesh, coarse: Mesh, points: SurfacePoints) -> SurfacePoints:
@@ -511,8 +511,8 @@ def _carry_curves(
             keep[-1] = True
             keep[-2] = len(keep) == 2
         pts = pts[np.flatnonzero(keep)]
-        out.append(densify_curve(mesh, SurfaceCurve(pts, kind=c.kind)))
-    return out
+        out.append(SurfaceCurve(pts, kind=c.kind))
+    return densify_curves(mesh, out)
 
 
 def _checked(mesh: Mesh, layout: Layout, tries: int = 1) -> Layout:
