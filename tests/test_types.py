@@ -227,3 +227,17 @@ def test_surface_points_owned_arrays_become_read_only():
     bad = np.array([[1.0, 0.0, 0.0], [np.nan, 0.5, 0.5]])
     with pytest.raises(errors.InputError, match="not finite at point 1"):
         SurfacePoints.owned(np.array([0, 1], dtype=np.int64), bad)
+
+
+def test_subsets_and_joins_stay_read_only_and_do_not_alias_writeable_memory():
+    sp = SurfacePoints(np.arange(6), np.tile([0.2, 0.3, 0.5], (6, 1)))
+    for sub in (sp[np.array([4, 1])], sp[sp.face > 2], sp[1:4], sp[::-2], sp[2]):
+        for a in (sub.face, sub.bary):
+            assert not a.flags.writeable
+            with pytest.raises(ValueError):
+                a.flags.writeable = True
+    joined = SurfacePoints.concatenate([sp[1:3], sp[np.array([5])]])
+    assert_array_equal(joined.face, [1, 2, 5])
+    assert joined.face.dtype == np.int64 and not joined.bary.flags.writeable
+    with pytest.raises(ValueError):
+        joined.bary.flags.writeable = True

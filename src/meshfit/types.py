@@ -108,7 +108,11 @@ class SurfacePoints:
             if not -n <= i < n:
                 raise IndexError(f"index {i} is out of range for {n} surface points")
             index = slice(i % n, i % n + 1)
-        return SurfacePoints(self.face[index], self.bary[index])
+        face, bary = self.face[index], self.bary[index]
+        if face.ndim == 1 and face.flags.c_contiguous and bary.flags.c_contiguous:
+            # fresh arrays, or views of this one's read-only ones: no copies needed
+            return SurfacePoints.owned(face, bary)
+        return SurfacePoints(face, bary)
 
     @classmethod
     def at_vertices(cls, faces: ArrayLike, vertices: ArrayLike) -> SurfacePoints:
@@ -145,7 +149,9 @@ class SurfacePoints:
         """Join several point sets in order."""
         if not parts:
             return cls(np.zeros(0, np.int64), np.zeros((0, 3)))
-        return cls(np.concatenate([p.face for p in parts]), np.concatenate([p.bary for p in parts]))
+        return cls.owned(  # fresh arrays of valid points
+            np.concatenate([p.face for p in parts]), np.concatenate([p.bary for p in parts])
+        )
 
 
 @dataclass(frozen=True, eq=False)
