@@ -143,25 +143,43 @@ def quad_network(
     return np.asarray(points), np.asarray(ends, dtype=np.int64), patches
 
 
-def _trace(mesh: Mesh, smap, a: NDArray, b: NDArray, pa: SurfacePoints, pb: SurfacePoints):
-    """The image of the great-circle arc a -> b as a face-point curve from pa to pb (to be
-    densified)."""
-    w = float(np.arccos(np.clip(a @ b, -1.0, 1.0)))
-    # samples: about one per mean edge length of the traced image
+def _trace_all(
+    mesh: Mesh, smap, pts: NDArray, ends: NDArray[np.int64], corners: SurfacePoints
+) -> list[SurfaceCurve]:
+    """The images of the great-circle arcs ``pts[a] -> pts[b]`` (rows of ``ends``) as
+    face-point curves between their corners (to be densified); the sphere map is evaluated
+    and searched once for all arcs."""
+    arcs = []
+    for a, b in ends.tolist():
+        w = float(np.arccos(np.clip(pts[a] @ pts[b], -1.0, 1.0)))
+        arcs.append((pts[a], pts[b], w))
+    # samples: about one per mean edge length of each traced image
     t = np.linspace(0.0, 1.0, 17)
-    coarse = smap.evaluate(_slerp(a, b, w, t))
-    length = float(np.linalg.norm(np.diff(coarse, axis=0), axis=1).sum())
-    n = max(2, int(np.ceil(2.0 * length / mesh.mean_edge_length)) + 1)
-    t = np.linspace(0.0, 1.0, n)
-    pts = smap.locate(_slerp(a, b, w, t)[1:-1])
-    pts = SurfacePoints.concatenate([pa, pts, pb])
-    # drop repeated points (dense samples inside one face are kept; exact repeats are not)
-    keep = np.ones(len(pts.face), dtype=bool)
-    same = (pts.face[1:] == pts.face[:-1]) & np.all(pts.bary[1:] == pts.bary[:-1], axis=1)
-    keep[1:] = ~same
-    keep[-1] = True
-    pts = pts[np.flatnonzero(keep)]
-    return SurfaceCurve(pts, kind="boundary")
+    coarse = smap.evaluate(np.vstack([_slerp(a, b, w, t) for a, b, w in arcs])).reshape(
+        len(arcs), t.size, 3
+    )
+    lengths = np.linalg.norm(np.diff(coarse, axis=1), axis=2).sum(axis=1)
+    counts = [max(2, int(np.ceil(2.0 * x / mesh.mean_edge_length)) + 1) for x in lengths]
+    inner = [
+        _slerp(a, b, w, np.linspace(0.0, 1.0, n))[1:-1]
+        for (a, b, w), n in zip(arcs, counts, strict=True)
+    ]
+    located = smap.locate(np.vstack(inner))
+    out = []
+    at = 0
+    for (a, b), n in zip(ends.tolist(), counts, strict=True):
+        mid = located[np.arange(at, at + n - 2)]
+        at += n - 2
+        curve = SurfacePoints.concatenate([corners[np.array([a])], mid, corners[np.array([b])]])
+        # drop repeated points (dense samples inside one face are kept; exact repeats not)
+        keep = np.ones(len(curve.face), dtype=bool)
+        same = (curve.face[1:] == curve.face[:-1]) & np.all(
+            curve.bary[1:] == curve.bary[:-1], axis=1
+        )
+        keep[1:] = ~same
+        keep[-1] = True
+        out.append(SurfaceCurve(curve[np.flatnonzero(keep)], kind="boundary"))
+    return out
 
 
 def _triangle_grid(tri: NDArray[np.float64], n: int):
@@ -394,8 +412,7 @@ def _network(mesh: Mesh, smap, n_faces: int, seed: int):
 
     pts, ends, quads = quad_network(S, BF, midpoint=midpoint, centroid=centroid)
     corners = smap.locate(pts)
-    traced = [_trace(mesh, smap, pts[a], pts[b], corners[a], corners[b]) for a, b in ends.tolist()]
-    return corners, densify_curves(mesh, traced), ends, quads
+    return corners, densify_curves(mesh, _trace_all(mesh, smap, pts, ends, corners)), ends, quads
 
 
 def _relax_inputs(mesh: Mesh, curves: list[SurfaceCurve]) -> dict:
