@@ -792,15 +792,22 @@ def run_fit(
         from meshfit.mesh import load_mesh
 
         mesh = load_mesh(mesh)
-    mhash = mesh_hash(mesh)
+    # the content hash (hashlib releases the GIL) is taken on a thread while a layout is
+    # made; a resumed run waits for it first, to look for a finished layout
+    hasher = ThreadPoolExecutor(max_workers=1)
+    hashed = hasher.submit(mesh_hash, mesh)
+    hasher.shutdown(wait=False)
     diag = float(mesh.bbox_diagonal)
     st.done("validate", t0, cached=False)
 
     # ---- layout
     t0 = st.start("layout")
     source, make_layout = _resolve_layout(mesh, layout, options)
-    k_layout = _key("layout", mhash, source)
-    cached = st.cached("layout", k_layout, ".json")
+    cached = None
+    if resume:
+        mhash = hashed.result()
+        k_layout = _key("layout", mhash, source)
+        cached = st.cached("layout", k_layout, ".json")
     if cached is not None:
         from meshfit.layout import load_layout
 
@@ -808,6 +815,8 @@ def run_fit(
         write_bytes(out / "layout.json", cached.read_bytes())
     else:
         lay = make_layout()
+        mhash = hashed.result()
+        k_layout = _key("layout", mhash, source)
         staged = save_layout(lay, st.path("layout", k_layout, ".json"), mesh=mesh)
         write_bytes(out / "layout.json", staged.read_bytes())
     n_patches = int(lay.n_patches)
