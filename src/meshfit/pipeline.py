@@ -47,6 +47,7 @@ from numpy.typing import NDArray
 
 from meshfit import __version__, tol
 from meshfit._atomic import atomic_write, write_bytes, write_text
+from meshfit._kernels.geometry import label_corner_max
 from meshfit.errors import InputError, LayoutError
 from meshfit.mesh import Mesh
 from meshfit.mesh.locate import grid_tree, triangle_distances
@@ -650,15 +651,13 @@ def _per_patch_max(
     a patch boundary counts for every patch of its faces); None without the face labels."""
     if face_patch is None or len(face_patch) != mesh.n_faces:
         return [None] * n
-    out = np.zeros(n)
-    ok = face_patch >= 0
-    worst = value[mesh.faces[ok]].max(axis=1)  # per face
-    order = np.argsort(face_patch[ok], kind="stable")
-    label = face_patch[ok][order]
-    first = np.flatnonzero(np.concatenate([[True], label[1:] != label[:-1]]))
-    if first.size:
-        out[label[first]] = np.maximum(0.0, np.maximum.reduceat(worst[order], first))
-    return out.tolist()
+    worst = label_corner_max(
+        np.ascontiguousarray(mesh.faces, dtype=np.int64),
+        np.ascontiguousarray(face_patch, dtype=np.int64),
+        np.ascontiguousarray(value, dtype=np.float64),
+        int(n),
+    )
+    return np.maximum(worst, 0.0).tolist()
 
 
 def _soup(arrays: list[NDArray[np.float64]]) -> tuple[NDArray, NDArray]:

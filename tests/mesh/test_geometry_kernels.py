@@ -57,3 +57,16 @@ def test_polyline_gap_matches_the_reference(seed):
     b[3 % len(b)] = b[2 % len(b)]  # a segment of zero length
     np.testing.assert_allclose(_g.polyline_gap(a, b), ref.polyline_gap(a, b), rtol=1e-12)
     assert _g.polyline_gap(b, b) < 1e-14  # every point on its own polyline
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_label_corner_max_matches_the_reference(seed):
+    rng = np.random.default_rng(seed)
+    mesh = real_mesh("spot")
+    n = 9
+    label = rng.integers(-1, n - 1, mesh.n_faces)  # label n - 1 has no faces, -1 is skipped
+    value = rng.normal(size=mesh.n_vertices)
+    got = _g.label_corner_max(mesh.faces, label, value, n)
+    want = ref.label_corner_max(mesh.faces, label, value, n)
+    np.testing.assert_array_equal(got, want)
+    assert got[-1] == -np.inf

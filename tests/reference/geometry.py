@@ -35,3 +35,12 @@ def polyline_gap(a, b):
             best = min(best, float(np.linalg.norm(p - (q0 + s * d))))
         worst = max(worst, best)
     return worst
+
+
+def label_corner_max(F, label, value, n):
+    """Largest value over the corners of each label's faces, one face at a time."""
+    out = np.full(n, -np.inf)
+    for f, tri in enumerate(F.tolist()):
+        if label[f] >= 0:
+            out[label[f]] = max(out[label[f]], *(value[v] for v in tri))
+    return out

@@ -75,3 +75,20 @@ def polyline_gap(a, b):
         if best > worst:
             worst = best
     return worst
+
+
+@njit(cache=True, nogil=True)
+def label_corner_max(F, label, value, n):
+    """Largest ``value`` (per vertex) over the corners of the faces of each label: (n,)
+    float64, ``-inf`` for a label without faces; faces labelled below 0 are skipped. Kernel
+    of the pipeline's per-patch distance maxima."""
+    out = np.full(n, -np.inf)
+    for f in range(F.shape[0]):
+        p = label[f]
+        if p < 0:
+            continue
+        for k in range(3):
+            x = value[F[f, k]]
+            if x > out[p]:
+                out[p] = x
+    return out
