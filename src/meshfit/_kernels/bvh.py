@@ -306,7 +306,7 @@ def build_grids(V, F, shapes, tbase, centroid):
     return order, lo, hi, child, start, stop
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@njit(cache=True, nogil=True, fastmath=False, inline="always")
 def _node_box(V, F, ords, lo, hi, child, start, stop, k):
     """Box of node ``k`` from its children's boxes, or from its triangles for a leaf."""
     c = child[k]
