@@ -168,6 +168,20 @@ def test_progress_reports_every_stage(tmp_path):
     assert all(d == t for d, t in seen.values())
 
 
+@pytest.mark.parametrize("failing", ["_write_exports", "_spline_errors"])
+def test_a_failure_on_a_side_thread_reaches_the_caller(tmp_path, monkeypatch, failing):
+    import meshfit.pipeline as pipeline
+
+    def boom(*args, **kwargs):
+        raise OSError(f"{failing} failed")
+
+    monkeypatch.setattr(pipeline, failing, boom)
+    opts = FitOptions(controls=(4, 4), spring_level=0, formats=("obj",), report=False)
+    with pytest.raises(OSError, match=f"{failing} failed"):
+        run_fit(real_mesh("spot"), tmp_path, layout=LAYOUT, options=opts)
+    assert not (tmp_path / "summary.json").exists()
+
+
 def test_bad_options_and_layouts(tmp_path):
     with pytest.raises(InputError, match="controls"):
         FitOptions(controls=(3, 8))
