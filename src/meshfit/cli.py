@@ -14,6 +14,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from meshfit import __version__, errors
+from meshfit._malloc import tune_malloc
 
 __all__ = ["EXIT_ERROR", "EXIT_OK", "build_parser", "main", "print_json", "print_table"]
 
@@ -149,8 +150,6 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit code (0 ok, 2 bad input)."""
-    from meshfit._malloc import tune_malloc
-
     tune_malloc()
     parser = build_parser()
     args = parser.parse_args(argv)

@@ -617,16 +617,27 @@ def _error_figures(
     )
 
 
-def _spline_errors(mesh: Mesh, surfaces: list, shapes: list[tuple[int, ...]]):
-    """The splines at their maps' texels (``shapes``), their error figures against the
-    input, each grid vertex's distance to the input, and ``shapes``."""
-    grids = [
+def _texel_grids(surfaces: list, shapes: list[tuple[int, ...]]) -> list[NDArray[np.float64]]:
+    """Each spline at its map's texels (``shapes[p]`` starts with the map's rows and
+    columns), as the displaced grids are laid out."""
+    return [
         s.evaluate_grid(np.linspace(0.0, 1.0, sh[0]), np.linspace(0.0, 1.0, sh[1]))
         for s, sh in zip(surfaces, shapes, strict=True)
     ]
+
+
+def _spline_errors(mesh: Mesh, grids: list[NDArray[np.float64]]):
+    """Error figures of the spline grids (`_texel_grids`) against the input, and each grid
+    vertex's distance to the input."""
     V, F = _soup(grids)
     fig, to_input, _ = _error_figures(mesh, V, F, grid_tree(V, F, [g.shape[:2] for g in grids]))
-    return grids, fig, to_input, list(shapes)
+    return fig, to_input
+
+
+def _early_spline(mesh: Mesh, surfaces: list, shapes: list[tuple[int, ...]]):
+    """The spline grids at the maps' texels (``shapes``) and `_spline_errors` of them."""
+    grids = _texel_grids(surfaces, shapes)
+    return (grids, *_spline_errors(mesh, grids))
 
 
 def _spring_bounds(
@@ -958,8 +969,15 @@ def run_fit(
     k_err = _key("errors", k_stitch, mhash)
     background = ThreadPoolExecutor(max_workers=2)
     early = None
+    early_shapes = [d.shape for d in dmaps]
     if options.map_shapes == "native" and st.cached("errors", k_err, ".json") is None:
-        early = background.submit(_spline_errors, mesh, surfaces, [d.shape for d in dmaps])
+        early = background.submit(_early_spline, mesh, surfaces, early_shapes)
+
+    def early_spline():
+        """`_early_spline`'s result, if it was started and the maps kept their shapes."""
+        if early is not None and early_shapes == [d.shape for d in dmaps]:
+            return early.result()
+        return None
 
     # ---- stitch: C0 is built into the fit (pinned boundaries), G1 by meshfit.stitch; here
     # the displacement seams are closed and the seams measured
@@ -985,14 +1003,8 @@ def run_fit(
     @cache
     def spline_grids() -> list[NDArray[np.float64]]:
         """Each spline at its map's texels, as the displaced grids (errors and report)."""
-        if early is not None and early.result()[3] == [d.shape for d in dmaps]:
-            return early.result()[0]
-        return [
-            surfaces[p].evaluate_grid(
-                np.linspace(0.0, 1.0, dmaps[p].shape[0]), np.linspace(0.0, 1.0, dmaps[p].shape[1])
-            )
-            for p in range(n_patches)
-        ]
+        done = early_spline()
+        return done[0] if done is not None else _texel_grids(surfaces, [d.shape for d in dmaps])
 
     if cached is None:
         seams = _seam_metrics(lay, surfaces, displaced_grids(), diag)
@@ -1017,12 +1029,10 @@ def run_fit(
             # surface's searches may still run
             Vd, Fd = _soup(displaced_grids())
             tree = grid_tree(Vd, Fd, [g.shape[:2] for g in displaced_grids()])
-            if early is not None and early.result()[3] == [d.shape for d in dmaps]:
-                _, spline_fig, spline_to_input, _ = early.result()
-            else:
-                _, spline_fig, spline_to_input, _ = _spline_errors(
-                    mesh, surfaces, [d.shape for d in dmaps]
-                )
+            done = early_spline()
+            spline_fig, spline_to_input = (
+                done[1:] if done is not None else _spline_errors(mesh, spline_grids())
+            )
             disp_fig, _, from_input = _error_figures(
                 mesh, Vd, Fd, tree, _spring_bounds(displaced_grids(), grids)
             )

@@ -165,20 +165,32 @@ def _trace_all(
         for (a, b, w), n in zip(arcs, counts, strict=True)
     ]
     located = smap.locate(np.vstack(inner))
+    return _between_corners(located, [n - 2 for n in counts], corners, ends, "boundary")
+
+
+def _between_corners(
+    inner: SurfacePoints,
+    sizes: list[int],
+    corners: SurfacePoints,
+    ends: NDArray[np.int64],
+    kinds: str | list[str],
+) -> list[SurfaceCurve]:
+    """Curves from their inner points (``inner``, ``sizes[i]`` of them for curve ``i``, in
+    order) between their end corners (rows of ``ends``), exact repeats of a point dropped
+    (dense samples inside one face are kept; a point on a corner leaves the corner)."""
     out = []
     at = 0
-    for (a, b), n in zip(ends.tolist(), counts, strict=True):
-        mid = located[np.arange(at, at + n - 2)]
-        at += n - 2
-        curve = SurfacePoints.concatenate([corners[np.array([a])], mid, corners[np.array([b])]])
-        # drop repeated points (dense samples inside one face are kept; exact repeats not)
-        keep = np.ones(len(curve.face), dtype=bool)
-        same = (curve.face[1:] == curve.face[:-1]) & np.all(
-            curve.bary[1:] == curve.bary[:-1], axis=1
-        )
-        keep[1:] = ~same
-        keep[-1] = True
-        out.append(SurfaceCurve(curve[np.flatnonzero(keep)], kind="boundary"))
+    for i, (n, (a, b)) in enumerate(zip(sizes, ends.tolist(), strict=True)):
+        mid = inner[np.arange(at, at + n)]
+        at += n
+        pts = SurfacePoints.concatenate([corners[np.array([a])], mid, corners[np.array([b])]])
+        same = (pts.face[1:] == pts.face[:-1]) & np.all(pts.bary[1:] == pts.bary[:-1], axis=1)
+        keep = np.concatenate([[True], ~same])
+        if same[-1]:
+            keep[-1] = True
+            keep[-2] = len(keep) == 2
+        kind = kinds if isinstance(kinds, str) else kinds[i]
+        out.append(SurfaceCurve(pts[np.flatnonzero(keep)], kind=kind))
     return out
 
 
@@ -515,21 +527,10 @@ def _carry_curves(
         [c.points[np.arange(1, n - 1)] for c, n in zip(curves, sizes, strict=True)]
     )
     moved = _carry_points(mesh, coarse, inner)
-    out = []
-    at = 0
-    for c, n, (a, b) in zip(curves, sizes, ends.tolist(), strict=True):
-        mid = moved[np.arange(at, at + n - 2)]
-        at += n - 2
-        pts = SurfacePoints.concatenate([corners[np.array([a])], mid, corners[np.array([b])]])
-        # exact repeats go (a carried point on a corner: the corner stays)
-        same = (pts.face[1:] == pts.face[:-1]) & np.all(pts.bary[1:] == pts.bary[:-1], axis=1)
-        keep = np.concatenate([[True], ~same])
-        if same[-1]:
-            keep[-1] = True
-            keep[-2] = len(keep) == 2
-        pts = pts[np.flatnonzero(keep)]
-        out.append(SurfaceCurve(pts, kind=c.kind))
-    return densify_curves(mesh, out)
+    carried = _between_corners(
+        moved, [n - 2 for n in sizes], corners, ends, [c.kind for c in curves]
+    )
+    return densify_curves(mesh, carried)
 
 
 def _checked(mesh: Mesh, layout: Layout, tries: int = 1) -> Layout:

@@ -387,12 +387,11 @@ def vertex_points(mesh: Mesh, vertices: NDArray[np.int64]) -> SurfacePoints:
     if v.size == mesh.n_vertices and (v == np.arange(v.size)).all():
         # every vertex in order (each is on a face): the table's segments as they lie
         face = np.minimum.reduceat(vf, indptr[:-1])
-        bary = (mesh.faces[face] == v[:, None]).astype(np.float64)
-        return SurfacePoints(face, bary)
-    lo, hi = indptr[v], indptr[v + 1]
-    if (hi <= lo).any():  # a vertex on no face: at_vertices raises its error
-        return SurfacePoints.at_vertices(mesh.faces, v)
-    face = _segment_min(vf, lo, hi)
+    else:
+        lo, hi = indptr[v], indptr[v + 1]
+        if (hi <= lo).any():  # a vertex on no face: at_vertices raises its error
+            return SurfacePoints.at_vertices(mesh.faces, v)
+        face = _segment_min(vf, lo, hi)
     bary = (mesh.faces[face] == v[:, None]).astype(np.float64)
     return SurfacePoints(face, bary)
 
