@@ -251,6 +251,11 @@ def densify_curves(mesh: Mesh, curves: list[SurfaceCurve]) -> list[SurfaceCurve]
         A curve that is not a SurfaceCurve on ``mesh``.
     meshfit.errors.PathError
         Two consecutive points lie on different components of the mesh.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 3.1 (the sampling rule) and appendix A
+       (MovePointOnSurface).
     """
     checked = [_as_curve(mesh, c, name=f"curves[{i}]") for i, c in enumerate(curves)]
     out: list[SurfaceCurve | None] = [_densify(mesh, c) if c.closed else None for c in checked]
