@@ -530,6 +530,72 @@ def closest_points(V, F, flat, order, lo, hi, child, start, stop, Q, qorder):
     return out, tri, bary_out
 
 
+@njit(cache=True, nogil=True, parallel=True, fastmath=False)
+def within(V, F, flat, order, lo, hi, child, start, stop, Q, qorder, r2):
+    """Whether each query point ``Q (n, 3)`` has a triangle within squared distance ``r2``:
+    (n,) bool.
+
+    The distance of a point to a triangle is the one `closest_points` finds. A search stops
+    at the first triangle within ``r2``, and starts with the triangle that answered the
+    previous query of its block (taken in the order ``qorder``, as in `closest_points`),
+    which settles most queries when the radius is a few spacings of the surface.
+    """
+    n = Q.shape[0]
+    out = np.zeros(n, dtype=np.bool_)
+    for blk in prange((n + _BLOCK - 1) // _BLOCK):
+        stack = np.empty(_STACK, dtype=np.int64)
+        near_sq = np.empty(_STACK)
+        bary = np.empty(3)
+        prev = -1
+        for r in range(blk * _BLOCK, min(n, (blk + 1) * _BLOCK)):
+            i = qorder[r]
+            if prev >= 0 and _triangle_sq(V, F, flat, prev, Q[i], bary) <= r2:
+                out[i] = True
+                continue
+            t = _first_within(
+                V, F, flat, order, lo, hi, child, start, stop, Q[i], stack, near_sq, bary, r2
+            )
+            if t >= 0:
+                out[i] = True
+                prev = t
+    return out
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _first_within(V, F, flat, order, lo, hi, child, start, stop, p, stack, near_sq, bary, r2):
+    """A triangle within squared distance ``r2`` of ``p`` (3,), the nearer subtree searched
+    first; -1 when there is none. ``stack``, ``near_sq`` and ``bary`` are scratch."""
+    px, py, pz = p[0], p[1], p[2]
+    top = 0
+    stack[top] = 0
+    near_sq[top] = _box_sq(lo, hi, 0, px, py, pz)
+    top += 1
+    while top > 0:
+        top -= 1
+        k = stack[top]
+        if near_sq[top] > r2:
+            continue
+        c = child[k]
+        if c < 0:
+            for j in range(start[k], stop[k]):
+                t = order[j]
+                if _triangle_sq(V, F, flat, t, p, bary) <= r2:
+                    return t
+        else:
+            d0 = _box_sq(lo, hi, c, px, py, pz)
+            d1 = _box_sq(lo, hi, c + 1, px, py, pz)
+            near, far, dn, df = (c, c + 1, d0, d1) if d0 <= d1 else (c + 1, c, d1, d0)
+            if df <= r2:
+                stack[top] = far
+                near_sq[top] = df
+                top += 1
+            if dn <= r2:
+                stack[top] = near
+                near_sq[top] = dn
+                top += 1
+    return -1
+
+
 @njit(cache=True, nogil=True, fastmath=False)
 def _nearest(
     V, F, flat, order, lo, hi, child, start, stop, p, stack, near_sq, bary, best_bary, d0, t0

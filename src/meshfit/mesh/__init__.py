@@ -8,6 +8,7 @@ from meshfit.mesh.locate import (
     closest_points,
     ray_first_hit,
     triangle_distances,
+    triangles_within,
 )
 from meshfit.mesh.validate import Finding, RepairReport, find_problems, repair_arrays
 
@@ -27,4 +28,5 @@ __all__ = [
     "repair_arrays",
     "save_mesh",
     "triangle_distances",
+    "triangles_within",
 ]

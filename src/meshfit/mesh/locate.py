@@ -28,6 +28,7 @@ __all__ = [
     "closest_points",
     "ray_first_hit",
     "triangle_distances",
+    "triangles_within",
 ]
 
 
@@ -199,6 +200,69 @@ def triangle_distances(
     """
     from meshfit._kernels import bvh
 
+    Q, V, F, tree = _soup_query(points, vertices, faces, tree)
+    if Q.shape[0] == 0:
+        return np.empty(0), np.empty(0, dtype=np.int64)
+    qorder = np.argsort(bvh.point_morton_codes(Q), kind="stable")
+    sq, face, _ = bvh.closest_points(V, F, *tree, Q, qorder)
+    return np.sqrt(sq), face
+
+
+def triangles_within(
+    points: ArrayLike,
+    vertices: ArrayLike,
+    faces: ArrayLike,
+    radius: float,
+    *,
+    tree: TriangleTree | None = None,
+) -> NDArray[np.bool_]:
+    """Whether each point has one of a set of triangles within ``radius``, on all cores.
+
+    The yes-or-no form of :func:`triangle_distances` (the same distances, compared as
+    squares with ``radius**2``): each search stops at the first triangle within the radius,
+    so with a radius of a few spacings of a surface near the points most take one triangle
+    test instead of a full descent of the tree.
+
+    Parameters
+    ----------
+    points : (n, 3) float64
+    vertices : (k, 3) float64
+    faces : (m, 3) int64
+        Triangles; ``m >= 1``.
+    radius : float
+        A finite distance >= 0.
+    tree : TriangleTree, keyword-only, optional
+        As for :func:`triangle_distances`.
+
+    Returns
+    -------
+    (n,) bool
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        As :func:`triangle_distances`, or a negative or non-finite radius.
+
+    References
+    ----------
+    .. [1] Ericson, "Real-Time Collision Detection", 2005, ch. 6 (bounding-volume
+       hierarchies).
+    """
+    from meshfit._kernels import bvh
+
+    r = float(radius)
+    if not (np.isfinite(r) and r >= 0.0):
+        raise InputError(f"radius must be a finite distance >= 0, got {radius}")
+    Q, V, F, tree = _soup_query(points, vertices, faces, tree)
+    if Q.shape[0] == 0:
+        return np.zeros(0, dtype=bool)
+    qorder = np.argsort(bvh.point_morton_codes(Q), kind="stable")
+    return bvh.within(V, F, *tree, Q, qorder, r * r)
+
+
+def _soup_query(points, vertices, faces, tree):
+    """Checked query points, vertices, faces and a tree over the triangles (built when
+    ``tree`` is None) of the soup queries."""
     Q = as_points(points, name="points")
     V = as_points(vertices, name="vertices")
     F = np.ascontiguousarray(faces, dtype=np.int64)
@@ -206,15 +270,11 @@ def triangle_distances(
         raise InputError(f"faces must have shape (m >= 1, 3), got {F.shape}")
     if F.min() < 0 or F.max() >= V.shape[0]:
         raise InputError(f"a face index is out of range 0..{V.shape[0] - 1}")
-    if Q.shape[0] == 0:
-        return np.empty(0), np.empty(0, dtype=np.int64)
-    qorder = np.argsort(bvh.point_morton_codes(Q), kind="stable")
     if tree is None:
         tree = build_tree(V, F)
     elif tree.order.shape[0] != F.shape[0]:
         raise InputError(f"tree has {tree.order.shape[0]} triangles, faces {F.shape[0]}")
-    sq, face, _ = bvh.closest_points(V, F, *tree, Q, qorder)
-    return np.sqrt(sq), face
+    return Q, V, F, tree
 
 
 def barycentric(

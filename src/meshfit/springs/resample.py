@@ -706,11 +706,13 @@ def resample_patch(
     if not (rescue and init == "map" and midpoints == "map"):
         return res
     t = time.perf_counter()
-    kept, miss = _rescued(mesh, res, lambda: run(True, 0.0, 1, 0, None))
-    finer = 0
-    if level is None:
+    kept, finer = res, 0
+    # most grids miss no vertex (`_misses` settles that without exact distances); the rest
+    # may be remade, as below
+    if _misses(mesh, res.final):
+        kept, miss = _rescued(mesh, res, lambda: run(True, 0.0, 1, 0, None))
         # still missing: the same, finer (a protrusion inside the patch needs more grid lines)
-        for extra in range(1, RESCUE_LEVELS + 1):
+        for extra in range(1, RESCUE_LEVELS + 1 if level is None else 1):
             if miss[0] <= RESCUE_SPACINGS:
                 break
             points = _points_at(res.final.shape, extra)
@@ -764,7 +766,32 @@ def _fold_share(mesh: Mesh, res: SpringResult) -> float:
 def _miss(mesh: Mesh, spring: SpringMesh) -> tuple[float, float]:
     """Largest distance from a vertex of ``mesh`` to the triangulated spring mesh: over the
     spring mesh's mean grid spacing, and as a length."""
-    from meshfit.mesh.locate import grid_tree, triangle_distances
+    from meshfit.mesh.locate import triangle_distances
+
+    h, P, T, tree = _spacing_and_soup(spring)
+    d, _ = triangle_distances(mesh.vertices, P, T, tree=tree)
+    worst = float(d.max())
+    return (worst / h if h > 0 else 0.0), worst
+
+
+def _misses(mesh: Mesh, spring: SpringMesh) -> bool:
+    """``_miss(mesh, spring)[0] > RESCUE_SPACINGS``, with exact distances only for the
+    vertices that have no triangle within a hair (1e-9 relative) less than that limit."""
+    from meshfit.mesh.locate import triangle_distances, triangles_within
+
+    h, P, T, tree = _spacing_and_soup(spring)
+    if not h > 0:
+        return False
+    near = triangles_within(mesh.vertices, P, T, RESCUE_SPACINGS * h * (1.0 - 1e-9), tree=tree)
+    if near.all():
+        return False
+    d, _ = triangle_distances(mesh.vertices[~near], P, T, tree=tree)
+    return float(d.max()) / h > RESCUE_SPACINGS
+
+
+def _spacing_and_soup(spring: SpringMesh):
+    """A spring mesh's mean grid spacing, its points and triangles, and their tree."""
+    from meshfit.mesh.locate import grid_tree
     from meshfit.springs.grid import grid_triangles
 
     X = spring.xyz
@@ -775,9 +802,7 @@ def _miss(mesh: Mesh, spring: SpringMesh) -> tuple[float, float]:
     )
     P = np.ascontiguousarray(X.reshape(-1, 3))
     T = grid_triangles(nu, nv)
-    d, _ = triangle_distances(mesh.vertices, P, T, tree=grid_tree(P, T, [(nu, nv)]))
-    worst = float(d.max())
-    return (worst / h if h > 0 else 0.0), worst
+    return h, P, T, grid_tree(P, T, [(nu, nv)])
 
 
 def _folds(mesh: Mesh, res: SpringResult) -> int:
