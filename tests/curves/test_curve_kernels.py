@@ -63,7 +63,13 @@ def _densify_cases(rng):
     ]
 
 
-def test_densify_matches_the_reference(rng):
+@pytest.mark.parametrize("threads", [1, 3])
+def test_densify_matches_the_reference(rng, threads, monkeypatch):
+    import meshfit.curves.base as base
+
+    if threads > 1:  # every pair its own run, on up to three threads: the join is exercised
+        monkeypatch.setattr(base, "_BRIDGE_CHUNK", 1)
+        monkeypatch.setattr(base.os, "cpu_count", lambda: threads)
     for label, mesh, curve in _densify_cases(rng):
         assert check_sampling(mesh, curve).size > 0, label  # something to repair
         got = densify_curve(mesh, curve)

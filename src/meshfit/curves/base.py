@@ -9,6 +9,9 @@ spaces the points evenly by arc length along the surface polyline (sec. 3.6.3).
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -301,23 +304,12 @@ def _bridge(
     if bad.size == 0:
         return p.face, p.bary, np.zeros(0, dtype=np.int64)
     nxt = (bad + 1) % m
-    indptr, vf = mesh.vertex_faces
-    pair, new_face, new_bary, g_face, g_bary = _curves.bridge_pairs(
-        mesh.vertices,
-        _i8(mesh.faces),
-        _i8(mesh.face_neighbors),
-        _i8(indptr),
-        _i8(vf),
+    pair, new_face, new_bary, g_face, g_bary = _bridge_pairs(
+        mesh,
         _i8(p.face[bad]),
         np.ascontiguousarray(p.bary[bad], dtype=np.float64),
         _i8(p.face[nxt]),
         np.ascontiguousarray(p.bary[nxt], dtype=np.float64),
-        _MAX_BISECT,
-        _MID_MAX_ITER,
-        10_000,
-        tol.length(mesh, tol.WALK_EPS),
-        tol.length(mesh, tol.ATTRACT_EPS),
-        tol.BARY_EPS,
     )
     graph = np.flatnonzero(new_face < 0)
     if graph.size:  # a pair that would not come together: a greedy graph path instead
@@ -346,6 +338,57 @@ def _bridge(
         np.ascontiguousarray(new_bary, dtype=np.float64),
     )
     return face, bary, inserted
+
+
+#: broken pairs per thread at least before the pairs are bridged on several threads
+_BRIDGE_CHUNK = 64
+
+
+def _bridge_pairs(mesh: Mesh, fa, ba, fb, bb):
+    """The `bridge_pairs` kernel's outputs for the pairs ``(fa, ba) -> (fb, bb)``.
+
+    The pairs are bridged independently, so many are split into runs bridged on threads
+    (the kernel releases the GIL), and the runs' outputs are joined as one call would give
+    them: pair indices and graph-path entries offset by the runs before.
+    """
+    indptr, vf = mesh.vertex_faces
+    mesh_args = (
+        mesh.vertices,
+        _i8(mesh.faces),
+        _i8(mesh.face_neighbors),
+        _i8(indptr),
+        _i8(vf),
+    )
+    consts = (
+        _MAX_BISECT,
+        _MID_MAX_ITER,
+        10_000,
+        tol.length(mesh, tol.WALK_EPS),
+        tol.length(mesh, tol.ATTRACT_EPS),
+        tol.BARY_EPS,
+    )
+    n = fa.size
+    runs = min(os.cpu_count() or 1, n // _BRIDGE_CHUNK)
+    if runs < 2:
+        return _curves.bridge_pairs(*mesh_args, fa, ba, fb, bb, *consts)
+    cuts = np.linspace(0, n, runs + 1).astype(np.int64)
+
+    def run(k: int):
+        a, b = cuts[k], cuts[k + 1]
+        return _curves.bridge_pairs(*mesh_args, fa[a:b], ba[a:b], fb[a:b], bb[a:b], *consts)
+
+    with ThreadPoolExecutor(max_workers=runs) as pool:
+        parts = list(pool.map(run, range(runs)))
+    g_base = np.cumsum([0] + [len(part[3]) for part in parts])
+    pair = np.concatenate([part[0] + cuts[k] for k, part in enumerate(parts)])
+    # a graph-path entry -1 - j of run k is entry j + g_base[k] of the joined list
+    face = np.concatenate(
+        [np.where(part[1] < 0, part[1] - g_base[k], part[1]) for k, part in enumerate(parts)]
+    )
+    bary = np.concatenate([part[2] for part in parts])
+    g_face = np.concatenate([part[3] for part in parts])
+    g_bary = np.concatenate([part[4] for part in parts])
+    return pair, face, bary, g_face, g_bary
 
 
 def _positions(total: float, closed: bool, spacing: float | None, n: int | None) -> NDArray:

@@ -389,9 +389,11 @@ def _proxy_tries(coarse: Mesh, smap, n_faces: int, seed: int, relax: bool, iters
 
 
 def _prepare_fine(mesh: Mesh) -> None:
-    """Build the full mesh's cached search tree, normals, vertex stars and edge lengths
-    (carrying, densifying and relaxing the curves use them)."""
+    """Build the full mesh's cached search tree, normals, vertex stars, edge lengths, edge
+    faces and vertex adjacency (carrying, densifying and relaxing the curves use them: the
+    last two where a carried pair is joined by a graph path)."""
     _ = mesh.triangle_tree, mesh.vertex_normals, mesh.vertex_faces, mesh.mean_edge_length
+    _ = mesh.edge_face, mesh.vertex_adjacency
 
 
 def _network(mesh: Mesh, smap, n_faces: int, seed: int):
