@@ -31,6 +31,7 @@ from __future__ import annotations
 import contextlib
 import gc
 import math
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -462,9 +463,10 @@ def _cut_edges(paths: list[list[int]], closed: bool) -> NDArray[np.int64]:
     return np.stack([keys // n, keys % n], axis=1)
 
 
-def _refined(cutter: _Cutter, mesh: Mesh):
+def _refined(cutter: _Cutter, mesh: Mesh, base: SurfacePoints | None = None):
     """Arrays of the refined (not yet split) triangulation: vertices, faces, face parents,
-    vertex sources, vertex parents and colours."""
+    vertex sources, vertex parents and colours (``base``: the mesh's vertices as face points,
+    when already made)."""
     nv0 = cutter.nv0
     n_new, n_tri = cutter.n_new, cutter.n_tri
     nf0 = cutter.nf0
@@ -476,7 +478,7 @@ def _refined(cutter: _Cutter, mesh: Mesh):
     face_parent = np.concatenate([np.arange(nf0, dtype=np.int64), TR[nf0:n_tri, 3]])
     src = SurfacePoints.concatenate(
         [
-            vertex_points(mesh, np.arange(nv0)),
+            vertex_points(mesh, np.arange(nv0)) if base is None else base,
             SurfacePoints(NI[:n_new, 0].copy(), NV[:n_new, 3:6].copy()),
         ]
     )
@@ -595,7 +597,9 @@ def cut_mesh_network(
     if ends.size and (ends.min() < 0 or ends.max() >= nc):
         i = int(np.flatnonzero((ends < 0).any(axis=1) | (ends >= nc).any(axis=1))[0])
         raise InputError(f"curve {i}: corner index out of range 0..{nc - 1}: {ends[i].tolist()}")
-    with _no_gc():
+    # the mesh's own vertices as face points, made on a thread while the curves go in
+    with _no_gc(), ThreadPoolExecutor(max_workers=1) as pool:
+        base = pool.submit(vertex_points, mesh, np.arange(mesh.n_vertices))
         n_points = sum(len(c.points if isinstance(c, SurfaceCurve) else c) for c in curves)
         cutter = _Cutter(mesh, n_points)
         cutter.route_fans = True
@@ -650,7 +654,7 @@ def cut_mesh_network(
             paths.append(path)
         _check_meetings(paths, corner_v, ends)
         cutter.cut = _cut_edges(paths, False)
-        vertices, faces, face_parent, src, parent, colors = _refined(cutter, mesh)
+        vertices, faces, face_parent, src, parent, colors = _refined(cutter, mesh, base.result())
         copy_of = np.arange(vertices.shape[0], dtype=np.int64)
         if split:
             faces, copy_of = _split_faces(cutter, faces, vertices.shape[0])
