@@ -81,13 +81,9 @@ def _attract_few(
     its own position and the previous point's result, so a curve far from its targets gets
     there by continuation, a short walk per point (serial by nature).
     """
-    indptr, vf = mesh.vertex_faces
     args = (
         mesh.vertices,
-        _i8(mesh.faces),
-        _i8(mesh.face_neighbors),
-        _i8(indptr),
-        _i8(vf),
+        *_topology(mesh),
         _i8(face),
         _clean_bary(bary),
         np.ascontiguousarray(targets, dtype=np.float64),
@@ -136,15 +132,18 @@ def check_sampling(mesh: Mesh, curve: SurfaceCurve) -> NDArray[np.int64]:
     return _broken_pairs(mesh, _as_curve(mesh, curve))
 
 
+def _topology(mesh: Mesh) -> tuple[NDArray[np.int64], ...]:
+    """The curve kernels' view of a mesh's connectivity, as contiguous int64: faces, face
+    neighbours and the vertex-face table ``(indptr, faces)``."""
+    indptr, vf = mesh.vertex_faces
+    return _i8(mesh.faces), _i8(mesh.face_neighbors), _i8(indptr), _i8(vf)
+
+
 def _broken_pairs(mesh: Mesh, curve: SurfaceCurve) -> NDArray[np.int64]:
     """:func:`check_sampling` for a curve already checked to be on ``mesh``."""
     p = curve.points
-    indptr, vf = mesh.vertex_faces
     return _curves.broken_pairs(
-        _i8(mesh.faces),
-        _i8(mesh.face_neighbors),
-        _i8(indptr),
-        _i8(vf),
+        *_topology(mesh),
         _i8(p.face),
         np.ascontiguousarray(p.bary, dtype=np.float64),
         bool(curve.closed),
@@ -351,14 +350,7 @@ def _bridge_pairs(mesh: Mesh, fa, ba, fb, bb):
     (the kernel releases the GIL), and the runs' outputs are joined as one call would give
     them: pair indices and graph-path entries offset by the runs before.
     """
-    indptr, vf = mesh.vertex_faces
-    mesh_args = (
-        mesh.vertices,
-        _i8(mesh.faces),
-        _i8(mesh.face_neighbors),
-        _i8(indptr),
-        _i8(vf),
-    )
+    mesh_args = (mesh.vertices, *_topology(mesh))
     consts = (
         _MAX_BISECT,
         _MID_MAX_ITER,
@@ -537,13 +529,9 @@ def _resample_once(
     ends = np.append(pos, total)
     # the fewest parts first: a step leaves the search at the first k that keeps the rule
     a, b = pos[bad], ends[bad + 1]
-    indptr, vf = mesh.vertex_faces
     pts = curve.points
     kbest = _curves.subdivide_steps(
-        _i8(mesh.faces),
-        _i8(mesh.face_neighbors),
-        _i8(indptr),
-        _i8(vf),
+        *_topology(mesh),
         np.ascontiguousarray(a, dtype=np.float64),
         np.ascontiguousarray(b, dtype=np.float64),
         _K_MIN,

@@ -22,6 +22,7 @@ from meshfit._validate import as_points, as_surface_points
 from meshfit.curves.base import (
     _as_curve,
     _resample,
+    _topology,
     resample_curve,
 )
 from meshfit.errors import InputError, PathError
@@ -98,13 +99,9 @@ def _segment(
     # faces sharing no vertex, or a gap over three spacings) the graph-path samples are kept,
     # each reverted stretch growing until no pair jumps; a pair merely passing a vertex
     # through a fan of faces is filled in by densifying when resampling
-    indptr, vf = mesh.vertex_faces
     face, bary = _curves.straighten_chain(
         mesh.vertices,
-        _i8(mesh.faces),
-        _i8(mesh.face_neighbors),
-        _i8(indptr),
-        _i8(vf),
+        *_topology(mesh),
         pts.face,
         pts.bary,
         targets,
