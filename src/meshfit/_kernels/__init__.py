@@ -1,0 +1,72 @@
+"""Numba kernels (nopython, compiled once and cached on disk).
+
+numba checks a kernel's cached machine code against the kernel's own file only, but kernels
+here inline helpers of other files of this package (the walks of ``walk.py`` in
+``springs.py``, ``curves.py``, ``snakes.py`` and ``bvh.py``). So a digest of all the files
+here is kept beside the caches, and when it changes every cache of this package is dropped
+before any is loaded: an edited helper is never run in its old form by a caller whose own
+file did not change.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from pathlib import Path
+
+#: the file beside the caches holding the digest of the sources they were compiled from
+STAMP = "meshfit-kernels.sha256"
+
+
+def sources_digest(folder: Path) -> str:
+    """SHA-256 over the names and contents of the ``*.py`` files of ``folder``, in name
+    order."""
+    h = hashlib.sha256()
+    for src in sorted(folder.glob("*.py")):
+        h.update(src.name.encode() + b"\0" + src.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
+def drop_stale_caches(sources: Path, caches: Path) -> bool:
+    """Delete numba's cache files (``*.nbi``, ``*.nbc``) in ``caches`` unless the digest of
+    ``sources`` is the one stamped there, then stamp it. Returns whether files were dropped.
+
+    Best effort: a folder that cannot be read or written is left as it is (numba then
+    compiles into its own fallback location).
+    """
+    key = sources_digest(sources)
+    stamp = caches / STAMP
+    try:
+        if stamp.read_text() == key:
+            return False
+    except OSError:
+        pass
+    try:
+        caches.mkdir(parents=True, exist_ok=True)
+        dropped = False
+        for f in caches.iterdir():
+            if f.suffix in (".nbi", ".nbc"):
+                f.unlink(missing_ok=True)
+                dropped = True
+        tmp = caches / f"{STAMP}.{os.getpid()}.tmp"
+        tmp.write_text(key)
+        os.replace(tmp, stamp)
+    except OSError:
+        return False
+    return dropped
+
+
+def _cache_folder() -> Path | None:
+    """Where numba keeps the caches of the kernels of this folder (None when it cannot
+    tell)."""
+    try:
+        from numba.core.caching import FunctionCache
+
+        return Path(FunctionCache(_cache_folder).cache_path)
+    except Exception:  # numba without this API, or no cache locator: nothing is dropped
+        return None
+
+
+_folder = _cache_folder()
+if _folder is not None:
+    drop_stale_caches(Path(__file__).resolve().parent, _folder)
