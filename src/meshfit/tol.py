@@ -33,6 +33,10 @@ TEST_ATOL = 1e-9
 #: reproduces (a point of the input surface) is given that distance to the input, no search
 #: (the exact distance lies between 0 and it)
 KNOWN_DISTANCE = 1e-12
+#: relative margin inside a distance limit within which a yes-or-no search
+#: (`meshfit.mesh.triangles_within`) settles a point as within the limit; the points it does
+#: not settle get exact distances, so the decision is the one exact distances give
+WITHIN_MARGIN = 1e-9
 
 
 def length(mesh: Mesh, rel: float, *, scale: str = "mean_edge_length") -> float:

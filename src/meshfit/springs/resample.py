@@ -776,13 +776,15 @@ def _miss(mesh: Mesh, spring: SpringMesh) -> tuple[float, float]:
 
 def _misses(mesh: Mesh, spring: SpringMesh) -> bool:
     """``_miss(mesh, spring)[0] > RESCUE_SPACINGS``, with exact distances only for the
-    vertices that have no triangle within a hair (1e-9 relative) less than that limit."""
+    vertices that have no triangle within ``tol.WITHIN_MARGIN`` (relative) inside that
+    limit."""
     from meshfit.mesh.locate import triangle_distances, triangles_within
 
     h, P, T, tree = _spacing_and_soup(spring)
     if not h > 0:
         return False
-    near = triangles_within(mesh.vertices, P, T, RESCUE_SPACINGS * h * (1.0 - 1e-9), tree=tree)
+    limit = RESCUE_SPACINGS * h * (1.0 - tol.WITHIN_MARGIN)
+    near = triangles_within(mesh.vertices, P, T, limit, tree=tree)
     if near.all():
         return False
     d, _ = triangle_distances(mesh.vertices[~near], P, T, tree=tree)
