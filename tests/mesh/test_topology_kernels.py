@@ -119,3 +119,28 @@ def test_fans_and_face_components_of_real_meshes(name, rng):
     fan_vertex = np.full(n_fans, -1)
     fan_vertex[fan] = faces.reshape(-1)
     assert (fan_vertex[fan] == faces.reshape(-1)).all()
+
+
+@pytest.mark.parametrize("name", ["spot", "bunny"])
+def test_vertex_face_components_match_scipy(name, rng):
+    mesh = real_mesh(name)
+    # strips of faces (every other band across x, with holes) and two triangles of new
+    # vertices that share only a vertex (one component through it)
+    x = mesh.vertices[mesh.faces].mean(axis=1)[:, 0]
+    band = np.floor((x - x.min()) / (0.05 * mesh.bbox_diagonal)).astype(int)
+    keep = (band % 2 == 0) & (rng.random(mesh.n_faces) > 0.1)
+    n0 = mesh.n_vertices
+    bowtie = np.array([[n0, n0 + 1, n0 + 2], [n0, n0 + 3, n0 + 4]])
+    faces = np.concatenate([mesh.faces[keep], bowtie])
+    nf, nv = faces.shape[0], n0 + 5
+    count, labels = kernel.vertex_face_components(faces, nv)
+    # faces and vertices as one graph, each face joined to its three vertices
+    _, both = ref.components(nf + nv, np.repeat(np.arange(nf), 3), nf + faces.reshape(-1))
+    _, first, inverse = np.unique(both[:nf], return_index=True, return_inverse=True)
+    rank = np.argsort(np.argsort(first))  # numbered in order of each one's first face
+    assert count == first.size > 5
+    np.testing.assert_array_equal(labels, rank[inverse.reshape(-1)])
+    # on the whole (manifold) mesh they are its edge-connected components
+    count, labels = kernel.vertex_face_components(mesh.faces, nv)
+    assert count == mesh.n_components
+    np.testing.assert_array_equal(labels, mesh.face_components)

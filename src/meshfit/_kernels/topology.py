@@ -183,6 +183,28 @@ def components(n, a, b):
 
 
 @njit(cache=True, nogil=True)
+def vertex_face_components(faces, nv):
+    """Components of a triangle list joined through shared vertices: ``(count, labels
+    (nf,))``, numbered in order of each component's first face. On a manifold mesh (one fan
+    of faces around every vertex) these are its edge-connected components.
+    """
+    parent = np.arange(nv)
+    for f in range(faces.shape[0]):
+        _union(parent, faces[f, 0], faces[f, 1])
+        _union(parent, faces[f, 0], faces[f, 2])
+    root_label = np.full(nv, -1, dtype=np.int64)
+    labels = np.empty(faces.shape[0], dtype=np.int64)
+    count = 0
+    for f in range(faces.shape[0]):
+        r = _root(parent, faces[f, 0])
+        if root_label[r] < 0:
+            root_label[r] = count
+            count += 1
+        labels[f] = root_label[r]
+    return count, labels
+
+
+@njit(cache=True, nogil=True)
 def neighbor_components(neighbors):
     """`components` of the rows of ``neighbors (n, k)``, row ``i`` joined to every
     ``neighbors[i, j] >= 0`` (faces across their edges; -1 for none)."""

@@ -35,12 +35,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from meshfit import tol
-from meshfit.errors import CutError, InputError, LayoutError
+from meshfit._kernels.topology import vertex_face_components
+from meshfit.errors import CutError, InputError, LayoutError, MeshfitError
 from meshfit.layout.layout import Layout, check_layout
 from meshfit.layout.patch import Patch
 from meshfit.mesh import Mesh
 from meshfit.mesh.locate import barycentric
-from meshfit.surface.cut import NetworkCutResult, cut_mesh_network
+from meshfit.surface.cut import NetworkCutArrays, network_cut_arrays
 from meshfit.types import SurfaceCurve, SurfacePoints
 
 __all__ = ["check_layout_topology", "extract_patches"]
@@ -54,6 +55,8 @@ class _Region:
     faces: NDArray[np.int64]  # faces of the split mesh
     loop: NDArray[np.int64]  # boundary loop (split-mesh vertices), starting at corner 0
     corner_pos: list[int]  # positions in ``loop`` of corners 0..3
+    sub: Mesh  # the region as a checked mesh (named for its component)
+    used: NDArray[np.int64]  # split-mesh vertex of each vertex of ``sub`` (ascending)
 
 
 #: the last partition computed, for the mesh and layout objects it was computed for (both are
@@ -64,48 +67,78 @@ _LAST_LOCK = threading.Lock()
 
 
 def _partition(
-    mesh: Mesh, layout: Layout, progress: Callable[[int, int], None] | None
-) -> tuple[NetworkCutResult, list[_Region]]:
+    mesh: Mesh,
+    layout: Layout,
+    progress: Callable[[int, int], None] | None,
+    workers: int | None = None,
+) -> tuple[NetworkCutArrays, list[_Region], int]:
+    """The cut, the regions matched to patches and the number of regions (the last ones
+    computed are kept for the same mesh and layout objects)."""
     with _LAST_LOCK:
         last = _LAST[0]
         if last is not None and last[0]() is mesh and last[1]() is layout:
-            return last[2], last[3]
-    res, regions = _compute_partition(mesh, layout, progress)
+            return last[2]
+    out = _compute_partition(mesh, layout, progress, workers)
     with _LAST_LOCK:
-        _LAST[0] = (weakref.ref(mesh), weakref.ref(layout), res, regions)
-    return res, regions
+        _LAST[0] = (weakref.ref(mesh), weakref.ref(layout), out)
+    return out
+
+
+def _piece(
+    mesh: Mesh, cut: NetworkCutArrays, faces: NDArray[np.int64], c: int
+) -> tuple[Mesh, NDArray[np.int64]] | MeshfitError:
+    """Region ``c`` (split-mesh ``faces``) as a checked mesh with its boundary loops traced,
+    and the split-mesh vertex of each of its vertices; or the error the check raised."""
+    F = cut.faces[faces]
+    used, inv = np.unique(F.reshape(-1), return_inverse=True)
+    colors = None if cut.colors is None else cut.colors[used]
+    try:
+        sub = Mesh(
+            cut.vertices[used],
+            inv.reshape(-1, 3).astype(np.int64),
+            colors,
+            name=f"{mesh.name or 'mesh'}-region{c}",
+        )
+    except MeshfitError as exc:
+        return exc
+    _ = sub.boundary_loops
+    return sub, used
 
 
 def _compute_partition(
-    mesh: Mesh, layout: Layout, progress: Callable[[int, int], None] | None
-) -> tuple[NetworkCutResult, list[_Region]]:
+    mesh: Mesh,
+    layout: Layout,
+    progress: Callable[[int, int], None] | None,
+    workers: int | None,
+) -> tuple[NetworkCutArrays, list[_Region], int]:
     check_layout(mesh, layout)
     try:
-        res = cut_mesh_network(mesh, list(layout.curves), layout.corners, layout.curve_ends)
+        res = network_cut_arrays(mesh, list(layout.curves), layout.corners, layout.curve_ends)
     except CutError as exc:
         raise LayoutError(str(exc)) from None
-    cut = res.mesh
     copy_of = res.copy_of
     # refined vertices: every one has a copy in the cut mesh
     n_ref = int(max([copy_of.max(initial=0), *(p.max(initial=0) for p in res.curve_vertices)])) + 1
     along = _Along(res.curve_vertices, n_ref)
-    is_corner = np.zeros(n_ref, dtype=bool)
+    is_corner = np.zeros(n_ref, dtype=np.bool_)
     is_corner[res.corners] = True
 
-    labels = cut.face_components
-    n_comp = cut.n_components
-    vcomp = cut.vertex_components
-    n_f = np.bincount(labels, minlength=n_comp)
-    n_v = np.bincount(vcomp, minlength=n_comp)
-    n_e = np.bincount(vcomp[cut.edges[:, 0]], minlength=n_comp)
-    chi = n_v - n_e + n_f
-    loops_of: list[list[NDArray[np.int64]]] = [[] for _ in range(n_comp)]
-    for loop in cut.boundary_loops:
-        loops_of[int(vcomp[loop[0]])].append(loop)
+    # the regions: faces joined through shared vertices (the split leaves one fan of faces
+    # around every vertex, so these are the edge-connected pieces), numbered by first face
+    n_comp, labels = vertex_face_components(res.faces, res.vertices.shape[0])
     # faces by component, ascending within each: component c's are order[starts[c]:starts[c+1]]
     order = np.argsort(labels, kind="stable")
     starts = np.searchsorted(labels[order], np.arange(n_comp + 1))
     first_face = order[starts[:-1]]
+    # each region checked as a mesh of its own (the pieces make up the cut mesh) and its
+    # boundary loops traced, on threads (the numpy work and the kernels release the GIL)
+    n_workers = int(workers) if workers is not None else os.cpu_count() or 1
+    spans = [(order[starts[c] : starts[c + 1]], c) for c in range(n_comp)]
+    if n_workers > 1 and n_comp > 1:
+        with ThreadPoolExecutor(max_workers=n_workers) as pool:
+            pieces = list(pool.map(lambda fc: _piece(mesh, res, *fc), spans))
+    else:
+        pieces = [_piece(mesh, res, *fc) for fc in spans]
 
     by_set: dict[frozenset[int], list[int]] = {}
     for p in range(layout.n_patches):
@@ -132,7 +165,11 @@ def _compute_partition(
     for c in range(n_comp):
         if progress is not None:
             progress(c, n_comp + layout.n_patches)
-        loops = loops_of[c]
+        got = pieces[c]
+        if isinstance(got, MeshfitError):
+            raise got
+        sub, used = got
+        loops = [used[loop] for loop in sub.boundary_loops]  # split-mesh vertices
         curves_seen: set[int] = set()
         for loop in loops:
             curve, _ = along.lookup(copy_of[loop])
@@ -155,9 +192,10 @@ def _compute_partition(
                 f"{name} is not a disk: its region has {len(loops)} boundary loops "
                 "(a hole of the mesh inside it, or curves that do not close around it)"
             )
-        if chi[c] != 1:
+        chi = sub.euler_characteristic
+        if chi != 1:
             raise LayoutError(
-                f"{name} is not a disk: Euler characteristic {int(chi[c])} instead of 1 "
+                f"{name} is not a disk: Euler characteristic {chi} instead of 1 "
                 f"(a handle inside it)"
             )
         seq, pos = chains(loops[0], c)
@@ -185,12 +223,12 @@ def _compute_partition(
         start = pos[rot]
         loop = np.roll(loops[0], -start)
         cpos = [(pos[(rot + s) % 4] - start) % loops[0].size for s in range(4)]
-        regions.append(_Region(p, order[starts[c] : starts[c + 1]], loop, cpos))
+        regions.append(_Region(p, order[starts[c] : starts[c + 1]], loop, cpos, sub, used))
     missing = [p for p in range(layout.n_patches) if p not in claimed]
     if missing:
         raise LayoutError(f"patch {missing[0]} bounds no region of its own")
     regions.sort(key=lambda r: r.patch)
-    return res, regions
+    return res, regions, n_comp
 
 
 class _Along:
@@ -257,7 +295,7 @@ def check_layout_topology(mesh: Mesh, layout: Layout) -> None:
     ----------
     .. [1] Krishnamurthy 2000, sec. 1.3, fig. 1.2.
     """
-    _partition(mesh, layout, None)
+    _partition(mesh, layout, None, None)
 
 
 def extract_patches(
@@ -306,9 +344,8 @@ def extract_patches(
     n_workers = int(workers) if workers is not None else os.cpu_count() or 1
     if n_workers < 1:
         raise InputError(f"workers must be >= 1, got {workers}")
-    res, regions = _partition(mesh, layout, progress)
-    cut = res.mesh
-    n_steps = cut.n_components + layout.n_patches
+    res, regions, n_comp = _partition(mesh, layout, progress, n_workers)
+    n_steps = n_comp + layout.n_patches
     build = partial(_build_patch, mesh, layout, res)
     # the submeshes' numpy work and validation kernels release the GIL: about 1.8 times
     # faster on two cores (igea refined to 1.07M faces, 102 patches: 0.38 s -> 0.23 s)
@@ -318,23 +355,16 @@ def extract_patches(
         for k, patch in enumerate(pool.map(build, regions) if threads else map(build, regions)):
             out.append(patch)
             if progress is not None:
-                progress(cut.n_components + k, n_steps)
+                progress(n_comp + k, n_steps)
     if progress is not None:
         progress(n_steps, n_steps)
     return out
 
 
-def _build_patch(mesh: Mesh, layout: Layout, res: NetworkCutResult, reg: _Region) -> Patch:
-    cut = res.mesh
-    faces = cut.faces[reg.faces]
-    used, inv = np.unique(faces.reshape(-1), return_inverse=True)
-    sub_faces = inv.reshape(-1, 3).astype(np.int64)
-    local = np.full(cut.n_vertices, -1, dtype=np.int64)
-    local[used] = np.arange(used.size)
-    colors = None if cut.vertex_colors is None else cut.vertex_colors[used]
-    name = f"{mesh.name or 'mesh'}-patch{reg.patch}"
-    sub = Mesh(cut.vertices[used], sub_faces, colors, name=name)
-    loop = local[reg.loop]
+def _build_patch(mesh: Mesh, layout: Layout, res: NetworkCutArrays, reg: _Region) -> Patch:
+    sub = reg.sub.with_name(f"{mesh.name or 'mesh'}-patch{reg.patch}")
+    used = reg.used
+    loop = np.searchsorted(used, reg.loop)  # the loop's vertices in ``sub``
     n = loop.size
     cpos = reg.corner_pos
     corners = loop[cpos]

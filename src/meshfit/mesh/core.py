@@ -123,6 +123,14 @@ class Mesh:
         if table is not None:  # the cached property's value, computed by the check
             object.__setattr__(self, "_edge_table", table)
 
+    def with_name(self, name: str) -> Mesh:
+        """The same mesh under another name, without checking it again: the arrays and
+        everything already derived from them (edge table, search tree, ...) are shared."""
+        out = object.__new__(Mesh)
+        out.__dict__.update(self.__dict__)
+        object.__setattr__(out, "name", str(name))
+        return out
+
     @classmethod
     def from_arrays(
         cls,

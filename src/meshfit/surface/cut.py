@@ -589,6 +589,47 @@ def cut_mesh_network(
     .. [1] Krishnamurthy 2000, sec. 1.3, fig. 1.2 (patch boundaries) and sec. 8.1.3 (patches
        sharing boundary curves and corners).
     """
+    a = network_cut_arrays(mesh, curves, corners, ends, split=split)
+    return NetworkCutResult(
+        Mesh(a.vertices, a.faces, a.colors, name=mesh.name),
+        a.curve_vertices,
+        a.corners,
+        a.copy_of,
+        a.face_parent,
+        a.vertex_parent,
+        a.vertex_source,
+    )
+
+
+@dataclass(frozen=True)
+class NetworkCutArrays:
+    """The arrays of a network cut, before they are checked as a mesh: what
+    :func:`network_cut_arrays` returns (the fields of :class:`NetworkCutResult`, with the
+    cut mesh as ``vertices``, ``faces`` and ``colors``)."""
+
+    vertices: NDArray[np.float64]
+    faces: NDArray[np.int64]
+    colors: NDArray[np.uint8] | None
+    curve_vertices: tuple[NDArray[np.int64], ...]
+    corners: NDArray[np.int64]
+    copy_of: NDArray[np.int64]
+    face_parent: NDArray[np.int64]
+    vertex_parent: NDArray[np.int64]
+    vertex_source: SurfacePoints
+
+
+def network_cut_arrays(
+    mesh: Mesh,
+    curves: list[SurfacePoints | SurfaceCurve],
+    corners: SurfacePoints,
+    ends: NDArray[np.int64],
+    *,
+    split: bool = True,
+) -> NetworkCutArrays:
+    """:func:`cut_mesh_network` without building the cut mesh: its arrays, for callers that
+    check it piece by piece (:func:`meshfit.layout.extract_patches` validates each patch's
+    submesh, on threads). Same parameters and errors, except that nothing checks the
+    arrays as a whole mesh."""
     corners = as_surface_points(mesh, corners, name="corners")
     ends = np.asarray(ends, dtype=np.int64).reshape(-1, 2)
     if ends.shape[0] != len(curves):
@@ -662,9 +703,10 @@ def cut_mesh_network(
             parent = parent[copy_of]
             src = src[copy_of]
             colors = None if colors is None else colors[copy_of]
-        new_mesh = Mesh(vertices, faces, colors, name=mesh.name)
-        return NetworkCutResult(
-            new_mesh,
+        return NetworkCutArrays(
+            vertices,
+            faces,
+            colors,
             tuple(np.asarray(p, dtype=np.int64) for p in paths),
             corner_v,
             copy_of,
