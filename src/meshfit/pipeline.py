@@ -940,9 +940,27 @@ def run_fit(
         _save_npz(st.path("fit", k_fit, ".npz"), arrays)
     st.done("fit", t0, cached=cached is not None)
 
+    # the spline-only surface needs the fit and the maps' rows and columns alone, which the
+    # displacement and the stitch keep ("native" shapes: the spring grids'): its errors are
+    # measured on a thread while the maps are made and the seams stitched, and the exports
+    # are written on another while the displaced surface's errors are measured
+    k_disp = _key("displacement", k_fit, options.map_kind)
+    k_stitch = _key("stitch", k_disp, options.map_shapes)
+    k_err = _key("errors", k_stitch, mhash)
+    background = ThreadPoolExecutor(max_workers=2)
+    early = None
+    early_shapes = [g.shape[:2] for g in grids]
+    if options.map_shapes == "native" and st.cached("errors", k_err, ".json") is None:
+        early = background.submit(_early_spline, mesh, surfaces, early_shapes)
+
+    def early_spline():
+        """`_early_spline`'s result, if it was started and the maps have its shapes."""
+        if early is not None and early_shapes == [d.shape[:2] for d in dmaps]:
+            return early.result()
+        return None
+
     # ---- displacement
     t0 = st.start("displacement")
-    k_disp = _key("displacement", k_fit, options.map_kind)
     cached = st.cached("displacement", k_disp, ".npz")
     if cached is not None:
         z = _load_npz(cached)
@@ -960,24 +978,6 @@ def run_fit(
             {f"map_{p}": d.values for p, d in enumerate(dmaps)},
         )
     st.done("displacement", t0, cached=cached is not None)
-
-    # the spline-only surface needs the fit and the maps' shapes alone, which the stitch keeps
-    # ("native" shapes): its errors are measured on a thread while the seams are stitched
-    # (mostly serial work), and the exports are written on another while the displaced
-    # surface's errors are measured
-    k_stitch = _key("stitch", k_disp, options.map_shapes)
-    k_err = _key("errors", k_stitch, mhash)
-    background = ThreadPoolExecutor(max_workers=2)
-    early = None
-    early_shapes = [d.shape for d in dmaps]
-    if options.map_shapes == "native" and st.cached("errors", k_err, ".json") is None:
-        early = background.submit(_early_spline, mesh, surfaces, early_shapes)
-
-    def early_spline():
-        """`_early_spline`'s result, if it was started and the maps kept their shapes."""
-        if early is not None and early_shapes == [d.shape for d in dmaps]:
-            return early.result()
-        return None
 
     # ---- stitch: C0 is built into the fit (pinned boundaries), G1 by meshfit.stitch; here
     # the displacement seams are closed and the seams measured
