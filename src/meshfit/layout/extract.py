@@ -5,9 +5,11 @@ Method
 1. One network cut (:func:`meshfit.surface.cut.cut_mesh_network`) inserts all curves into one
    triangulation, each corner once, and splits the mesh along the union of the cut edges.
    Curves meeting away from their corners are an error.
-2. The face components of the split mesh are the patch regions. Each must be a disk: one
-   boundary loop and Euler characteristic 1 (a second loop means a hole of the mesh inside the
-   region, a lower characteristic a handle).
+2. The face components of the split mesh are the patch regions (found through shared
+   vertices: the split leaves one fan of faces around every vertex). Each is checked as a
+   mesh of its own, on threads, and must be a disk: one boundary loop and Euler
+   characteristic 1 (a second loop means a hole of the mesh inside the region, a lower
+   characteristic a handle).
 3. A region's boundary loop, in half-edge order (the region on the left), is split at the
    corners into chains; each chain runs along one curve, forwards or backwards. The cyclic
    sequence of (curve, reversed) pairs is matched against the layout's patches, which fixes
