@@ -312,6 +312,35 @@ def test_patches_built_on_threads_are_the_same():
             np.testing.assert_array_equal(fa.points.bary, fb.points.bary)
     with pytest.raises(InputError, match="workers must be >= 1"):
         extract_patches(mesh, layout, workers=0)
+    # the regions checked on threads (no partition kept from the calls above) give the same
+    from meshfit.layout import extract
+
+    extract._LAST[0] = None
+    three = extract_patches(mesh, layout, workers=2)
+    for a, b in zip(one, three, strict=True):
+        assert a.mesh.name == b.mesh.name == f"{mesh.name}-patch{a.index}"
+        np.testing.assert_array_equal(a.mesh.faces, b.mesh.faces)
+        np.testing.assert_array_equal(a.vertex_source.bary, b.vertex_source.bary)
+        np.testing.assert_array_equal(a.corners, b.corners)
+
+
+def test_a_region_failing_its_mesh_check_raises_in_component_order(monkeypatch):
+    from meshfit.errors import DegenerateFaceError
+    from meshfit.layout import extract
+
+    real_piece = extract._piece
+
+    def piece(mesh, cut, faces, c):
+        if c in (3, 7):
+            return DegenerateFaceError(f"region {c} has a degenerate face")
+        return real_piece(mesh, cut, faces, c)
+
+    monkeypatch.setattr(extract, "_piece", piece)
+    extract._LAST[0] = None
+    for workers in (1, 2):
+        with pytest.raises(DegenerateFaceError, match="region 3 has"):
+            extract_patches(sphere(), sphere_layout(), workers=workers)
+        extract._LAST[0] = None
 
 
 def _corrupt(tmp_path, edit, name="spot"):
