@@ -317,8 +317,10 @@ def extract_patches(
     progress : callable(done, total), keyword-only, optional
         Called as regions are identified and patches built.
     workers : int or None, keyword-only
-        Threads that build the patch submeshes once the mesh is cut (default 1; None: one
-        per core). The patches are the same for any count.
+        Threads that check the regions as meshes and build the patches once the mesh is cut
+        (default 1; None: one per core). The patches are the same for any count. A
+        partition already made for the same mesh and layout objects (by
+        :func:`check_layout_topology`, which uses every core, or ``load_layout``) is reused.
 
     Returns
     -------
