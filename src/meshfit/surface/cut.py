@@ -32,7 +32,7 @@ import contextlib
 import gc
 import math
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 from numpy.typing import NDArray
@@ -509,8 +509,25 @@ def _assemble(cutter: _Cutter, mesh: Mesh, path: list[int], closed: bool, split:
 
 
 # ------------------------------------------------------------------------- network of curves
+@dataclass(frozen=True, kw_only=True)
+class _NetworkCutMaps:
+    """What a network cut knows of its pieces besides the cut mesh itself (the fields
+    :class:`NetworkCutResult` and :class:`NetworkCutArrays` share, documented there)."""
+
+    curve_vertices: tuple[NDArray[np.int64], ...]
+    corners: NDArray[np.int64]
+    copy_of: NDArray[np.int64]
+    face_parent: NDArray[np.int64]
+    vertex_parent: NDArray[np.int64]
+    vertex_source: SurfacePoints
+
+    def maps(self) -> dict[str, object]:
+        """These fields by name (to build the other kind of result)."""
+        return {f.name: getattr(self, f.name) for f in fields(_NetworkCutMaps)}
+
+
 @dataclass(frozen=True)
-class NetworkCutResult:
+class NetworkCutResult(_NetworkCutMaps):
     """Result of :func:`cut_mesh_network`.
 
     Attributes
@@ -531,15 +548,31 @@ class NetworkCutResult:
         Original vertex each new vertex copies, -1 for vertices created by the cut.
     vertex_source : SurfacePoints
         Every vertex of ``mesh`` as a face point of the original mesh.
+
+    The fields after ``mesh`` are keyword-only.
     """
 
     mesh: Mesh
-    curve_vertices: tuple[NDArray[np.int64], ...]
-    corners: NDArray[np.int64]
-    copy_of: NDArray[np.int64]
-    face_parent: NDArray[np.int64]
-    vertex_parent: NDArray[np.int64]
-    vertex_source: SurfacePoints
+
+
+@dataclass(frozen=True)
+class NetworkCutArrays(_NetworkCutMaps):
+    """Result of :func:`network_cut_arrays`: the fields of :class:`NetworkCutResult`, with
+    the cut mesh as unchecked arrays instead of ``mesh``.
+
+    Attributes
+    ----------
+    vertices : (nv_new, 3) float64
+    faces : (nf_new, 3) int64
+    colors : (nv_new, 3) uint8 or None
+        The cut mesh's vertices, faces and vertex colours.
+    curve_vertices, corners, copy_of, face_parent, vertex_parent, vertex_source
+        As in :class:`NetworkCutResult` (keyword-only).
+    """
+
+    vertices: NDArray[np.float64]
+    faces: NDArray[np.int64]
+    colors: NDArray[np.uint8] | None
 
 
 def cut_mesh_network(
@@ -590,32 +623,7 @@ def cut_mesh_network(
        sharing boundary curves and corners).
     """
     a = network_cut_arrays(mesh, curves, corners, ends, split=split)
-    return NetworkCutResult(
-        Mesh(a.vertices, a.faces, a.colors, name=mesh.name),
-        a.curve_vertices,
-        a.corners,
-        a.copy_of,
-        a.face_parent,
-        a.vertex_parent,
-        a.vertex_source,
-    )
-
-
-@dataclass(frozen=True)
-class NetworkCutArrays:
-    """The arrays of a network cut, before they are checked as a mesh: what
-    :func:`network_cut_arrays` returns (the fields of :class:`NetworkCutResult`, with the
-    cut mesh as ``vertices``, ``faces`` and ``colors``)."""
-
-    vertices: NDArray[np.float64]
-    faces: NDArray[np.int64]
-    colors: NDArray[np.uint8] | None
-    curve_vertices: tuple[NDArray[np.int64], ...]
-    corners: NDArray[np.int64]
-    copy_of: NDArray[np.int64]
-    face_parent: NDArray[np.int64]
-    vertex_parent: NDArray[np.int64]
-    vertex_source: SurfacePoints
+    return NetworkCutResult(Mesh(a.vertices, a.faces, a.colors, name=mesh.name), **a.maps())
 
 
 def network_cut_arrays(
@@ -626,10 +634,34 @@ def network_cut_arrays(
     *,
     split: bool = True,
 ) -> NetworkCutArrays:
-    """:func:`cut_mesh_network` without building the cut mesh: its arrays, for callers that
-    check it piece by piece (:func:`meshfit.layout.extract_patches` validates each patch's
-    submesh, on threads). Same parameters and errors, except that nothing checks the
-    arrays as a whole mesh."""
+    """:func:`cut_mesh_network` without building the cut mesh: its arrays, unchecked.
+
+    For callers that check the cut piece by piece: :func:`meshfit.layout.extract_patches`
+    validates each region's submesh on its own, on threads, instead of the whole mesh.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    curves : list of SurfacePoints or SurfaceCurve
+    corners : SurfacePoints
+    ends : (nk, 2) int64
+    split : bool, keyword-only
+        As for :func:`cut_mesh_network`.
+
+    Returns
+    -------
+    NetworkCutArrays
+
+    Raises
+    ------
+    CutError, InputError
+        As :func:`cut_mesh_network`; the arrays are not checked as one mesh.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 1.3, fig. 1.2 (patch boundaries) and sec. 8.1.3 (patches
+       sharing boundary curves and corners).
+    """
     corners = as_surface_points(mesh, corners, name="corners")
     ends = np.asarray(ends, dtype=np.int64).reshape(-1, 2)
     if ends.shape[0] != len(curves):
@@ -707,12 +739,12 @@ def network_cut_arrays(
             vertices,
             faces,
             colors,
-            tuple(np.asarray(p, dtype=np.int64) for p in paths),
-            corner_v,
-            copy_of,
-            face_parent,
-            parent,
-            src,
+            curve_vertices=tuple(np.asarray(p, dtype=np.int64) for p in paths),
+            corners=corner_v,
+            copy_of=copy_of,
+            face_parent=face_parent,
+            vertex_parent=parent,
+            vertex_source=src,
         )
 
 
