@@ -5,6 +5,10 @@ Method
 1. Parameterize the mesh over the unit sphere (:func:`meshfit.shrinkwrap.sphere_map`) and
    build the area-equalised base mesh on it (:func:`meshfit.shrinkwrap.base_mesh`, Kobbelt
    et al. 1999, sec. 6): spherical triangles covering about equal surface areas.
+   Beyond 20 triangles (more than 60 patches) the base vertices are then moved over the
+   sphere so that the quads of step 2 are close to squares of equal area on the surface
+   (:func:`meshfit.layout.shaping.shape_base`): equal areas alone leave slivers where the
+   sphere map stretches one way more than the other.
 2. Split every base triangle into three quads: each corner with the two adjacent edge
    mid-points and the centroid. The mid-point of an edge halves the surface length of the
    edge's image, the centroid is the sphere point at the area-weighted centre of the
@@ -62,6 +66,16 @@ PROXY_RATIO = 4.0
 #: (the stop test does not end them earlier on a dense scan; igea's fit is the same with
 #: 25, 50 or 100: displaced RMS 0.004%, Hausdorff 0.18%, arc-length CV 0.18, no folds)
 FINE_RELAX_ITERATIONS = 50
+#: ``shape=None`` of `auto_layout` shapes base meshes of more than this many triangles. The
+#: bisections that take the relaxed icosahedron beyond 20 triangles leave cells of equal area
+#: that are slivers where the sphere map stretches (spring meshes of the 96-patch layouts, with
+#: the rescue: nefertiti 382 folded cells and spot 242 unshaped, 7 and 10 shaped; with 120
+#: patches 83 and 69, 13 and 6; nefertiti with 150 patches has no unshaped layout whose
+#: curves do not cross). At 60 patches the shaped layouts trade figures of the fit both ways
+#: (the second base rotation: 43 -> 1 folded cells on nefertiti, 28 -> 3 on spot; the first:
+#: igea's largest corner-zone normal jump 1.1 -> 2.5 degrees, spot's displaced Hausdorff
+#: distance 0.45% -> 0.66%), so the 20-triangle base is kept as it is
+SHAPE_ABOVE_FACES = 20
 #: samples of a base edge's image when it is split at half its surface length
 _SPLIT_SAMPLES = 65
 #: a base triangle's image is split n x n ways to find its area centre
@@ -229,6 +243,7 @@ def auto_layout(
     relax_iterations: int = 200,
     sphere_max_aspect: float | None = SPHERE_MAX_ASPECT,
     proxy_faces: int | None = PROXY_FACES,
+    shape: bool | None = None,
 ) -> Layout:
     """A four-sided layout of a closed genus-0 mesh: three quads per base-mesh triangle.
 
@@ -262,6 +277,12 @@ def auto_layout(
         ``mesh``, the curves densified there and relaxed for ``FINE_RELAX_ITERATIONS`` more
         iterations on ``mesh``. If the carried network does not cut ``mesh`` into disks, the
         layout is made on ``mesh`` itself. Default ``PROXY_FACES`` (25,000); None: never.
+    shape : bool or None, keyword-only
+        Move the base vertices over the sphere so that the quads' images are close to
+        squares of equal area (:func:`meshfit.layout.shaping.shape_base`) before the curves
+        are traced. None (default): when the base mesh has more than ``SHAPE_ABOVE_FACES``
+        (20) triangles, i.e. more than 60 patches, where the area-equalised base mesh gives
+        slivers (see ``SHAPE_ABOVE_FACES``).
 
     Returns
     -------
@@ -298,6 +319,8 @@ def auto_layout(
     want = DEFAULT_PATCHES if patches is None else int(patches)
     n_faces = max(20, round(want / PATCHES_PER_TRIANGLE))
     n_faces += n_faces % 2
+    if shape is None:
+        shape = n_faces > SHAPE_ABOVE_FACES
     iters = int(relax_iterations)
 
     seeds = [int(seed) + k for k in range(SEED_TRIES)]
@@ -316,11 +339,11 @@ def auto_layout(
             if not one_sphere.result():
                 raise _topology_error(mesh)
             c_smap = sphere_map(coarse, max_aspect=sphere_max_aspect)
-            first = _proxy_tries(coarse, c_smap, n_faces, seeds[0], relax, iters)
+            first = _proxy_tries(coarse, c_smap, n_faces, seeds[0], relax, iters, shape)
             ready.result()
         for k, s in enumerate(seeds):
             c_corners, ends, quads, tries = (
-                first if k == 0 else _proxy_tries(coarse, c_smap, n_faces, s, relax, iters)
+                first if k == 0 else _proxy_tries(coarse, c_smap, n_faces, s, relax, iters, shape)
             )
             corners = _carry_points(mesh, coarse, c_corners)
             for c_set, fine_iters in tries:
@@ -338,7 +361,7 @@ def auto_layout(
     smap = sphere_map(mesh, max_aspect=sphere_max_aspect) if sphere is None else sphere
     failed: LayoutError | None = None
     for s in seeds:
-        corners, curves, ends, quads = _network(mesh, smap, n_faces, s)
+        corners, curves, ends, quads = _network(mesh, smap, n_faces, s, shape)
         traced = layout_from_curves(mesh, corners, curves, ends, quads)
         if relax:
             relaxed = _relax_all(mesh, curves, iters)
@@ -377,10 +400,10 @@ def _topology_error(mesh: Mesh) -> TopologyError:
     )
 
 
-def _proxy_tries(coarse: Mesh, smap, n_faces: int, seed: int, relax: bool, iters: int):
+def _proxy_tries(coarse: Mesh, smap, n_faces: int, seed: int, relax: bool, iters: int, shape: bool):
     """Corners, curve ends, quads and the curve sets to carry (relaxed first, then traced)
     of the base mesh of ``seed`` on the proxy ``coarse``."""
-    c_corners, c_curves, ends, quads = _network(coarse, smap, n_faces, seed)
+    c_corners, c_curves, ends, quads = _network(coarse, smap, n_faces, seed, shape)
     tries = []
     if relax:
         tries.append((_relax_all(coarse, c_curves, iters), min(iters, FINE_RELAX_ITERATIONS)))
@@ -396,12 +419,16 @@ def _prepare_fine(mesh: Mesh) -> None:
     _ = mesh.edge_face, mesh.vertex_adjacency
 
 
-def _network(mesh: Mesh, smap, n_faces: int, seed: int):
-    """Corners, traced curves, curve ends and quads of the base mesh of ``smap``."""
+def _network(mesh: Mesh, smap, n_faces: int, seed: int, shape: bool = False):
+    """Corners, traced curves, curve ends and quads of the base mesh of ``smap`` (its
+    vertices moved by :func:`meshfit.layout.shaping.shape_base` with ``shape``)."""
+    from meshfit.layout.shaping import shape_base
     from meshfit.shrinkwrap import base_mesh
 
     base = base_mesh(smap, max_faces=n_faces, min_faces=n_faces, seed=seed)
     S, BF = base.sphere, base.faces
+    if shape:
+        S = shape_base(smap, S, BF, seed=seed).sphere
 
     def midpoint(a: int, b: int) -> NDArray[np.float64]:
         # the point halving the surface length of the arc's image
