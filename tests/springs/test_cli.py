@@ -50,7 +50,38 @@ def test_springs_command_prints_tables(capsys):
     layout = ROOT / "examples" / "layouts" / "spot.json"
     assert main(["springs", str(mesh_path("spot")), "--layout", str(layout), "--level", "0"]) == 0
     text = capsys.readouterr().out
-    assert "patch 23" in text and "seconds" in text
+    assert "spring meshes" in text and "summary" in text and "seconds" in text
+    rows = [line.split() for line in text.splitlines() if line.split()[:1] == ["23"]]
+    assert len(rows) == 1 and rows[0][2] == "10x9" and rows[0][3] == "0"  # patch 23, level 0
+    # values above the quality bounds are marked (spot's near-triangular patch 1)
+    assert "median aspect above 1.5" in text and "!" in text
+
+
+def test_springs_json_summary_lists_the_patches_over_each_bound(capsys):
+    from meshfit.springs import QUALITY_BOUNDS
+
+    layout = ROOT / "examples" / "layouts" / "spot.json"
+    args = ["springs", str(mesh_path("spot")), "--layout", str(layout), "--level", "1", "--json"]
+    assert main(args) == 0
+    data = json.loads(capsys.readouterr().out)
+    summary = data["summary"]
+    assert summary["patches"] == 24 and summary["bounds"] == QUALITY_BOUNDS
+    assert summary["folded_cells"] == sum(r["folded"] for r in data["patches"])
+    for key, ids in summary["over_bounds"].items():
+        want = [r["patch"] for r in data["patches"] if r[key] > QUALITY_BOUNDS[key]]
+        assert ids == want
+    assert summary["over_bounds"]["aspect_median"]  # spot's near-triangular patches
+
+
+def test_out_of_bounds_names_the_metrics_above_their_bounds():
+    from meshfit.springs import out_of_bounds
+
+    ok = {"arc_cv_max": 0.15, "aspect_median": 1.2, "folded": 0, "fidelity_max": 1e-4}
+    assert out_of_bounds(ok) == []
+    bad = {**ok, "arc_cv_max": 0.16, "folded": 2}
+    assert out_of_bounds(bad) == ["arc_cv_max", "folded"]
+    assert out_of_bounds({"aspect_median": 2.0}) == ["aspect_median"]  # missing ones skipped
+    assert out_of_bounds(bad, {"folded": 5}) == []
 
 
 def test_springs_command_warns_of_a_bulging_patch(capsys):

@@ -14,7 +14,7 @@ from numpy.testing import assert_allclose
 
 from meshfit import tol
 from meshfit.layout import extract_patches, load_layout
-from meshfit.springs import FREE, resample_patch, spring_metrics
+from meshfit.springs import FREE, QUALITY_BOUNDS, resample_patch, spring_metrics
 
 from ..conftest import ROOT, real_mesh
 from .test_resample import curve_distance
@@ -89,7 +89,7 @@ def test_spring_points_lie_on_their_patch(name):
 def test_no_folded_cells(name, request):
     _xfail(request, "folds", name)
     folded = {p.index: [m["folded"] for m in res.metrics] for p, res, _ in layout_springs(name)}
-    assert all(sum(v) == 0 for v in folded.values()), folded
+    assert all(sum(v) <= QUALITY_BOUNDS["folded"] for v in folded.values()), folded
 
 
 @pytest.mark.parametrize("name", LAYOUTS)
@@ -98,7 +98,7 @@ def test_arc_length_uniformity(name, request):
     worst = {
         p.index: max(m["arc_cv_max"] for m in res.metrics) for p, res, _ in layout_springs(name)
     }
-    assert max(worst.values()) <= 0.15, worst
+    assert max(worst.values()) <= QUALITY_BOUNDS["arc_cv_max"], worst
 
 
 @pytest.mark.parametrize("name", LAYOUTS)
@@ -107,14 +107,14 @@ def test_cell_aspect_ratio(name, request):
     worst = {
         p.index: max(m["aspect_median"] for m in res.metrics) for p, res, _ in layout_springs(name)
     }
-    assert max(worst.values()) <= 1.5, worst
+    assert max(worst.values()) <= QUALITY_BOUNDS["aspect_median"], worst
 
 
 @pytest.mark.parametrize("name", LAYOUTS)
 def test_fidelity_at_the_final_level(name, request):
     _xfail(request, "fidelity", name)
     worst = {p.index: final["fidelity_max"] for p, _, final in layout_springs(name)}
-    assert max(worst.values()) <= 5e-4, worst
+    assert max(worst.values()) <= QUALITY_BOUNDS["fidelity_max"], worst
 
 
 def test_feature_curves_of_the_igea_layout_are_interpolated():

@@ -6,7 +6,7 @@ grid's arc-length uniformity, cell shape, area distortion, folds and fidelity.
 """
 
 from meshfit.springs.grid import ANCHOR, BOUNDARY, CURVE, FREE, SpringMesh, grid_triangles
-from meshfit.springs.metrics import grid_metrics, spring_metrics
+from meshfit.springs.metrics import QUALITY_BOUNDS, grid_metrics, out_of_bounds, spring_metrics
 from meshfit.springs.resample import SpringResult, resample_patch
 
 __all__ = [
@@ -14,10 +14,12 @@ __all__ = [
     "BOUNDARY",
     "CURVE",
     "FREE",
+    "QUALITY_BOUNDS",
     "SpringMesh",
     "SpringResult",
     "grid_metrics",
     "grid_triangles",
+    "out_of_bounds",
     "resample_patch",
     "spring_metrics",
 ]

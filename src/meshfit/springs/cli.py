@@ -115,6 +115,7 @@ def cmd_springs(args: argparse.Namespace) -> int:
         "mesh": str(args.mesh),
         "layout": str(args.layout),
         "patches": rows,
+        "summary": _summary(rows),
         "notes": bulge_notes({r["patch"]: r["bulge"] for r in rows}),
         "seconds": {
             "load": round(t_load, 3),
@@ -126,12 +127,93 @@ def cmd_springs(args: argparse.Namespace) -> int:
     if args.json:
         print_json(out)
     else:
-        for r in rows:
-            print_table(f"patch {r['patch']}", {k: v for k, v in r.items() if k != "files"})
+        _print_patches(rows)
+        print_table("summary", _summary_lines(out["summary"]))
         print_table("seconds", out["seconds"])
         for note in out["notes"]:
             print(f"note: {note}")
     return EXIT_OK
+
+
+def _summary(rows: list[dict]) -> dict:
+    """Patch count, folded cells, and the patches whose metrics exceed each quality bound
+    (`meshfit.springs.metrics.QUALITY_BOUNDS`)."""
+    from meshfit.springs.metrics import QUALITY_BOUNDS, out_of_bounds
+
+    over: dict[str, list[int]] = {k: [] for k in QUALITY_BOUNDS}
+    for r in rows:
+        for k in out_of_bounds(r):
+            over[k].append(r["patch"])
+    return {
+        "patches": len(rows),
+        "folded_cells": int(sum(r["folded"] for r in rows)),
+        "bounds": dict(QUALITY_BOUNDS),
+        "over_bounds": over,
+    }
+
+
+#: columns of the per-patch table: (row key, header, format)
+_COLUMNS = (
+    ("patch", "patch", "{}"),
+    ("vertices", "verts", "{}"),
+    ("grid", "grid", "{0[0]}x{0[1]}"),
+    ("level", "lvl", "{}"),
+    ("arc_cv_max", "arc CV", "{:.3f}"),
+    ("aspect_median", "aspect", "{:.2f}"),
+    ("folded", "folds", "{}"),
+    ("fidelity_max", "fidelity %", "{:.3f}"),
+)
+
+
+def _print_patches(rows: list[dict]) -> None:
+    """One row per patch (the rest of each patch's figures are in ``--json``); a value above
+    its quality bound is marked ``!`` (and red)."""
+    from rich import box
+    from rich.console import Console
+    from rich.table import Table
+
+    from meshfit.springs.metrics import out_of_bounds
+
+    table = Table(title="spring meshes", title_justify="left", box=box.SIMPLE_HEAD)
+    for _, head, _ in _COLUMNS:
+        table.add_column(head, justify="right", no_wrap=True)
+    table.add_column("notes", no_wrap=True)
+    for r in rows:
+        over = set(out_of_bounds(r))
+        cells = []
+        for key, _, fmt in _COLUMNS:
+            v = r[key] * 100 if key == "fidelity_max" else r[key]
+            text = fmt.format(v)
+            cells.append(f"[red]{text}![/]" if key in over else text)
+        notes = []
+        if r["rescued"]:
+            notes.append("rescued")
+        if r["finer"]:
+            notes.append(f"{r['finer']} finer")
+        table.add_row(*cells, ", ".join(notes))
+    Console().print(table)
+
+
+def _summary_lines(summary: dict) -> dict:
+    """The summary as quantity -> value rows for `meshfit.cli.print_table`."""
+    names = {
+        "arc_cv_max": "arc CV above",
+        "aspect_median": "median aspect above",
+        "folded": "patches with folds above",
+        "fidelity_max": "fidelity above",
+    }
+    out = {"patches": summary["patches"], "folded cells": summary["folded_cells"]}
+    for key, ids in summary["over_bounds"].items():
+        if key == "folded":
+            key_ids = ids
+            out["patches with folded cells"] = (
+                f"{len(key_ids)} ({', '.join(map(str, key_ids))})" if key_ids else "0"
+            )
+            continue
+        bound = summary["bounds"][key]
+        shown = f"{bound * 100:g}%" if key == "fidelity_max" else f"{bound:g}"
+        out[f"{names[key]} {shown}"] = f"{len(ids)} ({', '.join(map(str, ids))})" if ids else "0"
+    return out
 
 
 def add_commands(sub) -> None:

@@ -9,7 +9,18 @@ from meshfit._kernels.springs import grid_spacing
 from meshfit.mesh import Mesh
 from meshfit.springs.grid import SpringMesh, grid_triangles
 
-__all__ = ["grid_metrics", "spring_metrics"]
+__all__ = ["QUALITY_BOUNDS", "grid_metrics", "out_of_bounds", "spring_metrics"]
+
+#: quality a spring mesh is held to (the bounds the test layouts are checked against):
+#: arc-length coefficient of variation along every iso-curve piece, median cell aspect ratio,
+#: folded cells, and the two-sided largest distance to the patch over the whole model's
+#: bounding-box diagonal
+QUALITY_BOUNDS: dict[str, float] = {
+    "arc_cv_max": 0.15,
+    "aspect_median": 1.5,
+    "folded": 0,
+    "fidelity_max": 5e-4,
+}
 
 
 def _cv(d: NDArray[np.float64]) -> float:
@@ -123,6 +134,13 @@ def _fidelity(
         "fidelity_max": float(d.max() / diag),
         "fidelity_rms": float(np.sqrt(np.mean(d * d)) / diag),
     }
+
+
+def out_of_bounds(metrics: dict, bounds: dict | None = None) -> list[str]:
+    """Names of the metrics in ``metrics`` (a :func:`grid_metrics` dict) above their bound in
+    ``bounds`` (default `QUALITY_BOUNDS`; a metric missing from ``metrics`` is skipped)."""
+    bounds = QUALITY_BOUNDS if bounds is None else bounds
+    return [k for k, b in bounds.items() if k in metrics and metrics[k] > b]
 
 
 def spring_metrics(
