@@ -15,6 +15,7 @@ from meshfit import tol
 from meshfit.errors import InputError, LayoutError, MeshfitError
 from meshfit.layout import (
     Layout,
+    Patch,
     check_layout_topology,
     extract_patches,
     layout_from_curves,
@@ -244,6 +245,7 @@ def test_plane_3x3_grid_gives_nine_exact_squares():
         c = p.mesh.vertices[p.corners]
         assert_allclose(c[1] - c[0], [1 / 3, 0, 0], atol=1e-12)  # side 0 along +x
         assert_allclose(c[3] - c[0], [0, 1 / 3, 0], atol=1e-12)  # side 3 back along -y
+        assert_allclose(p.taper, 1.0, rtol=1e-12)  # opposite sides of equal length
         for s in range(4):  # every side is a straight segment
             x = p.mesh.vertices[p.sides[s]]
             e = (x[-1] - x[0]) / np.linalg.norm(x[-1] - x[0])
@@ -544,3 +546,34 @@ def test_second_component_without_patches_raises():
     layout = cube_layout(two, frame=np.eye(3), center=np.zeros(3), picks_per_curve=4)
     with pytest.raises(LayoutError, match=r"face \d+ lies in a closed piece of the mesh"):
         extract_patches(two, layout)
+
+
+def _trapezoid_patch(bottom: float, top: float, n: int = 6) -> Patch:
+    """A flat n x n grid patch whose bottom side is ``bottom`` long and top side ``top``."""
+    u, v = np.meshgrid(np.linspace(0, 1, n + 1), np.linspace(0, 1, n + 1), indexing="ij")
+    width = bottom + (top - bottom) * v
+    x = (u - 0.5) * width
+    V = np.column_stack([x.ravel(), v.ravel(), np.zeros(u.size)])
+    idx = np.arange(u.size).reshape(n + 1, n + 1)
+    a, b, c, d = idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]
+    F = np.concatenate(
+        [np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)]
+    )
+    mesh = Mesh(V, F)
+    sides = (idx[:, 0], idx[-1, :], idx[::-1, -1], idx[0, ::-1])
+    corners = np.array([s[0] for s in sides])
+    src = mesh.closest_points(V).points
+    return Patch(0, mesh, corners, sides, np.arange(len(F)), src)
+
+
+def test_taper_is_the_ratio_of_opposite_sides_and_warns_above_tapered():
+    from meshfit.layout.patch import TAPERED, patch_notes, taper_notes
+
+    assert_allclose(_trapezoid_patch(5.0, 1.0).taper, 5.0, rtol=1e-12)
+    assert_allclose(_trapezoid_patch(1.0, 2.0).taper, 2.0, rtol=1e-12)
+    assert taper_notes({0: 2.0, 1: TAPERED}) == []
+    (note,) = taper_notes({3: 4.5, 7: 6.0, 1: 1.2})
+    assert note.startswith("2 patches taper") and "patch 7: 6, patch 3: 4.5" in note
+    rows = [{"patch": 0, "bulge": 5.0, "taper": 5.0}, {"patch": 1, "bulge": 1.0, "taper": 1.0}]
+    notes = patch_notes(rows)
+    assert len(notes) == 2 and "bulges" in notes[0] and "tapers" in notes[1]

@@ -33,7 +33,10 @@ def test_springs_command_writes_grids_and_prints_metrics(tmp_path, capsys):
         assert key in row
     assert row["level"] == 2
     assert all(0.5 < r["bulge"] < 3.0 for r in data["patches"])
-    assert data["notes"] == []  # no patch of this layout bulges beyond meshfit.layout.BULGY
+    # no patch of this layout bulges beyond meshfit.layout.patch.BULGY; the four at the head
+    # taper beyond TAPERED
+    assert len(data["notes"]) == 1 and data["notes"][0].startswith("4 patches taper")
+    assert all(r["taper"] >= 1.0 for r in data["patches"])
     with np.load(out / "patch_000.npz", allow_pickle=False) as z:
         assert int(z["version"]) == 1
         nu, nv = z["kind"].shape

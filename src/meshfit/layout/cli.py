@@ -29,7 +29,7 @@ def add_commands(sub) -> None:
 def cmd_layout(args: argparse.Namespace) -> int:
     from meshfit.cli import print_json, print_table
     from meshfit.layout import extract_patches, load_layout
-    from meshfit.layout.patch import bulge_notes
+    from meshfit.layout.patch import patch_notes
     from meshfit.mesh import load_mesh
 
     mesh = load_mesh(args.mesh)
@@ -70,12 +70,14 @@ def cmd_layout(args: argparse.Namespace) -> int:
                 "side_vertices": [int(s.size) for s in p.sides],
                 "features": [list(fs) for fs in p.feature_sides],
                 "bulge": round(p.bulge, 3),
+                "taper": round(p.taper, 3),
             }
             for p in patches
         ],
     }
     summary["bulge_max"] = max(r["bulge"] for r in summary["per_patch"])
-    summary["notes"] = bulge_notes({r["patch"]: r["bulge"] for r in summary["per_patch"]})
+    summary["taper_max"] = max(r["taper"] for r in summary["per_patch"])
+    summary["notes"] = patch_notes(summary["per_patch"])
     if args.json:
         print_json(summary)
     else:

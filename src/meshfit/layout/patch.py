@@ -12,13 +12,29 @@ from meshfit.errors import InputError
 from meshfit.mesh import Mesh
 from meshfit.types import SurfaceCurve, SurfacePoints, _readonly
 
-__all__ = ["BULGY", "Patch", "bulge_notes", "loop_bulge"]
+__all__ = [
+    "BULGY",
+    "TAPERED",
+    "Patch",
+    "bulge_notes",
+    "loop_bulge",
+    "patch_notes",
+    "taper_notes",
+]
 
 #: a patch whose :attr:`Patch.bulge` exceeds this bulges far beyond its boundary (a flat
 #: disk has 1.27, a hemisphere 2.55): a tensor-product grid anchored on its sides crowds
 #: at the boundary and misses the bulge (nefertiti's test layout, the crown of the projected
 #: cube: 11.1 -- its spring mesh misses the surface by 2.9% of the bbox diagonal)
 BULGY = 3.0
+
+
+#: a patch whose :attr:`Patch.taper` exceeds this has one side much shorter than the side
+#: opposite it (a near-triangular patch): its grid's cells change size across it and the
+#: spacing along its iso-curves evens out badly (spot's test layout, the cube corners at the
+#: head: patches 0-3 at 5.0-6.9, arc-length CV 0.25-0.55; every other patch of the three test
+#: layouts is below 3.5)
+TAPERED = 4.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -102,6 +118,19 @@ class Patch:
         """
         return loop_bulge(self.mesh.area, self.mesh.vertices[self.boundary])
 
+    @cached_property
+    def taper(self) -> float:
+        """The larger of the two ratios of opposite sides' lengths (longer over shorter): 1
+        for a rectangle, large where a side shrinks toward a point (`TAPERED` and above:
+        move a corner or split the patch)."""
+        V = self.mesh.vertices
+        length = [float(np.linalg.norm(np.diff(V[s], axis=0), axis=1).sum()) for s in self.sides]
+        ratios = []
+        for a, b in ((0, 2), (1, 3)):
+            lo, hi = sorted((length[a], length[b]))
+            ratios.append(hi / lo if lo > 0 else float("inf"))
+        return max(ratios)
+
     @property
     def boundary(self) -> NDArray[np.int64]:
         """(k,) int64: the closed boundary loop, sides 0..3 joined (each corner once)."""
@@ -159,3 +188,38 @@ def bulge_notes(bulge: dict[int, float]) -> list[str]:
         f"{', '.join(f'patch {p}: {b:.3g}' for p, b in big[:5])}: a grid anchored on the "
         "sides crowds at the boundary and misses the bulge; add curves across it"
     ]
+
+
+def taper_notes(taper: dict[int, float]) -> list[str]:
+    """The warning of a fit or a layout check about tapered patches.
+
+    Parameters
+    ----------
+    taper : dict of int to float
+        Patch index -> :attr:`Patch.taper`.
+
+    Returns
+    -------
+    list of str
+        One note naming the patches above `TAPERED`, most tapered first (at most five), with
+        what to do; empty when no patch tapers that much.
+    """
+    big = sorted(((p, t) for p, t in taper.items() if t > TAPERED), key=lambda kv: -kv[1])
+    if not big:
+        return []
+    one = len(big) == 1
+    return [
+        f"{len(big)} patch{'' if one else 'es'} taper{'s' if one else ''}: a side over "
+        f"{TAPERED:g} times as long as the side opposite it "
+        f"({', '.join(f'patch {p}: {t:.3g}' for p, t in big[:5])}): the grid's cells change "
+        "size across the patch and its spacing evens out badly; move a corner or split the "
+        "patch so that opposite sides match"
+    ]
+
+
+def patch_notes(rows: list[dict]) -> list[str]:
+    """`bulge_notes` and `taper_notes` of per-patch rows with ``patch``, ``bulge`` and
+    ``taper`` keys."""
+    return bulge_notes({r["patch"]: r["bulge"] for r in rows}) + taper_notes(
+        {r["patch"]: r["taper"] for r in rows}
+    )

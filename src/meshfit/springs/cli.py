@@ -98,6 +98,7 @@ def cmd_springs(args: argparse.Namespace) -> int:
                 "rescued": bool(res.rescued),
                 "finer": int(res.finer),
                 "bulge": round(patch.bulge, 3),
+                "taper": round(patch.taper, 3),
                 **{k: v for k, v in met.items() if k not in ("nu", "nv")},
             }
             if args.out:
@@ -109,14 +110,14 @@ def cmd_springs(args: argparse.Namespace) -> int:
     finally:
         if progress is not None:
             progress.stop()
-    from meshfit.layout.patch import bulge_notes
+    from meshfit.layout.patch import patch_notes
 
     out = {
         "mesh": str(args.mesh),
         "layout": str(args.layout),
         "patches": rows,
         "summary": _summary(rows),
-        "notes": bulge_notes({r["patch"]: r["bulge"] for r in rows}),
+        "notes": patch_notes(rows),
         "seconds": {
             "load": round(t_load, 3),
             "extract": round(t_extract, 3),
