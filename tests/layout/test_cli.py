@@ -18,7 +18,10 @@ def test_layout_command_prints_json(capsys):
     assert out["patches"] == 24 and len(out["per_patch"]) == 24
     assert out["patch_area_sum"] == pytest.approx(out["mesh_area"], rel=1e-9)
     assert out["bulge_max"] == max(p["bulge"] for p in out["per_patch"]) < 3.0
-    assert out["notes"] == []
+    assert out["taper_max"] == max(p["taper"] for p in out["per_patch"]) > 4.0
+    # no patch bulges beyond BULGY; the four head patches taper beyond TAPERED
+    assert len(out["notes"]) == 1
+    assert out["notes"][0].startswith("4 patches taper") and "patch 1: 6.94" in out["notes"][0]
 
 
 def test_layout_command_notes_a_bulging_patch(capsys):
