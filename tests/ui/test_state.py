@@ -464,3 +464,27 @@ def test_actions_need_a_mesh():
     s = Session()
     with pytest.raises(InputError, match="no mesh is open"):
         s.click([0, 0, 1], [0, 0, -1])
+
+
+def test_status_measures_how_each_region_tapers():
+    # spot's test layout loaded for editing: the four head regions are near-triangular (as
+    # Patch.taper measures the extracted patches)
+    from meshfit.layout import extract_patches
+    from meshfit.layout.patch import TAPERED
+    from meshfit.ui.app import _region_text
+
+    from ..conftest import ROOT
+
+    mesh = real_mesh("spot")
+    layout = load_layout(ROOT / "examples" / "layouts" / "spot.json", mesh)
+    s = Session(mesh)
+    s.set_layout(layout)
+    st = s.status()
+    assert st.complete
+    tapers = sorted(r.taper for r in st.regions)
+    patches = sorted(p.taper for p in extract_patches(mesh, layout))
+    np.testing.assert_allclose(tapers, patches, rtol=1e-9)
+    assert sum(t > TAPERED for t in tapers) == 4
+    worst = max(st.regions, key=lambda r: r.taper)
+    assert "tapered" in _region_text(worst) and st.as_dict()["regions"][0]["taper"] >= 1.0
+    assert _region_text(min(st.regions, key=lambda r: r.taper)) == "patch"

@@ -19,6 +19,7 @@ __all__ = [
     "bulge_notes",
     "loop_bulge",
     "patch_notes",
+    "sides_taper",
     "taper_notes",
 ]
 
@@ -124,12 +125,9 @@ class Patch:
         for a rectangle, large where a side shrinks toward a point (`TAPERED` and above:
         move a corner or split the patch)."""
         V = self.mesh.vertices
-        length = [float(np.linalg.norm(np.diff(V[s], axis=0), axis=1).sum()) for s in self.sides]
-        ratios = []
-        for a, b in ((0, 2), (1, 3)):
-            lo, hi = sorted((length[a], length[b]))
-            ratios.append(hi / lo if lo > 0 else float("inf"))
-        return max(ratios)
+        return sides_taper(
+            [float(np.linalg.norm(np.diff(V[s], axis=0), axis=1).sum()) for s in self.sides]
+        )
 
     @property
     def boundary(self) -> NDArray[np.int64]:
@@ -188,6 +186,16 @@ def bulge_notes(bulge: dict[int, float]) -> list[str]:
         f"{', '.join(f'patch {p}: {b:.3g}' for p, b in big[:5])}: a grid anchored on the "
         "sides crowds at the boundary and misses the bulge; add curves across it"
     ]
+
+
+def sides_taper(lengths) -> float:
+    """:attr:`Patch.taper` of four side lengths in order: the larger of the two ratios of
+    opposite sides (longer over shorter; inf when a side has zero length)."""
+    out = 1.0
+    for a, b in ((0, 2), (1, 3)):
+        lo, hi = sorted((float(lengths[a]), float(lengths[b])))
+        out = max(out, hi / lo if lo > 0 else float("inf"))
+    return out
 
 
 def taper_notes(taper: dict[int, float]) -> list[str]:

@@ -657,9 +657,9 @@ class App:
 
 
 def _region_text(r) -> str:
-    """A region's line in the layout status: "patch", a bulging patch's warning, or why the
-    region is no patch."""
-    from meshfit.layout.patch import BULGY
+    """A region's line in the layout status: "patch", a bulging or tapered patch's warning,
+    or why the region is no patch."""
+    from meshfit.layout.patch import BULGY, TAPERED
 
     if not r.valid:
         return f"**{r.reason}**"
@@ -667,5 +667,10 @@ def _region_text(r) -> str:
         return (
             f"patch, **bulging** ({r.bulge:.3g} times the area of a square with its "
             "perimeter): its grid will crowd at the sides; add curves across it"
+        )
+    if r.taper > TAPERED:
+        return (
+            f"patch, **tapered** (a side {r.taper:.3g} times as long as the side opposite it): "
+            "its grid cells will change size across it; move a corner or split it"
         )
     return "patch"

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from meshfit.errors import CutError, InputError
-from meshfit.layout.patch import loop_bulge
+from meshfit.layout.patch import loop_bulge, sides_taper
 from meshfit.mesh import Mesh
 from meshfit.surface.cut import cut_mesh_network
 from meshfit.types import SurfaceCurve, SurfacePoints
@@ -49,6 +49,10 @@ class RegionStatus:
         Area over that of a square with the region's perimeter (as
         :attr:`meshfit.layout.Patch.bulge`; NaN unless the region has one boundary loop): a
         patch above :data:`meshfit.layout.patch.BULGY` balloons out of its sides.
+    taper : float
+        The larger ratio of opposite sides' lengths of a valid region (as
+        :attr:`meshfit.layout.Patch.taper`; NaN for other regions): a patch above
+        :data:`meshfit.layout.patch.TAPERED` is near-triangular.
     """
 
     index: int
@@ -58,6 +62,7 @@ class RegionStatus:
     faces: NDArray[np.int64]
     area: float
     bulge: float = float("nan")
+    taper: float = float("nan")
 
     def as_dict(self) -> dict:
         return {
@@ -68,6 +73,7 @@ class RegionStatus:
             "faces": int(self.faces.size),
             "area": self.area,
             "bulge": None if np.isnan(self.bulge) else self.bulge,
+            "taper": None if np.isnan(self.taper) else self.taper,
         }
 
 
@@ -192,10 +198,29 @@ def network_status(
         else:
             sides, reason = _sides(copy_of[loops[0]].tolist(), along, corner_v)
         bulge = loop_bulge(areas[c], cut.vertices[loops[0]]) if len(loops) == 1 else np.nan
+        taper = np.nan
+        if not reason:
+            taper = sides_taper(_side_lengths(cut.vertices[loops[0]], copy_of[loops[0]], corner_v))
         regions.append(
-            RegionStatus(c, not reason, reason, tuple(sides), faces, float(areas[c]), bulge)
+            RegionStatus(c, not reason, reason, tuple(sides), faces, float(areas[c]), bulge, taper)
         )
     return NetworkStatus(regions, "", region_of_face)
+
+
+def _side_lengths(
+    loop_xyz: NDArray[np.float64], ref: NDArray[np.int64], corner_v: set[int]
+) -> list[float]:
+    """Lengths of the closed loop's pieces between its corner vertices (``ref`` are the
+    input-mesh vertices of the loop's points), in loop order from the first corner."""
+    pos = [k for k, v in enumerate(ref.tolist()) if v in corner_v]
+    seg = np.linalg.norm(np.roll(loop_xyz, -1, axis=0) - loop_xyz, axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    ends = [*pos, pos[0] + len(ref)]
+    total = cum[-1]
+    return [
+        float(cum[b] - cum[a]) if b <= len(ref) else float(total - cum[a] + cum[b - len(ref)])
+        for a, b in itertools.pairwise(ends)
+    ]
 
 
 def _sides(
