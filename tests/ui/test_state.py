@@ -276,23 +276,30 @@ def test_status_reports_crossing_curves(painted, spot):
     assert "cross" in st.error or any(not r.valid for r in st.regions)
 
 
-def test_status_measures_how_each_region_bulges():
-    # the nefertiti test layout loaded for editing: the crown region balloons out of its
-    # sides (as Patch.bulge measures the extracted patch), every other region is flat-ish
+def _test_layout_status(name: str):
+    """The status of a test layout (examples/layouts) loaded for editing, and its extracted
+    patches."""
     from meshfit.layout import extract_patches
-    from meshfit.ui.app import _region_text
 
     from ..conftest import ROOT
 
-    mesh = real_mesh("nefertiti")
-    layout = load_layout(ROOT / "examples" / "layouts" / "nefertiti.json", mesh)
+    mesh = real_mesh(name)
+    layout = load_layout(ROOT / "examples" / "layouts" / f"{name}.json", mesh)
     s = Session(mesh)
     s.set_layout(layout)
     st = s.status()
     assert st.complete
+    return st, extract_patches(mesh, layout)
+
+
+def test_status_measures_how_each_region_bulges():
+    # the nefertiti test layout: the crown region balloons out of its sides (as Patch.bulge
+    # measures the extracted patch), every other region is flat-ish
+    from meshfit.ui.app import _region_text
+
+    st, patches = _test_layout_status("nefertiti")
     bulges = sorted(r.bulge for r in st.regions)
-    patches = sorted(p.bulge for p in extract_patches(mesh, layout))
-    np.testing.assert_allclose(bulges, patches, rtol=1e-9)
+    np.testing.assert_allclose(bulges, sorted(p.bulge for p in patches), rtol=1e-9)
     crown = max(st.regions, key=lambda r: r.bulge)
     assert crown.bulge > 10 and bulges[-2] < 1.5
     assert "bulging" in _region_text(crown) and st.as_dict()["regions"][0]["bulge"] > 0
@@ -467,23 +474,14 @@ def test_actions_need_a_mesh():
 
 
 def test_status_measures_how_each_region_tapers():
-    # spot's test layout loaded for editing: the four head regions are near-triangular (as
-    # Patch.taper measures the extracted patches)
-    from meshfit.layout import extract_patches
+    # spot's test layout: the four head regions are near-triangular (as Patch.taper measures
+    # the extracted patches)
     from meshfit.layout.patch import TAPERED
     from meshfit.ui.app import _region_text
 
-    from ..conftest import ROOT
-
-    mesh = real_mesh("spot")
-    layout = load_layout(ROOT / "examples" / "layouts" / "spot.json", mesh)
-    s = Session(mesh)
-    s.set_layout(layout)
-    st = s.status()
-    assert st.complete
+    st, patches = _test_layout_status("spot")
     tapers = sorted(r.taper for r in st.regions)
-    patches = sorted(p.taper for p in extract_patches(mesh, layout))
-    np.testing.assert_allclose(tapers, patches, rtol=1e-9)
+    np.testing.assert_allclose(tapers, sorted(p.taper for p in patches), rtol=1e-9)
     assert sum(t > TAPERED for t in tapers) == 4
     worst = max(st.regions, key=lambda r: r.taper)
     assert "tapered" in _region_text(worst) and st.as_dict()["regions"][0]["taper"] >= 1.0

@@ -175,17 +175,16 @@ def bulge_notes(bulge: dict[int, float]) -> list[str]:
         One note naming the patches above `BULGY`, most bulging first (at most five), with
         what to do; empty when no patch bulges that much.
     """
-    big = sorted(((p, b) for p, b in bulge.items() if b > BULGY), key=lambda kv: -kv[1])
-    if not big:
-        return []
-    one = len(big) == 1
-    return [
-        f"{len(big)} patch{'' if one else 'es'} bulge{'s' if one else ''} far beyond "
-        f"{'its' if one else 'their'} boundary (area over {BULGY:g} times that of a square with "
-        "the same perimeter; a hemisphere has 2.55): "
-        f"{', '.join(f'patch {p}: {b:.3g}' for p, b in big[:5])}: a grid anchored on the "
-        "sides crowds at the boundary and misses the bulge; add curves across it"
-    ]
+    return _ranked_note(
+        bulge,
+        BULGY,
+        lambda n, one: (
+            f"{n} patch{'' if one else 'es'} bulge{'s' if one else ''} far beyond "
+            f"{'its' if one else 'their'} boundary (area over {BULGY:g} times that of a square "
+            "with the same perimeter; a hemisphere has 2.55): {patches}: a grid anchored on the "
+            "sides crowds at the boundary and misses the bulge; add curves across it"
+        ),
+    )
 
 
 def sides_taper(lengths) -> float:
@@ -199,30 +198,30 @@ def sides_taper(lengths) -> float:
 
 
 def taper_notes(taper: dict[int, float]) -> list[str]:
-    """The warning of a fit or a layout check about tapered patches.
+    """`bulge_notes` of tapered patches: ``taper`` maps patch index -> :attr:`Patch.taper`;
+    one note names the patches above `TAPERED`, most tapered first (at most five), with what
+    to do (none when no patch tapers that much)."""
+    return _ranked_note(
+        taper,
+        TAPERED,
+        lambda n, one: (
+            f"{n} patch{'' if one else 'es'} taper{'s' if one else ''}: a side "
+            f"over {TAPERED:g} times as long as the side opposite it ({{patches}}): the grid's "
+            "cells change size across the patch and its spacing evens out badly; move a corner "
+            "or split the patch so that opposite sides match"
+        ),
+    )
 
-    Parameters
-    ----------
-    taper : dict of int to float
-        Patch index -> :attr:`Patch.taper`.
 
-    Returns
-    -------
-    list of str
-        One note naming the patches above `TAPERED`, most tapered first (at most five), with
-        what to do; empty when no patch tapers that much.
-    """
-    big = sorted(((p, t) for p, t in taper.items() if t > TAPERED), key=lambda kv: -kv[1])
+def _ranked_note(values: dict[int, float], bound: float, text) -> list[str]:
+    """One note naming the patches whose value exceeds ``bound``, largest first (at most
+    five, as ``patch i: v``), worded by ``text(count, single)`` with a ``{patches}`` slot;
+    empty when none exceeds it."""
+    big = sorted(((p, v) for p, v in values.items() if v > bound), key=lambda kv: -kv[1])
     if not big:
         return []
-    one = len(big) == 1
-    return [
-        f"{len(big)} patch{'' if one else 'es'} taper{'s' if one else ''}: a side over "
-        f"{TAPERED:g} times as long as the side opposite it "
-        f"({', '.join(f'patch {p}: {t:.3g}' for p, t in big[:5])}): the grid's cells change "
-        "size across the patch and its spacing evens out badly; move a corner or split the "
-        "patch so that opposite sides match"
-    ]
+    named = ", ".join(f"patch {p}: {v:.3g}" for p, v in big[:5])
+    return [text(len(big), len(big) == 1).replace("{patches}", named)]
 
 
 def patch_notes(rows: list[dict]) -> list[str]:
