@@ -68,6 +68,18 @@ def test_shape_base_leaves_a_round_map_nearly_alone():
     assert np.abs(res.sphere - base.sphere).max() < 0.1
 
 
+def test_a_map_without_area_leaves_the_base_alone(stretched):
+    _, base = stretched
+
+    class Collapsed:  # every sphere point to one surface point
+        def evaluate(self, points):
+            return np.zeros((len(points), 3))
+
+    res = shape_base(Collapsed(), base.sphere, base.faces)
+    assert res.moves == 0
+    np.testing.assert_array_equal(res.sphere, base.sphere)
+
+
 def test_the_default_60_patch_layout_is_not_shaped():
     mesh = real_mesh("spot")
     got = auto_layout(mesh)

@@ -38,7 +38,8 @@ class BaseShape:
     sphere : (nv, 3) float64
         The moved base vertices (unit vectors).
     cost_before, cost_after : float
-        Summed `quad_cost` of all quads.
+        Summed `quad_cost` of all quads (NaN when the map gives the quads no area: then
+        nothing is moved).
     worst_before, worst_after : float
         Largest quad shape term (see `quad_cost`; 1 for a square).
     moves : int
@@ -172,6 +173,10 @@ def shape_base(
     Q = quad_images(smap, S, F)
     shape0, area = _shape_and_area(Q)
     mean_area = float(area.mean())
+    if not (mean_area > 0.0 and np.isfinite(shape0).all()):
+        # a map that collapses the quads (no area to balance): nothing to improve
+        worst = float(shape0.max()) if np.isfinite(shape0).all() else float("inf")
+        return BaseShape(S, float("nan"), float("nan"), worst, worst, 0)
     cost = quad_cost(Q, mean_area)
     before = float(cost.sum())
     worst_before = float(shape0.max())
