@@ -90,8 +90,9 @@ def test_the_default_60_patch_layout_is_not_shaped():
 
 @pytest.mark.slow
 def test_shaped_layouts_of_many_patches_have_no_slivers_and_fold_far_less():
-    # spot with 96 patches: unshaped, 14 patches thinner than 0.2 (a fifth of a disk's
-    # area for their perimeter), the thinnest 0.014, and 242 folded spring cells
+    # spot with 96 patches: unshaped, 12 patches with a bulge under 0.2 (a fifth of the area
+    # of a square with their perimeter), the thinnest 0.014, and 242 folded spring cells;
+    # shaped, the thinnest 0.24
     mesh = real_mesh("spot")
     out = {}
     for shape in (False, None):
