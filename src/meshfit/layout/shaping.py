@@ -6,8 +6,8 @@ about the same surface area, but where the sphere map stretches one way more tha
 are the three quads it is split into. Their spring meshes then fold and space unevenly
 (nefertiti with 96 patches: 14 patches with under a fifth of the area of a square of their
 perimeter, :attr:`meshfit.layout.Patch.bulge`, and 382 folded spring cells; shaped, none
-under 0.21 and 7 folded cells). :func:`shape_base` moves the base vertices over the sphere to make the
-quads' images close to squares of equal area.
+under 0.21 and 7 folded cells). :func:`shape_base` moves the base vertices over the sphere
+to make the quads' images close to squares of equal area.
 """
 
 from __future__ import annotations
