@@ -83,6 +83,16 @@ def test_bulging_patches_get_a_note(spot_fit):
     assert any("patch 2: 7.5" in n for n in pl._quality_notes(rows))
 
 
+def test_tapered_patches_get_a_note(spot_fit):
+    # spot's test layout: the four head patches taper beyond meshfit.layout.patch.TAPERED
+    _, _, summary = spot_fit
+    assert [n for n in summary["notes"] if "taper" in n] == [
+        n for n in summary["notes"] if n.startswith("4 patches taper")
+    ]
+    assert sorted(r["patch"] for r in summary["patches"] if r["taper"] > 4.0) == [0, 1, 2, 3]
+    assert any(n.startswith("4 patches taper") for n in summary["notes"])
+
+
 def test_displaced_reconstruction_is_closer_than_the_spline(spot_fit):
     _, _, summary = spot_fit
     err = summary["errors"]

@@ -1174,7 +1174,7 @@ FAR_INPUT = 0.01
 
 def _quality_notes(rows: list[dict]) -> list[str]:
     """Warnings about patches whose spring mesh cannot be trusted."""
-    from meshfit.layout.patch import bulge_notes
+    from meshfit.layout.patch import bulge_notes, taper_notes
 
     notes = []
     far = {
@@ -1198,6 +1198,7 @@ def _quality_notes(rows: list[dict]) -> list[str]:
             "fit does not cover the whole patch; split those patches in the layout"
         )
     notes.extend(bulge_notes({r["patch"]: r["bulge"] for r in rows if "bulge" in r}))
+    notes.extend(taper_notes({r["patch"]: r["taper"] for r in rows if "taper" in r}))
     finer = {r["patch"]: r["finer"] for r in rows if r.get("finer", 0)}
     if finer:
         notes.append(
@@ -1244,6 +1245,7 @@ def spring_patch(patch, *, level=None, max_points=None, rescue=True):
         "seconds": round(time.perf_counter() - t, 4),
         "patch_faces": int(patch.mesh.n_faces),
         "bulge": round(patch.bulge, 3),
+        "taper": round(patch.taper, 3),
     }
 
 
