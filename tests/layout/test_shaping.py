@@ -11,6 +11,7 @@ from meshfit.layout.shaping import quad_cost, shape_base
 from meshfit.mesh import Mesh
 from meshfit.shrinkwrap import base_mesh, sphere_map
 from meshfit.springs import resample_patch
+from meshfit.types import SurfacePoints
 
 from ..conftest import real_mesh
 from ..reference import shaping as ref
@@ -72,8 +73,15 @@ def test_a_map_without_area_leaves_the_base_alone(stretched):
     _, base = stretched
 
     class Collapsed:  # every sphere point to one surface point
-        def evaluate(self, points):
-            return np.zeros((len(points), 3))
+        class mesh:
+            @staticmethod
+            def xyz(points):
+                return np.zeros((len(points), 3))
+
+        @staticmethod
+        def locate(points, start=None):
+            n = len(points)
+            return SurfacePoints(np.zeros(n, np.int64), np.tile([1.0, 0.0, 0.0], (n, 1)))
 
     res = shape_base(Collapsed(), base.sphere, base.faces)
     assert res.moves == 0

@@ -64,19 +64,23 @@ def quad_images(smap, sphere: NDArray[np.float64], tris: NDArray[np.int64]) -> N
 
     Quad ``i`` of triangle ``(a, b, c)`` runs from its corner ``i`` through the mid-point of
     the edge after it, the centroid and the mid-point of the edge before it (mid-points and
-    centroid as normalised means on the sphere), each point mapped to the surface by
-    ``smap.evaluate``.
+    centroid as normalised means on the sphere), each point mapped to the surface by the
+    sphere map ``smap`` (``smap.locate``, then ``smap.mesh.xyz``).
     """
     tris = np.asarray(tris, dtype=np.int64)
-    return _quads(smap, sphere[tris[..., 0]], sphere[tris[..., 1]], sphere[tris[..., 2]])
+    return _quads(smap, sphere[tris[..., 0]], sphere[tris[..., 1]], sphere[tris[..., 2]])[0]
 
 
-def _quads(smap, a: NDArray, b: NDArray, c: NDArray) -> NDArray:
-    """`quad_images` of triangles given by their corners ``a``, ``b``, ``c`` (..., 3)."""
+def _quads(smap, a: NDArray, b: NDArray, c: NDArray, start: NDArray | None = None):
+    """`quad_images` of triangles given by their corners ``a``, ``b``, ``c`` (..., 3), and the
+    faces ``(..., 7)`` of the seven points mapped (corners, mid-points, centroid); ``start``
+    (..., 7) are faces to start locating them from (points near those of an earlier call)."""
     pts = np.stack([a, b, c, _unit(a + b), _unit(b + c), _unit(c + a), _unit(a + b + c)], axis=-2)
-    X = smap.evaluate(pts.reshape(-1, 3)).reshape(*pts.shape[:-2], 7, 3)
+    lead = pts.shape[:-2]
+    where = smap.locate(pts.reshape(-1, 3), start=None if start is None else start.reshape(-1))
+    X = smap.mesh.xyz(where).reshape(*lead, 7, 3)
     A, B, C, mab, mbc, mca, g = (X[..., i, :] for i in range(7))
-    return np.stack(
+    Q = np.stack(
         [
             np.stack([A, mab, g, mca], axis=-2),
             np.stack([B, mbc, g, mab], axis=-2),
@@ -84,6 +88,7 @@ def _quads(smap, a: NDArray, b: NDArray, c: NDArray) -> NDArray:
         ],
         axis=-3,
     )
+    return Q, np.array(where.face).reshape(*lead, 7)
 
 
 def _shape_and_area(Q: NDArray) -> tuple[NDArray, NDArray]:
@@ -145,7 +150,8 @@ def shape_base(
     Parameters
     ----------
     smap : meshfit.shrinkwrap.SphereMap
-        Parameterization of the surface over the unit sphere.
+        Parameterization of the surface over the unit sphere (``locate`` and ``mesh.xyz``
+        are used).
     sphere : (nv, 3) float64
         Base vertices (unit vectors).
     faces : (nf, 3) int64
@@ -171,7 +177,7 @@ def shape_base(
     F = np.asarray(faces, dtype=np.int64)
     nv, nf = S.shape[0], F.shape[0]
     rng = np.random.default_rng(seed)
-    Q = quad_images(smap, S, F)
+    Q, at = _quads(smap, S[F[:, 0]], S[F[:, 1]], S[F[:, 2]])  # at: faces of the 7 points
     shape0, area = _shape_and_area(Q)
     mean_area = float(area.mean())
     if not (mean_area > 0.0 and np.isfinite(shape0).all()):
@@ -205,7 +211,8 @@ def shape_base(
         trial[np.arange(len(inc_v)), :, slot] = cand[inc_v]
         a, b, c = trial[..., 0, :], trial[..., 1, :], trial[..., 2, :]
         ok = np.einsum("...i,...i->...", np.cross(a, b), c) > 0.0  # (r, K)
-        Qt = _quads(smap, a, b, c)
+        # the trial points are located starting from the faces of the points they move from
+        Qt, _ = _quads(smap, a, b, c, start=np.repeat(at[inc_t][:, None], directions, axis=1))
         new_cost = quad_cost(Qt, mean_area)  # (r, K)
         gain_rows = cost[inc_t][:, None] - new_cost
         gain_rows = np.where(ok, gain_rows, -np.inf)
@@ -227,7 +234,8 @@ def shape_base(
             moved += 1
         if moved:
             hit = np.flatnonzero(touched)
-            cost[hit] = quad_cost(quad_images(smap, S, F[hit]), mean_area)
+            Qh, at[hit] = _quads(smap, *(S[F[hit, k]] for k in range(3)), start=at[hit])
+            cost[hit] = quad_cost(Qh, mean_area)
             moves += moved
         length *= SHAPE_DECAY
     Q = quad_images(smap, S, F)
