@@ -459,3 +459,17 @@ def test_known_distances_skip_only_points_on_the_input(rng):
     assert (np.abs(got - exact) <= tol.KNOWN_DISTANCE * diag).all()
     want_back, _ = triangle_distances(mesh.vertices, V, F)
     np.testing.assert_array_equal(back, want_back)
+
+
+def test_automatic_layout_key_follows_the_layout_revision(monkeypatch):
+    # a resumed fit must not re-use a layout that an earlier revision of auto_layout made
+    import meshfit.layout.auto as auto
+    import meshfit.pipeline as pl
+    from meshfit.demo import demo_mesh
+
+    mesh = demo_mesh(400)
+    opts = FitOptions(patches=96)
+    key, _ = pl._resolve_layout(mesh, "auto", opts)
+    assert key == f"auto:96:r{auto.AUTO_LAYOUT_REVISION}"
+    monkeypatch.setattr(auto, "AUTO_LAYOUT_REVISION", auto.AUTO_LAYOUT_REVISION + 1)
+    assert pl._resolve_layout(mesh, "auto", opts)[0] != key

@@ -717,13 +717,14 @@ def _resolve_layout(mesh: Mesh, layout, options: FitOptions):
         text = layout_to_json(layout)
         return hashlib.sha256(text.encode()).hexdigest(), lambda: layout
     if layout is None or (isinstance(layout, str) and layout == "auto"):
+        from meshfit.layout.auto import AUTO_LAYOUT_REVISION
 
         def make():
             from meshfit.layout.auto import auto_layout
 
             return auto_layout(mesh, patches=options.patches)
 
-        return f"auto:{options.patches}", make
+        return f"auto:{options.patches}:r{AUTO_LAYOUT_REVISION}", make
     path = Path(layout)
     if not path.is_file():
         raise LayoutError(f"{path}: no such layout file")

@@ -66,6 +66,10 @@ PROXY_RATIO = 4.0
 #: (the stop test does not end them earlier on a dense scan; igea's fit is the same with
 #: 25, 50 or 100: displaced RMS 0.004%, Hausdorff 0.18%, arc-length CV 0.18, no folds)
 FINE_RELAX_ITERATIONS = 50
+#: revision of what `auto_layout` makes for given options: part of the fit's stage keys, so a
+#: resumed fit does not re-use a layout cached by an earlier revision (2: shaped bases above
+#: `SHAPE_ABOVE_FACES` triangles)
+AUTO_LAYOUT_REVISION = 2
 #: ``shape=None`` of `auto_layout` shapes base meshes of more than this many triangles. The
 #: bisections that take the relaxed icosahedron beyond 20 triangles leave cells of equal area
 #: that are slivers where the sphere map stretches (spring meshes of the 96-patch layouts, with
