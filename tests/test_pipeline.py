@@ -471,5 +471,29 @@ def test_automatic_layout_key_follows_the_layout_revision(monkeypatch):
     opts = FitOptions(patches=96)
     key, _ = pl._resolve_layout(mesh, "auto", opts)
     assert key == f"auto:96:r{auto.AUTO_LAYOUT_REVISION}"
+    # forcing the shaping either way is another layout
+    keys = {pl._resolve_layout(mesh, "auto", FitOptions(patches=96, layout_shape=v))[0]
+            for v in (None, True, False)}  # fmt: skip
+    assert len(keys) == 3
     monkeypatch.setattr(auto, "AUTO_LAYOUT_REVISION", auto.AUTO_LAYOUT_REVISION + 1)
     assert pl._resolve_layout(mesh, "auto", opts)[0] != key
+
+
+def test_shape_layout_option_reaches_the_automatic_layout(monkeypatch):
+    import meshfit.layout.auto as auto
+    import meshfit.pipeline as pl
+    from meshfit.cli import build_parser
+    from meshfit.demo import demo_mesh
+    from meshfit.fit_cli import _options
+
+    with pytest.raises(InputError, match="layout_shape"):
+        FitOptions(layout_shape="yes")
+    parser = build_parser()
+    seen = []
+    monkeypatch.setattr(auto, "auto_layout", lambda mesh, **kw: seen.append(kw["shape"]))
+    mesh = demo_mesh(400)
+    for flag, want in (("auto", None), ("on", True), ("off", False)):
+        opts = _options(parser.parse_args(["fit", "scan.ply", "--shape-layout", flag]))
+        assert opts.layout_shape is want
+        pl._resolve_layout(mesh, "auto", opts)[1]()
+    assert seen == [None, True, False]

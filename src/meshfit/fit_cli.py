@@ -86,6 +86,7 @@ def _options(args: argparse.Namespace):
         continuity=args.continuity,
         formats=_formats(args.formats),
         patches=args.patches,
+        layout_shape={"auto": None, "on": True, "off": False}[args.shape_layout],
         spring_level=args.level,
         spring_rescue=not args.no_rescue,
         map_shapes=args.map_shapes,
@@ -178,6 +179,13 @@ def _common(p: argparse.ArgumentParser) -> None:
         help="layout file (.json), or 'auto' for closed genus-0 meshes (default: %(default)s)",
     )
     p.add_argument("--patches", type=int, default=None, help="patch count of the automatic layout")
+    p.add_argument(
+        "--shape-layout",
+        choices=("auto", "on", "off"),
+        default="auto",
+        help="move the automatic layout's corners so that its patches are square on the "
+        "surface (default auto: above 60 patches)",
+    )
     p.add_argument(
         "--cv", default="16x16", help="control points per patch, MUxMV (default: %(default)s)"
     )

@@ -107,6 +107,9 @@ class FitOptions:
         Outputs among :data:`FORMATS` (default usd, obj, glb, exr, png).
     patches : int, optional
         Patch count asked of the automatic layout (``layout="auto"``).
+    layout_shape : bool, optional
+        ``shape`` of :func:`meshfit.layout.auto.auto_layout`: move the base vertices so that
+        the quads are square on the surface (default None: above 60 patches).
     spring_level : int, optional
         Final spring-mesh level (default: the level whose point count is closest to the
         patch's vertex count, :func:`meshfit.springs.resample_patch`).
@@ -147,6 +150,7 @@ class FitOptions:
     continuity: str = "c0"
     formats: tuple[str, ...] = ("usd", "obj", "glb", "exr", "png")
     patches: int | None = None
+    layout_shape: bool | None = None
     spring_level: int | None = None
     spring_max_points: int | None = None
     spring_rescue: bool = True
@@ -188,6 +192,8 @@ class FitOptions:
             raise InputError(f"workers must be >= 1, got {self.workers}")
         if self.patches is not None and int(self.patches) < 1:
             raise InputError(f"patches must be >= 1, got {self.patches}")
+        if self.layout_shape not in (None, True, False):
+            raise InputError(f"layout_shape must be True, False or None, got {self.layout_shape!r}")
         if int(self.image_size) < 16:
             raise InputError(f"image_size must be >= 16 pixels, got {self.image_size}")
 
@@ -722,9 +728,10 @@ def _resolve_layout(mesh: Mesh, layout, options: FitOptions):
         def make():
             from meshfit.layout.auto import auto_layout
 
-            return auto_layout(mesh, patches=options.patches)
+            return auto_layout(mesh, patches=options.patches, shape=options.layout_shape)
 
-        return f"auto:{options.patches}:r{AUTO_LAYOUT_REVISION}", make
+        shape = {None: "", True: ":shaped", False: ":unshaped"}[options.layout_shape]
+        return f"auto:{options.patches}{shape}:r{AUTO_LAYOUT_REVISION}", make
     path = Path(layout)
     if not path.is_file():
         raise LayoutError(f"{path}: no such layout file")
