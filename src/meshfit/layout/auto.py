@@ -287,8 +287,8 @@ def auto_layout(
         Move the base vertices over the sphere so that the quads' images are close to
         squares of equal area (:func:`meshfit.layout.shaping.shape_base`) before the curves
         are traced. None (default): when the base mesh has more than ``SHAPE_ABOVE_FACES``
-        (20) triangles, i.e. more than 60 patches, where the area-equalised base mesh gives
-        slivers (see ``SHAPE_ABOVE_FACES``).
+        (20) triangles, i.e. from ``patches=62`` on (22 triangles), where the area-equalised
+        base mesh gives slivers (see ``SHAPE_ABOVE_FACES``).
 
     Returns
     -------
