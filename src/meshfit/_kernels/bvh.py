@@ -582,17 +582,7 @@ def _first_within(V, F, flat, order, lo, hi, child, start, stop, p, stack, near_
                 if _triangle_sq(V, F, flat, t, p, bary) <= r2:
                     return t
         else:
-            d0 = _box_sq(lo, hi, c, px, py, pz)
-            d1 = _box_sq(lo, hi, c + 1, px, py, pz)
-            near, far, dn, df = (c, c + 1, d0, d1) if d0 <= d1 else (c + 1, c, d1, d0)
-            if df <= r2:
-                stack[top] = far
-                near_sq[top] = df
-                top += 1
-            if dn <= r2:
-                stack[top] = near
-                near_sq[top] = dn
-                top += 1
+            top = _push_children(lo, hi, c, px, py, pz, r2, True, stack, near_sq, top)
     return -1
 
 
@@ -628,16 +618,25 @@ def _nearest(
                     best_bary[1] = bary[1]
                     best_bary[2] = bary[2]
         else:
-            d0 = _box_sq(lo, hi, c, px, py, pz)
-            d1 = _box_sq(lo, hi, c + 1, px, py, pz)
-            # the nearer child is pushed last, popped first
-            near, far, dn, df = (c, c + 1, d0, d1) if d0 <= d1 else (c + 1, c, d1, d0)
-            if df < best:
-                stack[top] = far
-                near_sq[top] = df
-                top += 1
-            if dn < best:
-                stack[top] = near
-                near_sq[top] = dn
-                top += 1
+            top = _push_children(lo, hi, c, px, py, pz, best, False, stack, near_sq, top)
     return best, best_t
+
+
+@njit(cache=True, nogil=True, fastmath=False, inline="always")
+def _push_children(lo, hi, c, px, py, pz, bound, inclusive, stack, near_sq, top):
+    """Push children ``c`` and ``c + 1`` of a node onto the search stack with their boxes'
+    squared distances to ``(px, py, pz)``, each only if that distance is within ``bound``
+    (``<=`` when ``inclusive``, else ``<``), the nearer last so that it is popped first;
+    returns the new stack top."""
+    d0 = _box_sq(lo, hi, c, px, py, pz)
+    d1 = _box_sq(lo, hi, c + 1, px, py, pz)
+    near, far, dn, df = (c, c + 1, d0, d1) if d0 <= d1 else (c + 1, c, d1, d0)
+    if df <= bound if inclusive else df < bound:
+        stack[top] = far
+        near_sq[top] = df
+        top += 1
+    if dn <= bound if inclusive else dn < bound:
+        stack[top] = near
+        near_sq[top] = dn
+        top += 1
+    return top

@@ -188,8 +188,23 @@ def bulge_notes(bulge: dict[int, float]) -> list[str]:
 
 
 def sides_taper(lengths) -> float:
-    """:attr:`Patch.taper` of four side lengths in order: the larger of the two ratios of
-    opposite sides (longer over shorter; inf when a side has zero length)."""
+    """:attr:`Patch.taper` of four side lengths.
+
+    Parameters
+    ----------
+    lengths : (4,) float
+        Side lengths in order around the patch, model units.
+
+    Returns
+    -------
+    float
+        The larger of the two ratios of opposite sides (longer over shorter; 1 for a
+        rectangle, inf when a side has zero length).
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 5.1 (parametric distortion of a patch's spring mesh).
+    """
     out = 1.0
     for a, b in ((0, 2), (1, 3)):
         lo, hi = sorted((float(lengths[a]), float(lengths[b])))

@@ -60,12 +60,30 @@ def _unit(x: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def quad_images(smap, sphere: NDArray[np.float64], tris: NDArray[np.int64]) -> NDArray:
-    """Surface positions ``(k, 3, 4, 3)`` of the three quads of each spherical triangle.
+    """Surface positions of the three quads of each spherical triangle.
 
     Quad ``i`` of triangle ``(a, b, c)`` runs from its corner ``i`` through the mid-point of
     the edge after it, the centroid and the mid-point of the edge before it (mid-points and
     centroid as normalised means on the sphere), each point mapped to the surface by the
-    sphere map ``smap`` (``smap.locate``, then ``smap.mesh.xyz``).
+    sphere map.
+
+    Parameters
+    ----------
+    smap : meshfit.shrinkwrap.SphereMap
+        Parameterization over the unit sphere (``locate`` and ``mesh.xyz`` are used).
+    sphere : (nv, 3) float64
+        Unit vectors of the base vertices.
+    tris : (k, 3) int64
+        Spherical triangles, counter-clockwise seen from outside.
+
+    Returns
+    -------
+    (k, 3, 4, 3) float64
+        Corner positions of each triangle's quads, model units.
+
+    References
+    ----------
+    .. [1] Kobbelt, Vorsatz, Labsik & Seidel 1999, sec. 6 (the base mesh and its images).
     """
     tris = np.asarray(tris, dtype=np.int64)
     return _quads(smap, sphere[tris[..., 0]], sphere[tris[..., 1]], sphere[tris[..., 2]])[0]
@@ -112,9 +130,24 @@ def _shape_and_area(Q: NDArray) -> tuple[NDArray, NDArray]:
 
 
 def quad_cost(Q: NDArray, mean_area: float, area_weight: float = SHAPE_AREA_WEIGHT) -> NDArray:
-    """Cost of each triangle's three quads ``Q (..., 3, 4, 3)``, summed per triangle:
-    ``shape - 1 + area_weight * log(area / mean_area)^2`` per quad (0 for squares of the
-    mean area; a sliver's shape term grows without bound)."""
+    """Cost of each triangle's three quads, summed per triangle.
+
+    Per quad ``shape - 1 + area_weight * log(area / mean_area)^2``: 0 for a square of the
+    mean area; a sliver's shape term grows without bound (see `_shape_and_area`).
+
+    Parameters
+    ----------
+    Q : (..., 3, 4, 3) float64
+        Quad corners (:func:`quad_images`).
+    mean_area : float
+        Target quad area, model units squared.
+    area_weight : float
+        Weight of the area term (default `SHAPE_AREA_WEIGHT`).
+
+    Returns
+    -------
+    (...,) float64
+    """
     shape, area = _shape_and_area(Q)
     tiny = np.finfo(np.float64).tiny
     log_area = np.log(np.maximum(area, tiny) / mean_area)

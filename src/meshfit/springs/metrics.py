@@ -137,8 +137,26 @@ def _fidelity(
 
 
 def out_of_bounds(metrics: dict, bounds: dict | None = None) -> list[str]:
-    """Names of the metrics in ``metrics`` (a :func:`grid_metrics` dict) above their bound in
-    ``bounds`` (default `QUALITY_BOUNDS`; a metric missing from ``metrics`` is skipped)."""
+    """Names of the metrics above their quality bound.
+
+    Parameters
+    ----------
+    metrics : dict
+        A :func:`grid_metrics` dict (or a row holding some of its keys).
+    bounds : dict of str to float, optional
+        Upper bounds per metric (default `QUALITY_BOUNDS`); a metric missing from
+        ``metrics`` is skipped.
+
+    Returns
+    -------
+    list of str
+        In the order of ``bounds``.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 5.1-5.2 (arc length, aspect ratio) and sec. 5.5.3
+       (folded spring cells).
+    """
     bounds = QUALITY_BOUNDS if bounds is None else bounds
     return [k for k, b in bounds.items() if k in metrics and metrics[k] > b]
 
