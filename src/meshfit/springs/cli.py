@@ -197,23 +197,16 @@ def _print_patches(rows: list[dict]) -> None:
 
 def _summary_lines(summary: dict) -> dict:
     """The summary as quantity -> value rows for `meshfit.cli.print_table`."""
-    names = {
-        "arc_cv_max": "arc CV above",
-        "aspect_median": "median aspect above",
-        "folded": "patches with folds above",
-        "fidelity_max": "fidelity above",
+    bounds = summary["bounds"]
+    labels = {
+        "arc_cv_max": f"arc CV above {bounds['arc_cv_max']:g}",
+        "aspect_median": f"median aspect above {bounds['aspect_median']:g}",
+        "folded": "patches with folded cells",
+        "fidelity_max": f"fidelity above {bounds['fidelity_max'] * 100:g}%",
     }
     out = {"patches": summary["patches"], "folded cells": summary["folded_cells"]}
     for key, ids in summary["over_bounds"].items():
-        if key == "folded":
-            key_ids = ids
-            out["patches with folded cells"] = (
-                f"{len(key_ids)} ({', '.join(map(str, key_ids))})" if key_ids else "0"
-            )
-            continue
-        bound = summary["bounds"][key]
-        shown = f"{bound * 100:g}%" if key == "fidelity_max" else f"{bound:g}"
-        out[f"{names[key]} {shown}"] = f"{len(ids)} ({', '.join(map(str, ids))})" if ids else "0"
+        out[labels[key]] = f"{len(ids)} ({', '.join(map(str, ids))})" if ids else "0"
     return out
 
 
