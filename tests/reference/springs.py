@@ -386,3 +386,37 @@ def line_spacing(V, F, face, bary, nu, nv, u_lines, v_lines):
         cv[n_u:].reshape(-1, nu).max(axis=0),
         np.median(aspect),
     )
+
+
+def maxmin_point(A, m, px, py, h):
+    """The largest least value of ``A[:m] @ (x, y, 1)`` over the box ``|x - px|, |y - py| <= h``,
+    by SciPy's linear programming (HiGHS); -> the optimal value."""
+    from scipy.optimize import linprog
+
+    A = np.asarray(A, dtype=float)[:m]
+    res = linprog(
+        [0.0, 0.0, -1.0],
+        A_ub=np.column_stack([-A[:, 0], -A[:, 1], np.ones(m)]),
+        b_ub=A[:, 2],
+        bounds=[(px - h, px + h), (py - h, py + h), (None, None)],
+        method="highs",
+    )
+    assert res.status == 0, res.message
+    return -res.fun
+
+
+def chart_least_area(Y, nu, nv, var):
+    """Least twice-signed area of the triangles (a b c), (a c d) of the cells with a corner in
+    ``var`` (a = (i, j), b = (i + 1, j), c = (i + 1, j + 1), d = (i, j + 1))."""
+    G = np.asarray(Y, dtype=float).reshape(nu, nv, 2)
+    V = np.asarray(var, dtype=bool).reshape(nu, nv)
+    out = np.inf
+    for i in range(nu - 1):
+        for j in range(nv - 1):
+            if not V[i : i + 2, j : j + 2].any():
+                continue
+            a, b, c, d = G[i, j], G[i + 1, j], G[i + 1, j + 1], G[i, j + 1]
+            for p, q, r in ((a, b, c), (a, c, d)):
+                u, w = q - p, r - p
+                out = min(out, u[0] * w[1] - u[1] * w[0])
+    return out

@@ -369,3 +369,84 @@ def test_line_spacing_matches_oracle(patches, rng, u_lines, v_lines):
     assert_allclose(col, want_col, rtol=1e-12)
     assert_allclose(row, want_row, rtol=1e-12)
     assert med == pytest.approx(want_med, rel=1e-12)
+
+
+def test_maxmin_point_matches_linear_programming(rng):
+    # the exact vertex enumeration against HiGHS, including bounded-by-the-box optima (one
+    # function), parallel functions and duplicates
+    for trial in range(400):
+        m = int(rng.integers(1, 9))
+        A = rng.normal(size=(8, 3))
+        if trial % 5 == 0 and m > 1:
+            A[1, :2] = A[0, :2]  # parallel
+        if trial % 7 == 0 and m > 2:
+            A[2] = A[0]  # duplicate
+        px, py = rng.normal(size=2)
+        h = float(rng.uniform(0.05, 3.0))
+        x, y, s = K.maxmin_point(A, m, px, py, h)
+        want = ref.maxmin_point(A, m, px, py, h)
+        assert s == pytest.approx(want, rel=1e-9, abs=1e-9)
+        assert abs(x - px) <= h * (1 + 1e-12) and abs(y - py) <= h * (1 + 1e-12)
+        assert s == pytest.approx(min(A[:m, 0] * x + A[:m, 1] * y + A[:m, 2]), abs=1e-12)
+
+
+def test_chart_untangle_unfolds_a_scrambled_plane_grid(rng):
+    # a 9 x 9 unit grid whose inner points are scrambled by up to 0.9 spacings: the rounds
+    # never lower the least triangle area and end with every cell unfolded; the border
+    # points stay
+    nu = nv = 9
+    g = np.stack(np.meshgrid(np.arange(nu), np.arange(nv), indexing="ij"), axis=-1)
+    for _ in range(5):
+        Y = g.reshape(-1, 2).astype(float)
+        var = np.zeros((nu, nv), dtype=bool)
+        var[1:-1, 1:-1] = True
+        var = var.ravel()
+        Y[var] += rng.uniform(-0.9, 0.9, size=(var.sum(), 2))
+        border = Y[~var].copy()
+        before = ref.chart_least_area(Y, nu, nv, var)
+        assert before < 0
+        last = before
+        for _ in range(30):
+            done, worst = K.chart_untangle(Y, nu, nv, var, 1.0, 1, 0.1)
+            assert done == (1 if last < 0.1 else 0)
+            assert worst == pytest.approx(ref.chart_least_area(Y, nu, nv, var), abs=1e-12)
+            assert worst >= last - 1e-12
+            last = worst
+        assert last >= 0.1
+        assert_array_equal(Y[~var], border)
+
+
+def test_untangle_in_charts_unfolds_a_tangle_in_place():
+    # four free points of a flat grid moved onto each other's places (a tangle that no single
+    # move undoes): untangled, with only free points moved and every point on the patch
+    from meshfit.springs.relax import untangle_in_charts
+
+    state = _plane_state()
+    mesh, nu, nv = state.mesh, state.nu, state.nv
+    keep = ~(state.kind() == FREE).ravel()
+    fixed_xyz = mesh.xyz(SurfacePoints(state.face[keep], state.bary[keep]))
+    i, j = 12, 8
+    cyc = [i * nv + j, (i + 1) * nv + j + 1, (i + 1) * nv + j, i * nv + j + 1]
+    state.face[cyc], state.bary[cyc] = state.face[cyc[::-1]], state.bary[cyc[::-1]]
+    assert K.folded_cells(mesh.vertices, mesh.faces, state.face, state.bary, nu, nv).sum() > 0
+    assert untangle_in_charts(state) == 0
+    assert not K.folded_cells(mesh.vertices, mesh.faces, state.face, state.bary, nu, nv).any()
+    assert_allclose(mesh.xyz(SurfacePoints(state.face[keep], state.bary[keep])), fixed_xyz)
+    assert (state.bary >= -tol.BARY_EPS).all()
+    assert_allclose(state.bary.sum(axis=1), 1.0, atol=1e-12)
+
+
+def test_untangle_in_charts_keeps_the_grid_when_it_cannot_help():
+    # a side point pushed past its neighbour: no free point can unfold its cells, so the
+    # grid is left exactly as it was
+    from meshfit.springs.relax import untangle_in_charts
+
+    state = _plane_state()
+    mesh, nu, nv = state.mesh, state.nu, state.nv
+    g, g2 = 4 * nv, 6 * nv
+    state.face[g], state.bary[g] = state.face[g2], state.bary[g2]
+    before = K.folded_cells(mesh.vertices, mesh.faces, state.face, state.bary, nu, nv).sum()
+    face, bary = state.face.copy(), state.bary.copy()
+    assert untangle_in_charts(state) == before > 0
+    assert_array_equal(state.face, face)
+    assert_array_equal(state.bary, bary)

@@ -982,3 +982,146 @@ def chord_rounds(xyz, arc, pos, fixed, rounds):
             span = old[i + 1] - old[i - 1]
             step = 0.5 * (cb - ca) * span / max(ca + cb, 1e-300)
             pos[i] = min(max(old[i] + 0.5 * step, old[i - 1]), old[i + 1])
+
+
+# ------------------------------------------------- untangling in a tangent-plane chart
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _lowest(A, m, x, y):
+    """min over the first ``m`` rows of ``A[k, 0] x + A[k, 1] y + A[k, 2]``."""
+    out = np.inf
+    for k in range(m):
+        v = A[k, 0] * x + A[k, 1] * y + A[k, 2]
+        if v < out:
+            out = v
+    return out
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def maxmin_point(A, m, px, py, h):
+    """The point of the box ``|x - px| <= h``, ``|y - py| <= h`` that maximizes the least of
+    the ``m`` affine functions ``A[k, 0] x + A[k, 1] y + A[k, 2]``, and that least value;
+    -> (x, y, s). Exact: the optimum of this linear program in (x, y, s) is a vertex, where
+    three functions are equal, two are equal on an edge of the box, or at a box corner; every
+    such candidate is evaluated (m is a handful). The start ``(px, py)`` is kept unless a
+    candidate is strictly better."""
+    bx, by = px, py
+    best = _lowest(A, m, px, py)
+    xs = (px - h, px + h)
+    ys = (py - h, py + h)
+    for ci in range(2):  # box corners
+        for cj in range(2):
+            v = _lowest(A, m, xs[ci], ys[cj])
+            if v > best:
+                best, bx, by = v, xs[ci], ys[cj]
+    for i in range(m):
+        for j in range(i + 1, m):
+            da, db, dc = A[i, 0] - A[j, 0], A[i, 1] - A[j, 1], A[i, 2] - A[j, 2]
+            for e in range(2):  # the two functions equal on an edge of the box
+                if db != 0.0:  # vertical edge x = xs[e]
+                    y = -(da * xs[e] + dc) / db
+                    if ys[0] <= y <= ys[1]:
+                        v = _lowest(A, m, xs[e], y)
+                        if v > best:
+                            best, bx, by = v, xs[e], y
+                if da != 0.0:  # horizontal edge y = ys[e]
+                    x = -(db * ys[e] + dc) / da
+                    if xs[0] <= x <= xs[1]:
+                        v = _lowest(A, m, x, ys[e])
+                        if v > best:
+                            best, bx, by = v, x, ys[e]
+            for k in range(j + 1, m):  # three functions equal
+                ea, eb, ec = A[i, 0] - A[k, 0], A[i, 1] - A[k, 1], A[i, 2] - A[k, 2]
+                det = da * eb - db * ea
+                if det == 0.0:
+                    continue
+                x = (-dc * eb + db * ec) / det
+                y = (-da * ec + dc * ea) / det
+                if xs[0] <= x <= xs[1] and ys[0] <= y <= ys[1]:
+                    v = _lowest(A, m, x, y)
+                    if v > best:
+                        best, bx, by = v, x, y
+    return bx, by, best
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _cell_tri(i, j, t, nv):
+    """Grid rows of triangle ``t`` (0: a b c, 1: a c d) of cell (i, j), as the fold test
+    splits it: a = (i, j), b = (i + 1, j), c = (i + 1, j + 1), d = (i, j + 1)."""
+    a = i * nv + j
+    c = (i + 1) * nv + j + 1
+    if t == 0:
+        return a, (i + 1) * nv + j, c
+    return a, c, i * nv + j + 1
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _twice_area(Y, p, q, r):
+    return (Y[q, 0] - Y[p, 0]) * (Y[r, 1] - Y[p, 1]) - (Y[q, 1] - Y[p, 1]) * (Y[r, 0] - Y[p, 0])
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def chart_least_area(Y, nu, nv, var):
+    """Least twice-signed area of the fold-test triangles of the cells of an (nu, nv) chart
+    grid ``Y`` (nu * nv, 2) that have a corner in ``var``."""
+    out = np.inf
+    for i in range(nu - 1):
+        for j in range(nv - 1):
+            if not (
+                var[i * nv + j] or var[(i + 1) * nv + j] or var[i * nv + j + 1]
+                or var[(i + 1) * nv + j + 1]
+            ):  # fmt: skip
+                continue
+            for t in range(2):
+                p, q, r = _cell_tri(i, j, t, nv)
+                v = _twice_area(Y, p, q, r)
+                if v < out:
+                    out = v
+    return out
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def chart_untangle(Y, nu, nv, var, h, rounds, goal):
+    """Gauss-Seidel rounds over the points ``var`` of an (nu, nv) grid ``Y`` (nu * nv, 2) in a
+    plane, in place: each point goes to the place within ``h`` of it (per coordinate) that
+    maximizes the least signed area of the fold-test triangles it is a corner of
+    (`maxmin_point`). Stops after ``rounds`` rounds or once every triangle of the cells
+    touching ``var`` has twice its signed area at least ``goal``; -> (rounds done, that least
+    twice-area)."""
+    A = np.empty((8, 3))
+    done = 0
+    worst = chart_least_area(Y, nu, nv, var)
+    while done < rounds and worst < goal:
+        for p in range(nu * nv):
+            if not var[p]:
+                continue
+            pi, pj = p // nv, p % nv
+            m = 0
+            for ci in range(pi - 1, pi + 1):
+                for cj in range(pj - 1, pj + 1):
+                    if ci < 0 or cj < 0 or ci >= nu - 1 or cj >= nv - 1:
+                        continue
+                    for t in range(2):
+                        a, b, c = _cell_tri(ci, cj, t, nv)
+                        if a == p:
+                            q, r = b, c
+                        elif b == p:
+                            q, r = c, a
+                        elif c == p:
+                            q, r = a, b
+                        else:
+                            continue
+                        # twice the area of (P, q, r), affine in P
+                        A[m, 0] = Y[q, 1] - Y[r, 1]
+                        A[m, 1] = Y[r, 0] - Y[q, 0]
+                        A[m, 2] = Y[q, 0] * Y[r, 1] - Y[q, 1] * Y[r, 0]
+                        m += 1
+            if m == 0:
+                continue
+            x, y, _s = maxmin_point(A, m, Y[p, 0], Y[p, 1], h)
+            Y[p, 0] = x
+            Y[p, 1] = y
+        done += 1
+        worst = chart_least_area(Y, nu, nv, var)
+    return done, worst

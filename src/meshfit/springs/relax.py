@@ -9,7 +9,14 @@ from meshfit._kernels import springs as _k
 from meshfit.springs.grid import FREE
 from meshfit.springs.state import State
 
-__all__ = ["folded_cells", "relax", "repair_folds", "unfold_in_map", "untangle"]
+__all__ = [
+    "folded_cells",
+    "relax",
+    "repair_folds",
+    "unfold_in_map",
+    "untangle",
+    "untangle_in_charts",
+]
 
 #: walk steps never cross more faces than this (a relaxation step is about one spring long)
 _MAX_FACES = 10_000
@@ -30,6 +37,14 @@ SLIDE_TAPER = 2
 #: point is slid apart (`unpinch_side_points`; at 0.5 a side of a patch cut from igea slides
 #: where the grid then misses the surface by 0.053% of the bbox diagonal instead of 0.042%)
 PINCH_RATIO = 0.4
+#: untangling in a chart (`untangle_in_charts`): grid steps around a folded cell that may
+#: move, Gauss-Seidel rounds, the largest angle between the window's surface normals and
+#: their mean for which its tangent plane is a usable chart, and the least signed area of a
+#: cell triangle aimed at, as a fraction of the squared grid spacing
+CHART_REACH = 3
+CHART_ROUNDS = 30
+CHART_MAX_SPREAD = 60.0
+CHART_GOAL = 0.05
 
 
 def _curve_step(state: State, X: np.ndarray, w_arc: float, w_fair: float) -> float:
@@ -513,4 +528,89 @@ def unfold_in_map(state: State, pmap, *, reach: int = 2, sweeps: int = 40) -> in
     if left > folds.sum():  # worse on the surface than before: keep the old points
         state.face[flat], state.bary[flat] = old_face, old_bary
         return int(folds.sum())
+    return left
+
+
+def untangle_in_charts(state: State, *, reach: int | None = None, rounds: int | None = None) -> int:
+    """Unfold the folded cells left by the other repairs by moving all the free points around
+    each one together in a tangent-plane chart, in place; returns the folded cells left.
+
+    Around a folded cell, the points within ``reach`` grid steps (default `CHART_REACH`) are
+    projected onto the mean tangent plane of their faces. Each free one in turn goes to the
+    place within one grid spacing that maximizes the least signed area of the fold-test
+    triangles it is a corner of (a small linear program solved exactly,
+    `meshfit._kernels.springs.maxmin_point`), for up to ``rounds`` rounds (default
+    `CHART_ROUNDS`) or until every such triangle has `CHART_GOAL` of the squared spacing;
+    the points then go to the surface points closest to their chart places lifted to their
+    old heights. The moves are kept only if the patch has fewer folded cells.
+
+    Where a side turns sharply (the 274-degree inner corner of nefertiti's test patch 4),
+    the grid must fan around the corner: the neighbours of the corner's cells must all move,
+    and neither the forces nor `repair_folds`, which moves one point at a time to a few trial
+    places, find that. Windows whose surface normals spread by more than
+    `CHART_MAX_SPREAD` degrees are skipped: there the tangent plane is no chart.
+    """
+    reach = CHART_REACH if reach is None else int(reach)
+    rounds = CHART_ROUNDS if rounds is None else int(rounds)
+    folds = folded_cells(state)
+    left = int(folds.sum())
+    if not left:
+        return 0
+    mesh = state.mesh
+    nu, nv = state.nu, state.nv
+    movable = state.kind() == FREE
+    tried = set()
+    while left:
+        todo = [tuple(c) for c in np.argwhere(folds).tolist() if tuple(c) not in tried]
+        if not todo:
+            break
+        fi, fj = todo[0]
+        tried.add((fi, fj))
+        # the points within reach move; one more ring stays put around them, so that every
+        # cell a moving point is a corner of is in the window
+        i0, i1 = max(fi - reach - 1, 0), min(fi + 2 + reach, nu - 1)
+        j0, j1 = max(fj - reach - 1, 0), min(fj + 2 + reach, nv - 1)
+        idx = np.arange(nu * nv).reshape(nu, nv)[i0 : i1 + 1, j0 : j1 + 1]
+        flat = idx.ravel()
+        inner = np.zeros(idx.shape, dtype=bool)
+        inner[1:-1, 1:-1] = True
+        var = movable.ravel()[flat] & inner.ravel()
+        if not var.any():
+            continue
+        X = _xyz(mesh, state.face[flat], state.bary[flat])
+        normals = mesh.face_normals[state.face[flat]]
+        n = normals.sum(axis=0)
+        n /= max(np.linalg.norm(n), 1e-300)
+        if np.degrees(np.arccos(np.clip(normals @ n, -1.0, 1.0))).max() > CHART_MAX_SPREAD:
+            continue
+        e1 = np.cross(n, np.eye(3)[int(np.argmin(np.abs(n)))])
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(n, e1)
+        origin = X.mean(axis=0)
+        Y = np.ascontiguousarray(np.stack([(X - origin) @ e1, (X - origin) @ e2], axis=1))
+        Yg = Y.reshape(*idx.shape, 2)
+        h = float(
+            np.median(
+                np.concatenate(
+                    [
+                        np.linalg.norm(np.diff(Yg, axis=0), axis=2).ravel(),
+                        np.linalg.norm(np.diff(Yg, axis=1), axis=2).ravel(),
+                    ]
+                )
+            )
+        )
+        if not h > 0.0:
+            continue
+        _k.chart_untangle(Y, idx.shape[0], idx.shape[1], var, h, rounds, 2.0 * CHART_GOAL * h * h)
+        moved = flat[var]
+        height = (X[var] - origin) @ n
+        lifted = origin + Y[var, :1] * e1 + Y[var, 1:] * e2 + height[:, None] * n
+        near = mesh.closest_points(lifted).points
+        old_face, old_bary = state.face[moved].copy(), state.bary[moved].copy()
+        state.face[moved], state.bary[moved] = near.face, near.bary
+        after = folded_cells(state)
+        if int(after.sum()) < left:
+            folds, left = after, int(after.sum())
+        else:
+            state.face[moved], state.bary[moved] = old_face, old_bary
     return left

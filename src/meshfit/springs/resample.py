@@ -25,6 +25,7 @@ from meshfit.springs.relax import (
     unfold_in_map,
     unpinch_side_points,
     untangle,
+    untangle_in_charts,
 )
 from meshfit.springs.state import State
 from meshfit.springs.subdivide import subdivide
@@ -256,10 +257,12 @@ def _initialize_map(state: State, pmap: PlanarMap) -> None:
 
 def _repair(state: State, pmap) -> None:
     """Fold repair: free points re-placed in the planar map, then moved one by one; side
-    points of cells still folded slid along their sides, and the free points moved again."""
+    points of cells still folded slid along their sides, and the free points moved again;
+    last, the free points around each cell still folded moved together in a chart."""
     unfold_in_map(state, pmap)
     if repair_folds(state) and slide_side_points(state):
         repair_folds(state)
+    untangle_in_charts(state)
 
 
 def _final_level(n_level0: tuple[int, int], n_vertices: int, level, max_points) -> int:
