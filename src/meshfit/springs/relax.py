@@ -549,6 +549,25 @@ def untangle_in_charts(state: State, *, reach: int | None = None, rounds: int | 
     and neither the forces nor `repair_folds`, which moves one point at a time to a few trial
     places, find that. Windows whose surface normals spread by more than
     `CHART_MAX_SPREAD` degrees are skipped: there the tangent plane is no chart.
+
+    Parameters
+    ----------
+    state : State
+        Building state of one level; ``state.face`` (n,) int64 and ``state.bary`` (n, 3)
+        float64 of the free points change in place.
+    reach : int, keyword-only, optional
+        Grid steps around a folded cell whose free points move (default `CHART_REACH`).
+    rounds : int, keyword-only, optional
+        Gauss-Seidel rounds per window (default `CHART_ROUNDS`).
+
+    Returns
+    -------
+    int
+        Folded cells left (the `folded_cells` test).
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 5.5.3 (folds of the spring mesh and their repair).
     """
     reach = CHART_REACH if reach is None else int(reach)
     rounds = CHART_ROUNDS if rounds is None else int(rounds)

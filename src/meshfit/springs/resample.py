@@ -260,9 +260,11 @@ def _repair(state: State, pmap) -> None:
     points of cells still folded slid along their sides, and the free points moved again;
     last, the free points around each cell still folded moved together in a chart."""
     unfold_in_map(state, pmap)
-    if repair_folds(state) and slide_side_points(state):
-        repair_folds(state)
-    untangle_in_charts(state)
+    left = repair_folds(state)
+    if left and slide_side_points(state):
+        left = repair_folds(state)
+    if left:
+        untangle_in_charts(state)
 
 
 def _final_level(n_level0: tuple[int, int], n_vertices: int, level, max_points) -> int:
