@@ -74,6 +74,11 @@ def test_springs_json_summary_lists_the_patches_over_each_bound(capsys):
         want = [r["patch"] for r in data["patches"] if r[key] > QUALITY_BOUNDS[key]]
         assert ids == want
     assert summary["over_bounds"]["aspect_median"]  # spot's near-triangular patches
+    # the tapered head patches whose level 0 the fairness fallback remade
+    remade = {r["patch"]: r["fairness"] for r in data["patches"] if r["remade"]}
+    assert {0, 2, 4} <= set(remade) and all(r["fairness"] == 0.5 for r in data["patches"]
+                                            if not r["remade"])  # fmt: skip
+    assert all(remade[k] == 0.0 for k in (0, 2, 4))
 
 
 def test_out_of_bounds_names_the_metrics_above_their_bounds():

@@ -42,10 +42,11 @@ def layout_springs(name: str):
 KNOWN = {
     "arc_cv": {
         "nefertiti": "arc-length CV > 0.15 on 4 of 54 patches (worst 1.58, patch 4; median 0.079)",
-        "spot": "arc-length CV > 0.15 on 4 of 24 patches (worst 0.55, patch 1; median 0.048)",
+        "spot": "arc-length CV > 0.15 on 2 of 24 patches (1 and 3: 0.55 and 0.47; median "
+        "0.047): each holds a horn and an ear and tapers about 7 : 1",
     },
     "aspect": {
-        "spot": "median cell aspect ratio > 1.5 on 4 of 24 patches (worst 1.69, patch 1)",
+        "spot": "median cell aspect ratio > 1.5 on 2 of 24 patches (1 and 3: 1.69 and 1.62)",
     },
     "fidelity": {
         "igea": "two-sided max distance 0.087% of the bbox diagonal on the median patch, "
@@ -148,10 +149,42 @@ def test_arc_length_polish_evens_the_igea_layout():
     polished = {p.index: (p, res) for p, res, _ in layout_springs("igea")}
     for k in (4, 5, 9):
         patch, res = polished[k]
-        plain = resample_patch(patch, fidelity=False, polish=0)
+        plain = resample_patch(patch, fidelity=False, polish=0, fairness_fallback=False)
         assert max(m["arc_cv_max"] for m in plain.metrics) > 0.15, k
         assert max(m["arc_cv_max"] for m in res.metrics) <= 0.15, k
         assert sum(m["folded"] for m in res.metrics) == 0
+
+
+def test_fairness_fallback_mends_spots_tapered_patches():
+    # spot's patches 0, 2, 4 and 5 taper 2.8-5 : 1: relaxed with the fairness force they break
+    # the arc-length or the aspect bound on some level; level 0 made again with the
+    # arc-length force alone (0, 2, 4) or with rebalanced intervals (5) meets every bound on
+    # every level
+    layout = layout_springs("spot")
+    for k in (0, 2, 4, 5):
+        patch, res, _ = layout[k]
+        plain = resample_patch(patch, fidelity=False, fairness_fallback=False)
+        assert plain.fairness == 0.5
+        assert (
+            max(m["arc_cv_max"] for m in plain.metrics) > QUALITY_BOUNDS["arc_cv_max"]
+            or max(m["aspect_median"] for m in plain.metrics) > QUALITY_BOUNDS["aspect_median"]
+        ), k
+        assert max(m["arc_cv_max"] for m in res.metrics) <= QUALITY_BOUNDS["arc_cv_max"], k
+        assert max(m["aspect_median"] for m in res.metrics) <= QUALITY_BOUNDS["aspect_median"]
+        assert sum(m["folded"] for m in res.metrics) == 0, k
+        for lvl in res.levels:
+            f, b = lvl.points.face, lvl.points.bary
+            assert f.min() >= 0 and f.max() < patch.mesh.n_faces and (b >= -tol.BARY_EPS).all()
+    # the rebalanced intervals of patch 5 have fewer rows along its long direction
+    patch, res, _ = layout[5]
+    plain = resample_patch(patch, fidelity=False, fairness_fallback=False)
+    assert res.levels[0].shape != plain.levels[0].shape
+
+
+def test_fairness_fallback_leaves_patches_meeting_the_bounds_alone():
+    # every igea patch meets the bounds at level 0 with the fairness force: none is remade
+    for _, res, _ in layout_springs("igea"):
+        assert res.fairness == 0.5
 
 
 def test_final_polish_evens_only_the_uneven_lines(monkeypatch):
@@ -303,16 +336,21 @@ def test_only_the_crown_of_nefertiti_bulges():
     assert max(bulges["igea"]) < BULGY and max(bulges["spot"]) < BULGY
 
 
-def test_the_tapered_patches_are_spots_head_patches_and_fail_the_arc_length_bound():
+def test_the_tapered_patches_are_spots_head_patches():
     # the cube corners at spot's head leave four near-triangular patches (a side over
-    # TAPERED times as long as the side opposite it): exactly the patches of the test layouts
-    # whose spacing stays uneven (see KNOWN["arc_cv"] for nefertiti's other causes)
+    # TAPERED times as long as the side opposite it), the only ones of the test layouts. The
+    # fairness fallback evens out two of them (0, 2); the two that also hold a horn and an
+    # ear (1, 3) stay uneven (see KNOWN["arc_cv"] for nefertiti's other causes)
     from meshfit.layout.patch import TAPERED
 
     tapered = {
         name: [p.index for p, _, _ in layout_springs(name) if p.taper > TAPERED] for name in LAYOUTS
     }
     assert tapered == {"igea": [], "nefertiti": [], "spot": [0, 1, 2, 3]}
-    for p, res, _ in layout_springs("spot"):
-        if p.index in tapered["spot"]:
-            assert max(m["arc_cv_max"] for m in res.metrics) > QUALITY_BOUNDS["arc_cv_max"]
+    worst = {
+        p.index: max(m["arc_cv_max"] for m in res.metrics)
+        for p, res, _ in layout_springs("spot")
+        if p.index in tapered["spot"]
+    }
+    bound = QUALITY_BOUNDS["arc_cv_max"]
+    assert [k for k, cv in worst.items() if cv > bound] == [1, 3], worst

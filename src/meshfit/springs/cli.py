@@ -97,6 +97,8 @@ def cmd_springs(args: argparse.Namespace) -> int:
                 "seconds": round(seconds, 4),
                 "rescued": bool(res.rescued),
                 "finer": int(res.finer),
+                "remade": bool(res.remade),
+                "fairness": res.fairness,
                 "bulge": round(patch.bulge, 3),
                 "taper": round(patch.taper, 3),
                 **{k: v for k, v in met.items() if k not in ("nu", "nv")},
@@ -189,6 +191,8 @@ def _print_patches(rows: list[dict]) -> None:
         notes = []
         if r["rescued"]:
             notes.append("rescued")
+        if r.get("remade"):
+            notes.append(f"level 0 remade (fairness {r['fairness']:g})")
         if r["finer"]:
             notes.append(f"{r['finer']} finer")
         table.add_row(*cells, ", ".join(notes))
