@@ -192,7 +192,7 @@ def _print_patches(rows: list[dict]) -> None:
         if r["rescued"]:
             notes.append("rescued")
         if r.get("remade"):
-            notes.append(f"level 0 remade (fairness {r['fairness']:g})")
+            notes.append("remade")
         if r["finer"]:
             notes.append(f"{r['finer']} finer")
         table.add_row(*cells, ", ".join(notes))
