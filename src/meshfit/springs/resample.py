@@ -743,17 +743,6 @@ def resample_patch(
             settle(state, pmap, 2, max_iter)
             return done
 
-        def level0(cu: list[int], cv: list[int], fairness: float):
-            """Level 0 with these intervals and fairness weight: (state, sweeps, final level)."""
-            state = State(mesh, patch.index, sides, us, vs, breaks, cu, cv)
-            state.chords = side_spacing == "chord"
-            if mapped:
-                _initialize_map(state, pmap)
-            else:
-                _initialize(state)
-            final = final_level(cu, cv)
-            return state, level_step(state, 0, fairness, final), final
-
         def advance(state: State, k: int, fairness: float, final: int) -> int:
             """Subdivide to level ``k`` and relax it; the sweeps done."""
             t = time.perf_counter()
@@ -769,7 +758,16 @@ def resample_patch(
             """Level 0 with these intervals and fairness weight, as a candidate: its state,
             weight, final level, sweeps and snapshots per level done, and bounds broken."""
             t = time.perf_counter()
-            state, done, final = level0(cu, cv, f)
+            state = State(mesh, patch.index, sides, us, vs, breaks, cu, cv)
+            state.chords = side_spacing == "chord"
+            if mapped:
+                _initialize_map(state, pmap)
+            else:
+                _initialize(state)
+            final = final_level(cu, cv)
+            seconds["init"] += time.perf_counter() - t
+            t = time.perf_counter()
+            done = level_step(state, 0, f, final)
             seconds["relax"] += time.perf_counter() - t
             broken = [_broken_bounds(state)] if fallback else [0]
             return {"state": state, "fair": f, "final": final, "done": [done],
