@@ -14,7 +14,11 @@ For each layout in ``examples/layouts/{igea,nefertiti}.json`` (patches cut with
   on the same ``(nu, nv)`` grid (grid parameters located in the flattened patch with libigl's
   point-mesh distance, positions interpolated barycentrically);
 - every quality metric of :func:`meshfit.springs.grid_metrics` for both, side by side
-  (fidelity relative to the whole model's bounding-box diagonal).
+  (fidelity relative to the whole model's bounding-box diagonal);
+- ``layout_threads``: the whole layout's wall time one patch after the other and with
+  :func:`meshfit.springs.resample_patches` on every core, and the peer's the same two ways
+  (a thread pool over the patches); its ``ratio`` is ours on every core against the faster
+  of the peer's two.
 
 Run: ``python benchmarks/springs.py [--repeats 3] [--meshes igea nefertiti]``. Prints JSON and
 writes ``benchmarks/results/springs.json`` atomically.
@@ -32,7 +36,7 @@ from _common import ROOT, median_time, mesh_path, write_result
 
 from meshfit.layout import extract_patches, load_layout
 from meshfit.mesh import load_mesh
-from meshfit.springs import grid_metrics, resample_patch, spring_metrics
+from meshfit.springs import grid_metrics, resample_patch, resample_patches, spring_metrics
 
 METRICS = (
     "arc_cv_max",
@@ -107,6 +111,42 @@ def _round(d: dict) -> dict:
     return {k: (round(v, 6) if isinstance(v, float) else v) for k, v in d.items()}
 
 
+def _layout_on_threads(patches, grids: list, repeats: int) -> dict:
+    """Whole-layout wall times: ours one patch after the other and on every core
+    (:func:`meshfit.springs.resample_patches`), and the peer the same two ways (a thread
+    pool over the patches), alternated run by run; medians."""
+    from meshfit._threads import map_threads
+
+    workers = os.cpu_count() or 1
+
+    def peer(n: int) -> None:
+        map_threads(lambda k: harmonic_grid(patches[k], *grids[k]), range(len(patches)), n)
+
+    times: dict[str, list[float]] = {"one": [], "all": [], "peer_one": [], "peer_all": []}
+    for _ in range(repeats):
+        for key, n in (("one", 1), ("all", workers)):
+            fresh = [_fresh(p) for p in patches]
+            times[key].append(
+                median_time(lambda f=fresh, n=n: resample_patches(f, workers=n, metrics=False), 1)[
+                    0
+                ]
+            )
+        times["peer_one"].append(median_time(lambda: peer(1), 1)[0])
+        times["peer_all"].append(median_time(lambda: peer(workers), 1)[0])
+    med = {k: statistics.median(v) for k, v in times.items()}
+    best_peer = min(med["peer_one"], med["peer_all"])
+    return {
+        "workers": workers,
+        "seconds_one_thread": round(med["one"], 4),
+        "seconds": round(med["all"], 4),
+        "speedup": round(med["one"] / med["all"], 3),
+        "peer_seconds_one_thread": round(med["peer_one"], 4),
+        "peer_seconds": round(med["peer_all"], 4),
+        # against the faster of the peer's two runs (libigl's calls hold the GIL)
+        "ratio": round(med["all"] / best_peer, 3),
+    }
+
+
 def run_layout(name: str, repeats: int) -> dict:
     mesh = load_mesh(mesh_path(name))
     layout = load_layout(ROOT / "examples" / "layouts" / f"{name}.json", mesh)
@@ -147,6 +187,7 @@ def run_layout(name: str, repeats: int) -> dict:
                 "harmonic": _round({k: peer[k] for k in METRICS}),
             }
         )
+    threads = _layout_on_threads(patches, [r["grid"] for r in rows], repeats)
     largest = max(rows, key=lambda r: r["vertices"])
     total = sum(r["seconds"] for r in rows)
     total_peer = sum(r["peer_seconds"] for r in rows)
@@ -178,6 +219,7 @@ def run_layout(name: str, repeats: int) -> dict:
         "layout_seconds_cached": round(sum(r["seconds_cached"] for r in rows), 4),
         "layout_peer_seconds": round(total_peer, 4),
         "layout_ratio": round(total / total_peer, 3),
+        "layout_threads": threads,
         "worst_over_patches": worst,
         "per_patch": rows,
     }

@@ -48,6 +48,7 @@ from numpy.typing import NDArray
 from meshfit import __version__, tol
 from meshfit._atomic import atomic_write, write_bytes, write_text
 from meshfit._kernels.geometry import label_corner_max
+from meshfit._threads import map_threads
 from meshfit.errors import InputError, LayoutError
 from meshfit.mesh import Mesh
 from meshfit.mesh.locate import grid_tree, triangle_distances
@@ -342,31 +343,12 @@ def _parallel(
     st: _Stages,
     cost: Sequence[float] | None = None,
 ) -> list:
-    """``[fn(x) for x in items]`` on threads, results in order, progress per item.
-
-    With ``cost`` (an estimate per item) the items start in order of decreasing cost, so
-    the largest does not start last and leave the other workers idle at the end.
-    """
-    n = len(items)
-    st.tick(stage, 0, n)
-    if workers <= 1 or n <= 1:
-        out = []
-        for i, x in enumerate(items):
-            out.append(fn(x))
-            st.tick(stage, i + 1, n)
-        return out
-    order = range(n) if cost is None else sorted(range(n), key=lambda i: (-cost[i], i))
-    out = [None] * n
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        futures = {pool.submit(fn, items[i]): i for i in order}
-        done = 0
-        from concurrent.futures import as_completed
-
-        for fut in as_completed(futures):
-            out[futures[fut]] = fut.result()
-            done += 1
-            st.tick(stage, done, n)
-    return out
+    """``[fn(x) for x in items]`` on threads (`meshfit._threads.map_threads`), results in
+    order, progress per item under ``stage``."""
+    st.tick(stage, 0, len(items))
+    return map_threads(
+        fn, items, workers, cost=cost, progress=lambda done, n: st.tick(stage, done, n)
+    )
 
 
 # ---------------------------------------------------------------------------- C0 boundaries

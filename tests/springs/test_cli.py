@@ -110,3 +110,33 @@ def test_springs_command_rejects_a_layout_of_another_mesh(capsys):
 def test_springs_command_rejects_a_negative_level(level, capsys):
     layout = ROOT / "examples" / "layouts" / "spot.json"
     assert main(["springs", str(mesh_path("spot")), "--layout", str(layout), "--level", level]) == 2
+
+
+def test_springs_command_gives_the_same_grids_on_any_number_of_workers(tmp_path, capsys):
+    layout = ROOT / "examples" / "layouts" / "spot.json"
+    rows, files = {}, {}
+    for w in ("1", "2"):
+        out = tmp_path / w
+        args = ["springs", str(mesh_path("spot")), "--layout", str(layout), "--level", "1",
+                "--workers", w, "--out", str(out), "--json"]  # fmt: skip
+        assert main(args) == 0
+        data = json.loads(capsys.readouterr().out)
+        rows[w] = [{k: v for k, v in r.items() if k not in ("seconds", "files")}
+                   for r in data["patches"]]  # fmt: skip
+        assert [r["patch"] for r in data["patches"]] == list(range(24))  # in layout order
+        files[w] = out
+    assert rows["1"] == rows["2"]
+    for k in range(24):
+        with (
+            np.load(files["1"] / f"patch_{k:03d}.npz", allow_pickle=False) as a,
+            np.load(files["2"] / f"patch_{k:03d}.npz", allow_pickle=False) as b,
+        ):
+            assert np.array_equal(a["face"], b["face"]) and np.array_equal(a["bary"], b["bary"])
+
+
+@pytest.mark.parametrize("workers", ["0", "-2"])
+def test_springs_command_rejects_a_bad_worker_count(workers, capsys):
+    layout = ROOT / "examples" / "layouts" / "spot.json"
+    args = ["springs", str(mesh_path("spot")), "--layout", str(layout), "--workers", workers]
+    assert main(args) == 2
+    assert "workers must be an integer >= 1" in capsys.readouterr().err

@@ -10,7 +10,15 @@ from numpy.testing import assert_allclose
 
 from meshfit import tol
 from meshfit.errors import FeatureCurveError, InputError
-from meshfit.springs import ANCHOR, BOUNDARY, CURVE, FREE, grid_metrics, resample_patch
+from meshfit.springs import (
+    ANCHOR,
+    BOUNDARY,
+    CURVE,
+    FREE,
+    grid_metrics,
+    resample_patch,
+    resample_patches,
+)
 from meshfit.types import SurfaceCurve, SurfacePoints
 
 from ..conftest import real_mesh
@@ -199,6 +207,28 @@ def test_bad_options_raise(plane):
         resample_patch(plane, sections_u=(1, 2))
     with pytest.raises(InputError, match="polish"):
         resample_patch(plane, polish=-1)
+
+
+def test_resample_patches_gives_each_patch_its_own_result_in_order(plane):
+    cyl = param_patch(cylinder_map(1.0, 2.0), 24, 24)
+    done = []
+    res = resample_patches([plane, cyl, plane], level=1, metrics=False, workers=2,
+                           progress=lambda d, n: done.append((d, n)))  # fmt: skip
+    assert done == [(1, 3), (2, 3), (3, 3)]
+    alone = [resample_patch(p, level=1, metrics=False) for p in (plane, cyl)]
+    for got, want in zip(res, [*alone, alone[0]], strict=True):
+        assert got.final.level == 1 and not got.metrics[0]
+        assert np.array_equal(got.final.points.face, want.final.points.face)
+        assert np.array_equal(got.final.points.bary, want.final.points.bary)
+
+
+def test_resample_patches_rejects_bad_options(plane):
+    with pytest.raises(InputError, match="unknown option"):
+        resample_patches([plane], levle=1)
+    with pytest.raises(InputError, match="workers"):
+        resample_patches([plane], workers=0)
+    with pytest.raises(InputError, match="fairness"):  # raised from the patch's thread
+        resample_patches([plane, plane], fairness=2.0, workers=2)
 
 
 def test_max_points_caps_the_level(plane):

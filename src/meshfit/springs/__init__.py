@@ -7,7 +7,7 @@ grid's arc-length uniformity, cell shape, area distortion, folds and fidelity.
 
 from meshfit.springs.grid import ANCHOR, BOUNDARY, CURVE, FREE, SpringMesh, grid_triangles
 from meshfit.springs.metrics import QUALITY_BOUNDS, grid_metrics, out_of_bounds, spring_metrics
-from meshfit.springs.resample import SpringResult, resample_patch
+from meshfit.springs.resample import SpringResult, resample_patch, resample_patches
 
 __all__ = [
     "ANCHOR",
@@ -21,5 +21,6 @@ __all__ = [
     "grid_triangles",
     "out_of_bounds",
     "resample_patch",
+    "resample_patches",
     "spring_metrics",
 ]
