@@ -6,6 +6,7 @@ threads run in parallel on several cores.
 
 from __future__ import annotations
 
+import numbers
 import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
@@ -17,7 +18,7 @@ def n_workers(workers: int | None) -> int:
     """``workers``, checked (an integer >= 1), or every core when None."""
     if workers is None:
         return os.cpu_count() or 1
-    if isinstance(workers, bool) or int(workers) != workers or workers < 1:
+    if isinstance(workers, bool) or not isinstance(workers, numbers.Integral) or workers < 1:
         raise InputError(f"workers must be an integer >= 1, got {workers!r}")
     return int(workers)
 

@@ -48,7 +48,7 @@ from numpy.typing import NDArray
 from meshfit import __version__, tol
 from meshfit._atomic import atomic_write, write_bytes, write_text
 from meshfit._kernels.geometry import label_corner_max
-from meshfit._threads import map_threads
+from meshfit._threads import map_threads, n_workers
 from meshfit.errors import InputError, LayoutError
 from meshfit.mesh import Mesh
 from meshfit.mesh.locate import grid_tree, triangle_distances
@@ -189,8 +189,8 @@ class FitOptions:
             raise InputError(f"map_kind must be 'vector' or 'normal', got {self.map_kind!r}")
         if self.map_shapes not in ("matched", "native"):
             raise InputError(f"map_shapes must be 'native' or 'matched', got {self.map_shapes!r}")
-        if self.workers is not None and int(self.workers) < 1:
-            raise InputError(f"workers must be >= 1, got {self.workers}")
+        if self.workers is not None:
+            n_workers(self.workers)  # an integer >= 1, else InputError
         if self.patches is not None and int(self.patches) < 1:
             raise InputError(f"patches must be >= 1, got {self.patches}")
         if self.layout_shape not in (None, True, False):
@@ -783,7 +783,7 @@ def run_fit(
     out.mkdir(parents=True, exist_ok=True)
     st = _Stages(out, resume, progress)
     notes: list[str] = []
-    workers = int(options.workers or os.cpu_count() or 1)
+    workers = n_workers(options.workers)
     t_all = time.perf_counter()
 
     # ---- validate

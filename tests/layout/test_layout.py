@@ -312,7 +312,7 @@ def test_patches_built_on_threads_are_the_same():
             np.testing.assert_array_equal(sa, sb)
         for fa, fb in zip(a.features, b.features, strict=True):
             np.testing.assert_array_equal(fa.points.bary, fb.points.bary)
-    with pytest.raises(InputError, match="workers must be >= 1"):
+    with pytest.raises(InputError, match="workers must be an integer >= 1"):
         extract_patches(mesh, layout, workers=0)
     # the regions checked on threads (no partition kept from the calls above) give the same
     from meshfit.layout import extract

@@ -24,7 +24,6 @@ Method
 
 from __future__ import annotations
 
-import os
 import threading
 import weakref
 from collections.abc import Callable, Sequence
@@ -36,9 +35,9 @@ from functools import partial
 import numpy as np
 from numpy.typing import NDArray
 
-from meshfit import tol
+from meshfit import _threads, tol
 from meshfit._kernels.topology import vertex_face_components
-from meshfit.errors import CutError, InputError, LayoutError, MeshfitError
+from meshfit.errors import CutError, LayoutError, MeshfitError
 from meshfit.layout.layout import Layout, check_layout
 from meshfit.layout.patch import Patch
 from meshfit.mesh import Mesh
@@ -134,7 +133,7 @@ def _compute_partition(
     first_face = order[starts[:-1]]
     # each region checked as a mesh of its own (the pieces make up the cut mesh) and its
     # boundary loops traced, on threads (the numpy work and the kernels release the GIL)
-    n_workers = int(workers) if workers is not None else os.cpu_count() or 1
+    n_workers = _threads.n_workers(workers)
     spans = [(order[starts[c] : starts[c + 1]], c) for c in range(n_comp)]
     if n_workers > 1 and n_comp > 1:
         with ThreadPoolExecutor(max_workers=n_workers) as pool:
@@ -345,9 +344,7 @@ def extract_patches(
     .. [1] Krishnamurthy 2000, sec. 1.3 and fig. 1.2 (polygonal patches bounded by the painted
        curves), sec. 5.3 (each patch resampled on its own), sec. 5.10 (feature curves).
     """
-    n_workers = int(workers) if workers is not None else os.cpu_count() or 1
-    if n_workers < 1:
-        raise InputError(f"workers must be >= 1, got {workers}")
+    n_workers = _threads.n_workers(workers)
     res, regions, n_comp = _partition(mesh, layout, progress, n_workers)
     n_steps = n_comp + layout.n_patches
     build = partial(_build_patch, mesh, layout, res)

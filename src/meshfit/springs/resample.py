@@ -877,10 +877,10 @@ def resample_patches(
     """:func:`resample_patch` of every patch of a layout, on threads; results in order.
 
     The relaxation, subdivision and planar-map kernels release the GIL, so the patches of
-    a layout resample in parallel: on this project's 2-core test machine nefertiti's test
-    layout (54 patches) takes 0.61 s on one thread and 0.38 s on two. Each patch's grid is
-    the same whatever the number of workers (a patch is resampled by one thread, from its
-    own mesh).
+    a layout resample in parallel: on a 2-core machine nefertiti's test layout (54 patches)
+    takes 0.68 s on one thread and 0.41 s on two (``benchmarks/springs.py``). Each patch's
+    grid is the same whatever the number of workers (a patch is resampled by one thread,
+    from its own mesh).
 
     Parameters
     ----------
@@ -905,6 +905,11 @@ def resample_patches(
         ``workers`` is not an integer >= 1, an option is not one of
         :func:`resample_patch`'s, or an option value is bad (raised from the patch that met
         it; the patches not yet started are dropped).
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 5.3 (each patch resampled on its own) and sec. 5.13
+       (the spring meshes of a whole model's patches).
     """
     from meshfit._threads import map_threads, n_workers
 
