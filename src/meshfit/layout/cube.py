@@ -21,28 +21,30 @@ __all__ = ["cube_layout"]
 _NUDGES = 1e-6 * np.array([[1.0, 0.7, 0.3], [-0.4, 1.0, -0.8], [0.9, -0.6, 1.0]])
 
 
-def _cube_network(n: int):
-    """Lattice corners, edges and CCW squares of the n x n subdivided cube [-1, 1]^3."""
-    g = np.linspace(-1.0, 1.0, n + 1)
+def _cube_network(n: int, rows: int | None = None):
+    """Lattice corners, edges and CCW squares of the subdivided box [-1, 1]^3: ``rows``
+    intervals along the first axis (default ``n``), ``n`` along the other two."""
+    dims = (n if rows is None else rows, n, n)
+    grids = [np.linspace(-1.0, 1.0, d + 1) for d in dims]
     idx: dict[tuple[int, int, int], int] = {}
     pts = []
-    for i in range(n + 1):
-        for j in range(n + 1):
-            for k in range(n + 1):
-                if 0 in (i, j, k) or n in (i, j, k):
+    for i in range(dims[0] + 1):
+        for j in range(dims[1] + 1):
+            for k in range(dims[2] + 1):
+                if 0 in (i, j, k) or i == dims[0] or j == dims[1] or k == dims[2]:
                     idx[(i, j, k)] = len(pts)
-                    pts.append((g[i], g[j], g[k]))
+                    pts.append((grids[0][i], grids[1][j], grids[2][k]))
     edges: dict[tuple[int, int], int] = {}
     ends = []
     patches = []
     squares = []
     for a in range(3):
-        for side in (0, n):
+        for side in (0, dims[a]):
             b, c = (a + 1) % 3, (a + 2) % 3
             if side == 0:
                 b, c = c, b  # outward normal -e_a: (e_b x e_c) must point outwards
-            for u in range(n):
-                for v in range(n):
+            for u in range(dims[b]):
+                for v in range(dims[c]):
                     lat = []
                     for du, dv in ((0, 0), (1, 0), (1, 1), (0, 1)):
                         key = [0, 0, 0]
@@ -83,15 +85,30 @@ def cube_layout(
     feature_patch: int | None = None,
     feature_fractions: tuple[float, ...] = (1 / 3, 2 / 3),
     direction_map: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
+    rows: int | None = None,
+    axis: ArrayLike | None = None,
+    levels: ArrayLike | None = None,
+    cap_tilt: tuple[float, float] = (1.0, 1.0),
 ) -> Layout:
     """Project an ``n x n`` subdivided cube from a centre onto a closed mesh (``6 n^2``
-    patches) and paint its edges as boundary curves.
+    patches), or a box from an axis, and paint its edges as boundary curves.
 
     Each cube lattice point is projected along the ray from ``center`` through it (first hit);
     each cube edge is painted with :func:`meshfit.curves.paint_curve` through the projections of
     ``picks_per_curve`` points along it. This gives a valid layout where the surface is
     star-shaped from the centre; elsewhere projected curves may cross (check with
     :func:`meshfit.layout.check_layout_topology`).
+
+    A model that no single point sees all of, such as a bust (a head on a neck on the
+    shoulders), is laid out from an ``axis`` instead: a polyline inside the model from the
+    middle of one end to the middle of the other. The box then has ``rows`` rows of ``4 n``
+    patches around the axis and an ``n x n`` cap at each end (``4 n rows + 2 n^2``
+    patches). The lattice points of row boundary ``j`` are projected from the axis point at
+    ``levels[j]`` (a fraction of the axis length), along rays square to the axis; towards
+    the caps the rays tilt to the axis direction by ``cap_tilt`` (the cap lattice is
+    projected from the axis ends along ``a e1 + b e2 -+ cap_tilt e0``, ``a, b`` in
+    ``[-1, 1]``). Where the model is star-shaped from every axis point along the rays square
+    to it (each cross-section seen from its axis point), the curves do not cross.
 
     Parameters
     ----------
@@ -113,7 +130,22 @@ def cube_layout(
         the opposite side's curve.
     direction_map : callable, keyword-only, optional
         Maps ``(k, 3)`` cube points to ray directions (default: the points themselves, rotated
-        by ``frame``).
+        by ``frame``; not with ``axis``).
+    rows : int, keyword-only, optional
+        Patches along the box's first axis (default ``n``: a cube). Without ``axis`` that is
+        the first column of ``frame``.
+    axis : (k, 3) float64, keyword-only, optional
+        Polyline inside the closed mesh (``k >= 2`` points, model units) along which the ray
+        origins move. The box's first axis ``e0`` is the first column of ``frame``, turned
+        to point from the axis's first point to its last; ``e1``, ``e2`` are the other two
+        columns (made square to ``e0``).
+    levels : (rows + 1,) float64, keyword-only, optional
+        Increasing fractions of the axis's length where the ray origins of each row boundary
+        sit (default evenly spread from 0 to 1).
+    cap_tilt : (float, float), keyword-only
+        Tilt of the rays towards ``-e0`` at the first end and ``+e0`` at the last end
+        (default 1.0: 45 degrees at the middle of a cap's sides); larger values make
+        smaller caps.
 
     Returns
     -------
@@ -127,11 +159,15 @@ def cube_layout(
     if int(n) < 1:
         raise InputError(f"n must be >= 1, got {n}")
     n = int(n)
+    if rows is not None and int(rows) < 1:
+        raise InputError(f"rows must be >= 1, got {rows}")
+    rows = n if rows is None else int(rows)
     center = mesh.vertices.mean(axis=0) if center is None else np.asarray(center, float)
     frame = _principal_frame(mesh) if frame is None else np.asarray(frame, float)
     if spacing is None:
         spacing = mesh.mean_edge_length
-    pts, ends, patches, squares = _cube_network(n)
+    from_axis = None if axis is None else _Axis(axis, frame, rows, levels, cap_tilt, direction_map)
+    pts, ends, patches, squares = _cube_network(n, rows)
     # rays are cast on a copy centred at the origin with bbox diagonal 10: libigl's ray query
     # misses every hit on models a few centimetres across (igea); faces and barycentrics are
     # the same on the copy
@@ -143,22 +179,28 @@ def cube_layout(
         return q @ frame.T
 
     def project(q: NDArray[np.float64]) -> SurfacePoints:
-        d = directions(q)
+        if from_axis is None:
+            d = directions(q)
+            o = np.zeros_like(d)
+        else:
+            o, d = from_axis.rays(q)
+            o = (o - center) * (10.0 / mesh.bbox_diagonal)
         d = d / np.linalg.norm(d, axis=1, keepdims=True)
-        hits = unit.ray_first_hit(np.zeros_like(d), d)
+        hits = unit.ray_first_hit(o, d)
         face, bary = hits.face.copy(), hits.bary.copy()
         for nudge in _NUDGES:  # a ray through an edge or vertex may slip between the faces
             miss = np.flatnonzero(face < 0)
             if miss.size == 0:
                 break
-            again = unit.ray_first_hit(np.repeat(nudge[None], miss.size, axis=0), d[miss])
+            again = unit.ray_first_hit(o[miss] + nudge[None], d[miss])
             face[miss], bary[miss] = again.face, again.bary
         hits = RayHits(face >= 0, hits.t, face, bary)
         if not hits.hit.all():
             k = int(np.flatnonzero(~hits.hit)[0])
+            where = "the centre" if from_axis is None else "the axis"
             raise LayoutError(
-                f"the ray from the centre towards cube point {q[k].tolist()} misses the mesh: "
-                "is the centre inside the closed mesh?"
+                f"the ray from {where} towards box point {q[k].tolist()} misses the mesh: "
+                f"is {where} inside the closed mesh?"
             )
         return SurfacePoints(hits.face, hits.bary)
 
@@ -194,6 +236,59 @@ def cube_layout(
                     _tidy(mesh, paint_curve(mesh, picks, kind="feature", spacing=spacing), spacing)
                 )
     return layout_from_curves(mesh, corners, curves, ends, patches, features)
+
+
+class _Axis:
+    """Ray origins and directions of box points projected from an axis polyline (see
+    `cube_layout`)."""
+
+    def __init__(self, axis, frame, rows: int, levels, cap_tilt, direction_map) -> None:
+        if direction_map is not None:
+            raise InputError("direction_map cannot be combined with axis")
+        P = np.asarray(axis, dtype=np.float64)
+        if P.ndim != 2 or P.shape[0] < 2 or P.shape[1] != 3 or not np.isfinite(P).all():
+            raise InputError(f"axis must be a (k >= 2, 3) array of finite points, got {P.shape}")
+        seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
+        if not (seg > 0.0).all():
+            raise InputError("axis points must differ from their neighbours")
+        self.points = P
+        self.arc = np.concatenate([[0.0], np.cumsum(seg)]) / seg.sum()
+        lv = np.linspace(0.0, 1.0, rows + 1) if levels is None else np.asarray(levels, float)
+        if lv.shape != (rows + 1,) or not (np.diff(lv) > 0).all() or lv[0] < 0 or lv[-1] > 1:
+            raise InputError(
+                f"levels must be {rows + 1} increasing fractions in [0, 1] (one per row "
+                f"boundary), got {lv.tolist()}"
+            )
+        self.levels = lv
+        tilt = np.asarray(cap_tilt, dtype=np.float64)
+        if tilt.shape != (2,) or not (tilt > 0).all() or not np.isfinite(tilt).all():
+            raise InputError(f"cap_tilt must be two positive numbers, got {cap_tilt}")
+        self.tilt = tilt
+        self.rows = rows
+        f = np.asarray(frame, dtype=np.float64)
+        e0 = f[:, 0] / np.linalg.norm(f[:, 0])
+        run = float((P[-1] - P[0]) @ e0)
+        if abs(run) < 1e-9 * np.linalg.norm(P[-1] - P[0]) or run == 0.0:
+            raise InputError("the axis must run along the frame's first axis (end to end)")
+        e0 = e0 if run > 0 else -e0
+        e1 = f[:, 1] - (f[:, 1] @ e0) * e0
+        e1 = e1 / np.linalg.norm(e1)
+        self.basis = np.column_stack([e0, e1, np.cross(e0, e1)])
+
+    def rays(self, q: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
+        """Origins and directions (model units) of box points ``q (k, 3)`` in [-1, 1]^3."""
+        q = np.atleast_2d(np.asarray(q, dtype=np.float64))
+        level = 0.5 * (q[:, 0] + 1.0) * self.rows  # row-boundary index, fractional between
+        frac = np.interp(level, np.arange(self.rows + 1), self.levels)
+        origin = np.column_stack([np.interp(frac, self.arc, self.points[:, c]) for c in range(3)])
+        if self.rows == 1:
+            t = np.interp(level, [0.0, 1.0], [-self.tilt[0], self.tilt[1]])
+        else:
+            t = np.interp(
+                level, [0.0, 1.0, self.rows - 1.0, self.rows], [-self.tilt[0], 0, 0, self.tilt[1]]
+            )
+        local = np.column_stack([t, q[:, 1], q[:, 2]])
+        return origin, local @ self.basis.T
 
 
 def _nearest_sample(
