@@ -75,6 +75,7 @@ def test_a_box_from_the_centre_has_rows_along_the_first_axis():
     assert np.array_equal(a.patch_curves, b.patch_curves)
 
 
+@cache
 def nefertiti_axis_layout():
     """The nefertiti bust laid out from its axis: 2 x 2 caps, 5 rows of 8 patches."""
     mesh = real_mesh("nefertiti")

@@ -171,7 +171,8 @@ def cube_layout(
     # rays are cast on a copy centred at the origin with bbox diagonal 10: libigl's ray query
     # misses every hit on models a few centimetres across (igea); faces and barycentrics are
     # the same on the copy
-    unit = Mesh((mesh.vertices - center) * (10.0 / mesh.bbox_diagonal), mesh.faces)
+    scale = 10.0 / mesh.bbox_diagonal
+    unit = Mesh((mesh.vertices - center) * scale, mesh.faces)
 
     def directions(q: NDArray[np.float64]) -> NDArray[np.float64]:
         if direction_map is not None:
@@ -184,7 +185,7 @@ def cube_layout(
             o = np.zeros_like(d)
         else:
             o, d = from_axis.rays(q)
-            o = (o - center) * (10.0 / mesh.bbox_diagonal)
+            o = (o - center) * scale
         d = d / np.linalg.norm(d, axis=1, keepdims=True)
         hits = unit.ray_first_hit(o, d)
         face, bary = hits.face.copy(), hits.bary.copy()
@@ -268,7 +269,7 @@ class _Axis:
         f = np.asarray(frame, dtype=np.float64)
         e0 = f[:, 0] / np.linalg.norm(f[:, 0])
         run = float((P[-1] - P[0]) @ e0)
-        if abs(run) < 1e-9 * np.linalg.norm(P[-1] - P[0]) or run == 0.0:
+        if abs(run) <= 1e-9 * np.linalg.norm(P[-1] - P[0]):
             raise InputError("the axis must run along the frame's first axis (end to end)")
         e0 = e0 if run > 0 else -e0
         e1 = f[:, 1] - (f[:, 1] @ e0) * e0
@@ -281,12 +282,10 @@ class _Axis:
         level = 0.5 * (q[:, 0] + 1.0) * self.rows  # row-boundary index, fractional between
         frac = np.interp(level, np.arange(self.rows + 1), self.levels)
         origin = np.column_stack([np.interp(frac, self.arc, self.points[:, c]) for c in range(3)])
-        if self.rows == 1:
-            t = np.interp(level, [0.0, 1.0], [-self.tilt[0], self.tilt[1]])
-        else:
-            t = np.interp(
-                level, [0.0, 1.0, self.rows - 1.0, self.rows], [-self.tilt[0], 0, 0, self.tilt[1]]
-            )
+        # the tilt fades out over the first and last rows (one row: from one end's to the other's)
+        t = np.interp(level, [0.0, 1.0], [-self.tilt[0], 0.0]) + np.interp(
+            level, [self.rows - 1.0, self.rows], [0.0, self.tilt[1]]
+        )
         local = np.column_stack([t, q[:, 1], q[:, 2]])
         return origin, local @ self.basis.T
 
