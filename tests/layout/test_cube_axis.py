@@ -12,11 +12,11 @@ from numpy.testing import assert_allclose
 from meshfit import tol
 from meshfit.errors import InputError
 from meshfit.layout import extract_patches
-from meshfit.layout.cube import _principal_frame, cube_layout
+from meshfit.layout.cube import cube_layout, principal_frame
 from meshfit.mesh import Mesh
 
 from .. import shapes
-from ..conftest import real_mesh
+from ..conftest import ROOT, real_mesh
 from .test_layout import _assert_patch_is_disk_with_four_sides, sphere
 
 #: nefertiti's axis in its principal frame (height, then the two other coordinates, model
@@ -79,7 +79,7 @@ def test_a_box_from_the_centre_has_rows_along_the_first_axis():
 def nefertiti_axis_layout():
     """The nefertiti bust laid out from its axis: 2 x 2 caps, 5 rows of 8 patches."""
     mesh = real_mesh("nefertiti")
-    frame = _principal_frame(mesh)
+    frame = principal_frame(mesh)
     knots = np.asarray(NEFERTITI_AXIS, dtype=float)
     axis = mesh.vertices.mean(axis=0) + knots @ frame.T
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(knots, axis=0), axis=1))])
@@ -138,3 +138,28 @@ def test_spring_meshes_of_the_nefertiti_axis_layout():
     assert sum(m["folded"] for r in results for m in r.metrics) == 0
     assert max(m["arc_cv_max"] for r in results for m in r.metrics) < 0.6
     assert max(m["aspect_median"] for r in results for m in r.metrics) <= 1.5
+
+
+@pytest.mark.slow
+def test_the_bust_test_layout_is_what_the_example_script_paints():
+    # examples/layouts/nefertiti_bust.json comes from examples/paint_layouts.py: painting it
+    # again gives the same corners and curves (a change of the painter shows up here: paint
+    # the file again with ``python examples/paint_layouts.py --only nefertiti_bust``)
+    import importlib.util
+
+    from meshfit.layout import load_layout
+
+    path = ROOT / "examples" / "paint_layouts.py"
+    spec = importlib.util.spec_from_file_location("paint_layouts", path)
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    mesh = real_mesh("nefertiti")
+    painted = script._compact(mesh, script.axis_layout(mesh, script.AXIS_LAYOUTS["nefertiti_bust"]))
+    stored = load_layout(ROOT / "examples" / "layouts" / "nefertiti_bust.json", mesh)
+    assert painted.n_patches == stored.n_patches == 48
+    assert_allclose(painted.corners.bary, stored.corners.bary, rtol=0, atol=1e-11)
+    assert len(painted.curves) == len(stored.curves)
+    for a, b in zip(painted.curves, stored.curves, strict=True):
+        assert np.array_equal(a.points.face, b.points.face)
+        assert_allclose(a.points.bary, b.points.bary, rtol=0, atol=1e-11)
+    assert np.array_equal(painted.patch_curves, stored.patch_curves)

@@ -293,16 +293,16 @@ def _test_layout_status(name: str):
 
 
 def test_status_measures_how_each_region_bulges():
-    # the nefertiti test layout: the crown region balloons out of its sides (as Patch.bulge
-    # measures the extracted patch), every other region is flat-ish
+    # the nefertiti test layout: the region over neck, shoulders and base balloons out of its
+    # sides (as Patch.bulge measures the extracted patch), every other region is flat-ish
     from meshfit.ui.app import _region_text
 
     st, patches = _test_layout_status("nefertiti")
     bulges = sorted(r.bulge for r in st.regions)
     np.testing.assert_allclose(bulges, sorted(p.bulge for p in patches), rtol=1e-9)
-    crown = max(st.regions, key=lambda r: r.bulge)
-    assert crown.bulge > 10 and bulges[-2] < 1.5
-    assert "bulging" in _region_text(crown) and st.as_dict()["regions"][0]["bulge"] > 0
+    bust = max(st.regions, key=lambda r: r.bulge)
+    assert bust.bulge > 10 and bulges[-2] < 1.5
+    assert "bulging" in _region_text(bust) and st.as_dict()["regions"][0]["bulge"] > 0
     assert _region_text(min(st.regions, key=lambda r: r.bulge)) == "patch"
 
 

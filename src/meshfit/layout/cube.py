@@ -15,7 +15,7 @@ from meshfit.mesh import Mesh
 from meshfit.mesh.locate import RayHits
 from meshfit.types import SurfaceCurve, SurfacePoints
 
-__all__ = ["cube_layout"]
+__all__ = ["cube_layout", "principal_frame"]
 
 #: ray origins tried again (on the copy of bbox diagonal 10) where a ray slips between faces
 _NUDGES = 1e-6 * np.array([[1.0, 0.7, 0.3], [-0.4, 1.0, -0.8], [0.9, -0.6, 1.0]])
@@ -65,7 +65,11 @@ def _cube_network(n: int, rows: int | None = None):
     return np.asarray(pts), np.asarray(ends, dtype=np.int64), patches, squares
 
 
-def _principal_frame(mesh: Mesh) -> NDArray[np.float64]:
+def principal_frame(mesh: Mesh) -> NDArray[np.float64]:
+    """(3, 3) rotation whose columns are the principal axes of the mesh's vertices about
+    their centroid, by decreasing variance, right-handed: :func:`cube_layout`'s default
+    ``frame``, and the frame its ``axis`` points can be given in (see
+    ``examples/paint_layouts.py``). Each column's sign is the eigensolver's."""
     x = mesh.vertices - mesh.vertices.mean(axis=0)
     _, vecs = np.linalg.eigh(x.T @ x)
     r = vecs[:, ::-1]
@@ -163,7 +167,7 @@ def cube_layout(
         raise InputError(f"rows must be >= 1, got {rows}")
     rows = n if rows is None else int(rows)
     center = mesh.vertices.mean(axis=0) if center is None else np.asarray(center, float)
-    frame = _principal_frame(mesh) if frame is None else np.asarray(frame, float)
+    frame = principal_frame(mesh) if frame is None else np.asarray(frame, float)
     if spacing is None:
         spacing = mesh.mean_edge_length
     from_axis = None if axis is None else _Axis(axis, frame, rows, levels, cap_tilt, direction_map)

@@ -25,8 +25,9 @@ __all__ = [
 
 #: a patch whose :attr:`Patch.bulge` exceeds this bulges far beyond its boundary (a flat
 #: disk has 1.27, a hemisphere 2.55): a tensor-product grid anchored on its sides crowds
-#: at the boundary and misses the bulge (nefertiti's test layout, the crown of the projected
-#: cube: 11.1 -- its spring mesh misses the surface by 2.9% of the bbox diagonal)
+#: at the boundary and misses the bulge (nefertiti's test layout, the bottom face of the
+#: projected cube, over neck, shoulders and base: 11.1 -- its spring mesh misses the surface
+#: by 2.9% of the bbox diagonal)
 BULGY = 3.0
 
 
