@@ -10,7 +10,8 @@ patches.
 The painter has been refined since igea.json, nefertiti.json and spot.json were made:
 painting them again gives curves a few samples apart (and on spot's patch 3, which holds a
 horn along a side, a folded cell at the side). The tests name patches of those files, so
-they stay as they are; ``--only`` paints some of the layouts.
+they stay as they are: to paint a layout again, name it with ``--only`` (e.g. ``--only
+nefertiti_bust``) or write elsewhere with ``--out``.
 
 Usage::
 
