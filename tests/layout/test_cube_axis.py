@@ -12,7 +12,7 @@ from numpy.testing import assert_allclose
 from meshfit import tol
 from meshfit.errors import InputError
 from meshfit.layout import extract_patches
-from meshfit.layout.cube import cube_layout, principal_frame
+from meshfit.layout.cube import cube_layout
 from meshfit.mesh import Mesh
 
 from .. import shapes
@@ -76,18 +76,26 @@ def test_a_box_from_the_centre_has_rows_along_the_first_axis():
 
 
 @cache
-def nefertiti_axis_layout():
-    """The nefertiti bust laid out from its axis: 2 x 2 caps, 5 rows of 8 patches."""
-    mesh = real_mesh("nefertiti")
-    frame = principal_frame(mesh)
-    knots = np.asarray(NEFERTITI_AXIS, dtype=float)
-    axis = mesh.vertices.mean(axis=0) + knots @ frame.T
-    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(knots, axis=0), axis=1))])
-    levels = np.interp(NEFERTITI_ROWS, knots[:, 0], arc / arc[-1])
-    layout = cube_layout(
-        mesh, n=2, rows=5, axis=axis, levels=levels, cap_tilt=(1.0, 0.7), picks_per_curve=16
+def paint_script():
+    """examples/paint_layouts.py as a module (its `axis_layout` and `AXIS_LAYOUTS`)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "paint_layouts", ROOT / "examples" / "paint_layouts.py"
     )
-    return mesh, layout
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    return script
+
+
+@cache
+def nefertiti_axis_layout():
+    """The nefertiti bust laid out from its hand-placed axis: 2 x 2 caps, 5 rows of 8
+    patches (the example script's nefertiti_bust before its search-adjusted values)."""
+    mesh = real_mesh("nefertiti")
+    spec = {"n": 2, "rows": 5, "knots": NEFERTITI_AXIS, "heights": NEFERTITI_ROWS, "turn": 0.0,
+            "cap_tilt": (1.0, 0.7), "picks": 16}  # fmt: skip
+    return mesh, paint_script().axis_layout(mesh, spec)
 
 
 @pytest.mark.slow
@@ -145,14 +153,9 @@ def test_the_bust_test_layout_is_what_the_example_script_paints():
     # examples/layouts/nefertiti_bust.json comes from examples/paint_layouts.py: painting it
     # again gives the same corners and curves (a change of the painter shows up here: paint
     # the file again with ``python examples/paint_layouts.py --only nefertiti_bust``)
-    import importlib.util
-
     from meshfit.layout import load_layout
 
-    path = ROOT / "examples" / "paint_layouts.py"
-    spec = importlib.util.spec_from_file_location("paint_layouts", path)
-    script = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(script)
+    script = paint_script()
     mesh = real_mesh("nefertiti")
     painted = script._compact(mesh, script.axis_layout(mesh, script.AXIS_LAYOUTS["nefertiti_bust"]))
     stored = load_layout(ROOT / "examples" / "layouts" / "nefertiti_bust.json", mesh)

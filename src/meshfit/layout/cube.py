@@ -66,10 +66,28 @@ def _cube_network(n: int, rows: int | None = None):
 
 
 def principal_frame(mesh: Mesh) -> NDArray[np.float64]:
-    """(3, 3) rotation whose columns are the principal axes of the mesh's vertices about
-    their centroid, by decreasing variance, right-handed: :func:`cube_layout`'s default
-    ``frame``, and the frame its ``axis`` points can be given in (see
-    ``examples/paint_layouts.py``). Each column's sign is the eigensolver's."""
+    """Principal axes of a mesh's vertices about their centroid, as a rotation.
+
+    :func:`cube_layout`'s default ``frame``, and the frame in which its ``axis`` points can
+    be given (see ``examples/paint_layouts.py``).
+
+    Parameters
+    ----------
+    mesh : Mesh
+        Any mesh; only its vertices (n, 3) float64 are used.
+
+    Returns
+    -------
+    (3, 3) float64
+        Right-handed rotation whose columns are the axes by decreasing variance. Each of the
+        first two columns has the sign the symmetric eigensolver returns; the third is their
+        cross product.
+
+    References
+    ----------
+    .. [1] Jolliffe, "Principal Component Analysis", Springer 2002, ch. 1 (the cube frame
+       is not from the thesis, whose layouts are painted by hand, sec. 1.3).
+    """
     x = mesh.vertices - mesh.vertices.mean(axis=0)
     _, vecs = np.linalg.eigh(x.T @ x)
     r = vecs[:, ::-1]

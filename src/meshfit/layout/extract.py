@@ -27,8 +27,6 @@ from __future__ import annotations
 import threading
 import weakref
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
-from contextlib import nullcontext
 from dataclasses import dataclass
 from functools import partial
 
@@ -135,11 +133,7 @@ def _compute_partition(
     # boundary loops traced, on threads (the numpy work and the kernels release the GIL)
     n_workers = _threads.n_workers(workers)
     spans = [(order[starts[c] : starts[c + 1]], c) for c in range(n_comp)]
-    if n_workers > 1 and n_comp > 1:
-        with ThreadPoolExecutor(max_workers=n_workers) as pool:
-            pieces = list(pool.map(lambda fc: _piece(mesh, res, *fc), spans))
-    else:
-        pieces = [_piece(mesh, res, *fc) for fc in spans]
+    pieces = _threads.map_threads(lambda fc: _piece(mesh, res, *fc), spans, n_workers)
 
     by_set: dict[frozenset[int], list[int]] = {}
     for p in range(layout.n_patches):
@@ -350,13 +344,12 @@ def extract_patches(
     build = partial(_build_patch, mesh, layout, res)
     # the submeshes' numpy work and validation kernels release the GIL: about 1.8 times
     # faster on two cores (igea refined to 1.07M faces, 102 patches: 0.38 s -> 0.23 s)
-    threads = n_workers > 1 and len(regions) > 1
-    with ThreadPoolExecutor(max_workers=n_workers) if threads else nullcontext() as pool:
-        out: list[Patch] = []
-        for k, patch in enumerate(pool.map(build, regions) if threads else map(build, regions)):
-            out.append(patch)
-            if progress is not None:
-                progress(n_comp + k, n_steps)
+    out: list[Patch] = _threads.map_threads(
+        build,
+        regions,
+        n_workers,
+        progress=None if progress is None else lambda k, _: progress(n_comp + k - 1, n_steps),
+    )
     if progress is not None:
         progress(n_steps, n_steps)
     return out

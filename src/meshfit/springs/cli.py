@@ -203,7 +203,7 @@ def _print_patches(rows: list[dict]) -> None:
         notes = []
         if r["rescued"]:
             notes.append("rescued")
-        if r.get("remade"):
+        if r["remade"]:
             notes.append("remade")
         if r["finer"]:
             notes.append(f"{r['finer']} finer")

@@ -11,6 +11,7 @@ import numpy as np
 
 from meshfit import tol
 from meshfit._kernels import springs as _k
+from meshfit._threads import map_threads, n_workers
 from meshfit.errors import InputError
 from meshfit.mesh import Mesh
 from meshfit.springs.features import FeatureLine, Sides, intersect_lines, prepare_features
@@ -878,9 +879,9 @@ def resample_patches(
 
     The relaxation, subdivision and planar-map kernels release the GIL, so the patches of
     a layout resample in parallel: on a 2-core machine nefertiti's test layout (54 patches)
-    takes 0.68 s on one thread and 0.41 s on two (``benchmarks/springs.py``). Each patch's
-    grid is the same whatever the number of workers (a patch is resampled by one thread,
-    from its own mesh).
+    takes 0.76 s on one thread and 0.46 s on two (``benchmarks/springs.py``, medians of
+    5). Each patch's grid is the same whatever the number of workers (a patch is resampled
+    by one thread, from its own mesh).
 
     Parameters
     ----------
@@ -911,8 +912,6 @@ def resample_patches(
     .. [1] Krishnamurthy 2000, sec. 5.3 (each patch resampled on its own) and sec. 5.13
        (the spring meshes of a whole model's patches).
     """
-    from meshfit._threads import map_threads, n_workers
-
     count = n_workers(workers)
     unknown = sorted(set(options) - _PATCH_OPTIONS)
     if unknown:
