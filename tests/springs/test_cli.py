@@ -140,3 +140,29 @@ def test_springs_command_rejects_a_bad_worker_count(workers, capsys):
     args = ["springs", str(mesh_path("spot")), "--layout", str(layout), "--workers", workers]
     assert main(args) == 2
     assert "workers must be an integer >= 1" in capsys.readouterr().err
+
+
+def test_springs_command_refines_patches_to_a_tolerance(capsys):
+    layout = ROOT / "examples" / "layouts" / "spot.json"
+    base = ["springs", str(mesh_path("spot")), "--layout", str(layout), "--json"]
+    assert main(base) == 0
+    plain = json.loads(capsys.readouterr().out)["patches"]
+    assert all(r["tolerance_met"] is None and r["finer"] == 0 for r in plain)
+    assert main([*base, "--tolerance", "2e-3"]) == 0
+    rows = json.loads(capsys.readouterr().out)["patches"]
+    for a, b in zip(plain, rows, strict=True):
+        assert b["tolerance_met"] == (b["fidelity_max"] <= 2e-3)
+        if a["fidelity_max"] <= 2e-3:  # met already: the same grid
+            assert b["finer"] == 0 and b["grid"] == a["grid"]
+        else:
+            assert b["finer"] > 0 or not b["tolerance_met"]
+    assert sum(r["finer"] > 0 for r in rows) > 0
+    assert sum(r["tolerance_met"] for r in rows) > sum(r["fidelity_max"] <= 2e-3 for r in plain)
+    assert sum(r["folded"] for r in rows) == 0
+
+
+@pytest.mark.parametrize("extra", [["--tolerance", "0"], ["--tolerance", "1e-3", "--level", "1"]])
+def test_springs_command_rejects_a_bad_tolerance(extra, capsys):
+    layout = ROOT / "examples" / "layouts" / "spot.json"
+    assert main(["springs", str(mesh_path("spot")), "--layout", str(layout), *extra]) == 2
+    assert "tolerance" in capsys.readouterr().err

@@ -80,7 +80,14 @@ def cmd_springs(args: argparse.Namespace) -> int:
 
     def one(patch) -> dict:
         t = time.perf_counter()
-        res = resample_patch(patch, level=args.level, rescue=args.rescue, metrics=False)
+        res = resample_patch(
+            patch,
+            level=args.level,
+            rescue=args.rescue,
+            tolerance=args.tolerance,
+            scale=mesh.bbox_diagonal,
+            metrics=False,
+        )
         seconds = time.perf_counter() - t
         met = spring_metrics(patch.mesh, res.final, scale=mesh.bbox_diagonal)
         row = {
@@ -91,6 +98,7 @@ def cmd_springs(args: argparse.Namespace) -> int:
             "seconds": round(seconds, 4),
             "rescued": bool(res.rescued),
             "finer": int(res.finer),
+            "tolerance_met": None if args.tolerance is None else res.distance <= args.tolerance,
             "remade": bool(res.remade),
             "fairness": res.fairness,
             "bulge": round(patch.bulge, 3),
@@ -207,6 +215,8 @@ def _print_patches(rows: list[dict]) -> None:
             notes.append("remade")
         if r["finer"]:
             notes.append(f"{r['finer']} finer")
+        if r.get("tolerance_met") is False:
+            notes.append("over tolerance")
         table.add_row(*cells, ", ".join(notes))
     Console().print(table)
 
@@ -247,6 +257,14 @@ def add_commands(sub) -> None:
         help="resample again from an area-balanced map, lightly relaxed, where the spring "
         "mesh misses its patch by more than a grid spacing (a pleat, a squeezed bulge), and "
         "up to two levels finer where that still misses (without --level)",
+    )
+    p.add_argument(
+        "--tolerance",
+        type=float,
+        default=None,
+        help="largest distance wanted between each spring mesh and its patch, as a fraction "
+        "of the model's bounding-box diagonal (e.g. 5e-4); patches that miss it are "
+        "resampled up to three levels finer (without --level or --rescue)",
     )
     p.add_argument(
         "--workers",
