@@ -7,16 +7,14 @@ import pytest
 
 from meshfit.errors import InputError
 from meshfit.layout import extract_patches, load_layout
-from meshfit.springs import grid_metrics, resample_patch
+from meshfit.springs import resample_patch, spring_metrics
 
 from ..conftest import ROOT, real_mesh
 from .patches import cylinder_map, param_patch
 
 
 def _fidelity(patch, res, scale=None) -> float:
-    lvl = res.final
-    m = grid_metrics(patch.mesh, lvl.xyz, np.zeros_like(lvl.xyz), scale=scale)
-    return m["fidelity_max"]
+    return spring_metrics(patch.mesh, res.final, scale=scale)["fidelity_max"]
 
 
 def test_a_tolerance_the_final_level_misses_refines_the_grid_until_it_is_met():
@@ -33,6 +31,11 @@ def test_a_tolerance_the_final_level_misses_refines_the_grid_until_it_is_met():
         assert np.array_equal(a.points.face, b.points.face)
         assert np.array_equal(a.points.bary, b.points.bary)
     assert "tolerance" in res.seconds and res.seconds["total"] >= res.seconds["tolerance"]
+    # with every level's metrics asked for, the run's own fidelity figure is used: the same
+    measured = resample_patch(patch, tolerance=0.5 * d0)
+    assert measured.finer == res.finer
+    assert measured.distance == pytest.approx(res.distance, rel=1e-12)
+    assert measured.distance == measured.metrics[-1]["fidelity_max"]
 
 
 def test_a_tolerance_the_final_level_meets_keeps_it():
@@ -64,16 +67,7 @@ def test_an_igea_patch_reaches_the_issue_fidelity_bound_one_level_finer():
     res = resample_patch(patch, tolerance=5e-4, scale=diag, metrics=False)
     assert res.finer >= 1 and res.distance <= 5e-4
     assert res.distance == pytest.approx(_fidelity(patch, res, diag), rel=1e-12)
-    m = grid_metrics(patch.mesh, res.final.xyz, _normals(patch, res), fidelity=False)
-    assert m["folded"] == 0
-
-
-def _normals(patch, res) -> np.ndarray:
-    F = patch.mesh.faces
-    V = patch.mesh.vertices
-    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    return n[res.final.points.face].reshape(*res.final.shape, 3)
+    assert spring_metrics(patch.mesh, res.final, fidelity=False)["folded"] == 0
 
 
 @pytest.mark.parametrize(
@@ -83,6 +77,8 @@ def _normals(patch, res) -> np.ndarray:
         ({"tolerance": -1e-3}, "positive"),
         ({"tolerance": float("nan")}, "positive"),
         ({"tolerance": True}, "positive"),
+        ({"tolerance": "small"}, "positive"),
+        ({"tolerance": float("inf")}, "positive"),
         ({"tolerance": 1e-3, "level": 1}, "not with level or rescue"),
         ({"tolerance": 1e-3, "rescue": True}, "not with level or rescue"),
     ],

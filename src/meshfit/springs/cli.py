@@ -215,7 +215,7 @@ def _print_patches(rows: list[dict]) -> None:
             notes.append("remade")
         if r["finer"]:
             notes.append(f"{r['finer']} finer")
-        if r.get("tolerance_met") is False:
+        if r["tolerance_met"] is False:
             notes.append("over tolerance")
         table.add_row(*cells, ", ".join(notes))
     Console().print(table)

@@ -664,7 +664,8 @@ def resample_patch(
         Length the fidelity distances are divided by (e.g. the whole model's bounding-box
         diagonal); default the patch mesh's.
     progress : callable(done, total), keyword-only, optional
-        Called after each level.
+        Called after each level (with a ``tolerance``, again from the first level for each
+        finer try, ``total`` counting its levels).
 
     Returns
     -------
@@ -700,7 +701,11 @@ def resample_patch(
     if int(init_intervals) < 1:
         raise InputError(f"init_intervals must be >= 1, got {init_intervals}")
     if tolerance is not None:
-        if isinstance(tolerance, bool) or not np.isfinite(tolerance) or not tolerance > 0.0:
+        try:
+            positive = not isinstance(tolerance, bool) and 0.0 < float(tolerance) < np.inf
+        except (TypeError, ValueError):
+            positive = False
+        if not positive:
             raise InputError(f"tolerance must be a positive number, got {tolerance!r}")
         if level is not None or rescue:
             raise InputError("tolerance chooses the final level: not with level or rescue")
@@ -871,9 +876,7 @@ def resample_patch(
         for extra in range(1, RESCUE_LEVELS + 1 if level is None else 1):
             if miss[0] <= RESCUE_SPACINGS:
                 break
-            points = _points_at(res.final.shape, extra)
-            cap = min(RESCUE_DENSITY * mesh.n_vertices, RESCUE_MAX_POINTS)
-            if points > cap or (max_points is not None and points > max_points):
+            if _points_at(res.final.shape, extra) > _point_cap(mesh, max_points):
                 break
             cand, c_miss = _rescued(
                 mesh,
@@ -991,11 +994,11 @@ def _to_tolerance(
     t = time.perf_counter()
     first = res.seconds["total"]
     diag = mesh.bbox_diagonal if scale is None else float(scale)
-    cap = min(RESCUE_DENSITY * mesh.n_vertices, RESCUE_MAX_POINTS)
-    if max_points is not None:
-        cap = min(cap, int(max_points))
+    cap = _point_cap(mesh, max_points)
 
     def distance(r: SpringResult) -> float:
+        if "fidelity_max" in r.metrics[-1]:  # measured by the run already (same scale)
+            return float(r.metrics[-1]["fidelity_max"])
         nu, nv = r.final.shape
         P = r.final.xyz.reshape(-1, 3)
         return _fidelity(mesh, P, grid_triangles(nu, nv), diag)["fidelity_max"]
@@ -1011,6 +1014,13 @@ def _to_tolerance(
     spent = time.perf_counter() - t
     seconds = {**res.seconds, "tolerance": spent, "total": first + spent}
     return replace(res, seconds=seconds, finer=finer, distance=dist)
+
+
+def _point_cap(mesh: Mesh, max_points: int | None) -> int:
+    """Most points a finer grid of the rescue or the tolerance may have: `RESCUE_DENSITY`
+    per patch vertex, `RESCUE_MAX_POINTS` and ``max_points``."""
+    cap = min(RESCUE_DENSITY * mesh.n_vertices, RESCUE_MAX_POINTS)
+    return cap if max_points is None else min(cap, int(max_points))
 
 
 def _points_at(shape: tuple[int, int], extra: int) -> int:
