@@ -32,6 +32,7 @@ import argparse
 import os
 import platform
 import statistics
+import time
 
 import numpy as np
 from _common import ROOT, median_time, mesh_path, write_result
@@ -67,16 +68,22 @@ def _square_boundary(patch) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(b).astype(np.int64), np.concatenate(bc)
 
 
-def harmonic_grid(patch, nu: int, nv: int) -> tuple[np.ndarray, np.ndarray]:
+def harmonic_grid(
+    patch, nu: int, nv: int, stages: dict | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """libigl harmonic map to the unit square, resampled on an (nu, nv) grid.
 
-    Returns the grid positions (nu, nv, 3) and the normals of the faces they lie in.
+    Returns the grid positions (nu, nv, 3) and the normals of the faces they lie in. With
+    ``stages`` (a dict), its ``"map"`` entry gets the seconds of the map (boundary and
+    ``igl.harmonic``) and ``"resample"`` those of the rest.
     """
     import igl
 
+    t0 = time.perf_counter()
     mesh = patch.mesh
     b, bc = _square_boundary(patch)
     uv = igl.harmonic(mesh.vertices, mesh.faces, b, bc, 1)
+    t1 = time.perf_counter()
     uv3 = np.ascontiguousarray(np.column_stack([uv, np.zeros(len(uv))]))
     s, t = np.meshgrid(np.linspace(0, 1, nu), np.linspace(0, 1, nv), indexing="ij")
     q = np.ascontiguousarray(np.column_stack([s.ravel(), t.ravel(), np.zeros(s.size)]))
@@ -94,7 +101,20 @@ def harmonic_grid(patch, nu: int, nv: int) -> tuple[np.ndarray, np.ndarray]:
     xyz = (bary[:, :1] * V[F[:, 0]] + bary[:, 1:2] * V[F[:, 1]] + bary[:, 2:] * V[F[:, 2]]).reshape(
         nu, nv, 3
     )
-    return xyz, mesh.face_normals[face].reshape(nu, nv, 3)
+    normals = mesh.face_normals[face].reshape(nu, nv, 3)
+    if stages is not None:
+        stages["map"] = t1 - t0
+        stages["resample"] = time.perf_counter() - t1
+    return xyz, normals
+
+
+def _map_alone(patch) -> None:
+    """The mean-value map of a patch onto the unit square that `resample_patch` solves first
+    (the stage the peer's ``igl.harmonic`` stands for)."""
+    from meshfit.springs.planar import square_map
+    from meshfit.springs.resample import _sides
+
+    square_map(patch.mesh, _sides(patch))
 
 
 def _fresh(patch):
@@ -200,12 +220,25 @@ def run_layout(name: str, repeats: int) -> dict:
         harmonic_grid(patch, nu, nv)
         # alternate the two so that both see the same machine load (the machine is shared)
         ours, peer, cached = [], [], []
+        stages = {"ours": [], "peer": []}
         for _ in range(repeats):
             fresh = _fresh(patch)  # (building the patch mesh is the cut stage's work)
-            ours.append(median_time(lambda p=fresh: resample_patch(p, metrics=False), 1)[0])
-            peer.append(median_time(lambda p=patch, a=nu, b=nv: harmonic_grid(p, a, b), 1)[0])
+            got = []
+            ours.append(
+                median_time(lambda p=fresh, g=got: g.append(resample_patch(p, metrics=False)), 1)[0]
+            )
+            stages["ours"].append(got[0].seconds)
+            st: dict = {}
+            peer.append(
+                median_time(lambda p=patch, a=nu, b=nv, s=st: harmonic_grid(p, a, b, s), 1)[0]
+            )
+            stages["peer"].append(st)
             cached.append(median_time(lambda p=cold: resample_patch(p, metrics=False), 1)[0])
         t_ours, t_peer = statistics.median(ours), statistics.median(peer)
+        # the stages of the timed runs (medians per stage): ours, the planar map (in "init")
+        # timed alone on a new mesh object, as each timed run built it
+        fresh = _fresh(patch)
+        map_time = median_time(lambda p=fresh: _map_alone(p), 1)[0]
         xyz, nrm = harmonic_grid(patch, nu, nv)
         ours = spring_metrics(patch.mesh, res.final, scale=diag)
         peer = grid_metrics(patch.mesh, xyz, nrm, scale=diag)
@@ -221,6 +254,23 @@ def run_layout(name: str, repeats: int) -> dict:
                 "seconds_cached": round(statistics.median(cached), 5),
                 "peer_seconds": round(t_peer, 5),
                 "ratio": round(t_ours / t_peer, 3),
+                "stages": {
+                    "ours": _round(
+                        {
+                            "map": map_time,
+                            **{
+                                k: statistics.median(s[k] for s in stages["ours"])
+                                for k in ("init", "relax", "subdivide")
+                            },
+                        }
+                    ),
+                    "peer": _round(
+                        {
+                            k: statistics.median(s[k] for s in stages["peer"])
+                            for k in ("map", "resample")
+                        }
+                    ),
+                },
                 "springs": _round({k: ours[k] for k in METRICS}),
                 "harmonic": _round({k: peer[k] for k in METRICS}),
             }
@@ -258,6 +308,16 @@ def run_layout(name: str, repeats: int) -> dict:
         "layout_seconds_cached": round(sum(r["seconds_cached"] for r in rows), 4),
         "layout_peer_seconds": round(total_peer, 4),
         "layout_ratio": round(total / total_peer, 3),
+        # where the time goes, summed over the patches (medians per patch and stage): ours'
+        # "init" holds its "map" (the mean-value map, like the peer's harmonic "map"), level
+        # 0 and the fallback's remakes of it; "relax" every level's relaxation and polish;
+        # "subdivide" the subdivisions with their fold repair
+        "layout_stages": {
+            who: {
+                k: round(sum(r["stages"][who][k] for r in rows), 4) for k in rows[0]["stages"][who]
+            }
+            for who in ("ours", "peer")
+        },
         "layout_threads": threads,
         "worst_over_patches": worst,
         "per_patch": rows,
