@@ -68,6 +68,7 @@ def cmd_springs(args: argparse.Namespace) -> int:
     from meshfit.layout import extract_patches, load_layout
     from meshfit.mesh import load_mesh
     from meshfit.springs import resample_patch, spring_metrics
+    from meshfit.springs.metrics import out_of_bounds, worst_places
 
     t0 = time.perf_counter()
     mesh = load_mesh(args.mesh)
@@ -105,6 +106,11 @@ def cmd_springs(args: argparse.Namespace) -> int:
             "taper": round(patch.taper, 3),
             **{k: v for k, v in met.items() if k not in ("nu", "nv")},
         }
+        over = out_of_bounds(met)
+        if over:  # where to look: the worst spacing, the folds, the largest distance
+            row["places"] = worst_places(
+                patch.mesh, res.final, fidelity="fidelity_max" in over, scale=mesh.bbox_diagonal
+            )
         if args.out:
             npz, ply = save_spring_mesh(res.final, args.out, f"patch_{patch.index:03d}")
             row["files"] = [str(npz), str(ply)]
@@ -151,6 +157,8 @@ def cmd_springs(args: argparse.Namespace) -> int:
         print_json(out)
     else:
         _print_patches(rows)
+        for line in _place_lines(rows):
+            print(line)
         print_table("summary", _summary_lines(out["summary"]))
         print_table("seconds", out["seconds"])
         for note in out["notes"]:
@@ -219,6 +227,48 @@ def _print_patches(rows: list[dict]) -> None:
             notes.append("over tolerance")
         table.add_row(*cells, ", ".join(notes))
     Console().print(table)
+
+
+#: `meshfit.springs.metrics.worst_places` places in words
+_WHERE = {"corner": "near a corner", "side": "near a side", "interior": "inside the patch"}
+
+
+def _beside(point: list[int], points: list[list[int]]) -> bool:
+    """Whether grid point ``point`` is one of ``points`` or next to one (diagonals too)."""
+    return any(max(abs(point[0] - i), abs(point[1] - j)) <= 1 for i, j in points)
+
+
+def _place_lines(rows: list[dict]) -> list[str]:
+    """Where the patches over the arc-length or fold bound miss it (see
+    `meshfit.springs.metrics.worst_places`; the largest distances' places are in ``--json``
+    only: at the vertex-count level nearly every patch of a scan is over that bound)."""
+    from meshfit.springs.metrics import out_of_bounds
+
+    lines = []
+    for r in rows:
+        over, places = set(out_of_bounds(r)), r.get("places")
+        if not places:
+            continue
+        if "arc_cv_max" in over:
+            a = places["arc_cv"]
+            (i0, j0), (i1, j1) = a["points"]
+            line = (
+                f"patch {r['patch']}: arc CV {a['cv']:.3f}, worst {_WHERE[a['place']]}: "
+                f"interval ({i0}, {j0})-({i1}, {j1}) is {a['ratio']:.2f} times its line's mean"
+            )
+            f = places.get("fidelity")
+            if f and f["from"] == "patch" and _beside(f["grid_point"], a["points"]):
+                line += (
+                    f", where the patch is farthest from the grid ({f['distance'] * 100:.3f}%): "
+                    "the grid steps over a pleat or a bulge"
+                )
+            lines.append(line)
+        if "folded" in over:
+            cells = ", ".join(
+                f"({c['cell'][0]}, {c['cell'][1]}) {_WHERE[c['place']]}" for c in places["folded"]
+            )
+            lines.append(f"patch {r['patch']}: folded cells {cells}")
+    return lines
 
 
 def _summary_lines(summary: dict) -> dict:

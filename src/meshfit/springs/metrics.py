@@ -9,7 +9,7 @@ from meshfit._kernels.springs import grid_spacing
 from meshfit.mesh import Mesh
 from meshfit.springs.grid import SpringMesh, grid_triangles
 
-__all__ = ["QUALITY_BOUNDS", "grid_metrics", "out_of_bounds", "spring_metrics"]
+__all__ = ["QUALITY_BOUNDS", "grid_metrics", "out_of_bounds", "spring_metrics", "worst_places"]
 
 #: quality a spring mesh is held to (the bounds the test layouts are checked against):
 #: arc-length coefficient of variation along every iso-curve piece, median cell aspect ratio,
@@ -98,11 +98,7 @@ def grid_metrics(
     cv, aspect = spacing(X, u_lines, v_lines)
     p00, p10, p11, p01 = X[:-1, :-1], X[1:, :-1], X[1:, 1:], X[:-1, 1:]
     area = 0.5 * np.linalg.norm(np.cross(p11 - p00, p01 - p10), axis=2)
-    n1 = np.cross(p10 - p00, p11 - p00)
-    n2 = np.cross(p11 - p00, p01 - p00)
-    s1 = N[:-1, :-1] + N[1:, :-1] + N[1:, 1:]
-    s2 = N[:-1, :-1] + N[1:, 1:] + N[:-1, 1:]
-    folded = (np.einsum("ijk,ijk->ij", n1, s1) <= 0) | (np.einsum("ijk,ijk->ij", n2, s2) <= 0)
+    folded = _folded(X, N)
     out: dict[str, float | int] = {
         "nu": int(nu),
         "nv": int(nv),
@@ -120,20 +116,150 @@ def grid_metrics(
     return out
 
 
-def _fidelity(
-    mesh: Mesh, P: NDArray[np.float64], T: NDArray[np.int64], diag: float
-) -> dict[str, float]:
+def _folded(X: NDArray[np.float64], N: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """(nu - 1, nv - 1) bool: cells of the grid ``X (nu, nv, 3)`` with a triangle whose
+    normal points against the summed unit normals ``N (nu, nv, 3)`` at its corners."""
+    p00, p10, p11, p01 = X[:-1, :-1], X[1:, :-1], X[1:, 1:], X[:-1, 1:]
+    n1 = np.cross(p10 - p00, p11 - p00)
+    n2 = np.cross(p11 - p00, p01 - p00)
+    s1 = N[:-1, :-1] + N[1:, :-1] + N[1:, 1:]
+    s2 = N[:-1, :-1] + N[1:, 1:] + N[:-1, 1:]
+    return (np.einsum("ijk,ijk->ij", n1, s1) <= 0) | (np.einsum("ijk,ijk->ij", n2, s2) <= 0)
+
+
+def _distances(
+    mesh: Mesh, P: NDArray[np.float64], T: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], int]:
+    """The two-sided distance samples between the triangulation ``P``, ``T`` and ``mesh``:
+    the sample points (grid triangle centroids and edge mid-points, then the mesh
+    vertices), their distances to the other surface, and how many are grid samples."""
     import igl
 
     a, b, c = P[T[:, 0]], P[T[:, 1]], P[T[:, 2]]
     samples = np.concatenate([(a + b + c) / 3.0, 0.5 * (a + b), 0.5 * (b + c), 0.5 * (c + a)])
     d1, _, _ = igl.point_mesh_squared_distance(samples, mesh.vertices, mesh.faces)
     d2, _, _ = igl.point_mesh_squared_distance(np.ascontiguousarray(mesh.vertices), P, T)
-    d = np.sqrt(np.concatenate([d1, d2]))
+    points = np.concatenate([samples, mesh.vertices])
+    return points, np.sqrt(np.concatenate([d1, d2])), len(samples)
+
+
+def _fidelity(
+    mesh: Mesh, P: NDArray[np.float64], T: NDArray[np.int64], diag: float
+) -> dict[str, float]:
+    _, d, _ = _distances(mesh, P, T)
     return {
         "fidelity_max": float(d.max() / diag),
         "fidelity_rms": float(np.sqrt(np.mean(d * d)) / diag),
     }
+
+
+#: grid lines from a side within which `worst_places` calls a place "side" (from two sides:
+#: "corner")
+NEAR_SIDE = 2
+
+
+def _place(i: int, j: int, nu: int, nv: int) -> str:
+    """ "corner", "side" or "interior": where grid point ``(i, j)`` lies (`NEAR_SIDE`)."""
+    near_i = min(i, nu - 1 - i) <= NEAR_SIDE
+    near_j = min(j, nv - 1 - j) <= NEAR_SIDE
+    return "corner" if near_i and near_j else "side" if near_i or near_j else "interior"
+
+
+def worst_places(
+    mesh: Mesh, spring: SpringMesh, *, fidelity: bool = True, scale: float | None = None
+) -> dict:
+    """Where a spring mesh's worst quality figures are: what to look at (or paint again)
+    when a patch misses a bound of `QUALITY_BOUNDS`.
+
+    Each place has its grid indices, its position and a ``"place"``: ``"corner"`` or
+    ``"side"`` within `NEAR_SIDE` grid lines of two sides or of one (a painted side or
+    corner that bends, steps back or meets another at a sharp angle), else
+    ``"interior"`` (a bulge, a pleat or scan detail inside the patch).
+
+    Parameters
+    ----------
+    mesh : Mesh
+        The patch surface the spring mesh lies on.
+    spring : SpringMesh
+        The spring mesh.
+    fidelity : bool, keyword-only
+        Also find the largest two-sided distance (as :func:`grid_metrics` measures it).
+    scale : float, keyword-only, optional
+        Length the distance is divided by (default ``mesh.bbox_diagonal``).
+
+    Returns
+    -------
+    dict
+        ``"arc_cv"``: the iso-curve piece with the largest arc-length coefficient of
+        variation (``"cv"``; ``"along"``: ``"u"`` for a piece of constant ``j`` running
+        along ``i``, else ``"v"``) and on it the interval farthest from the piece's mean
+        spacing (``"points"``: its two grid points ``[i, j]``; ``"ratio"``: its length over
+        the mean; ``"xyz"``: its mid-point); ``"folded"``: per folded cell its lower grid
+        corner ``"cell"`` ``[i, j]`` and centre ``"xyz"``; with ``fidelity``,
+        ``"fidelity"``: the largest distance (``"distance"``, over ``scale``), whether it
+        is a point of the patch far from the grid (``"from": "patch"``) or of the grid
+        far from the patch (``"grid"``), that point (``"xyz"``) and the grid point nearest
+        to it (``"grid_point"``). Lists and floats only (JSON-ready).
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 5.1-5.2 (arc length, aspect ratio), sec. 5.5.3
+       (folded spring cells) and sec. 5.13 (fidelity of the resampling).
+    """
+    X = np.asarray(spring.xyz, dtype=np.float64)
+    nu, nv = X.shape[:2]
+    N = mesh.face_normals[spring.points.face].reshape(nu, nv, 3)
+    cv, _ = spacing(X, spring.u_lines, spring.v_lines)
+    ends_u = _section_ends(nu, spring.u_lines)
+    ends_v = _section_ends(nv, spring.v_lines)
+    k = int(np.argmax(cv))
+    if k < (len(ends_u) - 1) * nv:  # a piece of column j between u ends
+        sec, j = divmod(k, nv)
+        lo, hi = int(ends_u[sec]), int(ends_u[sec + 1])
+        pts = np.array([[i, j] for i in range(lo, hi + 1)])
+        along = "u"
+    else:
+        sec, i = divmod(k - (len(ends_u) - 1) * nv, nu)
+        lo, hi = int(ends_v[sec]), int(ends_v[sec + 1])
+        pts = np.array([[i, j] for j in range(lo, hi + 1)])
+        along = "v"
+    P = X[pts[:, 0], pts[:, 1]]
+    d = np.linalg.norm(np.diff(P, axis=0), axis=1)
+    ratio = d / d.mean() if d.mean() > 0 else np.ones_like(d)
+    m = int(np.argmax(np.abs(ratio - 1.0)))
+    a, b = pts[m], pts[m + 1]
+    out: dict = {
+        "arc_cv": {
+            "cv": float(cv[k]),
+            "along": along,
+            "points": [a.tolist(), b.tolist()],
+            "ratio": float(ratio[m]),
+            "xyz": (0.5 * (P[m] + P[m + 1])).tolist(),
+            "place": _place(int(a[0]), int(a[1]), nu, nv),
+        },
+        "folded": [
+            {
+                "cell": [int(ci), int(cj)],
+                "xyz": X[ci : ci + 2, cj : cj + 2].reshape(-1, 3).mean(axis=0).tolist(),
+                "place": _place(int(ci), int(cj), nu, nv),
+            }
+            for ci, cj in np.argwhere(_folded(X, N))
+        ],
+    }
+    if fidelity:
+        flat = X.reshape(-1, 3)
+        points, dist, n_grid = _distances(mesh, flat, grid_triangles(nu, nv))
+        w = int(np.argmax(dist))
+        g = int(np.argmin(np.linalg.norm(flat - points[w], axis=1)))
+        gi, gj = divmod(g, nv)
+        out["fidelity"] = {
+            "distance": float(dist[w] / (mesh.bbox_diagonal if scale is None else float(scale))),
+            "from": "grid" if w < n_grid else "patch",
+            "xyz": points[w].tolist(),
+            "grid_point": [gi, gj],
+            "place": _place(gi, gj, nu, nv),
+        }
+    return out
 
 
 def out_of_bounds(metrics: dict, bounds: dict | None = None) -> list[str]:
