@@ -66,6 +66,7 @@ def test_folded_cells_and_the_largest_distance_are_placed(plane):
     assert f["distance"] == met["fidelity_max"]
     assert f["from"] in ("grid", "patch") and 0 <= f["grid_point"][0] < nu
     json.dumps(places)  # plain lists and floats
+    assert spring_metrics(patch.mesh, moved, places=True)["places"] == places  # one pass
     assert "fidelity" not in worst_places(patch.mesh, moved, fidelity=False)
 
 

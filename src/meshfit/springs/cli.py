@@ -68,7 +68,7 @@ def cmd_springs(args: argparse.Namespace) -> int:
     from meshfit.layout import extract_patches, load_layout
     from meshfit.mesh import load_mesh
     from meshfit.springs import resample_patch, spring_metrics
-    from meshfit.springs.metrics import out_of_bounds, worst_places
+    from meshfit.springs.metrics import out_of_bounds
 
     t0 = time.perf_counter()
     mesh = load_mesh(args.mesh)
@@ -90,7 +90,8 @@ def cmd_springs(args: argparse.Namespace) -> int:
             metrics=False,
         )
         seconds = time.perf_counter() - t
-        met = spring_metrics(patch.mesh, res.final, scale=mesh.bbox_diagonal)
+        met = spring_metrics(patch.mesh, res.final, scale=mesh.bbox_diagonal, places=True)
+        places = met.pop("places")
         row = {
             "patch": patch.index,
             "vertices": patch.mesh.n_vertices,
@@ -106,11 +107,8 @@ def cmd_springs(args: argparse.Namespace) -> int:
             "taper": round(patch.taper, 3),
             **{k: v for k, v in met.items() if k not in ("nu", "nv")},
         }
-        over = out_of_bounds(met)
-        if over:  # where to look: the worst spacing, the folds, the largest distance
-            row["places"] = worst_places(
-                patch.mesh, res.final, fidelity="fidelity_max" in over, scale=mesh.bbox_diagonal
-            )
+        if out_of_bounds(met):  # where to look: the worst spacing, the folds, the distance
+            row["places"] = places
         if args.out:
             npz, ply = save_spring_mesh(res.final, args.out, f"patch_{patch.index:03d}")
             row["files"] = [str(npz), str(ply)]

@@ -55,7 +55,8 @@ def grid_metrics(
     v_lines: ArrayLike = (),
     fidelity: bool = True,
     scale: float | None = None,
-) -> dict[str, float | int]:
+    places: bool = False,
+) -> dict:
     """Quality metrics of an ``(nu, nv)`` grid of points on a patch surface.
 
     Parameters
@@ -74,6 +75,9 @@ def grid_metrics(
     scale : float, optional
         Length the fidelity distances are divided by, model units (e.g. the whole model's
         bounding-box diagonal); default ``mesh.bbox_diagonal``.
+    places : bool, keyword-only
+        Also say where the worst figures are (``"places"``: see :func:`worst_places`),
+        from the same spacings, fold tests and distances.
 
     Returns
     -------
@@ -85,7 +89,8 @@ def grid_metrics(
         smallest cell area; ``folded``: cells with a triangle whose normal points against
         the surface normal; ``fidelity_max`` / ``fidelity_rms``: two-sided distance between
         the grid triangulation and ``mesh`` (grid triangle centroids and edge mid-points to
-        the surface, mesh vertices to the triangulation) over ``scale``.
+        the surface, mesh vertices to the triangulation) over ``scale``; with ``places``,
+        ``places`` (a dict, see :func:`worst_places`).
 
     References
     ----------
@@ -99,7 +104,7 @@ def grid_metrics(
     p00, p10, p11, p01 = X[:-1, :-1], X[1:, :-1], X[1:, 1:], X[:-1, 1:]
     area = 0.5 * np.linalg.norm(np.cross(p11 - p00, p01 - p10), axis=2)
     folded = _folded(X, N)
-    out: dict[str, float | int] = {
+    out: dict = {
         "nu": int(nu),
         "nv": int(nv),
         "arc_cv_max": float(cv.max()) if cv.size else 0.0,
@@ -110,9 +115,13 @@ def grid_metrics(
         "area_ratio": float(area.max() / area.min()) if area.min() > 0 else float("inf"),
         "folded": int(folded.sum()),
     }
+    dist = None
     if fidelity:
         diag = mesh.bbox_diagonal if scale is None else float(scale)
-        out.update(_fidelity(mesh, X.reshape(-1, 3), grid_triangles(nu, nv), diag))
+        dist = _distances(mesh, X.reshape(-1, 3), grid_triangles(nu, nv))
+        out.update(_fidelity_figures(dist[1], diag))
+    if places:
+        out["places"] = _places(X, cv, folded, u_lines, v_lines, dist, diag if fidelity else 1.0)
     return out
 
 
@@ -146,7 +155,11 @@ def _distances(
 def _fidelity(
     mesh: Mesh, P: NDArray[np.float64], T: NDArray[np.int64], diag: float
 ) -> dict[str, float]:
-    _, d, _ = _distances(mesh, P, T)
+    return _fidelity_figures(_distances(mesh, P, T)[1], diag)
+
+
+def _fidelity_figures(d: NDArray[np.float64], diag: float) -> dict[str, float]:
+    """``fidelity_max`` and ``fidelity_rms`` of the two-sided distances ``d`` over ``diag``."""
     return {
         "fidelity_max": float(d.max() / diag),
         "fidelity_rms": float(np.sqrt(np.mean(d * d)) / diag),
@@ -159,7 +172,7 @@ NEAR_SIDE = 2
 
 
 def _place(i: int, j: int, nu: int, nv: int) -> str:
-    """ "corner", "side" or "interior": where grid point ``(i, j)`` lies (`NEAR_SIDE`)."""
+    """Where grid point ``(i, j)`` lies: "corner", "side" or "interior" (`NEAR_SIDE`)."""
     near_i = min(i, nu - 1 - i) <= NEAR_SIDE
     near_j = min(j, nv - 1 - j) <= NEAR_SIDE
     return "corner" if near_i and near_j else "side" if near_i or near_j else "interior"
@@ -174,7 +187,9 @@ def worst_places(
     Each place has its grid indices, its position and a ``"place"``: ``"corner"`` or
     ``"side"`` within `NEAR_SIDE` grid lines of two sides or of one (a painted side or
     corner that bends, steps back or meets another at a sharp angle), else
-    ``"interior"`` (a bulge, a pleat or scan detail inside the patch).
+    ``"interior"`` (a bulge, a pleat or scan detail inside the patch). The same as
+    ``spring_metrics(mesh, spring, places=True)["places"]``, which also gives the metrics
+    from one distance computation.
 
     Parameters
     ----------
@@ -206,12 +221,15 @@ def worst_places(
     .. [1] Krishnamurthy 2000, sec. 5.1-5.2 (arc length, aspect ratio), sec. 5.5.3
        (folded spring cells) and sec. 5.13 (fidelity of the resampling).
     """
-    X = np.asarray(spring.xyz, dtype=np.float64)
+    return spring_metrics(mesh, spring, fidelity=fidelity, scale=scale, places=True)["places"]
+
+
+def _places(X, cv, folded, u_lines, v_lines, dist, diag: float) -> dict:
+    """`worst_places` from a grid ``X (nu, nv, 3)``'s spacing CVs (`spacing`), folded cells
+    (`_folded`) and, unless None, two-sided distances (`_distances`) over ``diag``."""
     nu, nv = X.shape[:2]
-    N = mesh.face_normals[spring.points.face].reshape(nu, nv, 3)
-    cv, _ = spacing(X, spring.u_lines, spring.v_lines)
-    ends_u = _section_ends(nu, spring.u_lines)
-    ends_v = _section_ends(nv, spring.v_lines)
+    ends_u = _section_ends(nu, u_lines)
+    ends_v = _section_ends(nv, v_lines)
     k = int(np.argmax(cv))
     if k < (len(ends_u) - 1) * nv:  # a piece of column j between u ends
         sec, j = divmod(k, nv)
@@ -243,17 +261,16 @@ def worst_places(
                 "xyz": X[ci : ci + 2, cj : cj + 2].reshape(-1, 3).mean(axis=0).tolist(),
                 "place": _place(int(ci), int(cj), nu, nv),
             }
-            for ci, cj in np.argwhere(_folded(X, N))
+            for ci, cj in np.argwhere(folded)
         ],
     }
-    if fidelity:
-        flat = X.reshape(-1, 3)
-        points, dist, n_grid = _distances(mesh, flat, grid_triangles(nu, nv))
-        w = int(np.argmax(dist))
-        g = int(np.argmin(np.linalg.norm(flat - points[w], axis=1)))
+    if dist is not None:
+        points, dists, n_grid = dist
+        w = int(np.argmax(dists))
+        g = int(np.argmin(np.linalg.norm(X.reshape(-1, 3) - points[w], axis=1)))
         gi, gj = divmod(g, nv)
         out["fidelity"] = {
-            "distance": float(dist[w] / (mesh.bbox_diagonal if scale is None else float(scale))),
+            "distance": float(dists[w] / diag),
             "from": "grid" if w < n_grid else "patch",
             "xyz": points[w].tolist(),
             "grid_point": [gi, gj],
@@ -288,7 +305,12 @@ def out_of_bounds(metrics: dict, bounds: dict | None = None) -> list[str]:
 
 
 def spring_metrics(
-    mesh: Mesh, spring: SpringMesh, *, fidelity: bool = True, scale: float | None = None
+    mesh: Mesh,
+    spring: SpringMesh,
+    *,
+    fidelity: bool = True,
+    scale: float | None = None,
+    places: bool = False,
 ) -> dict:
     """:func:`grid_metrics` of a spring mesh on its patch mesh (normals of the points' faces)."""
     normals = mesh.face_normals[spring.points.face].reshape(*spring.shape, 3)
@@ -300,4 +322,5 @@ def spring_metrics(
         v_lines=spring.v_lines,
         fidelity=fidelity,
         scale=scale,
+        places=places,
     )
