@@ -103,6 +103,7 @@ def cmd_springs(args: argparse.Namespace) -> int:
             "tolerance_met": None if args.tolerance is None else res.distance <= args.tolerance,
             "remade": bool(res.remade),
             "fairness": res.fairness,
+            "final_arc": bool(res.final_arc),
             "bulge": round(patch.bulge, 3),
             "taper": round(patch.taper, 3),
             **{k: v for k, v in met.items() if k not in ("nu", "nv")},
@@ -219,6 +220,8 @@ def _print_patches(rows: list[dict]) -> None:
             notes.append("rescued")
         if r["remade"]:
             notes.append("remade")
+        if r["final_arc"]:
+            notes.append("last level arc length")
         if r["finer"]:
             notes.append(f"{r['finer']} finer")
         if r["tolerance_met"] is False:

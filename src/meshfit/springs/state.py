@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -195,6 +195,20 @@ class State:
                 pts = line.points_at(self.mesh, s[cols])
                 self.face[idx[cols, row]] = pts.face
                 self.bary[idx[cols, row]] = pts.bary
+
+    def copy(self) -> State:
+        """An independent copy (the mesh, sides and feature lines shared)."""
+        return replace(
+            self,
+            face=self.face.copy(),
+            bary=self.bary.copy(),
+            s_u=[a.copy() for a in self.s_u],
+            s_v=[a.copy() for a in self.s_v],
+            _side_cache=dict(self._side_cache),
+            _slid={k: v.copy() for k, v in self._slid.items()},
+            _pinch_tried={k: set(v) for k, v in self._pinch_tried.items()},
+            _kind_cache=dict(self._kind_cache),
+        )
 
     def snapshot(self) -> SpringMesh:
         sp = SurfacePoints.owned(self.face.astype(np.int64), self.bary.astype(np.float64))
