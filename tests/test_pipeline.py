@@ -420,8 +420,9 @@ def test_auto_displaced_reconstruction_accuracy(auto_fit, request):
 def test_nefertiti_fits_to_the_targets_from_the_bust_layout(tmp_path):
     # laid out from an axis, the bust meets the displaced-reconstruction targets with the
     # default 16 x 16 controls and G1 stitching (measured RMS 0.012%, Hausdorff 0.32% of the
-    # diagonal); the centroid cube's patch over neck, shoulders and base does not (0.15%,
-    # 2.9%: its grid misses that bulge)
+    # diagonal); so does the centroid cube (0.017%, 0.35%), whose patch over neck,
+    # shoulders and base the springs' rescue evens out along its grid lines (the grid
+    # missed that bulge by 1.8% of the diagonal; the fit's Hausdorff distance was 1.8%)
     opts = FitOptions(continuity="g1", formats=(), report=False)
     mesh = real_mesh("nefertiti")
     runs = {
@@ -436,8 +437,10 @@ def test_nefertiti_fits_to_the_targets_from_the_bust_layout(tmp_path):
     assert bust["seams"]["spline_normal_jump_inner_max_deg"] <= G1_INNER_DEG
     assert bust["seams"]["spline_normal_jump_max_deg"] <= G1_CORNER_DEG
     assert not [p["patch"] for p in bust["patches"] if p["folded"]]
-    assert cube["errors"]["displaced"]["hausdorff"] > DISPLACED_HAUSDORFF
-    assert d["rms"] < 0.2 * cube["errors"]["displaced"]["rms"]
+    c = cube["errors"]["displaced"]
+    assert c["rms"] <= DISPLACED_RMS and c["hausdorff"] <= DISPLACED_HAUSDORFF
+    rescued = {p["patch"]: p["evened"] for p in cube["patches"] if p["rescued"]}
+    assert rescued.get(4) is True
 
 
 def test_cli_fit_mesh_with_a_hole(tmp_path, capsys):

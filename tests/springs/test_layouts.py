@@ -56,8 +56,8 @@ KNOWN = {
         "igea": "two-sided max distance 0.087% of the bbox diagonal on the median patch, "
         "0.32% worst (patch 5): at about the vertex count the grid is too coarse for 0.05%",
         "nefertiti": "two-sided max distance 0.12% of the bbox diagonal on the median patch, "
-        "1.8% on patch 4 (a bulge the grid under-samples; rescue=True keeps the same grid: "
-        "its balanced remake, 0.37% there, folds cells)",
+        "1.8% on patch 4 (a bulge the grid under-samples; rescue=True evens its grid lines "
+        "in the map: 0.29%)",
         "nefertiti_bust": "two-sided max distance 0.12% of the bbox diagonal on the median "
         "patch, 1.5% worst (patch 42, an ear)",
         "spot": "two-sided max distance 0.092% of the bbox diagonal on the median patch, "

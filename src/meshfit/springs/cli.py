@@ -99,6 +99,7 @@ def cmd_springs(args: argparse.Namespace) -> int:
             "grid": list(res.final.shape),
             "seconds": round(seconds, 4),
             "rescued": bool(res.rescued),
+            "evened": bool(res.evened),
             "finer": int(res.finer),
             "tolerance_met": None if args.tolerance is None else res.distance <= args.tolerance,
             "remade": bool(res.remade),
@@ -217,7 +218,7 @@ def _print_patches(rows: list[dict]) -> None:
             cells.append(f"[red]{text}![/]" if key in over else text)
         notes = []
         if r["rescued"]:
-            notes.append("rescued")
+            notes.append("rescued, lines evened" if r["evened"] else "rescued")
         if r["remade"]:
             notes.append("remade")
         if r["final_arc"]:

@@ -10,6 +10,7 @@ from meshfit.springs.grid import FREE
 from meshfit.springs.state import State
 
 __all__ = [
+    "even_lines_in_map",
     "folded_cells",
     "relax",
     "repair_folds",
@@ -45,6 +46,11 @@ CHART_REACH = 3
 CHART_ROUNDS = 30
 CHART_MAX_SPREAD = 60.0
 CHART_GOAL = 0.05
+#: evening grid lines in the planar map (`even_lines_in_map`): points per grid interval at
+#: which a line's path in the square is sampled on the surface to measure its arc length
+#: (8 resolves nefertiti's pleats about as well as 32: the largest distances of the evened
+#: grids differ by no more than between two runs of 16)
+LINE_SAMPLES = 8
 
 
 def _curve_step(state: State, X: np.ndarray, w_arc: float, w_fair: float) -> float:
@@ -633,3 +639,78 @@ def untangle_in_charts(state: State, *, reach: int | None = None, rounds: int | 
         else:
             state.face[moved], state.bary[moved] = old_face, old_bary
     return left
+
+
+def even_lines_in_map(state: State, pmap, *, rounds: int = 1, samples: int | None = None) -> bool:
+    """Move the free points along their grid lines, in the planar map, to equal arc lengths
+    on the surface, rows then columns, ``rounds`` times, in place; returns whether it moved
+    them (not with feature curves or without a map).
+
+    Each interior grid line is a polyline in the unit square through its points'
+    parameters; sampled at ``samples`` (default `LINE_SAMPLES`) points per interval and
+    lifted onto the patch, it gives the line's arc length on the surface, and its interior
+    points go to equal fractions of it (the ends stay). A pleat or a bulge that the map
+    squeezes into a sliver between two grid points has a long arc there: the points move
+    into it, where the relaxation's local moves, pulled by both neighbours, do not go.
+    Rows and columns are evened one after the other, so cells may fold: the caller repairs
+    and weighs the result.
+
+    Parameters
+    ----------
+    state : State
+        The spring mesh being built (``face (nu nv,) int64``, ``bary (nu nv, 3) float64``),
+        changed in place.
+    pmap : PlanarMap or None
+        The patch's map onto the unit square (`meshfit.springs.planar.square_map`).
+    rounds : int, keyword-only
+        Rows-then-columns passes (default 1).
+    samples : int, keyword-only, optional
+        Points per grid interval on the lines' paths (default `LINE_SAMPLES`).
+
+    Returns
+    -------
+    bool
+        Whether the points moved.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 5.5.1 (the arc-length force: equal spacing along each
+       iso-curve) and sec. 5.5.3 (Euclidean springs cut across bulges and hollows).
+    """
+    if pmap is None or state.u_feat or state.v_feat or min(state.nu, state.nv) < 3:
+        return False
+    samples = LINE_SAMPLES if samples is None else int(samples)
+    nu, nv = state.nu, state.nv
+    uv = pmap.uv_of(state.face, state.bary).reshape(nu, nv, 2)
+    for _ in range(int(rounds)):
+        _even_lines(pmap, uv, samples)  # the lines along u (rows i = 0 .. nu - 1)
+        _even_lines(pmap, uv.transpose(1, 0, 2), samples)
+    free = (state.kind() == FREE).ravel()
+    pts = pmap.locate(uv.reshape(-1, 2)[free])
+    state.face[free] = pts.face
+    state.bary[free] = pts.bary
+    return True
+
+
+def _even_lines(pmap, uv: np.ndarray, samples: int) -> None:
+    """Move the interior points of the interior lines ``uv[:, j]`` (uv (n, m, 2), a view
+    changed in place) to equal surface arc lengths along their paths in the square."""
+    mesh = pmap.mesh
+    n, m = uv.shape[:2]
+    t = np.arange(samples) / samples
+    a, b = uv[:-1, 1:-1], uv[1:, 1:-1]  # (n - 1, m - 2, 2) interval ends
+    dense = a[:, None] * (1.0 - t)[None, :, None, None] + b[:, None] * t[None, :, None, None]
+    dense = np.concatenate([dense.reshape(-1, m - 2, 2), uv[-1:, 1:-1]], axis=0)
+    k = dense.shape[0]
+    pts = pmap.locate(dense.reshape(-1, 2))
+    X = _k.grid_xyz(mesh.vertices, mesh.faces, pts.face, pts.bary).reshape(k, m - 2, 3)
+    seg = np.linalg.norm(np.diff(X, axis=0), axis=2)  # (k - 1, m - 2)
+    arc = np.concatenate([np.zeros((1, m - 2)), np.cumsum(seg, axis=0)], axis=0)
+    for c in range(m - 2):
+        total = arc[-1, c]
+        if not total > 0.0:
+            continue
+        want = total * np.arange(1, n - 1) / (n - 1)
+        at = np.clip(np.searchsorted(arc[:, c], want, side="right") - 1, 0, k - 2)
+        f = np.clip((want - arc[at, c]) / np.maximum(seg[at, c], 1e-300), 0.0, 1.0)[:, None]
+        uv[1:-1, c + 1] = dense[at, c] * (1.0 - f) + dense[at + 1, c] * f

@@ -20,6 +20,7 @@ from meshfit.springs.init import chain_arc, chain_edge_faces, closest_approach, 
 from meshfit.springs.metrics import QUALITY_BOUNDS, _fidelity, _section_ends, spring_metrics
 from meshfit.springs.planar import PlanarMap, square_map
 from meshfit.springs.relax import (
+    even_lines_in_map,
     folded_cells,
     relax,
     repair_folds,
@@ -95,7 +96,8 @@ class SpringResult:
         of the kept result, ``total`` (with a rescue's), and ``rescue`` when one was tried.
     rescued : bool
         The levels come from the rescue of :func:`resample_patch` (area-balanced map, light
-        relaxation).
+        relaxation; or, with ``evened``, the relaxed grid with its final level's lines
+        evened out in the map).
     finer : int
         Levels beyond the vertex-count rule's final level that the rescue or the
         ``tolerance`` of :func:`resample_patch` added (0 when none was kept).
@@ -109,6 +111,9 @@ class SpringResult:
         The final level broke a quality bound and was relaxed once more with the arc-length
         force alone, which broke fewer bounds or left its grid lines more evenly spaced
         (``fairness_fallback``); its coarser levels keep ``fairness``.
+    evened : bool
+        The rescue evened out the final level's grid lines along their paths in the planar
+        map (:func:`meshfit.springs.relax.even_lines_in_map`).
     distance : float or None
         With a ``tolerance``: the final level's two-sided largest distance to the patch
         (``fidelity_max`` of :func:`meshfit.springs.grid_metrics`, a fraction of ``scale``);
@@ -125,6 +130,7 @@ class SpringResult:
     remade: bool = False
     distance: float | None = None
     final_arc: bool = False
+    evened: bool = False
 
     @property
     def final(self) -> SpringMesh:
@@ -658,11 +664,11 @@ def resample_patch(
         pulls grid lines away from it: on nefertiti's automatic layout a pleat at the ear
         (patch 24) is missed by 1.46% of the bbox diagonal, by 0.33% once rescued; on
         spot's test layout the near-triangular patches 1 and 3 go from 3.5% and 2.6% to
-        0.6%. The
-        price: a rescued grid is less fair (arc-length CV 0.41-0.51 on those patches, median
-        aspect ratio up to 2.26), and stitched fits with few controls meet less well at its
-        corners (nefertiti's test layout with 8 x 8 controls, patches 20 and 45 rescued:
-        largest corner-zone normal jump 1.25 -> 2.65 degrees). Without ``level``, a kept
+        0.6%. The price: a rescued grid is less fair (arc-length CV 0.41-0.51 on those
+        patches, median aspect ratio up to 2.26), and stitched fits with few controls meet
+        less well at its corners (nefertiti's test layout with 8 x 8 controls, patches 20
+        and 45 rescued: largest corner-zone normal jump 1.25 -> 2.65 degrees). Without
+        ``level``, a kept
         grid that still misses by more than ``RESCUE_SPACINGS`` is made the same way up to
         ``RESCUE_LEVELS`` (2) levels finer (at most ``RESCUE_DENSITY`` (16) points per
         patch vertex and ``RESCUE_MAX_POINTS`` in all); a finer grid is kept when it misses
@@ -670,7 +676,16 @@ def resample_patch(
         cells (``finer`` of the result). A horn or an ear inside one patch needs more grid
         lines than the patch has vertices across it: spot's automatic layout has them in
         patches 31 and 34, whose grids are kept two levels finer, and its displaced fit
-        goes from 2.5% to 0.45% of the bbox diagonal (Hausdorff distance).
+        goes from 2.5% to 0.45% of the bbox diagonal (Hausdorff distance). Where neither a
+        remake nor a finer grid is kept, the relaxed grid's final level has its grid lines
+        evened out along their paths in the planar map
+        (:func:`meshfit.springs.relax.even_lines_in_map`, folds repaired), kept by the same
+        rule (``evened`` of the result; the coarser levels and the fairness stay). A bulge
+        that the map squeezes into a corner of the square folds the remakes' cells and is
+        missed as much by finer grids: nefertiti's test patch 4 (neck, shoulders and base)
+        is missed by 1.8% of the bbox diagonal, by 0.29% evened, with no folded cell (its
+        median cell aspect ratio goes from 1.47 to 1.73), and the displaced fit of that
+        layout from 1.8% to 0.35% (Hausdorff distance).
     tolerance : float, keyword-only, optional
         Largest two-sided distance wanted between the final grid's triangulation and the
         patch, as a fraction of ``scale`` (the ``fidelity_max`` of
@@ -766,9 +781,11 @@ def resample_patch(
         progress,
         finer: int = 0,
         fallback: bool = fairness_fallback,
+        even: bool = False,
     ) -> SpringResult:
         """The coarse-to-fine resampling with these settings (the rest as given), ``finer``
-        levels beyond the final level."""
+        levels beyond the final level; with ``even`` the final level's grid lines evened
+        out in the map."""
         t0 = time.perf_counter()
         us, vs, breaks, counts_u, counts_v = _level0_sections(
             patch, sides, init_intervals, sections_u, sections_v
@@ -805,12 +822,14 @@ def resample_patch(
 
         def advance(
             state: State, k: int, fairness: float, final: int, again: bool = False
-        ) -> tuple[State, int, bool]:
+        ) -> tuple[State, int, dict]:
             """Subdivide to level ``k`` and relax it: the state kept, the sweeps done and
-            whether the relaxation with arc length alone was kept (``again``: a level that
+            what else was done (``final_arc``, ``evened``). With ``again`` a level that
             breaks a quality bound is relaxed once more from its subdivided points with the
-            arc-length force alone, and the one breaking fewer bounds, then with the lower
-            largest arc-length coefficient of variation, kept)."""
+            arc-length force alone, kept when it breaks fewer bounds or as many with a lower
+            largest arc-length coefficient of variation. With ``even`` of the run the grid
+            lines of the final level are then evened out in the planar map
+            (`even_lines_in_map`) and its folds repaired (a rescue weighs the result)."""
             t = time.perf_counter()
             subdivide(state, n_fair=n_fair, pmap=pmap if midpoints == "map" else None)
             settle(state, pmap, 1, max_iter)  # mid-points placed across a fold: smooth them out
@@ -818,13 +837,17 @@ def resample_patch(
             t = time.perf_counter()
             trial = state.copy() if again and fairness > 0.0 else None
             done = level_step(state, k, fairness, final)
-            kept = False
-            if trial is not None:
-                first = _bounds_and_cv(state)
-                if _relax_again(first):
-                    done_again = level_step(trial, k, 0.0, final)
-                    if _bounds_and_cv(trial) < first:
-                        state, done, kept = trial, done_again, True
+            kept = {"final_arc": False, "evened": False}
+            score = _bounds_and_cv(state) if trial is not None else None
+            if trial is not None and _relax_again(score):
+                done_again = level_step(trial, k, 0.0, final)
+                trial_score = _bounds_and_cv(trial)
+                if trial_score < score:
+                    state, done, score = trial, done_again, trial_score
+                    kept["final_arc"] = True
+            if even and k == final and even_lines_in_map(state, pmap):
+                settle(state, pmap, 2, max_iter)  # rows and columns evened apart: folds
+                kept["evened"] = True
             seconds["relax"] += time.perf_counter() - t
             return state, done, kept
 
@@ -877,12 +900,12 @@ def resample_patch(
                     best, remade = alt, True
         state, fairness, final = best["state"], best["fair"], best["final"]
         levels, mets, sweeps = [], [], []
-        final_arc = False
+        kept = {"final_arc": False, "evened": False}
         for k in range(final + 1):
             if k < len(best["snaps"]):
                 snap, done = best["snaps"][k], best["done"][k]
             else:
-                state, done, final_arc = advance(
+                state, done, kept = advance(
                     state, k, fairness, final, again=fallback and k == final
                 )
                 snap = state.snapshot()
@@ -896,9 +919,7 @@ def resample_patch(
             if progress is not None:
                 progress(k + 1, final + 1)
         seconds["total"] = time.perf_counter() - t0
-        return SpringResult(
-            levels, mets, sweeps, seconds, fairness=fairness, remade=remade, final_arc=final_arc
-        )
+        return SpringResult(levels, mets, sweeps, seconds, fairness=fairness, remade=remade, **kept)
 
     res = run(False, fairness, max_iter, polish, progress)
     if tolerance is not None:
@@ -918,6 +939,7 @@ def resample_patch(
             # the rescue weighs its remakes against the grid of the thesis's relaxation (a
             # remade level 0 misses less but keeps the rescue from a finer, closer grid)
             res = run(False, fairness, max_iter, polish, None, fallback=False)
+        # area-balanced map, arc length only, one sweep per level
         kept, miss = _rescued(mesh, res, lambda: run(True, 0.0, 1, 0, None, fallback=False))
         # still missing: the same, finer (a protrusion inside the patch needs more grid lines)
         for extra in range(1, RESCUE_LEVELS + 1 if level is None else 1):
@@ -934,18 +956,20 @@ def resample_patch(
                 mesh, kept
             ):
                 kept, miss, finer = cand, c_miss, extra
+        if kept is res:
+            # neither remake nor a finer grid kept (they fold cells, or miss as much): the
+            # same grid with its final level's lines evened out along their paths in the map
+            # (the coarser levels and the fairness kept; evened after the fallback's
+            # arc-length retry, nefertiti's patch 4 keeps a folded cell, without it none)
+            kept, miss = _rescued(
+                mesh,
+                res,
+                lambda: run(False, fairness, max_iter, polish, None, fallback=False, even=True),
+                balanced=False,
+            )
     spent = time.perf_counter() - t
     seconds = {**kept.seconds, "rescue": spent, "total": first + spent}
-    return SpringResult(
-        kept.levels,
-        kept.metrics,
-        kept.sweeps,
-        seconds,
-        kept.rescued,
-        finer,
-        kept.fairness,
-        kept.remade,
-    )
+    return replace(kept, seconds=seconds, finer=finer)
 
 
 def resample_patches(
@@ -1009,23 +1033,22 @@ _PATCH_OPTIONS = frozenset(inspect.signature(resample_patch).parameters) - {"pat
 
 
 def _rescued(
-    mesh: Mesh, res: SpringResult, balanced: Callable[[], SpringResult]
+    mesh: Mesh, res: SpringResult, remake: Callable[[], SpringResult], *, balanced: bool = True
 ) -> tuple[SpringResult, tuple[float, float]]:
-    """``res``, or the ``balanced`` remake where ``res`` misses a vertex of its patch by more
-    than ``RESCUE_SPACINGS`` grid spacings and the remake misses by at most ``RESCUE_GAIN``
-    as much with no more folded cells; with the kept one's `_miss`."""
+    """``res``, or its ``remake`` where ``res`` misses a vertex of its patch by more than
+    ``RESCUE_SPACINGS`` grid spacings and the remake misses by at most ``RESCUE_GAIN`` as
+    much with no more folded cells; with the kept one's `_miss`. ``balanced``: the remake
+    is the area-balanced one (arc length alone), else ``res`` with its final level's lines
+    evened out in the map."""
     miss = _miss(mesh, res.final)
     if miss[0] > RESCUE_SPACINGS:
         # the grid misses part of its patch (a pleat or a bulge the map squeezes, which the
-        # relaxation pulls the grid lines away from): area-balanced map, arc length only,
-        # one sweep per level
-        alt = balanced()
+        # relaxation pulls the grid lines away from)
+        alt = remake()
         alt_miss = _miss(mesh, alt.final)
         if alt_miss[0] <= RESCUE_GAIN * miss[0] and _folds(mesh, alt) <= _folds(mesh, res):
-            alt = SpringResult(
-                alt.levels, alt.metrics, alt.sweeps, alt.seconds, rescued=True, fairness=0.0
-            )
-            return alt, alt_miss
+            fairness = 0.0 if balanced else alt.fairness
+            return replace(alt, rescued=True, fairness=fairness), alt_miss
     return res, miss
 
 
