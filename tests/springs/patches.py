@@ -220,3 +220,18 @@ def cut_patch(mesh: Mesh, center: int, radius: float, *, n: int = 240, index: in
     faces = np.flatnonzero(lab == lab[seed_face])
     corner_xyz = mesh.xyz(SurfacePoints(pts.face[:: n // 4], pts.bary[:: n // 4]))
     return _submesh_patch(cm, faces, corner_xyz, index)
+
+
+def spring_state(patch: Patch, spring):
+    """A building state (`meshfit.springs.state.State`) holding the points of ``spring``, a
+    spring mesh of ``patch`` without feature curves (one section each way)."""
+    from meshfit.springs.resample import _sides
+    from meshfit.springs.state import State
+
+    nu, nv = spring.shape
+    sides = _sides(patch)
+    breaks = {n: [0.0, float(sides.arcs[n][-1])] for n in sides.chains}
+    state = State(patch.mesh, 0, sides, [], [], breaks, [nu - 1], [nv - 1])
+    state.face = spring.points.face.copy()
+    state.bary = spring.points.bary.copy()
+    return state

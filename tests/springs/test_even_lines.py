@@ -19,18 +19,7 @@ from meshfit.springs.state import State
 from meshfit.types import SurfacePoints
 
 from ..conftest import ROOT, real_mesh
-from .patches import param_patch, plane_map
-
-
-def _state(patch, spring) -> State:
-    """A building state holding ``spring``'s points (one section each way)."""
-    nu, nv = spring.shape
-    sides = _sides(patch)
-    breaks = {n: [0.0, float(sides.arcs[n][-1])] for n in sides.chains}
-    state = State(patch.mesh, 0, sides, [], [], breaks, [nu - 1], [nv - 1])
-    state.face = spring.points.face.copy()
-    state.bary = spring.points.bary.copy()
-    return state
+from .patches import param_patch, plane_map, spring_state
 
 
 def _spring(state: State, like):
@@ -50,7 +39,7 @@ def test_a_flat_even_grid_stays_put():
     # and the relaxed grid is evenly spaced: evening moves no point
     patch = param_patch(plane_map(), 24, 24, jitter=0.0)
     spring = resample_patch(patch, level=1, metrics=False).final
-    state = _state(patch, spring)
+    state = spring_state(patch, spring)
     assert even_lines_in_map(state, square_map(patch.mesh, _sides(patch)))
     after = patch.mesh.xyz(SurfacePoints(state.face, state.bary)).reshape(spring.xyz.shape)
     assert_allclose(after, spring.xyz, rtol=0, atol=tol.length(patch.mesh, 1e-9))
@@ -62,7 +51,7 @@ def test_points_move_onto_a_bump_the_grid_steps_over():
     # and the largest distance to the patch drop, no cell folds, the sides stay
     patch = param_patch(_bump, 80, 40, jitter=0.2)
     spring = resample_patch(patch, metrics=False).final
-    state = _state(patch, spring)
+    state = spring_state(patch, spring)
     assert even_lines_in_map(state, square_map(patch.mesh, _sides(patch)))
     evened = _spring(state, spring)
     before = spring_metrics(patch.mesh, spring)
@@ -73,7 +62,7 @@ def test_points_move_onto_a_bump_the_grid_steps_over():
     fixed = ~(spring.kind == FREE)
     assert_allclose(evened.xyz[fixed], spring.xyz[fixed], rtol=0, atol=0)
     # more samples per interval measure the same arc lengths more finely: nearly the same grid
-    state = _state(patch, spring)
+    state = spring_state(patch, spring)
     even_lines_in_map(state, square_map(patch.mesh, _sides(patch)), samples=4 * LINE_SAMPLES)
     fine = _spring(state, spring)
     h = np.linalg.norm(np.diff(spring.xyz, axis=0), axis=2).mean()
@@ -83,7 +72,7 @@ def test_points_move_onto_a_bump_the_grid_steps_over():
 def test_nothing_to_even_without_a_map_or_with_feature_curves():
     patch = param_patch(plane_map(), 12, 12, jitter=0.0)
     spring = resample_patch(patch, level=0, metrics=False).final
-    state = _state(patch, spring)
+    state = spring_state(patch, spring)
     face, bary = state.face.copy(), state.bary.copy()
     assert not even_lines_in_map(state, None)
     state.u_feat = [object()]  # feature lines are placed along their curves, not evened

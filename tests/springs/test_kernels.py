@@ -215,20 +215,10 @@ def test_chord_positions_match_oracle(rng, rounds):
 
 def _plane_state():
     """The building state of a flat 2 x 1 patch's level-1 spring mesh (33 x 17 points)."""
-    from meshfit.springs.resample import _sides
-    from meshfit.springs.state import State
-
-    from .patches import plane_map
+    from .patches import plane_map, spring_state
 
     patch = param_patch(plane_map(), 24, 24, jitter=0.0)
-    sm = resample_patch(patch, level=1, metrics=False).final
-    nu, nv = sm.shape
-    sides = _sides(patch)
-    breaks = {n: [0.0, float(sides.arcs[n][-1])] for n in sides.chains}
-    state = State(patch.mesh, 0, sides, [], [], breaks, [nu - 1], [nv - 1])
-    state.face = sm.points.face.copy()
-    state.bary = sm.points.bary.copy()
-    return state
+    return spring_state(patch, resample_patch(patch, level=1, metrics=False).final)
 
 
 def test_side_points_slide_back_between_their_neighbours():
