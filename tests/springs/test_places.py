@@ -111,3 +111,22 @@ def test_springs_command_says_where_patches_miss(capsys):
     lines = [s for s in capsys.readouterr().out.splitlines() if s.startswith("patch ")]
     assert [s.split(":")[0] for s in lines] == ["patch 1", "patch 3"]
     assert all("worst inside the patch" in s for s in lines)
+
+
+def test_place_lines_point_a_grid_over_a_pleat_to_the_rescue():
+    from meshfit.springs.cli import _place_lines
+
+    places = {
+        "arc_cv": {"cv": 0.5, "points": [[17, 9], [17, 10]], "ratio": 3.0, "place": "interior"},
+        "folded": [],
+        "fidelity": {"distance": 0.011, "from": "patch", "grid_point": [16, 11]},
+    }
+    row = {"patch": 45, "arc_cv_max": 0.5, "folded": 0, "fidelity_max": 0.011}
+    row.update(aspect_median=1.3, places=places)
+    (line,) = _place_lines([{**row, "rescued": False}])
+    assert "steps over a pleat or a bulge (--rescue resamples such grids)" in line
+    (line,) = _place_lines([{**row, "rescued": True}])
+    assert line.endswith("steps over a pleat or a bulge")
+    far = {**places, "fidelity": {**places["fidelity"], "grid_point": [30, 30]}}
+    (line,) = _place_lines([{**row, "rescued": False, "places": far}])
+    assert "pleat" not in line and "--rescue" not in line

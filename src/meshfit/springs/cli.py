@@ -263,6 +263,7 @@ def _place_lines(rows: list[dict]) -> list[str]:
                 line += (
                     f", where the patch is farthest from the grid ({f['distance'] * 100:.3f}%): "
                     "the grid steps over a pleat or a bulge"
+                    + ("" if r["rescued"] else " (--rescue resamples such grids)")
                 )
             lines.append(line)
         if "folded" in over:
@@ -308,7 +309,8 @@ def add_commands(sub) -> None:
         action="store_true",
         help="resample again from an area-balanced map, lightly relaxed, where the spring "
         "mesh misses its patch by more than a grid spacing (a pleat, a squeezed bulge), and "
-        "up to two levels finer where that still misses (without --level)",
+        "up to two levels finer where that still misses (without --level); where neither "
+        "helps, even out the grid lines along their paths in the patch's map",
     )
     p.add_argument(
         "--tolerance",
