@@ -10,6 +10,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from meshfit import tol
+from meshfit.errors import InputError
 from meshfit.layout import extract_patches, load_layout
 from meshfit.springs import FREE, resample_patch, spring_metrics
 from meshfit.springs.planar import square_map
@@ -69,14 +70,18 @@ def test_points_move_onto_a_bump_the_grid_steps_over():
     assert np.linalg.norm(fine.xyz - evened.xyz, axis=2).max() < 0.25 * h
 
 
-def test_nothing_to_even_without_a_map_or_with_feature_curves():
+def test_nothing_to_even_without_a_map_or_with_feature_curves_and_bad_counts_raise():
     patch = param_patch(plane_map(), 12, 12, jitter=0.0)
     spring = resample_patch(patch, level=0, metrics=False).final
     state = spring_state(patch, spring)
     face, bary = state.face.copy(), state.bary.copy()
     assert not even_lines_in_map(state, None)
+    pmap = square_map(patch.mesh, _sides(patch))
+    for bad in ({"rounds": -1}, {"samples": 0}, {"samples": 2.5}):
+        with pytest.raises(InputError, match=next(iter(bad))):
+            even_lines_in_map(state, pmap, **bad)
     state.u_feat = [object()]  # feature lines are placed along their curves, not evened
-    assert not even_lines_in_map(state, square_map(patch.mesh, _sides(patch)))
+    assert not even_lines_in_map(state, pmap)
     assert (state.face == face).all() and (state.bary == bary).all()
 
 

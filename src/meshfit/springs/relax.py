@@ -6,6 +6,7 @@ import numpy as np
 
 from meshfit import tol
 from meshfit._kernels import springs as _k
+from meshfit.errors import InputError
 from meshfit.springs.grid import FREE
 from meshfit.springs.state import State
 
@@ -672,19 +673,29 @@ def even_lines_in_map(state: State, pmap, *, rounds: int = 1, samples: int | Non
     bool
         Whether the points moved.
 
+    Raises
+    ------
+    meshfit.errors.InputError
+        ``rounds`` below 0 or ``samples`` below 1.
+
     References
     ----------
     .. [1] Krishnamurthy 2000, sec. 5.5.1 (the arc-length force: equal spacing along each
        iso-curve) and sec. 5.5.3 (Euclidean springs cut across bulges and hollows).
     """
+    samples = LINE_SAMPLES if samples is None else samples
+    for name, value, least in (("rounds", rounds, 0), ("samples", samples, 1)):
+        if isinstance(value, bool) or int(value) != value or value < least:
+            raise InputError(
+                f"even_lines_in_map: {name} must be an integer >= {least}, got {value!r}"
+            )
     if pmap is None or state.u_feat or state.v_feat or min(state.nu, state.nv) < 3:
         return False
-    samples = LINE_SAMPLES if samples is None else int(samples)
     nu, nv = state.nu, state.nv
     uv = pmap.uv_of(state.face, state.bary).reshape(nu, nv, 2)
     for _ in range(int(rounds)):
-        _even_lines(pmap, uv, samples)  # the lines along u (rows i = 0 .. nu - 1)
-        _even_lines(pmap, uv.transpose(1, 0, 2), samples)
+        _even_lines(pmap, uv, int(samples))  # the lines along u (rows i = 0 .. nu - 1)
+        _even_lines(pmap, uv.transpose(1, 0, 2), int(samples))
     free = (state.kind() == FREE).ravel()
     pts = pmap.locate(uv.reshape(-1, 2)[free])
     state.face[free] = pts.face

@@ -965,7 +965,6 @@ def resample_patch(
                 mesh,
                 res,
                 lambda: run(False, fairness, max_iter, polish, None, fallback=False, even=True),
-                balanced=False,
             )
     spent = time.perf_counter() - t
     seconds = {**kept.seconds, "rescue": spent, "total": first + spent}
@@ -1033,13 +1032,11 @@ _PATCH_OPTIONS = frozenset(inspect.signature(resample_patch).parameters) - {"pat
 
 
 def _rescued(
-    mesh: Mesh, res: SpringResult, remake: Callable[[], SpringResult], *, balanced: bool = True
+    mesh: Mesh, res: SpringResult, remake: Callable[[], SpringResult]
 ) -> tuple[SpringResult, tuple[float, float]]:
-    """``res``, or its ``remake`` where ``res`` misses a vertex of its patch by more than
-    ``RESCUE_SPACINGS`` grid spacings and the remake misses by at most ``RESCUE_GAIN`` as
-    much with no more folded cells; with the kept one's `_miss`. ``balanced``: the remake
-    is the area-balanced one (arc length alone), else ``res`` with its final level's lines
-    evened out in the map."""
+    """``res``, or its ``remake`` (marked rescued) where ``res`` misses a vertex of its patch
+    by more than ``RESCUE_SPACINGS`` grid spacings and the remake misses by at most
+    ``RESCUE_GAIN`` as much with no more folded cells; with the kept one's `_miss`."""
     miss = _miss(mesh, res.final)
     if miss[0] > RESCUE_SPACINGS:
         # the grid misses part of its patch (a pleat or a bulge the map squeezes, which the
@@ -1047,8 +1044,7 @@ def _rescued(
         alt = remake()
         alt_miss = _miss(mesh, alt.final)
         if alt_miss[0] <= RESCUE_GAIN * miss[0] and _folds(mesh, alt) <= _folds(mesh, res):
-            fairness = 0.0 if balanced else alt.fairness
-            return replace(alt, rescued=True, fairness=fairness), alt_miss
+            return replace(alt, rescued=True), alt_miss
     return res, miss
 
 
