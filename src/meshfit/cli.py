@@ -47,8 +47,25 @@ def _fmt(v) -> str:
     return str(v)
 
 
-def print_table(title: str, data: dict) -> None:
+#: line width of the tables printed to a file or a pipe (unless ``COLUMNS`` is set): wide
+#: enough that no figure is cut short
+PIPE_COLUMNS = 160
+
+
+def console():
+    """A rich console for stdout: the terminal's width, or `PIPE_COLUMNS` when stdout is
+    not a terminal (rich would take 80 columns and wrap or cut the tables' cells)."""
+    import os
+
     from rich.console import Console
+
+    out = Console()
+    if not out.is_terminal and not os.environ.get("COLUMNS"):
+        out = Console(width=PIPE_COLUMNS)
+    return out
+
+
+def print_table(title: str, data: dict) -> None:
     from rich.table import Table
 
     table = Table(title=title, show_header=False, title_justify="left")
@@ -58,7 +75,7 @@ def print_table(title: str, data: dict) -> None:
         if k in ("findings", "notes"):
             continue
         table.add_row(k.replace("_", " "), _fmt(v))
-    Console().print(table)
+    console().print(table)
 
 
 def cmd_info(args: argparse.Namespace) -> int:

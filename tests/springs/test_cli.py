@@ -60,6 +60,28 @@ def test_springs_command_prints_tables(capsys):
     assert "median aspect above 1.5" in text and "!" in text
 
 
+@pytest.mark.parametrize("columns", [None, "72"])
+def test_springs_table_keeps_every_figure_whole(columns, capsys, monkeypatch):
+    # printed to a pipe (80 columns by default) or a narrow terminal, the table once cut its
+    # figures short ("0.48…"): they keep their width, the notes wrap or drop out instead
+    if columns is None:
+        monkeypatch.delenv("COLUMNS", raising=False)
+    else:
+        monkeypatch.setenv("COLUMNS", columns)
+    layout = ROOT / "examples" / "layouts" / "spot.json"
+    assert main(["springs", str(mesh_path("spot")), "--layout", str(layout)]) == 0
+    text = capsys.readouterr().out
+    assert "…" not in text
+    head = next(line for line in text.splitlines() if "fidelity %" in line)
+    assert head.split()[:3] == ["patch", "verts", "grid"]
+    rows = {int(w[0]): w for w in (ln.split() for ln in text.splitlines()) if w[:1] == ["1"]}
+    row = rows[1]  # spot's patch 1: over the arc-length, aspect and fidelity bounds
+    assert [c.endswith("!") for c in row[4:8]] == [True, True, False, True]
+    assert float(row[4].rstrip("!")) > 0.15 and row[2].count("x") == 1
+    if columns is None:  # a pipe: the whole line, notes included
+        assert "last level arc length" in " ".join(row[8:])
+
+
 def test_springs_json_summary_lists_the_patches_over_each_bound(capsys):
     from meshfit.springs import QUALITY_BOUNDS
 

@@ -200,22 +200,29 @@ def _print_patches(rows: list[dict]) -> None:
     """One row per patch (the rest of each patch's figures are in ``--json``); a value above
     its quality bound is marked ``!`` (and red)."""
     from rich import box
-    from rich.console import Console
     from rich.table import Table
 
+    from meshfit.cli import console
     from meshfit.springs.metrics import out_of_bounds
 
     table = Table(title="spring meshes", title_justify="left", box=box.SIMPLE_HEAD)
-    for _, head, _ in _COLUMNS:
-        table.add_column(head, justify="right", no_wrap=True)
-    table.add_column("notes", no_wrap=True)
+    texts = []  # (text, over its bound) per figure cell
     for r in rows:
         over = set(out_of_bounds(r))
-        cells = []
-        for key, _, fmt in _COLUMNS:
-            v = r[key] * 100 if key == "fidelity_max" else r[key]
-            text = fmt.format(v)
-            cells.append(f"[red]{text}![/]" if key in over else text)
+        texts.append(
+            [
+                (fmt.format(r[key] * 100 if key == "fidelity_max" else r[key]), key in over)
+                for key, _, fmt in _COLUMNS
+            ]
+        )
+    # the figures keep their full width on a narrow terminal (or piped output, 80 columns):
+    # the notes wrap instead
+    for c, (_, head, _) in enumerate(_COLUMNS):
+        width = max([len(head)] + [len(t[c][0]) + t[c][1] for t in texts])
+        table.add_column(head, justify="right", no_wrap=True, min_width=width)
+    table.add_column("notes", overflow="fold")
+    for r, row in zip(rows, texts, strict=True):
+        cells = [f"[red]{text}![/]" if over else text for text, over in row]
         notes = []
         if r["rescued"]:
             notes.append("rescued, lines evened" if r["evened"] else "rescued")
@@ -228,7 +235,7 @@ def _print_patches(rows: list[dict]) -> None:
         if r["tolerance_met"] is False:
             notes.append("over tolerance")
         table.add_row(*cells, ", ".join(notes))
-    Console().print(table)
+    console().print(table)
 
 
 #: `meshfit.springs.metrics.worst_places` places in words
