@@ -1167,7 +1167,7 @@ FAR_INPUT = 0.01
 
 def _quality_notes(rows: list[dict]) -> list[str]:
     """Warnings about patches whose spring mesh cannot be trusted."""
-    from meshfit.layout.patch import bulge_notes, taper_notes
+    from meshfit.layout.patch import bulge_notes, corner_notes, taper_notes
 
     notes = []
     far = {
@@ -1192,6 +1192,9 @@ def _quality_notes(rows: list[dict]) -> list[str]:
         )
     notes.extend(bulge_notes({r["patch"]: r["bulge"] for r in rows if "bulge" in r}))
     notes.extend(taper_notes({r["patch"]: r["taper"] for r in rows if "taper" in r}))
+    notes.extend(
+        corner_notes({r["patch"]: r["corner_angles"] for r in rows if "corner_angles" in r})
+    )
     finer = {r["patch"]: r["finer"] for r in rows if r.get("finer", 0)}
     if finer:
         notes.append(
@@ -1240,6 +1243,7 @@ def spring_patch(patch, *, level=None, max_points=None, rescue=True):
         "patch_faces": int(patch.mesh.n_faces),
         "bulge": round(patch.bulge, 3),
         "taper": round(patch.taper, 3),
+        "corner_angles": [round(float(a), 1) for a in patch.corner_angles],
     }
 
 

@@ -577,3 +577,40 @@ def test_taper_is_the_ratio_of_opposite_sides_and_warns_above_tapered():
     rows = [{"patch": 0, "bulge": 5.0, "taper": 5.0}, {"patch": 1, "bulge": 1.0, "taper": 1.0}]
     notes = patch_notes(rows)
     assert len(notes) == 2 and "bulges" in notes[0] and "tapers" in notes[1]
+    rows[1]["corner_angles"] = [90.0, 200.0, 90.0, 80.0]
+    notes = patch_notes(rows)
+    assert len(notes) == 3 and "patch 1: 200 degrees at corner 1" in notes[2]
+
+
+def test_corner_angles_are_the_patch_angles_at_its_corners():
+    from meshfit.layout.patch import REFLEX, corner_notes
+
+    # a flat trapezoid 5 wide at the bottom, 1 at the top, 1 high: atan(1 / 2) at the bottom
+    low = np.degrees(np.arctan2(1.0, 2.0))
+    assert_allclose(_trapezoid_patch(5.0, 1.0).corner_angles, [low, low, 180 - low, 180 - low])
+    assert_allclose(_trapezoid_patch(1.0, 1.0).corner_angles, 90.0)
+    assert corner_notes({0: [90.0] * 4, 1: [REFLEX, 60.0, 60.0, 60.0]}) == []
+    (note,) = corner_notes({4: [90.0, 90.0, 90.0, 190.0], 2: [234.0, 60.0, 60.0, 80.0]})
+    assert note.startswith("2 patches turn back at a corner")
+    assert note.index("patch 2: 234 degrees at corner 0") < note.index("patch 4: 190 degrees")
+
+
+@pytest.mark.slow
+def test_the_reflex_corners_of_the_test_layouts():
+    """One corner of the four test layouts turns back inside its patch in each nefertiti
+    layout (`REFLEX`; nefertiti's patch 20, whose least even grid line is at that corner)."""
+    from meshfit.layout.patch import REFLEX
+
+    for name, mesh, want in (
+        ("nefertiti", "nefertiti", {20: 3}),
+        ("nefertiti_bust", "nefertiti", {27: 2}),
+        ("igea", "igea", {}),
+        ("spot", "spot", {}),
+    ):
+        m = real_mesh(mesh)
+        patches = extract_patches(m, load_layout(LAYOUTS / f"{name}.json", m))
+        angles = {p.index: p.corner_angles for p in patches}
+        got = {k: int(np.argmax(a)) for k, a in angles.items() if a.max() > REFLEX}
+        assert got == want, name
+        for a in angles.values():  # around a corner the patches' angles add up to a turn
+            assert (a > 0).all() and (a < 360).all()

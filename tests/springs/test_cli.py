@@ -29,6 +29,7 @@ def test_springs_command_writes_grids_and_prints_metrics(tmp_path, capsys):
         "aspect_median",
         "folded",
         "fidelity_max",
+        "corner_angles",
     ):
         assert key in row
     assert row["level"] == 2

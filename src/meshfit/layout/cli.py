@@ -71,12 +71,14 @@ def cmd_layout(args: argparse.Namespace) -> int:
                 "features": [list(fs) for fs in p.feature_sides],
                 "bulge": round(p.bulge, 3),
                 "taper": round(p.taper, 3),
+                "corner_angles": [round(float(a), 1) for a in p.corner_angles],
             }
             for p in patches
         ],
     }
     summary["bulge_max"] = max(r["bulge"] for r in summary["per_patch"])
     summary["taper_max"] = max(r["taper"] for r in summary["per_patch"])
+    summary["corner_angle_max"] = max(max(r["corner_angles"]) for r in summary["per_patch"])
     summary["notes"] = patch_notes(summary["per_patch"])
     if args.json:
         print_json(summary)

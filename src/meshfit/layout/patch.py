@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -14,9 +15,11 @@ from meshfit.types import SurfaceCurve, SurfacePoints, _readonly
 
 __all__ = [
     "BULGY",
+    "REFLEX",
     "TAPERED",
     "Patch",
     "bulge_notes",
+    "corner_notes",
     "loop_bulge",
     "patch_notes",
     "sides_taper",
@@ -37,6 +40,18 @@ BULGY = 3.0
 #: head: patches 0-3 at 5.0-6.9, arc-length CV 0.25-0.55; every other patch of the three test
 #: layouts is below 3.5)
 TAPERED = 4.0
+
+
+#: a patch whose angle at a corner (:attr:`Patch.corner_angles`) exceeds this many degrees
+#: turns back on itself there (a reflex corner, where three patches meet on a curved surface
+#: and one takes more than half the turn): no grid cell at that corner is convex, so the
+#: spring mesh squeezes or folds there (nefertiti's test layout, patch 20's corner 3 at 192
+#: degrees: its least even grid line, arc-length CV 0.172, is at that corner; bunny's
+#: automatic layout, patches 0 and 20 at 234 and 221 degrees at corner 1: the cell there
+#: folds in its triangle of three side points, which no repair moves). Every other corner of
+#: the four test layouts but nefertiti_bust's patch 27 (222 degrees, at corner 2: it meets the
+#: bounds) is between 17 and 160 degrees.
+REFLEX = 180.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,6 +144,24 @@ class Patch:
         return sides_taper(
             [float(np.linalg.norm(np.diff(V[s], axis=0), axis=1).sum()) for s in self.sides]
         )
+
+    @cached_property
+    def corner_angles(self) -> NDArray[np.float64]:
+        """(4,) float64: the patch's angle at each corner, degrees (the sum of its faces'
+        angles there): 90 on a flat square, above `REFLEX` where the boundary turns back on
+        itself (move the corner)."""
+        V, F = self.mesh.vertices, self.mesh.faces
+        indptr, vf = self.mesh.vertex_faces
+        out = np.zeros(4)
+        for k, c in enumerate(self.corners.tolist()):
+            faces = vf[indptr[c] : indptr[c + 1]]
+            slot = np.argmax(F[faces] == c, axis=1)
+            a = V[F[faces, (slot + 1) % 3]] - V[c]
+            b = V[F[faces, (slot + 2) % 3]] - V[c]
+            den = np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1)
+            cos = np.einsum("ij,ij->i", a, b) / np.where(den > 0, den, 1.0)
+            out[k] = float(np.degrees(np.arccos(np.clip(cos[den > 0], -1.0, 1.0))).sum())
+        return _readonly(out)
 
     @property
     def boundary(self) -> NDArray[np.int64]:
@@ -229,6 +262,36 @@ def taper_notes(taper: dict[int, float]) -> list[str]:
     )
 
 
+def corner_notes(angles: dict[int, Sequence[float]]) -> list[str]:
+    """The warning of a fit or a layout check about reflex corners.
+
+    Parameters
+    ----------
+    angles : dict of int to sequence of float
+        Patch index -> :attr:`Patch.corner_angles` (degrees, corners 0-3).
+
+    Returns
+    -------
+    list of str
+        One note naming the patches with a corner above `REFLEX`, largest angle first (at
+        most five, with the corner), with what to do; empty when there is none.
+    """
+    big = sorted(
+        ((p, int(np.argmax(a)), float(np.max(a))) for p, a in angles.items() if max(a) > REFLEX),
+        key=lambda t: -t[2],
+    )
+    if not big:
+        return []
+    one = len(big) == 1
+    named = ", ".join(f"patch {p}: {a:.0f} degrees at corner {c}" for p, c, a in big[:5])
+    return [
+        f"{len(big)} patch{'' if one else 'es'} turn{'s' if one else ''} back at a corner, "
+        f"over {REFLEX:g} degrees inside the patch ({named}): the grid cell there cannot be "
+        "convex, and the grid may squeeze or fold at that corner; move the corner so that the "
+        "patches meeting there share the turn"
+    ]
+
+
 def _ranked_note(values: dict[int, float], bound: float, text) -> list[str]:
     """One note naming the patches whose value exceeds ``bound``, largest first (at most
     five, as ``patch i: v``), worded by ``text(count, single)`` with a ``{patches}`` slot;
@@ -241,8 +304,10 @@ def _ranked_note(values: dict[int, float], bound: float, text) -> list[str]:
 
 
 def patch_notes(rows: list[dict]) -> list[str]:
-    """`bulge_notes` and `taper_notes` of per-patch rows with ``patch``, ``bulge`` and
-    ``taper`` keys."""
-    return bulge_notes({r["patch"]: r["bulge"] for r in rows}) + taper_notes(
-        {r["patch"]: r["taper"] for r in rows}
+    """`bulge_notes`, `taper_notes` and `corner_notes` of per-patch rows with ``patch``,
+    ``bulge``, ``taper`` and ``corner_angles`` keys."""
+    return (
+        bulge_notes({r["patch"]: r["bulge"] for r in rows})
+        + taper_notes({r["patch"]: r["taper"] for r in rows})
+        + corner_notes({r["patch"]: r["corner_angles"] for r in rows if "corner_angles" in r})
     )

@@ -107,6 +107,7 @@ def cmd_springs(args: argparse.Namespace) -> int:
             "final_arc": bool(res.final_arc),
             "bulge": round(patch.bulge, 3),
             "taper": round(patch.taper, 3),
+            "corner_angles": [round(float(a), 1) for a in patch.corner_angles],
             **{k: v for k, v in met.items() if k not in ("nu", "nv")},
         }
         if out_of_bounds(met):  # where to look: the worst spacing, the folds, the distance
