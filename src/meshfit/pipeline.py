@@ -1167,7 +1167,7 @@ FAR_INPUT = 0.01
 
 def _quality_notes(rows: list[dict]) -> list[str]:
     """Warnings about patches whose spring mesh cannot be trusted."""
-    from meshfit.layout.patch import bulge_notes, corner_notes, taper_notes
+    from meshfit.layout.patch import patch_notes
 
     notes = []
     far = {
@@ -1190,11 +1190,7 @@ def _quality_notes(rows: list[dict]) -> list[str]:
             f"spring meshes with collapsed (zero-area) cells in patches {collapsed}: their "
             "fit does not cover the whole patch; split those patches in the layout"
         )
-    notes.extend(bulge_notes({r["patch"]: r["bulge"] for r in rows if "bulge" in r}))
-    notes.extend(taper_notes({r["patch"]: r["taper"] for r in rows if "taper" in r}))
-    notes.extend(
-        corner_notes({r["patch"]: r["corner_angles"] for r in rows if "corner_angles" in r})
-    )
+    notes.extend(patch_notes(rows))
     finer = {r["patch"]: r["finer"] for r in rows if r.get("finer", 0)}
     if finer:
         notes.append(
@@ -1217,6 +1213,7 @@ def spring_patch(patch, *, level=None, max_points=None, rescue=True):
     level's :func:`meshfit.springs.spring_metrics` (without fidelity) and every level's
     folded cells (the same test, by the fold kernel alone)."""
     from meshfit._kernels.springs import folded_cells
+    from meshfit.layout.patch import shape_figures
     from meshfit.springs import resample_patch, spring_metrics
 
     t = time.perf_counter()
@@ -1241,9 +1238,7 @@ def spring_patch(patch, *, level=None, max_points=None, rescue=True):
         "finer": int(res.finer),
         "seconds": round(time.perf_counter() - t, 4),
         "patch_faces": int(patch.mesh.n_faces),
-        "bulge": round(patch.bulge, 3),
-        "taper": round(patch.taper, 3),
-        "corner_angles": [round(float(a), 1) for a in patch.corner_angles],
+        **shape_figures(patch),
     }
 
 

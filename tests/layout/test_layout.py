@@ -597,8 +597,9 @@ def test_corner_angles_are_the_patch_angles_at_its_corners():
 
 @pytest.mark.slow
 def test_the_reflex_corners_of_the_test_layouts():
-    """One corner of the four test layouts turns back inside its patch in each nefertiti
-    layout (`REFLEX`; nefertiti's patch 20, whose least even grid line is at that corner)."""
+    """Each nefertiti test layout has one corner that turns back inside its patch
+    (`REFLEX`; on the cube layout patch 20's, where its least even grid line is); igea's and
+    spot's have none."""
     from meshfit.layout.patch import REFLEX
 
     for name, mesh, want in (
@@ -612,5 +613,5 @@ def test_the_reflex_corners_of_the_test_layouts():
         angles = {p.index: p.corner_angles for p in patches}
         got = {k: int(np.argmax(a)) for k, a in angles.items() if a.max() > REFLEX}
         assert got == want, name
-        for a in angles.values():  # around a corner the patches' angles add up to a turn
+        for a in angles.values():  # every patch is a disk: no corner angle is a full turn
             assert (a > 0).all() and (a < 360).all()

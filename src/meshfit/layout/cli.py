@@ -29,7 +29,7 @@ def add_commands(sub) -> None:
 def cmd_layout(args: argparse.Namespace) -> int:
     from meshfit.cli import print_json, print_table
     from meshfit.layout import extract_patches, load_layout
-    from meshfit.layout.patch import patch_notes
+    from meshfit.layout.patch import patch_notes, shape_figures
     from meshfit.mesh import load_mesh
 
     mesh = load_mesh(args.mesh)
@@ -69,9 +69,7 @@ def cmd_layout(args: argparse.Namespace) -> int:
                 "vertices": p.mesh.n_vertices,
                 "side_vertices": [int(s.size) for s in p.sides],
                 "features": [list(fs) for fs in p.feature_sides],
-                "bulge": round(p.bulge, 3),
-                "taper": round(p.taper, 3),
-                "corner_angles": [round(float(a), 1) for a in p.corner_angles],
+                **shape_figures(p),
             }
             for p in patches
         ],

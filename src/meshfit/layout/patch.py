@@ -22,6 +22,7 @@ __all__ = [
     "corner_notes",
     "loop_bulge",
     "patch_notes",
+    "shape_figures",
     "sides_taper",
     "taper_notes",
 ]
@@ -303,11 +304,37 @@ def _ranked_note(values: dict[int, float], bound: float, text) -> list[str]:
     return [text(len(big), len(big) == 1).replace("{patches}", named)]
 
 
+def shape_figures(patch: Patch) -> dict:
+    """The figures of a patch's shape that `patch_notes` warns about, rounded for a report.
+
+    Parameters
+    ----------
+    patch : Patch
+        One patch of a layout.
+
+    Returns
+    -------
+    dict
+        ``bulge`` (:attr:`Patch.bulge`, 3 decimals), ``taper`` (:attr:`Patch.taper`, 3
+        decimals) and ``corner_angles`` (:attr:`Patch.corner_angles`, a list of four floats in
+        degrees, 1 decimal).
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 5.1 (parametric distortion of a patch's spring mesh).
+    """
+    return {
+        "bulge": round(patch.bulge, 3),
+        "taper": round(patch.taper, 3),
+        "corner_angles": [round(float(a), 1) for a in patch.corner_angles],
+    }
+
+
 def patch_notes(rows: list[dict]) -> list[str]:
-    """`bulge_notes`, `taper_notes` and `corner_notes` of per-patch rows with ``patch``,
-    ``bulge``, ``taper`` and ``corner_angles`` keys."""
-    return (
-        bulge_notes({r["patch"]: r["bulge"] for r in rows})
-        + taper_notes({r["patch"]: r["taper"] for r in rows})
-        + corner_notes({r["patch"]: r["corner_angles"] for r in rows if "corner_angles" in r})
-    )
+    """`bulge_notes`, `taper_notes` and `corner_notes` of per-patch rows with a ``patch`` key
+    and the `shape_figures` keys (rows without one of those are left out of its note)."""
+
+    def of(key: str) -> dict:
+        return {r["patch"]: r[key] for r in rows if key in r}
+
+    return bulge_notes(of("bulge")) + taper_notes(of("taper")) + corner_notes(of("corner_angles"))

@@ -66,6 +66,7 @@ def cmd_springs(args: argparse.Namespace) -> int:
     from meshfit._threads import map_threads, n_workers
     from meshfit.cli import EXIT_OK, print_json, print_table
     from meshfit.layout import extract_patches, load_layout
+    from meshfit.layout.patch import shape_figures
     from meshfit.mesh import load_mesh
     from meshfit.springs import resample_patch, spring_metrics
     from meshfit.springs.metrics import out_of_bounds
@@ -105,9 +106,7 @@ def cmd_springs(args: argparse.Namespace) -> int:
             "remade": bool(res.remade),
             "fairness": res.fairness,
             "final_arc": bool(res.final_arc),
-            "bulge": round(patch.bulge, 3),
-            "taper": round(patch.taper, 3),
-            "corner_angles": [round(float(a), 1) for a in patch.corner_angles],
+            **shape_figures(patch),
             **{k: v for k, v in met.items() if k not in ("nu", "nv")},
         }
         if out_of_bounds(met):  # where to look: the worst spacing, the folds, the distance
