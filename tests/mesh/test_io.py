@@ -454,29 +454,95 @@ def _shoelace(xy):
     return 0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=errors.MeshFileError,
-    reason="trimesh 5.2 reads binary PLY face lists only when every face has the "
-    "same corner count (documented in trimesh.exchange.ply); meshfit "
-    "reports such files as unreadable",
-)
+def ply_binary_general(
+    vertices, faces, *, order="<", colors=None, normals=False, face_tail=False, count="B"
+) -> bytes:
+    """Binary PLY with optional RGBA colours and normals per vertex, a scalar face property
+    after the index list (``face_tail``) and the list count type ``count`` (struct code)."""
+    fmt = "binary_little_endian" if order == "<" else "binary_big_endian"
+    ctype = {"B": "uchar", "i": "int", "H": "ushort"}[count]
+    head = f"ply\nformat {fmt} 1.0\nelement vertex {len(vertices)}\n"
+    head += "property double x\nproperty double y\nproperty double z\n"
+    if normals:
+        head += "property float nx\nproperty float ny\nproperty float nz\n"
+    if colors is not None:
+        head += "".join(f"property uchar {c}\n" for c in ("red", "green", "blue", "alpha"))
+    head += f"element face {len(faces)}\nproperty list {ctype} uint vertex_indices\n"
+    if face_tail:
+        head += "property float quality\n"
+    head += "end_header\n"
+    out = bytearray(head.encode())
+    for i, v in enumerate(vertices):
+        out += struct.pack(f"{order}3d", *(float(x) for x in v))
+        if normals:
+            out += struct.pack(f"{order}3f", 0.0, 0.0, 1.0)
+        if colors is not None:
+            out += struct.pack("4B", *colors[i])
+    for k, f in enumerate(faces):
+        out += struct.pack(f"{order}{count}", len(f)) + struct.pack(f"{order}{len(f)}I", *f)
+        if face_tail:
+            out += struct.pack(f"{order}f", 0.5 * k)
+    return bytes(out)
+
+
+MIXED_V = [*PENTAGON_V, [0.5, -1, 0]]
+MIXED_F = [[0, 5, 1], [0, 1, 2, 3, 4]]
+
+
 def test_binary_ply_with_mixed_polygon_sizes(tmp_path):
-    p = write(
-        tmp_path, "m.ply", ply_binary([*PENTAGON_V, [0.5, -1, 0]], [[0, 5, 1], [0, 1, 2, 3, 4]])
-    )
-    assert load_mesh(p).n_faces == 4
+    # trimesh reads binary PLY faces of one corner count only: meshfit reads the rest
+    p = write(tmp_path, "m.ply", ply_binary(MIXED_V, MIXED_F))
+    raw = read_mesh_arrays(p)
+    assert raw.notes == ["triangulated 1 polygon faces into 4 triangles"]
+    assert_array_equal(raw.faces, [[0, 5, 1], [0, 1, 2], [0, 2, 3], [0, 3, 4]])
+    assert_allclose(raw.vertices, MIXED_V)
+    mesh = load_mesh(p)
+    assert mesh.n_faces == 4
+    assert_allclose(mesh.area, _polygon_area(mesh.vertices[:, :2], "mixed"), rtol=1e-12)
 
 
-def test_binary_ply_with_mixed_polygon_sizes_is_reported_as_unreadable(tmp_path, capsys):
-    p = write(
-        tmp_path, "m.ply", ply_binary([*PENTAGON_V, [0.5, -1, 0]], [[0, 5, 1], [0, 1, 2, 3, 4]])
+@pytest.mark.parametrize("order", ["<", ">"])
+@pytest.mark.parametrize("count", ["B", "i", "H"])
+def test_binary_ply_with_mixed_polygons_other_layouts(tmp_path, order, count):
+    # both byte orders, wider list counts, extra vertex and face properties, RGBA colours:
+    # the same arrays as the ASCII file of the same mesh
+    colors = [[10 * i, 20, 30, 255 - i] for i in range(len(MIXED_V))]
+    data = ply_binary_general(
+        MIXED_V, MIXED_F, order=order, colors=colors, normals=True, face_tail=True, count=count
     )
-    with pytest.raises(errors.MeshFileError, match="different corner counts"):
+    raw = read_mesh_arrays(write(tmp_path, "m.ply", data))
+    ascii_raw = read_mesh_arrays(write(tmp_path, "a.ply", ply_ascii(MIXED_V, MIXED_F)))
+    assert_array_equal(raw.faces, ascii_raw.faces)
+    assert_allclose(raw.vertices, ascii_raw.vertices, rtol=0, atol=0)
+    assert raw.vertex_colors.dtype == np.uint8
+    assert_array_equal(raw.vertex_colors, colors)
+    assert raw.notes == ascii_raw.notes
+
+
+def test_binary_ply_with_mixed_polygons_cut_short_names_the_face(tmp_path):
+    data = ply_binary(MIXED_V, [*MIXED_F, [1, 2, 3, 4], [0, 1, 2]])
+    # long enough for four triangles (the size check), cut inside the last face
+    p = write(tmp_path, "m.ply", data[:-5])
+    with pytest.raises(errors.MeshFileError, match=r"truncated binary PLY.*ends in face 3 of 4"):
+        load_mesh(p)
+
+
+def test_binary_ply_with_mixed_polygons_and_a_two_corner_face(tmp_path):
+    p = write(tmp_path, "m.ply", ply_binary(MIXED_V, [*MIXED_F, [1, 2]]))
+    with pytest.raises(errors.MeshFileError, match="face 2 has 2 corners"):
+        load_mesh(p)
+
+
+def test_corrupt_binary_ply_is_reported_as_unreadable(tmp_path, capsys):
+    # a face list whose count runs past the end of the file
+    data = bytearray(ply_binary(MIXED_V, MIXED_F))
+    data[-5 * 4 - 1] = 200  # the pentagon's corner count
+    p = write(tmp_path, "m.ply", bytes(data))
+    with pytest.raises(errors.MeshFileError, match="binary PLY"):
         load_mesh(p)
     rc, _out, err = run_info(capsys, str(p))
     assert rc == 2
-    assert_one_error_line(err, "cannot read binary PLY")
+    assert_one_error_line(err, "binary PLY")
 
 
 def test_face_with_two_corners_is_an_error(tmp_path):

@@ -2,9 +2,10 @@
 
 PLY, STL and GLB/glTF are read through trimesh with ``process=False``; OBJ and OFF by small
 readers here (trimesh drops unreferenced OBJ vertices, splits them along UV seams and
-silently drops truncated OFF faces). Vertices are never merged or reordered; polygons are
-triangulated (fans), vertex colours are kept. Truncated and unreadable files raise
-:class:`meshfit.errors.MeshFileError`.
+silently drops truncated OFF faces), and binary PLY whose faces have different corner counts
+too (trimesh reads binary PLY faces of one corner count only). Vertices are never merged or
+reordered; polygons are triangulated (fans), vertex colours are kept. Truncated and
+unreadable files raise :class:`meshfit.errors.MeshFileError`.
 """
 
 from __future__ import annotations
@@ -171,6 +172,168 @@ def _ply_binary_min_size(header: _PlyHeader) -> int:
                 per += _PLY_SIZES.get(ct, 0) + (3 * _PLY_SIZES.get(typ, 0) if name == "face" else 0)
         total += count * per
     return total
+
+
+_PLY_NUMPY = {
+    "char": "i1",
+    "int8": "i1",
+    "uchar": "u1",
+    "uint8": "u1",
+    "short": "i2",
+    "int16": "i2",
+    "ushort": "u2",
+    "uint16": "u2",
+    "int": "i4",
+    "int32": "i4",
+    "uint": "u4",
+    "uint32": "u4",
+    "float": "f4",
+    "float32": "f4",
+    "double": "f8",
+    "float64": "f8",
+}
+
+#: vertex colour properties of a PLY file, in RGBA order
+_PLY_COLORS = ("red", "green", "blue", "alpha")
+
+
+def _ply_rows(buf: bytes, pos: int, count: int, props, order: str, what: str, path: Path):
+    """Read ``count`` rows of a binary PLY element from ``buf`` at ``pos``.
+
+    Returns ``(columns, pos)``: scalar properties as arrays, list properties as
+    ``(sizes, flat items)``, and the offset after the element. Rows of scalar properties only
+    are read at once; rows with a list property (faces with different corner counts) one by
+    one. Raises MeshFileError naming the row where the data ends.
+    """
+    for _, typ, ct in props:
+        if typ not in _PLY_NUMPY or (ct is not None and ct not in _PLY_NUMPY):
+            raise errors.MeshFileError(
+                f"{path}: cannot read binary PLY: unknown property type in element {what}"
+            )
+    if all(ct is None for _, _, ct in props):
+        dt = np.dtype([(name, order + _PLY_NUMPY[typ]) for name, typ, _ in props])
+        end = pos + count * dt.itemsize
+        if end > len(buf):
+            done = (len(buf) - pos) // max(dt.itemsize, 1)
+            raise errors.MeshFileError(
+                f"{path}: truncated binary PLY: the file ends in {what} {done} of {count}"
+            )
+        rows = np.frombuffer(buf, dtype=dt, count=count, offset=pos)
+        return {name: rows[name] for name, _, _ in props}, end
+    # offsets row by row (each list's count decides where the next property starts), then
+    # every property gathered at its offsets at once
+    byteorder = "little" if order == "<" else "big"
+    kinds = []
+    for _, typ, ct in props:
+        item = np.dtype(order + _PLY_NUMPY[typ])
+        if ct is None:
+            kinds.append((item.itemsize, 0, False))
+        else:
+            cnt = np.dtype(_PLY_NUMPY[ct])
+            kinds.append((item.itemsize, cnt.itemsize, cnt.kind == "i"))
+    starts: list[list[int]] = [[] for _ in props]
+    sizes: list[list[int]] = [[] for _ in props]
+    n = len(buf)
+    if kinds == [(kinds[0][0], 1, False)]:  # the usual face row: a uchar count, the indices
+        size, at, m_of = kinds[0][0], starts[0], sizes[0]
+        for row in range(count):
+            if pos >= n:
+                raise errors.MeshFileError(
+                    f"{path}: truncated binary PLY: the file ends in {what} {row} of {count}"
+                )
+            m = buf[pos]
+            m_of.append(m)
+            at.append(pos + 1)
+            pos += 1 + m * size
+        if pos > n:
+            raise errors.MeshFileError(
+                f"{path}: truncated binary PLY: the file ends in {what} {count - 1} of {count}"
+            )
+        count = 0  # done: gather below
+    for row in range(count):
+        for k, (size, csize, signed) in enumerate(kinds):
+            if csize:
+                if pos + csize > n:
+                    break
+                m = int.from_bytes(buf[pos : pos + csize], byteorder, signed=signed)
+                pos += csize
+                if m < 0:
+                    raise errors.MeshFileError(
+                        f"{path}: cannot read binary PLY: {what} {row} has a list of {m} items"
+                    )
+                sizes[k].append(m)
+                starts[k].append(pos)
+                pos += m * size
+            else:
+                starts[k].append(pos)
+                pos += size
+            if pos > n:
+                break
+        else:
+            continue
+        raise errors.MeshFileError(
+            f"{path}: truncated binary PLY: the file ends in {what} {row} of {count}"
+        )
+    raw = np.frombuffer(buf, dtype=np.uint8)
+    cols: dict = {}
+    for k, (name, typ, ct) in enumerate(props):
+        item = np.dtype(order + _PLY_NUMPY[typ])
+        at = np.asarray(starts[k], dtype=np.int64)
+        if ct is not None:
+            m = np.asarray(sizes[k], dtype=np.int64)
+            first = np.repeat(at, m)
+            j = np.arange(int(m.sum())) - np.repeat(np.cumsum(m) - m, m)
+            at = first + j * item.itemsize
+        data = raw[at[:, None] + np.arange(item.itemsize)].copy().view(item).reshape(-1)
+        if ct is None:
+            cols[name] = data.astype(_PLY_NUMPY[typ])
+        else:
+            cols[name] = (np.asarray(sizes[k], dtype=np.int64), data)
+    return cols, pos
+
+
+def _read_ply_binary(path: Path, header: _PlyHeader) -> RawMesh:
+    """Vertices, vertex colours and faces of a binary PLY with faces of different corner
+    counts, which trimesh does not read; polygons fan-triangulated."""
+    order = "<" if header.fmt == "binary_little_endian" else ">"
+    buf = path.read_bytes()
+    pos = header.length
+    vertices = np.zeros((0, 3))
+    colors = None
+    faces = np.zeros((0, 3), np.int64)
+    notes: list[str] = []
+    for name, count, props in header.elements:
+        cols, pos = _ply_rows(buf, pos, count, props, order, name, path)
+        if name == "vertex":
+            if not all(c in cols for c in "xyz"):
+                raise errors.MeshFileError(f"{path}: PLY vertex element has no x, y, z")
+            vertices = np.stack([cols[c].astype(np.float64) for c in "xyz"], axis=1)
+            have = [c for c in _PLY_COLORS if c in cols]
+            if have[:3] == ["red", "green", "blue"] and all(
+                cols[c].dtype == np.uint8 for c in have
+            ):
+                colors = np.stack([cols[c] for c in have], axis=1).astype(np.uint8)
+        elif name == "face":
+            lists = [
+                cols[p]
+                for p, _, ct in props
+                if ct is not None and p in ("vertex_indices", "vertex_index")
+            ]
+            if not lists:
+                raise errors.MeshFileError(f"{path}: PLY face element has no vertex_indices list")
+            sizes, flat = lists[0]
+            if flat.dtype.kind not in "iu":
+                raise errors.MeshFileError(f"{path}: PLY face indices are not integers")
+            flat = flat.astype(np.int64)
+            short = np.flatnonzero(sizes < 3)
+            if short.size:
+                k = int(short[0])
+                raise errors.MeshFileError(
+                    f"{path}: face {k} has {sizes[k]} corners, a face needs at least 3 "
+                    f"({_count(short.size, 'such face')})"
+                )
+            faces = _triangulate(flat, sizes, notes)
+    return RawMesh(vertices, faces, colors, notes)
 
 
 def _text(path: Path, kind: str) -> list[str]:
@@ -468,7 +631,8 @@ def read_mesh_arrays(path: str | os.PathLike) -> RawMesh:
     Notes
     -----
     OBJ and OFF are read by meshfit itself, keeping the file's vertex order and unreferenced
-    vertices, ignoring texture and normal indices; PLY, STL, GLB and glTF through trimesh.
+    vertices, ignoring texture and normal indices; PLY, STL, GLB and glTF through trimesh,
+    except binary PLY with faces of different corner counts (read here too).
     """
     import trimesh
 
@@ -513,11 +677,15 @@ def read_mesh_arrays(path: str | os.PathLike) -> RawMesh:
                     f"and {header.count('face')} faces need at least {need} bytes, the file holds "
                     f"{have}"
                 ) from None
-            raise errors.MeshFileError(
-                f"{p}: cannot read binary PLY: the data does not match the header (a corrupt "
-                "file, or faces with different corner counts, which trimesh cannot read from "
-                f"binary PLY) ({type(exc).__name__}: {exc})"
-            ) from None
+            try:  # faces of different corner counts, which trimesh does not read
+                return _read_ply_binary(p, header)
+            except errors.MeshFileError:
+                raise
+            except Exception as exc2:
+                raise errors.MeshFileError(
+                    f"{p}: cannot read binary PLY: the data does not match the header (a "
+                    f"corrupt file) ({type(exc).__name__}: {exc}; {type(exc2).__name__}: {exc2})"
+                ) from None
         raise errors.MeshFileError(
             f"{p}: cannot read {suffix[1:].upper()} file ({type(exc).__name__}: {exc})"
         ) from None
