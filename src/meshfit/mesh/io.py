@@ -148,16 +148,21 @@ def _ply_ascii_scan(path: Path, header: _PlyHeader) -> int:
                 sizes = np.array([ln.split()[first_list] for ln in rows], dtype=np.int64)
             except (IndexError, ValueError):
                 sizes = np.zeros(0, dtype=np.int64)  # malformed: left to the reader
-            short = np.flatnonzero(sizes < 3)
-            if short.size:
-                k = int(short[0])
-                raise errors.MeshFileError(
-                    f"{path}: face {k} has {sizes[k]} corners, a face needs at least 3 "
-                    f"({_count(short.size, 'such face')})"
-                )
+            _check_corner_counts(path, sizes)
             polygons = int((sizes > 3).sum())
         row += count
     return polygons
+
+
+def _check_corner_counts(path: Path, sizes: NDArray[np.int64]) -> None:
+    """MeshFileError naming the first face with fewer than three corners, if any."""
+    short = np.flatnonzero(sizes < 3)
+    if short.size:
+        k = int(short[0])
+        raise errors.MeshFileError(
+            f"{path}: face {k} has {sizes[k]} corners, a face needs at least 3 "
+            f"({_count(short.size, 'such face')})"
+        )
 
 
 def _ply_binary_min_size(header: _PlyHeader) -> int:
@@ -325,13 +330,7 @@ def _read_ply_binary(path: Path, header: _PlyHeader) -> RawMesh:
             if flat.dtype.kind not in "iu":
                 raise errors.MeshFileError(f"{path}: PLY face indices are not integers")
             flat = flat.astype(np.int64)
-            short = np.flatnonzero(sizes < 3)
-            if short.size:
-                k = int(short[0])
-                raise errors.MeshFileError(
-                    f"{path}: face {k} has {sizes[k]} corners, a face needs at least 3 "
-                    f"({_count(short.size, 'such face')})"
-                )
+            _check_corner_counts(path, sizes)
             faces = _triangulate(flat, sizes, notes)
     return RawMesh(vertices, faces, colors, notes)
 
