@@ -684,8 +684,13 @@ _EXPORT_MODULES = {
 
 
 def _prefetch_exporters(formats) -> None:
-    """Import the modules of the exporters in ``formats`` on a daemon thread (an import
-    error is left for the exports stage to report)."""
+    """Import the modules of the exporters in ``formats`` on a thread of their own (an
+    import error is left for the exports stage to report).
+
+    Not a daemon thread: a fit that fails early (a mesh the automatic layout cannot cut)
+    must not exit while the thread is inside an extension's import (USD's), which aborts
+    the process ("terminate called without an active exception", exit code 134 instead of
+    the error's 2); the interpreter waits for the import to finish instead."""
     names = [m for f in formats for m in _EXPORT_MODULES.get(f, ())]
     if not names or all(n in sys.modules for n in names):
         return
@@ -697,7 +702,7 @@ def _prefetch_exporters(formats) -> None:
             except ImportError:
                 return
 
-    threading.Thread(target=load, name="meshfit-prefetch", daemon=True).start()
+    threading.Thread(target=load, name="meshfit-prefetch", daemon=False).start()
 
 
 def _resolve_layout(mesh: Mesh, layout, options: FitOptions):
