@@ -477,6 +477,24 @@ def test_cli_fit_mesh_with_a_hole(tmp_path, capsys):
     assert out["mesh"]["faces"] == d.n_faces + 2  # the hole closed by a fan of three
 
 
+def test_asked_patch_count_below_the_automatic_layouts_fewest_is_noted(tmp_path, capsys):
+    from meshfit import cli
+    from meshfit.demo import demo_mesh
+    from meshfit.mesh import save_mesh
+
+    path = save_mesh(demo_mesh(3000), tmp_path / "d.ply")
+    argv = ["fit", str(path), "--out", str(tmp_path / "out"), "--level", "0", "--cv", "4x4"]
+    argv += ["--formats", "", "--no-report", "--json"]
+    assert cli.main([*argv, "--patches", "12"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["patches_total"] == 24
+    assert any("24 patches for the 12 asked" in n for n in out["notes"])
+    assert cli.main([*argv, "--patches", "24", "--out", str(tmp_path / "out24")]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["patches_total"] == 24
+    assert not any("asked" in n for n in out["notes"])
+
+
 def test_exporter_modules_load_on_a_thread_the_interpreter_waits_for():
     # a daemon thread inside USD's import when the interpreter exits aborts the process
     import subprocess

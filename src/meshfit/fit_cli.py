@@ -178,7 +178,13 @@ def _common(p: argparse.ArgumentParser) -> None:
         default="auto",
         help="layout file (.json), or 'auto' for closed genus-0 meshes (default: %(default)s)",
     )
-    p.add_argument("--patches", type=int, default=None, help="patch count of the automatic layout")
+    p.add_argument(
+        "--patches",
+        type=int,
+        default=None,
+        help="about this many patches in the automatic layout (default 60, at least 24; "
+        "a multiple of 6 is met exactly)",
+    )
     p.add_argument(
         "--shape-layout",
         choices=("auto", "on", "off"),

@@ -828,6 +828,11 @@ def run_fit(
         staged = save_layout(lay, st.path("layout", k_layout, ".json"), mesh=mesh)
         write_bytes(out / "layout.json", staged.read_bytes())
     n_patches = int(lay.n_patches)
+    if source.startswith("auto") and options.patches is not None and n_patches != options.patches:
+        notes.append(
+            f"the automatic layout has {n_patches} patches for the {options.patches} asked: it "
+            "makes three per base triangle, an even number of triangles, at least 24 patches"
+        )
     st.done("layout", t0, cached=cached is not None, patches=n_patches)
 
     # ---- cut (only run when a later stage needs the patches)

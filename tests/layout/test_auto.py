@@ -51,6 +51,27 @@ def test_auto_layout_on_real_scans(name):
     assert again.n_patches == layout.n_patches
 
 
+@pytest.mark.parametrize("patches", [24, 36])
+def test_fewer_than_sixty_patches_from_an_octahedron(patches):
+    # bases of fewer than 20 triangles start from the octahedron (8): 24 patches and up
+    mesh = real_mesh("spot")
+    layout = auto_layout(mesh, patches=patches)
+    assert layout.n_patches == patches
+    ps = extract_patches(mesh, layout)
+    np.testing.assert_allclose(sum(p.mesh.area for p in ps), mesh.area, rtol=1e-9)
+    valence = np.bincount(layout.curve_ends.ravel())
+    if patches == 24:
+        # the octahedron's 6 vertices and 12 edge mid-points meet 4 patches, the centroids 3
+        assert sorted(np.bincount(valence)[3:].tolist()) == [8, 18]
+        assert (valence >= 3).all() and np.bincount(valence)[4] == 18
+
+
+def test_fewest_patches():
+    mesh = demo_mesh(6000)
+    smap = demo_sphere_map(mesh)
+    assert auto_layout(mesh, patches=6, sphere=smap).n_patches == 24
+
+
 def test_patch_count_and_demo_sphere():
     mesh = demo_mesh(6000)
     smap = demo_sphere_map(mesh)

@@ -4,16 +4,8 @@ from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
 from meshfit import errors
-from meshfit.shrinkwrap import _topo, icosahedron
+from meshfit.shrinkwrap import _topo, icosahedron, octahedron
 from meshfit.shrinkwrap.subdivision import subdivide_step, zorin_weights
-
-
-def _octahedron():
-    v = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
-    f = np.array(
-        [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
-    )
-    return v, f
 
 
 @pytest.mark.parametrize("k", range(3, 11))
@@ -33,7 +25,7 @@ def test_zorin_weights_reject_valence_below_three():
         zorin_weights(2)
 
 
-@pytest.mark.parametrize("shape", [_octahedron, icosahedron])
+@pytest.mark.parametrize("shape", [octahedron, icosahedron])
 def test_modified_butterfly_interpolates_and_keeps_the_symmetry(shape):
     v, f = shape()
     n = len(v)

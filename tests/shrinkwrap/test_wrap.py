@@ -11,6 +11,7 @@ from meshfit.shrinkwrap import (
     fill_holes,
     icosahedron,
     level_metrics,
+    octahedron,
     shrink_wrap,
     spherical_orientation,
     wrap_report,
@@ -42,6 +43,29 @@ def test_base_mesh_is_small_and_balanced(name):
     assert b.area_ratio <= MAX_CELL_RATIO
     assert (spherical_orientation(b.sphere, b.faces) > 0).all()
     assert_allclose(b.cell_area.sum(), real_mesh(name).area, rtol=1e-9)
+
+
+def test_octahedron_is_outward_and_unit():
+    v, f = octahedron()
+    assert v.shape == (6, 3) and f.shape == (8, 3)
+    assert_allclose(np.linalg.norm(v, axis=1), 1.0)
+    assert (spherical_orientation(v, f) > 0).all()
+
+
+def test_base_mesh_from_the_octahedron():
+    # 8 triangles, or more by edge splits: coarser bases than the icosahedron's 20
+    sm = smap("spot")
+    for faces in (8, 12):
+        b = base_mesh(sm, start="octahedron", max_faces=faces, min_faces=faces)
+        assert len(b.faces) == faces
+        assert (spherical_orientation(b.sphere, b.faces) > 0).all()
+        assert_allclose(b.cell_area.sum(), real_mesh("spot").area, rtol=1e-9)
+    with pytest.raises(errors.InputError, match="at least 8 \\(an octahedron\\)"):
+        base_mesh(sm, start="octahedron", max_faces=6)
+    with pytest.raises(errors.InputError, match="at least 20 \\(an icosahedron\\)"):
+        base_mesh(sm, max_faces=12)
+    with pytest.raises(errors.InputError, match="start must be one of"):
+        base_mesh(sm, start="cube")
 
 
 def test_umbrella_base_relaxation_runs_without_flips():

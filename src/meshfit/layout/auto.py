@@ -50,6 +50,9 @@ __all__ = ["auto_layout", "quad_network"]
 PATCHES_PER_TRIANGLE = 3
 #: default patch count (the icosahedron: 20 base triangles)
 DEFAULT_PATCHES = 60
+#: fewest patches of an automatic layout (the octahedron: 8 base triangles); bases of fewer
+#: than 20 triangles start from the octahedron, the others from the icosahedron
+MIN_PATCHES = 24
 #: aspect-ratio bound of the spherical triangles of the default sphere map: a map that
 #: squeezes triangles gives base cells whose images are very uneven (nefertiti unbounded:
 #: aspect 571, 310 folded spring cells in the fit; bounded: 18)
@@ -68,8 +71,9 @@ PROXY_RATIO = 4.0
 FINE_RELAX_ITERATIONS = 50
 #: revision of what `auto_layout` makes for given options: part of the fit's stage keys, so a
 #: resumed fit does not re-use a layout cached by an earlier revision (2: shaped bases above
-#: `SHAPE_ABOVE_FACES` triangles)
-AUTO_LAYOUT_REVISION = 2
+#: `SHAPE_ABOVE_FACES` triangles; 3: fewer than 60 patches from an octahedron's base, where
+#: earlier revisions made 60)
+AUTO_LAYOUT_REVISION = 3
 #: ``shape=None`` of `auto_layout` shapes base meshes of more than this many triangles. The
 #: bisections that take the relaxed icosahedron beyond 20 triangles leave cells of equal area
 #: that are slivers where the sphere map stretches (spring meshes of the 96-patch layouts, with
@@ -259,7 +263,9 @@ def auto_layout(
         A closed, connected genus-0 mesh.
     patches : int, keyword-only, optional
         Wanted patch count; the base mesh gets ``round(patches / 3)`` faces (an even number,
-        at least 20), so the result has about ``patches`` patches (default 60).
+        at least 8), so the result has about ``patches`` patches (default 60, at least
+        `MIN_PATCHES` = 24). Bases of fewer than 20 faces are made from an octahedron, the
+        others from an icosahedron (:func:`meshfit.shrinkwrap.base_mesh`).
     sphere : meshfit.shrinkwrap.SphereMap, keyword-only, optional
         A ready parameterization of ``mesh`` over the unit sphere; default
         :func:`meshfit.shrinkwrap.sphere_map` with ``max_aspect=sphere_max_aspect``.
@@ -323,7 +329,7 @@ def auto_layout(
     if not proxy and not _one_sphere(mesh):
         raise _topology_error(mesh)
     want = DEFAULT_PATCHES if patches is None else int(patches)
-    n_faces = max(20, round(want / PATCHES_PER_TRIANGLE))
+    n_faces = max(MIN_PATCHES // PATCHES_PER_TRIANGLE, round(want / PATCHES_PER_TRIANGLE))
     n_faces += n_faces % 2
     if shape is None:
         shape = n_faces > SHAPE_ABOVE_FACES
@@ -431,7 +437,8 @@ def _network(mesh: Mesh, smap, n_faces: int, seed: int, shape: bool = False):
     from meshfit.layout.shaping import shape_base
     from meshfit.shrinkwrap import base_mesh
 
-    base = base_mesh(smap, max_faces=n_faces, min_faces=n_faces, seed=seed)
+    start = "octahedron" if n_faces < 20 else "icosahedron"
+    base = base_mesh(smap, max_faces=n_faces, min_faces=n_faces, seed=seed, start=start)
     S, BF = base.sphere, base.faces
     if shape:
         S = shape_base(smap, S, BF, seed=seed).sphere

@@ -5,7 +5,7 @@ Verbs: :func:`sphere_map` (sec. 6), :func:`base_mesh` (sec. 6), :func:`shrink_wr
 (sec. 4, 7), :func:`encode_stream` / :func:`decode_stream` (sec. 8.1), :func:`fill_holes`.
 """
 
-from meshfit.shrinkwrap.base import BaseMesh, base_mesh, icosahedron
+from meshfit.shrinkwrap.base import BaseMesh, base_mesh, icosahedron, octahedron
 from meshfit.shrinkwrap.holes import fill_holes
 from meshfit.shrinkwrap.sphere import (
     SphereMap,
@@ -40,6 +40,7 @@ __all__ = [
     "fill_holes",
     "icosahedron",
     "level_metrics",
+    "octahedron",
     "read_stream",
     "reconstruction_errors",
     "shrink_wrap",

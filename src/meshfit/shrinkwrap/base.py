@@ -16,7 +16,7 @@ from meshfit.mesh import Mesh
 from meshfit.shrinkwrap import _topo
 from meshfit.shrinkwrap.sphere import SphereMap, spherical_orientation
 
-__all__ = ["BaseMesh", "base_mesh", "cell_areas", "icosahedron"]
+__all__ = ["BaseMesh", "base_mesh", "cell_areas", "icosahedron", "octahedron"]
 
 
 def icosahedron() -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -38,6 +38,25 @@ def icosahedron() -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     flip = spherical_orientation(v, f) < 0
     f[flip] = f[flip][:, ::-1]
     return v, f
+
+
+def octahedron() -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Regular octahedron inscribed in the unit sphere, faces oriented outward.
+
+    Returns
+    -------
+    vertices : (6, 3) float64
+    faces : (8, 3) int64
+    """
+    v = np.vstack([np.eye(3), -np.eye(3)])
+    f = ConvexHull(v).simplices.astype(np.int64)
+    flip = spherical_orientation(v, f) < 0
+    f[flip] = f[flip][:, ::-1]
+    return v, f
+
+
+#: starting polyhedra of `base_mesh`: name -> (builder, face count)
+STARTS = {"icosahedron": (icosahedron, 20), "octahedron": (octahedron, 8)}
 
 
 def _face_centroids_on_sphere(smap: SphereMap) -> NDArray[np.float64]:
@@ -221,6 +240,7 @@ def base_mesh(
     target_ratio: float = 2.0,
     min_faces: int = 20,
     start_subdivisions: int = 0,
+    start: str = "icosahedron",
     iterations: int = 20,
     alpha: float = 0.5,
     seed: int = 0,
@@ -228,7 +248,8 @@ def base_mesh(
     samples: int = 60_000,
     progress: Callable[[str, float], None] | None = None,
 ) -> BaseMesh:
-    """Build the base mesh ``M0`` by relaxing and splitting an icosahedron on the sphere.
+    """Build the base mesh ``M0`` by relaxing and splitting an icosahedron (or an
+    octahedron) on the sphere.
 
     Each spherical cell gets the summed area of the input triangles whose sphere centroid
     it contains; a density-weighted umbrella relaxation (eq. 1 with density = sum of the
@@ -250,6 +271,10 @@ def base_mesh(
     start_subdivisions : int
         1-to-4 splits of the icosahedron before the relaxation (default 0: 20 faces; 1: the
         80-face geodesic polyhedron).
+    start : {"icosahedron", "octahedron"}
+        The polyhedron relaxed and split (default the icosahedron, 20 faces, as in the
+        paper; the octahedron's 8 faces allow coarser bases, e.g. for automatic layouts of
+        fewer than 60 patches). ``max_faces`` must be at least its face count.
     iterations : int
         Relaxation steps after the start and after every split (default 20).
     alpha : float
@@ -275,14 +300,21 @@ def base_mesh(
     ----------
     .. [1] Kobbelt, Vorsatz, Labsik & Seidel 1999, sec. 6 and eq. 1.
     """
-    if max_faces < 20:
-        raise errors.InputError(f"max_faces must be at least 20 (an icosahedron), got {max_faces}")
+    if start not in STARTS:
+        raise errors.InputError(
+            f"start must be one of {', '.join(map(repr, STARTS))}, got {start!r}"
+        )
+    build, start_faces = STARTS[start]
+    if max_faces < start_faces:
+        raise errors.InputError(
+            f"max_faces must be at least {start_faces} (an {start}), got {max_faces}"
+        )
     if not 0 < alpha <= 1:
         raise errors.InputError(f"alpha must be in (0, 1], got {alpha}")
     if relaxation not in ("equalize", "umbrella"):
         raise errors.InputError(f"relaxation must be 'equalize' or 'umbrella', got {relaxation!r}")
     step = _equalize if relaxation == "equalize" else _relax
-    v, f = icosahedron()
+    v, f = build()
     for _ in range(start_subdivisions):
         f, e = _topo.subdivide(f, len(v))
         mid = v[e[:, 0]] + v[e[:, 1]]
