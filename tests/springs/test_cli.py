@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -129,10 +130,16 @@ def test_springs_command_rejects_a_layout_of_another_mesh(capsys):
     assert "error" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("level", ["-1"])
-def test_springs_command_rejects_a_negative_level(level, capsys):
+@pytest.mark.parametrize(
+    ("level", "says"),
+    [("-1", "non-negative integer"), ("9", "points; at most 4,000,000 .* ask for level 7 or less")],
+)
+def test_springs_command_rejects_a_negative_or_too_fine_level(level, says, capsys):
+    # level 9 would make 25 million points a patch of spot (the process ran out of memory)
     layout = ROOT / "examples" / "layouts" / "spot.json"
     assert main(["springs", str(mesh_path("spot")), "--layout", str(layout), "--level", level]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and re.search(says, err), err
 
 
 def test_springs_command_gives_the_same_grids_on_any_number_of_workers(tmp_path, capsys):

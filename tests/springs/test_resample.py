@@ -237,6 +237,22 @@ def test_max_points_caps_the_level(plane):
     assert len(res.levels) == res.final.level + 1
 
 
+def test_a_level_past_the_point_limit_is_refused(plane, monkeypatch):
+    # each level has four times the points of the last: a level well past the vertex count
+    # would exhaust the memory (spot's test layout at level 9: 25 million points a patch)
+    from meshfit.springs import resample as rs
+
+    with pytest.raises(InputError, match=r"level 12 gives patch 0 .* ask for level 7 or less"):
+        resample_patch(plane, level=12, metrics=False)  # 16 x 8 intervals at level 0
+    # the limit is the grid's: a lower one refuses lower levels, and max_points lowers the
+    # level to fit instead of refusing
+    monkeypatch.setattr(rs, "LEVEL_MAX_POINTS", 1000)
+    with pytest.raises(InputError, match=r"65 x 33 grid, 2,145 points.*level 1 or less"):
+        resample_patch(plane, level=2, metrics=False)
+    assert resample_patch(plane, level=1, metrics=False).final.shape == (33, 17)
+    assert resample_patch(plane, level=2, max_points=600, metrics=False).final.level == 1
+
+
 def test_progress_reports_each_level(plane):
     calls = []
     resample_patch(plane, level=2, metrics=False, progress=lambda d, t: calls.append((d, t)))

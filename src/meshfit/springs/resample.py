@@ -293,7 +293,15 @@ def _repair(state: State, pmap) -> None:
         untangle_in_charts(state)
 
 
-def _final_level(n_level0: tuple[int, int], n_vertices: int, level, max_points) -> int:
+#: most points of a grid at a level asked for (``level`` without ``max_points``): 2,000 x
+#: 2,000; each level has four times the points of the last, and a level well past the
+#: vertex count exhausts the memory (spot's test patches at level 9: 19 million points each)
+LEVEL_MAX_POINTS = 4_000_000
+
+
+def _final_level(
+    n_level0: tuple[int, int], n_vertices: int, level, max_points, patch: int = 0
+) -> int:
     mu, mv = n_level0
 
     def count(k):
@@ -303,6 +311,16 @@ def _final_level(n_level0: tuple[int, int], n_vertices: int, level, max_points) 
         if isinstance(level, bool) or int(level) != level or level < 0:
             raise InputError(f"level must be a non-negative integer, got {level!r}")
         k = int(level)
+        if max_points is None and count(k) > LEVEL_MAX_POINTS:
+            top = 0
+            while count(top + 1) <= LEVEL_MAX_POINTS:
+                top += 1
+            raise InputError(
+                f"level {k} gives patch {patch} ({n_vertices:,} vertices) a "
+                f"{mu * 2**k + 1} x {mv * 2**k + 1} grid, {count(k):,} points; at most "
+                f"{LEVEL_MAX_POINTS:,} are made at a level asked for: ask for level {top} or "
+                "less"
+            )
     else:
         # the level whose point count is closest (by ratio) to the patch's vertex count:
         # "spring points comparable to the number of mesh vertices" (sec. 5.6)
@@ -548,9 +566,11 @@ def resample_patch(
     patch : meshfit.layout.Patch
         A four-sided disk patch; its feature curves become iso-curves of the spring mesh.
     level : int, keyword-only, optional
-        Final level to reach; default from the vertex-count rule.
+        Final level to reach; default from the vertex-count rule. A level whose grid would
+        have more than `LEVEL_MAX_POINTS` points raises InputError (unless ``max_points``
+        is given).
     max_points : int, keyword-only, optional
-        Upper bound on the final grid's point count.
+        Upper bound on the final grid's point count: the final level is lowered to meet it.
     sections_u, sections_v : sequence of int, keyword-only, optional
         Level-0 intervals of each section between u (v) feature curves, one more entry than
         there are u (v) feature curves; default in proportion to the sections' lengths.
@@ -720,7 +740,7 @@ def resample_patch(
     meshfit.errors.FeatureCurveError
         A feature curve does not run side to side, or two of one direction cross.
     meshfit.errors.InputError
-        Bad option values.
+        Bad option values; a ``level`` whose grid would exceed `LEVEL_MAX_POINTS` points.
 
     References
     ----------
@@ -795,7 +815,9 @@ def resample_patch(
         coarse = (COARSE_SWEEPS, COARSE_OMEGA, COARSE_EPS)
 
         def final_level(cu: list[int], cv: list[int]) -> int:
-            return finer + _final_level((sum(cu), sum(cv)), mesh.n_vertices, level, max_points)
+            return finer + _final_level(
+                (sum(cu), sum(cv)), mesh.n_vertices, level, max_points, patch.index
+            )
 
         def level_step(state: State, k: int, fairness: float, final: int) -> int:
             """Relaxation, polish and fold repair of level ``k``; the sweeps done."""
