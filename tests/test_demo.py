@@ -32,6 +32,15 @@ def test_demo_mesh_is_closed_genus0_and_deterministic():
     assert not np.array_equal(a.vertices, c.vertices)
 
 
+def test_demo_mesh_size_limits():
+    from meshfit.errors import InputError
+
+    with pytest.raises(InputError, match="at least 100"):
+        demo_mesh(10)
+    with pytest.raises(InputError, match="at most 5,000,000, got 50,000,000"):
+        demo_mesh(50_000_000)
+
+
 def test_demo_mesh_default_size_is_scan_like():
     mesh = demo_mesh()
     assert 190_000 <= mesh.n_faces <= 210_000

@@ -53,6 +53,9 @@ def test_wrap_sphere_aspect_bound(capsys):
     assert "--sphere-max-aspect must be >= 1" in capsys.readouterr().err
     assert main([*argv, "--base-faces", "12"]) == 2
     assert "--base-faces must be at least 20" in capsys.readouterr().err
+    too_fine = ["wrap", str(mesh_path("spot")), "--levels", "12"]
+    assert main(too_fine) == 2
+    assert "ask for 9 levels or fewer" in capsys.readouterr().err
 
 
 def test_stream_encode_decode(tmp_path, capsys):

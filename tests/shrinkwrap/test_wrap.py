@@ -185,6 +185,22 @@ def test_wrap_rejects_a_handle():
         shrink_wrap(analytic_mesh("torus"), levels=1)
 
 
+def test_wrap_refuses_levels_past_the_face_limit(monkeypatch):
+    # every level has four times the faces of the last (spot at 12 levels: 335 million
+    # faces at least; it ran out of memory)
+    from meshfit.shrinkwrap import wrap as w
+
+    sphere = analytic_mesh("icosphere")
+    with pytest.raises(errors.InputError, match=r"at least 335,544,320 faces.*9 levels or fewer"):
+        shrink_wrap(sphere, levels=12)
+    # checked again with the base's own face count once it is made
+    monkeypatch.setattr(w, "WRAP_MAX_FACES", 20 * 4**2)
+    res = shrink_wrap(sphere, levels=2, base_faces=20)
+    assert len(res.levels[2].faces) == 320
+    with pytest.raises(errors.InputError, match=r"2 levels over 40 base faces make 640 faces"):
+        shrink_wrap(sphere, levels=2, base_faces=40, base_options={"min_faces": 40})
+
+
 def test_wrap_of_a_sphere_is_regular_and_close():
     sphere = analytic_mesh("icosphere")  # 1,280 faces, radius 1
     res = shrink_wrap(sphere, levels=3)
