@@ -495,6 +495,24 @@ def test_asked_patch_count_below_the_automatic_layouts_fewest_is_noted(tmp_path,
     assert not any("asked" in n for n in out["notes"])
 
 
+def test_controls_capped_by_the_spring_grids_are_noted(tmp_path, capsys):
+    from meshfit import cli
+    from meshfit.demo import demo_mesh
+    from meshfit.mesh import save_mesh
+
+    path = save_mesh(demo_mesh(3000), tmp_path / "d.ply")
+    argv = ["fit", str(path), "--out", str(tmp_path / "out"), "--level", "0", "--cv", "200x200"]
+    assert cli.main([*argv, "--formats", "", "--no-report", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    used = {c["controls"] for c in out["control_classes"]}
+    assert max(used) < 200
+    note = [n for n in out["notes"] if n.startswith("controls: 200 x 200 asked")]
+    assert len(note) == 1
+    n_cls = len(out["control_classes"])
+    assert f"in {n_cls} of {n_cls} control classes" in note[0]
+    assert (f"{min(used)} to {max(used)} used" if len(used) > 1 else f"{min(used)} used") in note[0]
+
+
 def test_exporter_modules_load_on_a_thread_the_interpreter_waits_for():
     # a daemon thread inside USD's import when the interpreter exits aborts the process
     import subprocess

@@ -413,6 +413,19 @@ def _control_classes(
             cap[c] = min(cap[c], shapes[p][d])
             want[c] = min(want[c], controls[d], shapes[p][d])
     notes = []
+    asked_c = [np.inf] * n_cls
+    for node, c in enumerate(labels):
+        asked_c[c] = min(asked_c[c], controls[node % 2])
+    explicit = {int(c) for c, _ in chosen}
+    capped = [c for c in range(n_cls) if cap[c] < asked_c[c] and c not in explicit]
+    if capped:
+        asked = " x ".join(str(int(x)) for x in controls)
+        used = sorted({int(cap[c]) for c in capped})
+        span = f"{used[0]}" if len(used) == 1 else f"{used[0]} to {used[-1]}"
+        notes.append(
+            f"controls: {asked} asked, {span} used in {len(capped)} of {n_cls} control classes "
+            "(at most the smallest spring grid of the class; see control_classes)"
+        )
     for c, m in chosen:
         if c >= n_cls:
             raise InputError(
