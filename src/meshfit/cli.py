@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import os
 import sys
 import time
 from collections.abc import Sequence
@@ -165,6 +166,23 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _os_error(exc: OSError) -> str:
+    """One line for a failed read or write: the path (the folder of an atomic write's
+    temporary file) and the system's reason."""
+    name = exc.filename
+    if name is None:
+        return str(exc)
+    path = Path(os.fsdecode(name))
+    while path.parent != path and path.parent.exists() and not path.parent.is_dir():
+        path = path.parent  # a file where a folder is needed, named by itself
+    if isinstance(exc, FileNotFoundError) and not path.parent.exists():
+        return f"{path.parent}: no such folder"
+    reason = exc.strerror or str(exc)
+    if path.is_file() and isinstance(exc, (FileExistsError, NotADirectoryError)):
+        reason = "a file, where a folder is needed"
+    return f"{path}: {reason}"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit code (0 ok, 2 bad input)."""
     tune_malloc()
@@ -183,6 +201,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:  # output piped into a pager or head that closed early
         sys.stderr.close()
         return EXIT_OK
+    except OSError as exc:  # a file or folder that cannot be read or written
+        sys.stderr.write(f"meshfit: error: {_os_error(exc)}\n")
+        return EXIT_ERROR
+    except MemoryError:
+        sys.stderr.write(
+            "meshfit: error: out of memory: ask for fewer levels, points or patches, or run "
+            "on a larger machine\n"
+        )
+        return EXIT_ERROR
     except KeyboardInterrupt:
         sys.stderr.write("meshfit: interrupted\n")
         return 130

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import re
 
@@ -196,3 +197,48 @@ def test_springs_command_rejects_a_bad_tolerance(extra, capsys):
     layout = ROOT / "examples" / "layouts" / "spot.json"
     assert main(["springs", str(mesh_path("spot")), "--layout", str(layout), *extra]) == 2
     assert "tolerance" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("where", "says"),
+    [
+        ("afile", "afile: a file, where a folder is needed"),
+        ("afile/sub", "afile: a file, where a folder is needed"),
+        ("missing/deeper", None),  # made, with its parents
+    ],
+)
+def test_springs_command_output_folder_errors_are_one_line(tmp_path, where, says, capsys):
+    # an output path that cannot be a folder: one error line and exit code 2, no traceback
+    (tmp_path / "afile").write_text("not a folder")
+    layout = ROOT / "examples" / "layouts" / "spot.json"
+    args = ["springs", str(mesh_path("spot")), "--layout", str(layout), "--level", "0"]
+    code = main([*args, "--out", str(tmp_path / where)])
+    err = capsys.readouterr().err
+    if says is None:
+        assert code == 0 and (tmp_path / where).is_dir()
+        return
+    assert code == 2
+    assert err.count("\n") == 1 and err.startswith("meshfit: error: ")
+    assert err.strip().endswith(says), err
+
+
+def test_a_file_in_a_missing_folder_is_named(tmp_path):
+    from meshfit.cli import _os_error
+
+    with pytest.raises(OSError) as info:
+        (tmp_path / "no" / "such" / "x.mfsw").write_bytes(b"")
+    assert _os_error(info.value) == f"{tmp_path / 'no' / 'such'}: no such folder"
+
+
+def test_running_out_of_memory_is_one_error_line(capsys, monkeypatch):
+    from meshfit import cli
+
+    def oom(args):
+        raise MemoryError
+
+    parser = cli.build_parser()
+    monkeypatch.setattr(cli, "build_parser", lambda: parser)
+    monkeypatch.setattr(parser, "parse_args", lambda argv: argparse.Namespace(func=oom))
+    assert cli.main([]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("meshfit: error: out of memory")
