@@ -231,6 +231,11 @@ def test_resample_patches_rejects_bad_options(plane):
         resample_patches([plane, plane], fairness=2.0, workers=2)
 
 
+def test_a_patch_of_another_type_is_refused():
+    with pytest.raises(InputError, match=r"patch must be a meshfit\.layout\.Patch .* got str"):
+        resample_patch("patch 0")
+
+
 def test_max_points_caps_the_level(plane):
     res = resample_patch(plane, max_points=300, metrics=False)
     assert res.final.n_points <= 300

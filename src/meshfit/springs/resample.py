@@ -772,6 +772,13 @@ def resample_patch(
             raise InputError(f"tolerance must be a positive number, got {tolerance!r}")
         if level is not None or rescue:
             raise InputError("tolerance chooses the final level: not with level or rescue")
+    from meshfit.layout.patch import Patch
+
+    if not isinstance(patch, Patch):
+        raise InputError(
+            f"patch must be a meshfit.layout.Patch (from extract_patches), got "
+            f"{type(patch).__name__}"
+        )
     mesh = patch.mesh
     sides = _sides(patch)
 
