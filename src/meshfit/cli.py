@@ -167,8 +167,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _os_error(exc: OSError) -> str:
-    """One line for a failed read or write: the path (the folder of an atomic write's
-    temporary file) and the system's reason."""
+    """One line for a failed read or write: the path (the file standing where a folder is
+    needed, or the folder that is missing) and the system's reason."""
     name = exc.filename
     if name is None:
         return str(exc)
