@@ -19,6 +19,7 @@ from meshfit.layout import (
     check_layout_topology,
     extract_patches,
     layout_from_curves,
+    layout_from_json,
     layout_to_json,
     load_layout,
     mesh_fingerprint,
@@ -477,6 +478,11 @@ def test_structural_errors_at_construction():
     with pytest.raises(LayoutError, match="patch 1 uses a curve twice"):
         _rebuild(mesh, layout, patches=patches)
     assert "meshfit_layout" in layout_to_json(layout)
+    d = json.loads(layout_to_json(layout))
+    d["curves"] = []
+    says = f"{layout.n_patches} patches but no curves: every side is a curve"
+    with pytest.raises(LayoutError, match=says):
+        layout_from_json(json.dumps(d))
 
 
 def test_patch_with_a_handle_is_not_a_disk():

@@ -115,6 +115,10 @@ class Layout:
         if len(features) != pc.shape[0]:
             raise LayoutError(f"features has {len(features)} entries for {pc.shape[0]} patches")
         nc, nk = len(self.corners), len(curves)
+        if pc.shape[0] and not nk:
+            raise LayoutError(f"{pc.shape[0]} patches but no curves: every side is a curve")
+        if nk and not nc:
+            raise LayoutError(f"{nk} curves but no corners: every curve runs corner to corner")
         for i, c in enumerate(curves):
             if c.closed:
                 raise LayoutError(f"curve {i} is closed: boundary curves run corner to corner")
