@@ -495,6 +495,11 @@ def test_asked_patch_count_below_the_automatic_layouts_fewest_is_noted(tmp_path,
     assert not any("asked" in n for n in out["notes"])
 
 
+def test_a_layout_of_another_type_is_refused(tmp_path):
+    with pytest.raises(InputError, match=r"layout must be a Layout, .* got int"):
+        run_fit(real_mesh("spot"), tmp_path, layout=5, options=FitOptions(formats=()))
+
+
 def test_controls_capped_by_the_spring_grids_are_noted(tmp_path, capsys):
     from meshfit import cli
     from meshfit.demo import demo_mesh

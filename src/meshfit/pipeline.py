@@ -735,6 +735,11 @@ def _resolve_layout(mesh: Mesh, layout, options: FitOptions):
 
         shape = {None: "", True: ":shaped", False: ":unshaped"}[options.layout_shape]
         return f"auto:{options.patches}{shape}:r{AUTO_LAYOUT_REVISION}", make
+    if not isinstance(layout, (str, os.PathLike)):
+        raise InputError(
+            f"layout must be a Layout, a layout file's path, 'auto' or None, got "
+            f"{type(layout).__name__}"
+        )
     path = Path(layout)
     if not path.is_file():
         raise LayoutError(f"{path}: no such layout file")
