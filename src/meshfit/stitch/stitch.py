@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -188,12 +189,23 @@ def _cross2(a: NDArray, b: NDArray) -> NDArray:
     return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
 
 
+def _cross3(a: NDArray, b: NDArray) -> NDArray:
+    """``np.cross`` of ``(n, 3)`` rows, the same products and differences without its axis
+    handling (the corner search calls it thousands of times on 33 rows)."""
+    out = np.empty(a.shape)
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
 def _fan_folded(spokes: dict, wedges: list, diags: NDArray, min_sin: float = 0.0) -> bool:
     """True when a flat fan turns a patch corner over (the wedge from its first to its second
     spoke not counter-clockwise, or the diagonal point outside the wedge)."""
     for w, d in zip(wedges, diags, strict=True):
         a, b = spokes[w.first], spokes[w.second]
-        la, lb, ld = np.linalg.norm(a), np.linalg.norm(b), np.linalg.norm(d)
+        # np.linalg.norm of a vector is sqrt(x . x): the same, without its dispatch
+        la, lb, ld = math.sqrt(a.dot(a)), math.sqrt(b.dot(b)), math.sqrt(d.dot(d))
         if min(la, lb, ld) == 0:
             return True
         if _cross2(a, b) <= min_sin * la * lb:
@@ -226,15 +238,24 @@ def _flat_angles(theta: NDArray, cycle: bool) -> NDArray | None:
     return None
 
 
-def _solve_fan(x0: NDArray, hard: NDArray, soft, scale: float, iters: int = 30) -> NDArray:
+def _null_space(hard: NDArray) -> NDArray:
+    """Orthonormal basis (columns) of the null space of ``hard`` (rows: constraints)."""
+    _, sv, vt = np.linalg.svd(hard)
+    rank = int((sv > 1e-12 * sv.max()).sum())
+    return vt[rank:].T
+
+
+def _solve_fan(
+    x0: NDArray, hard: NDArray, soft, scale: float, iters: int = 30, Z: NDArray | None = None
+) -> NDArray:
     """The fan nearest ``x0`` on the linear constraints ``hard @ x = 0``, then Gauss-Newton
     steps within them that drive the soft residuals ``soft(x) -> (r, J)`` towards zero with
-    a small pull back to ``x0`` (weight ``tol.STITCH_FAN_PULL``, lengths over ``scale``)."""
+    a small pull back to ``x0`` (weight ``tol.STITCH_FAN_PULL``, lengths over ``scale``).
+    ``Z``: ``_null_space(hard)`` when the caller has it (one corner's many trials)."""
     if hard.size:
         x = x0 - np.linalg.lstsq(hard, hard @ x0, rcond=None)[0]
-        _, sv, vt = np.linalg.svd(hard)
-        rank = int((sv > 1e-12 * sv.max()).sum())
-        Z = vt[rank:].T
+        if Z is None:
+            Z = _null_space(hard)
     else:
         x, Z = x0.copy(), np.eye(x0.size)
     if soft is None or Z.shape[1] == 0:
@@ -404,20 +425,38 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
                 row[2 * eb + c] += lb
                 hard.append(row)
     hard = np.array(hard).reshape(-1, nx)
+    null = _null_space(hard) if hard.size else None
+    r0 = np.array([(sp, ea, eb) for sp, ea, eb, _ in rows0], dtype=np.int64).reshape(-1, 3)
+    r0_lam = np.array([lb for *_, lb in rows0], dtype=np.float64)
+    r0_at = np.arange(len(rows0))
 
     def soft(x):
-        """Row 0: (e_a + lam e_b) x e_s = 0 per boundary, over scale**2."""
+        """Row 0: (e_a + lam e_b) x e_s = 0 per boundary, over scale**2 (all boundaries at
+        once; the rows' entries summed in the order spokes a, b, s where they share one)."""
         X = x.reshape(-1, 2)
-        r, J = [], []
-        for sp, ea, eb, lb in rows0:
-            wv, sv = X[ea] + lb * X[eb], X[sp]
-            row = np.zeros(nx)
-            row[2 * ea : 2 * ea + 2] += [sv[1], -sv[0]]
-            row[2 * eb : 2 * eb + 2] += [lb * sv[1], -lb * sv[0]]
-            row[2 * sp : 2 * sp + 2] += [-wv[1], wv[0]]
-            r.append(_cross2(wv, sv))
-            J.append(row)
-        return np.array(r) / scale**2, np.array(J).reshape(-1, nx) / scale**2
+        sp, ea, eb, lb = r0[:, 0], r0[:, 1], r0[:, 2], r0_lam
+        wv, sv = X[ea] + lb[:, None] * X[eb], X[sp]
+        J = np.zeros((len(r0_at), nx))
+        for cols, vals in (
+            (2 * ea, sv[:, 1]),
+            (2 * ea + 1, -sv[:, 0]),
+            (2 * eb, lb * sv[:, 1]),
+            (2 * eb + 1, -lb * sv[:, 0]),
+            (2 * sp, -wv[:, 1]),
+            (2 * sp + 1, wv[:, 0]),
+        ):
+            np.add.at(J, (r0_at, cols), vals)
+        return _cross2(wv, sv) / scale**2, J / scale**2
+
+    wedge_ab: dict[int, NDArray] = {}  # each diagonal point in its wedge's spoke basis
+
+    def diagonal_coords(n: int, w) -> NDArray:
+        if n not in wedge_ab:
+            A = np.stack([e3[w.first], e3[w.second]], axis=1)
+            ab = np.linalg.lstsq(A, P[w.diag] - c0, rcond=None)[0]
+            floor = 0.05 * float(np.abs(ab).sum())
+            wedge_ab[n] = np.maximum(ab, floor) if floor > 0 else np.array([0.5, 0.5])
+        return wedge_ab[n]
 
     def flat_fan(equal: bool, rot: float, angles: dict):
         ln = dict(length)
@@ -426,14 +465,11 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
             ln = dict.fromkeys(keys, mean)
         s2 = {k: ln[k] * np.array([np.cos(angles[k] + rot), np.sin(angles[k] + rot)]) for k in keys}
         d2 = []
-        for w in wedges:
+        for n, w in enumerate(wedges):
             if angles is not phi:  # the equal fan: each diagonal point at its wedge's middle
                 d2.append(s2[w.first] + s2[w.second])
                 continue
-            A = np.stack([e3[w.first], e3[w.second]], axis=1)
-            ab = np.linalg.lstsq(A, P[w.diag] - c0, rcond=None)[0]
-            floor = 0.05 * float(np.abs(ab).sum())
-            ab = np.maximum(ab, floor) if floor > 0 else np.array([0.5, 0.5])
+            ab = diagonal_coords(n, w)  # P is only written once the corner is decided
             d2.append(ab[0] * s2[w.first] + ab[1] * s2[w.second])
         return s2, np.array(d2)
 
@@ -451,7 +487,7 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
             if _fan_folded(s2, wedges, d2):
                 continue
             x0 = np.concatenate([np.array([s2[k] for k in keys]).ravel(), d2.ravel()])
-            x = _solve_fan(x0, hard, soft if with_row0 and not exact else None, scale)
+            x = _solve_fan(x0, hard, soft if with_row0 and not exact else None, scale, Z=null)
             X = x.reshape(-1, 2)
             sp = {k: X[ks[k]] for k in keys}
             if _fan_folded(sp, wedges, X[nd:], np.sin(0.5 * tol.STITCH_CORNER_MIN_ANGLE)):
@@ -566,10 +602,10 @@ def _corner_zone_jump(surfaces, shapes, offs, keys, spoke_index, boundaries):
             ns = []
             for idx, wu, wv in pair:
                 block = Q[idx]
-                n = np.cross(
+                n = _cross3(
                     np.einsum("nab,nabc->nc", wu, block), np.einsum("nab,nabc->nc", wv, block)
                 )
-                ln = np.linalg.norm(n, axis=1)
+                ln = np.sqrt((n * n).sum(axis=1))  # np.linalg.norm's sum, without its checks
                 ns.append(n / np.where(ln > 0, ln, 1.0)[:, None])
             cos = (ns[0] * ns[1]).sum(axis=1)
             ok = (np.abs(ns[0]).sum(axis=1) > 0) & (np.abs(ns[1]).sum(axis=1) > 0)
