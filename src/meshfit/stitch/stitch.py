@@ -272,14 +272,10 @@ def _solve_fan(
     return x
 
 
-def _flatten_row2(P, shapes, c0, normal, keys, spoke_index, boundaries) -> None:
-    """Row 2 from the corner of every shared boundary there (boundary point and both tangent
-    points) translated along ``normal`` so its boundary point lies in the corner's tangent
-    plane: the boundary curves leave the corner without normal curvature, which is what turns
-    the two patches' tangent planes apart within the first knot span when row 0 cannot be
-    collinear. Rows stay collinear (a common translation), so G1 beyond the first span is
-    kept; boundaries with fewer than 6 control points are left alone (row 2 is the other
-    end's too)."""
+def _row2_slots(shapes, keys, spoke_index, boundaries) -> list[tuple[int, ...]]:
+    """The control slots `_flatten_row2` moves at one corner: per shared boundary there with
+    at least 6 control points, its row-2 boundary point and both tangent points."""
+    out = []
     for k in keys:
         if k[0] != "b":
             continue
@@ -290,8 +286,21 @@ def _flatten_row2(P, shapes, c0, normal, keys, spoke_index, boundaries) -> None:
         if n < 6:
             continue
         q = 2 if spoke_index[k][0] in (ia[1], ib[1]) else n - 3
-        off = -((P[ia[q]] - c0) @ normal) * normal
-        for ix in (ia[q], ib[q], ta[q], tb[q]):
+        out.append((int(ia[q]), int(ib[q]), int(ta[q]), int(tb[q])))
+    return out
+
+
+def _flatten_row2(P, c0, normal, row2: list[tuple[int, ...]]) -> None:
+    """Row 2 from the corner of every shared boundary there (boundary point and both tangent
+    points, `_row2_slots`) translated along ``normal`` so its boundary point lies in the
+    corner's tangent plane: the boundary curves leave the corner without normal curvature,
+    which is what turns the two patches' tangent planes apart within the first knot span
+    when row 0 cannot be collinear. Rows stay collinear (a common translation), so G1 beyond
+    the first span is kept; boundaries with fewer than 6 control points are left alone (row
+    2 is the other end's too)."""
+    for slots in row2:
+        off = -((P[slots[0]] - c0) @ normal) * normal
+        for ix in slots:
             P[ix] += off
 
 
@@ -426,9 +435,11 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
                 hard.append(row)
     hard = np.array(hard).reshape(-1, nx)
     null = _null_space(hard) if hard.size else None
+    row2 = [] if exact else _row2_slots(shapes, keys, spoke_index, boundaries)
     r0 = np.array([(sp, ea, eb) for sp, ea, eb, _ in rows0], dtype=np.int64).reshape(-1, 3)
     r0_lam = np.array([lb for *_, lb in rows0], dtype=np.float64)
     r0_at = np.arange(len(rows0))
+    r0_distinct = all(len({sp, ea, eb}) == 3 for sp, ea, eb in r0.tolist())
 
     def soft(x):
         """Row 0: (e_a + lam e_b) x e_s = 0 per boundary, over scale**2 (all boundaries at
@@ -445,7 +456,10 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
             (2 * sp, -wv[:, 1]),
             (2 * sp + 1, wv[:, 0]),
         ):
-            np.add.at(J, (r0_at, cols), vals)
+            if r0_distinct:  # no two terms of a row in one column: as 0.0 + v (no -0.0)
+                J[r0_at, cols] = vals + 0.0
+            else:
+                np.add.at(J, (r0_at, cols), vals)
         return _cross2(wv, sv) / scale**2, J / scale**2
 
     wedge_ab: dict[int, NDArray] = {}  # each diagonal point in its wedge's spoke basis
@@ -498,7 +512,7 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
             for w, d in zip(wedges, X[nd:], strict=True):
                 Q[w.diag] = c0 + d[0] * x_ax + d[1] * y_ax
             if not exact:
-                _flatten_row2(Q, shapes, c0, normal, keys, spoke_index, boundaries)
+                _flatten_row2(Q, c0, normal, row2)
             return Q
         return None
 
