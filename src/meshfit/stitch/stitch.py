@@ -189,16 +189,6 @@ def _cross2(a: NDArray, b: NDArray) -> NDArray:
     return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
 
 
-def _cross3(a: NDArray, b: NDArray) -> NDArray:
-    """``np.cross`` of ``(n, 3)`` rows, the same products and differences without its axis
-    handling (the corner search calls it thousands of times on 33 rows)."""
-    out = np.empty(a.shape)
-    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
-    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
-    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-    return out
-
-
 def _fan_folded(spokes: dict, wedges: list, diags: NDArray, min_sin: float = 0.0) -> bool:
     """True when a flat fan turns a patch corner over (the wedge from its first to its second
     spoke not counter-clockwise, or the diagonal point outside the wedge)."""
@@ -610,22 +600,28 @@ def _corner_zone_jump(surfaces, shapes, offs, keys, spoke_index, boundaries):
             pair.append((idx, wu, wv))
         sides.append(pair)
 
+    if not sides:
+        return lambda Q: 0.0
+    # every side's two patches at once: (sides, 2, 33, 4, 4) slots and weights
+    IDX = np.array([[idx for idx, _, _ in pair] for pair in sides])
+    WU = np.array([[wu for _, wu, _ in pair] for pair in sides])
+    WV = np.array([[wv for _, _, wv in pair] for pair in sides])
+
     def jump(Q: NDArray) -> float:
-        worst = 0.0
-        for pair in sides:
-            ns = []
-            for idx, wu, wv in pair:
-                block = Q[idx]
-                n = _cross3(
-                    np.einsum("nab,nabc->nc", wu, block), np.einsum("nab,nabc->nc", wv, block)
-                )
-                ln = np.sqrt((n * n).sum(axis=1))  # np.linalg.norm's sum, without its checks
-                ns.append(n / np.where(ln > 0, ln, 1.0)[:, None])
-            cos = (ns[0] * ns[1]).sum(axis=1)
-            ok = (np.abs(ns[0]).sum(axis=1) > 0) & (np.abs(ns[1]).sum(axis=1) > 0)
-            if ok.any():
-                worst = max(worst, float(np.arccos(np.clip(cos[ok], -1.0, 1.0)).max()))
-        return worst
+        block = Q[IDX]
+        du = np.einsum("spnab,spnabc->spnc", WU, block)
+        dv = np.einsum("spnab,spnabc->spnc", WV, block)
+        n = np.empty(du.shape)  # np.cross's products and differences, without its dispatch
+        n[..., 0] = du[..., 1] * dv[..., 2] - du[..., 2] * dv[..., 1]
+        n[..., 1] = du[..., 2] * dv[..., 0] - du[..., 0] * dv[..., 2]
+        n[..., 2] = du[..., 0] * dv[..., 1] - du[..., 1] * dv[..., 0]
+        ln = np.sqrt((n * n).sum(axis=-1))  # np.linalg.norm's sum, without its checks
+        n = n / np.where(ln > 0, ln, 1.0)[..., None]
+        cos = (n[:, 0] * n[:, 1]).sum(axis=-1)
+        ok = (np.abs(n[:, 0]).sum(axis=-1) > 0) & (np.abs(n[:, 1]).sum(axis=-1) > 0)
+        if not ok.any():
+            return 0.0
+        return float(np.arccos(np.clip(cos[ok], -1.0, 1.0)).max())
 
     return jump
 
