@@ -47,24 +47,26 @@ class RawMesh:
     notes: list[str] = field(default_factory=list)
 
 
-_PLY_SIZES = {
-    "char": 1,
-    "int8": 1,
-    "uchar": 1,
-    "uint8": 1,
-    "short": 2,
-    "int16": 2,
-    "ushort": 2,
-    "uint16": 2,
-    "int": 4,
-    "int32": 4,
-    "uint": 4,
-    "uint32": 4,
-    "float": 4,
-    "float32": 4,
-    "double": 8,
-    "float64": 8,
+#: PLY property types and their numpy dtypes (byte order added by the reader)
+_PLY_NUMPY = {
+    "char": "i1",
+    "int8": "i1",
+    "uchar": "u1",
+    "uint8": "u1",
+    "short": "i2",
+    "int16": "i2",
+    "ushort": "u2",
+    "uint16": "u2",
+    "int": "i4",
+    "int32": "i4",
+    "uint": "u4",
+    "uint32": "u4",
+    "float": "f4",
+    "float32": "f4",
+    "double": "f8",
+    "float64": "f8",
 }
+_PLY_SIZES = {name: np.dtype(code).itemsize for name, code in _PLY_NUMPY.items()}
 
 
 @dataclass
@@ -179,27 +181,42 @@ def _ply_binary_min_size(header: _PlyHeader) -> int:
     return total
 
 
-_PLY_NUMPY = {
-    "char": "i1",
-    "int8": "i1",
-    "uchar": "u1",
-    "uint8": "u1",
-    "short": "i2",
-    "int16": "i2",
-    "ushort": "u2",
-    "uint16": "u2",
-    "int": "i4",
-    "int32": "i4",
-    "uint": "u4",
-    "uint32": "u4",
-    "float": "f4",
-    "float32": "f4",
-    "double": "f8",
-    "float64": "f8",
-}
-
 #: vertex colour properties of a PLY file, in RGBA order
 _PLY_COLORS = ("red", "green", "blue", "alpha")
+
+
+def _ply_offsets(buf, pos, count, kinds, order, what, path, starts, sizes) -> int:
+    """Offsets of every property of ``count`` binary PLY rows, row by row (a list's count
+    decides where the next property starts), appended to ``starts`` (and list lengths to
+    ``sizes``); ``kinds`` per property ``(item size, count size or 0, count signed)``.
+    Returns the offset after the rows; MeshFileError naming the row where the data ends."""
+    byteorder = "little" if order == "<" else "big"
+    n = len(buf)
+    for row in range(count):
+        for k, (size, csize, signed) in enumerate(kinds):
+            if csize:
+                if pos + csize > n:
+                    break
+                m = int.from_bytes(buf[pos : pos + csize], byteorder, signed=signed)
+                pos += csize
+                if m < 0:
+                    raise errors.MeshFileError(
+                        f"{path}: cannot read binary PLY: {what} {row} has a list of {m} items"
+                    )
+                sizes[k].append(m)
+                starts[k].append(pos)
+                pos += m * size
+            else:
+                starts[k].append(pos)
+                pos += size
+            if pos > n:
+                break
+        else:
+            continue
+        raise errors.MeshFileError(
+            f"{path}: truncated binary PLY: the file ends in {what} {row} of {count}"
+        )
+    return pos
 
 
 def _ply_rows(buf: bytes, pos: int, count: int, props, order: str, what: str, path: Path):
@@ -225,9 +242,8 @@ def _ply_rows(buf: bytes, pos: int, count: int, props, order: str, what: str, pa
             )
         rows = np.frombuffer(buf, dtype=dt, count=count, offset=pos)
         return {name: rows[name] for name, _, _ in props}, end
-    # offsets row by row (each list's count decides where the next property starts), then
-    # every property gathered at its offsets at once
-    byteorder = "little" if order == "<" else "big"
+    # every property's offsets, row by row (`_ply_offsets`; the usual face row, one uchar
+    # count and the indices, inline), then each property gathered at its offsets at once
     kinds = []
     for _, typ, ct in props:
         item = np.dtype(order + _PLY_NUMPY[typ])
@@ -254,31 +270,8 @@ def _ply_rows(buf: bytes, pos: int, count: int, props, order: str, what: str, pa
             raise errors.MeshFileError(
                 f"{path}: truncated binary PLY: the file ends in {what} {count - 1} of {count}"
             )
-        count = 0  # done: gather below
-    for row in range(count):
-        for k, (size, csize, signed) in enumerate(kinds):
-            if csize:
-                if pos + csize > n:
-                    break
-                m = int.from_bytes(buf[pos : pos + csize], byteorder, signed=signed)
-                pos += csize
-                if m < 0:
-                    raise errors.MeshFileError(
-                        f"{path}: cannot read binary PLY: {what} {row} has a list of {m} items"
-                    )
-                sizes[k].append(m)
-                starts[k].append(pos)
-                pos += m * size
-            else:
-                starts[k].append(pos)
-                pos += size
-            if pos > n:
-                break
-        else:
-            continue
-        raise errors.MeshFileError(
-            f"{path}: truncated binary PLY: the file ends in {what} {row} of {count}"
-        )
+    else:
+        pos = _ply_offsets(buf, pos, count, kinds, order, what, path, starts, sizes)
     raw = np.frombuffer(buf, dtype=np.uint8)
     cols: dict = {}
     for k, (name, typ, ct) in enumerate(props):
