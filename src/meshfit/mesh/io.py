@@ -156,13 +156,17 @@ def _ply_ascii_scan(path: Path, header: _PlyHeader) -> int:
     return polygons
 
 
-def _check_corner_counts(path: Path, sizes: NDArray[np.int64]) -> None:
-    """MeshFileError naming the first face with fewer than three corners, if any."""
+def _check_corner_counts(
+    path: Path, sizes: NDArray[np.int64], *, unit: str = "corners", line=None
+) -> None:
+    """MeshFileError naming the first face with fewer than three corners, if any (``line``:
+    face index -> its line in a text file, for the message)."""
     short = np.flatnonzero(sizes < 3)
     if short.size:
         k = int(short[0])
+        where = "" if line is None else f"line {line(k)}: "
         raise errors.MeshFileError(
-            f"{path}: face {k} has {sizes[k]} corners, a face needs at least 3 "
+            f"{path}: {where}face {k} has {sizes[k]} {unit}, a face needs at least 3 "
             f"({_count(short.size, 'such face')})"
         )
 
@@ -410,13 +414,9 @@ def _read_obj(path: Path) -> RawMesh:
         flines = [re.sub(r"/\S*", "", ln) for ln in flines]
     frows = [ln.split() for ln in flines]
     sizes = np.array([len(r) for r in frows], dtype=np.int64)
-    bad = np.flatnonzero(sizes < 3)
-    if bad.size:
-        k = int(bad[0])
-        raise errors.MeshFileError(
-            f"{path}: line {_obj_line(text, _OBJ_F, k)}: face {k} has "
-            f"{sizes[k]} vertex indices, a face needs at least 3"
-        )
+    _check_corner_counts(
+        path, sizes, unit="vertex indices", line=lambda k: _obj_line(text, _OBJ_F, k)
+    )
     try:
         idx = np.array([t for r in frows for t in r], dtype=np.int64)
     except ValueError:
@@ -520,12 +520,7 @@ def _read_off(path: Path) -> RawMesh:
             f"{path}: truncated OFF: header declares {nf} faces, the file "
             f"ends in face {done} ({done} complete)"
         )
-    bad = np.flatnonzero(sizes < 3)
-    if bad.size:
-        k = int(bad[0])
-        raise errors.MeshFileError(
-            f"{path}: line {frows[k][0]}: face {k} has {sizes[k]} corners, a face needs at least 3"
-        )
+    _check_corner_counts(path, sizes, line=lambda k: frows[k][0])
     try:
         flat = np.array(
             [t for (_, w), n in zip(frows, sizes.tolist(), strict=True) for t in w[1 : 1 + n]],
