@@ -405,25 +405,24 @@ def _control_classes(
     n_cls = max(labels) + 1 if labels else 0
     cap = [np.inf] * n_cls
     want = [np.inf] * n_cls
+    asked = [np.inf] * n_cls  # the smallest global count of the class's directions
     members: list[list[list]] = [[] for _ in range(n_cls)]
     for p in range(n):
         for d in (0, 1):
             c = labels[2 * p + d]
             members[c].append([p, "uv"[d]])
             cap[c] = min(cap[c], shapes[p][d])
-            want[c] = min(want[c], controls[d], shapes[p][d])
+            asked[c] = min(asked[c], controls[d])
+            want[c] = min(asked[c], cap[c])
     notes = []
-    asked_c = [np.inf] * n_cls
-    for node, c in enumerate(labels):
-        asked_c[c] = min(asked_c[c], controls[node % 2])
     explicit = {int(c) for c, _ in chosen}
-    capped = [c for c in range(n_cls) if cap[c] < asked_c[c] and c not in explicit]
+    capped = [c for c in range(n_cls) if cap[c] < asked[c] and c not in explicit]
     if capped:
-        asked = " x ".join(str(int(x)) for x in controls)
+        both = " x ".join(str(int(x)) for x in controls)
         used = sorted({int(cap[c]) for c in capped})
         span = f"{used[0]}" if len(used) == 1 else f"{used[0]} to {used[-1]}"
         notes.append(
-            f"controls: {asked} asked, {span} used in {len(capped)} of {n_cls} control classes "
+            f"controls: {both} asked, {span} used in {len(capped)} of {n_cls} control classes "
             "(at most the smallest spring grid of the class; see control_classes)"
         )
     for c, m in chosen:
@@ -847,9 +846,12 @@ def run_fit(
         write_bytes(out / "layout.json", staged.read_bytes())
     n_patches = int(lay.n_patches)
     if source.startswith("auto") and options.patches is not None and n_patches != options.patches:
+        from meshfit.layout.auto import MIN_PATCHES
+
         notes.append(
             f"the automatic layout has {n_patches} patches for the {options.patches} asked: it "
-            "makes three per base triangle, an even number of triangles, at least 24 patches"
+            f"makes three per base triangle, an even number of triangles, at least {MIN_PATCHES} "
+            "patches"
         )
     st.done("layout", t0, cached=cached is not None, patches=n_patches)
 

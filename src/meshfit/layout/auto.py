@@ -436,8 +436,9 @@ def _network(mesh: Mesh, smap, n_faces: int, seed: int, shape: bool = False):
     vertices moved by :func:`meshfit.layout.shaping.shape_base` with ``shape``)."""
     from meshfit.layout.shaping import shape_base
     from meshfit.shrinkwrap import base_mesh
+    from meshfit.shrinkwrap.base import STARTS
 
-    start = "octahedron" if n_faces < 20 else "icosahedron"
+    start = "octahedron" if n_faces < STARTS["icosahedron"][1] else "icosahedron"
     base = base_mesh(smap, max_faces=n_faces, min_faces=n_faces, seed=seed, start=start)
     S, BF = base.sphere, base.faces
     if shape:

@@ -34,10 +34,15 @@ def icosahedron() -> tuple[NDArray[np.float64], NDArray[np.int64]]:
             v += [(0, a, b), (a, b, 0), (b, 0, a)]
     v = np.asarray(v, dtype=np.float64)
     v /= np.linalg.norm(v, axis=1, keepdims=True)
+    return v, _outward_hull(v)
+
+
+def _outward_hull(v: NDArray[np.float64]) -> NDArray[np.int64]:
+    """Triangles of the convex hull of unit vectors ``v``, counter-clockwise from outside."""
     f = ConvexHull(v).simplices.astype(np.int64)
     flip = spherical_orientation(v, f) < 0
     f[flip] = f[flip][:, ::-1]
-    return v, f
+    return f
 
 
 def octahedron() -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -49,10 +54,7 @@ def octahedron() -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     faces : (8, 3) int64
     """
     v = np.vstack([np.eye(3), -np.eye(3)])
-    f = ConvexHull(v).simplices.astype(np.int64)
-    flip = spherical_orientation(v, f) < 0
-    f[flip] = f[flip][:, ::-1]
-    return v, f
+    return v, _outward_hull(v)
 
 
 #: starting polyhedra of `base_mesh`: name -> (builder, face count)
