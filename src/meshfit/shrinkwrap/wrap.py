@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 from meshfit import errors, tol
 from meshfit.mesh import Mesh
 from meshfit.shrinkwrap import _topo
-from meshfit.shrinkwrap.base import BaseMesh, base_mesh, cell_areas
+from meshfit.shrinkwrap.base import STARTS, BaseMesh, base_mesh, cell_areas
 from meshfit.shrinkwrap.sphere import (
     SphereMap,
     sphere_map,
@@ -283,7 +283,8 @@ def _fix_thin(smap, s, loc, faces, min_angle, rounds):
 
 #: most faces of a wrap's finest level: every level has four times the faces of the last,
 #: and the levels are kept (peak memory about 800 bytes a finest face: spot at 8 levels,
-#: 1.7 million faces, 1.35 GB in 78 s; at 12 levels, 335 million, it ran out of memory)
+#: 1.7 million faces, 1.35 GB in 78 s; at 12 levels over 26 base faces, 436 million, it ran
+#: for 5 minutes without an end in sight)
 WRAP_MAX_FACES = 8_000_000
 
 
@@ -409,7 +410,7 @@ def shrink_wrap(
     """
     if levels < 0:
         raise errors.InputError(f"levels must be >= 0, got {levels}")
-    _check_level_faces(20, levels, fewest=True)  # the fewest base faces: the icosahedron
+    _check_level_faces(min(n for _, n in STARTS.values()), levels, fewest=True)
     if not 0 < alpha <= 1:
         raise errors.InputError(f"alpha must be in (0, 1], got {alpha}")
     if count_weight < 0:

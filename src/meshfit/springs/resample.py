@@ -295,7 +295,7 @@ def _repair(state: State, pmap) -> None:
 
 #: most points of a grid at a level asked for (``level`` without ``max_points``): 2,000 x
 #: 2,000; each level has four times the points of the last, and a level well past the
-#: vertex count exhausts the memory (spot's test patches at level 9: 19 million points each)
+#: vertex count exhausts the memory (spot's test patches at level 9: 19 to 25 million points)
 LEVEL_MAX_POINTS = 4_000_000
 
 
