@@ -66,6 +66,19 @@ def test_fewer_than_sixty_patches_from_an_octahedron(patches):
         assert (valence >= 3).all() and np.bincount(valence)[4] == 18
 
 
+def test_more_patches_than_the_mesh_has_faces_for_are_refused_at_once():
+    # spot (5,856 faces) may ask for 366 patches (122 base triangles) at 16 faces a patch
+    mesh = real_mesh("spot")
+    with pytest.raises(InputError, match=r"1000 patches .* ask for at most 366 patches"):
+        auto_layout(mesh, patches=1000)
+    with pytest.raises(InputError, match="at most 366"):
+        auto_layout(mesh, patches=372)  # 124 base triangles, 372 patches: one pair too many
+    # a mesh too coarse for the fewest patches an automatic layout makes
+    small = icosphere(2)  # 320 faces: 20 patches at most
+    with pytest.raises(InputError, match="makes at least 24: give a layout file"):
+        auto_layout(small)
+
+
 def test_fewest_patches():
     mesh = demo_mesh(6000)
     smap = demo_sphere_map(mesh)

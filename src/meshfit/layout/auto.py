@@ -53,6 +53,10 @@ DEFAULT_PATCHES = 60
 #: fewest patches of an automatic layout (the octahedron: 8 base triangles); bases of fewer
 #: than 20 triangles start from the octahedron, the others from the icosahedron
 MIN_PATCHES = 24
+#: fewest mesh faces a patch of an automatic layout may average: more patches are refused
+#: at once (spot, 5,856 faces, lays out 204 patches, 29 faces a patch, and fails from 300,
+#: 20 faces a patch, after 5 s; 1,000 patches took 26 s to fail)
+MIN_FACES_PER_PATCH = 16
 #: aspect-ratio bound of the spherical triangles of the default sphere map: a map that
 #: squeezes triangles gives base cells whose images are very uneven (nefertiti unbounded:
 #: aspect 571, 310 folded spring cells in the fit; bounded: 18)
@@ -302,6 +306,9 @@ def auto_layout(
 
     Raises
     ------
+    meshfit.errors.InputError
+        ``patches`` below 1, or more patches than the mesh has faces for (fewer than
+        `MIN_FACES_PER_PATCH` = 16 faces a patch).
     meshfit.errors.TopologyError
         An open mesh, a mesh with holes or of higher genus: a layout file is needed (or
         ``fill_holes`` first where the holes are small).
@@ -331,6 +338,19 @@ def auto_layout(
     want = DEFAULT_PATCHES if patches is None else int(patches)
     n_faces = max(MIN_PATCHES // PATCHES_PER_TRIANGLE, round(want / PATCHES_PER_TRIANGLE))
     n_faces += n_faces % 2
+    most = mesh.n_faces // MIN_FACES_PER_PATCH // PATCHES_PER_TRIANGLE  # base triangles
+    most -= most % 2
+    if n_faces > most:
+        name = mesh.name or "the mesh"
+        raise InputError(
+            f"{want} patches on {name} ({mesh.n_faces} faces): an automatic layout needs at "
+            f"least {MIN_FACES_PER_PATCH} faces a patch, "
+            + (
+                f"ask for at most {PATCHES_PER_TRIANGLE * most} patches"
+                if PATCHES_PER_TRIANGLE * most >= MIN_PATCHES
+                else f"and makes at least {MIN_PATCHES}: give a layout file or a finer mesh"
+            )
+        )
     if shape is None:
         shape = n_faces > SHAPE_ABOVE_FACES
     iters = int(relax_iterations)
