@@ -108,13 +108,16 @@ def test_open_and_higher_genus_meshes_need_a_layout_file():
 
 def test_crossing_curves_give_a_clear_error(monkeypatch):
     # spot has about 2,900 vertices: 180 patches put several traced curves through one face
-    # (with the unshaped base meshes of seeds 0 and 1; the shaped ones do not cross)
+    # (with the unshaped base meshes of seeds 0 and 1 as they come; the shaped ones, and those
+    # with base vertices moved onto the horns and ears, do not cross)
     import meshfit.layout.auto as auto
 
     monkeypatch.setattr(auto, "SEED_TRIES", 2)
+    mesh = real_mesh("spot")
     with pytest.raises(LayoutError, match="fewer patches") as err:
-        auto_layout(real_mesh("spot"), patches=180, relax=False, shape=False)
+        auto_layout(mesh, patches=180, relax=False, shape=False, protrusions=False)
     assert "nor with another rotation of the base mesh" in str(err.value)
+    assert auto_layout(mesh, patches=180, relax=False, shape=False).n_patches == 180
 
 
 def test_crossing_curves_are_retried_with_other_rotations(monkeypatch):
@@ -234,3 +237,94 @@ def test_relax_many_halves_and_reverts_like_the_oracle():
         np.testing.assert_array_equal(stats, want_stats)
         np.testing.assert_array_equal(face, want_face)
         np.testing.assert_array_equal(bary, want_bary)
+
+
+@cache
+def _filled_bunny():
+    from meshfit.shrinkwrap import fill_holes
+
+    return fill_holes(real_mesh("bunny"))
+
+
+@pytest.mark.slow
+def test_base_vertices_move_onto_protrusions():
+    # the 60-patch layout of the (hole-filled) bunny holds an ear whole in one patch, which
+    # bulges far beyond its boundary (6.4); base vertices moved onto the ears' tips run
+    # curves along the ears instead (largest bulge 2.0)
+    from meshfit.layout.patch import BULGY
+
+    mesh = _filled_bunny()
+    V = mesh.vertices
+    # the top of each ear: the highest point on either side of x = -0.04
+    tops = [V[side][np.argmax(V[side, 1])] for side in (V[:, 0] < -0.04, V[:, 0] >= -0.04)]
+    for protrusions in (False, True):
+        layout = auto_layout(mesh, protrusions=protrusions)
+        bulge = max(p.bulge for p in extract_patches(mesh, layout))
+        corners = mesh.xyz(layout.corners)
+        near = [np.linalg.norm(corners - t, axis=1).min() / mesh.bbox_diagonal for t in tops]
+        if protrusions:
+            assert bulge < 2.5 and max(near) < 0.04, (bulge, near)  # 2.0; 2.8% and 2.5%
+        else:
+            assert bulge > BULGY and min(near) > 0.1, (bulge, near)  # 6.4; 18% and 16%
+
+
+def test_quad_depths_of_a_round_mesh_and_of_one_with_a_protrusion():
+    from meshfit.layout.auto import PROTRUSION_DEPTH, quad_depths
+    from meshfit.shrinkwrap import base_mesh
+
+    mesh = demo_mesh(6000)
+    smap = demo_sphere_map(mesh)
+    base = base_mesh(smap, max_faces=20, min_faces=20, seed=0)
+    depth, tip = quad_depths(mesh, smap.sphere, base.sphere, base.faces)
+    assert depth.shape == tip.shape == (60,)
+    # a quad of a round surface reaches about as deep as a flat square (0.5), graph paths
+    # running a little longer than straight lines
+    assert 0.3 < np.median(depth) < 0.55 and depth.max() < PROTRUSION_DEPTH
+    assert (tip >= 0).all()
+    # the bunny's ears: two quads deeper than the bound, their tips at the ears' tops
+    mesh = _filled_bunny()
+    from meshfit.shrinkwrap import sphere_map
+
+    smap = sphere_map(mesh, max_aspect=10.0)
+    base = base_mesh(smap, max_faces=20, min_faces=20, seed=0)
+    depth, tip = quad_depths(mesh, smap.sphere, base.sphere, base.faces)
+    deep = np.flatnonzero(depth > PROTRUSION_DEPTH)
+    assert deep.size == 2
+    assert (mesh.vertices[tip[deep], 1] > 0.16).all()  # the head's top is at y = 0.15
+
+
+@pytest.mark.slow
+def test_a_move_onto_a_protrusion_is_kept_only_where_the_curves_cut_disks(monkeypatch):
+    import meshfit.layout.auto as auto
+
+    mesh = _filled_bunny()
+    plain = auto_layout(mesh, protrusions=False)
+    monkeypatch.setattr(auto, "_cuts_disks", lambda *args: False)
+    refused = auto_layout(mesh)
+    assert_array_equal(refused.corners.face, plain.corners.face)
+    assert_array_equal(refused.corners.bary, plain.corners.bary)
+
+
+@pytest.mark.slow
+def test_traced_arcs_are_sampled_densely_where_the_sphere_map_squeezes_the_surface():
+    from meshfit.layout.auto import TRACE_GAP_EDGES, _fill_gaps, _slerp
+    from meshfit.shrinkwrap import sphere_map
+
+    mesh = _filled_bunny()
+    smap = sphere_map(mesh, max_aspect=10.0)
+    V = mesh.vertices
+    tip = int(np.argmax(V[:, 1]))  # an ear's top: its image is a speck of the sphere
+    a = smap.sphere[tip] / np.linalg.norm(smap.sphere[tip])
+    b = np.cross(a, [0.0, 0.0, 1.0])
+    b /= np.linalg.norm(b)  # a quarter circle from the tip
+    arc = (a, b, float(np.arccos(np.clip(a @ b, -1.0, 1.0))))
+    even = np.linspace(0.0, 1.0, 33)
+
+    def gaps(t):
+        x = smap.evaluate(_slerp(*arc, t))
+        return np.linalg.norm(np.diff(x, axis=0), axis=1) / mesh.mean_edge_length
+
+    assert gaps(even).max() > 20  # the first step leaves the ear at once
+    (filled,) = _fill_gaps(mesh, smap, [arc], [even], TRACE_GAP_EDGES)
+    assert np.isin(even, filled).all() and (np.diff(filled) > 0).all()
+    assert gaps(filled).max() <= TRACE_GAP_EDGES

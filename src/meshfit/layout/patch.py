@@ -48,8 +48,9 @@ TAPERED = 4.0
 #: and one takes more than half the turn): the grid cell at that corner cannot be convex,
 #: and the spring mesh may squeeze or fold there (nefertiti's test layout, patch 20's corner
 #: 3 at 192 degrees: its least even grid line, arc-length CV 0.172, is at that corner;
-#: bunny's automatic layout, patches 0 and 20 at 234 and 221 degrees at corner 1: the cell
-#: there folds in its triangle of three side points, which no repair moves). Every other
+#: bunny's automatic layout of revision 3, patches 0 and 20 at 234 and 221 degrees at
+#: corner 1: the cell there folds in its triangle of three side points, which no repair
+#: moves). Every other
 #: corner of the four test layouts but nefertiti_bust's patch 27 (222 degrees, at corner 2:
 #: it meets the bounds) is between 17 and 160 degrees.
 REFLEX = 180.0
