@@ -3,9 +3,10 @@ import itertools
 
 import numpy as np
 import pytest
-from numpy.testing import assert_allclose
+from numpy.testing import assert_allclose, assert_array_equal
 
 from meshfit import errors, tol
+from meshfit.mesh import Mesh
 from meshfit.shrinkwrap import (
     base_mesh,
     fill_holes,
@@ -18,6 +19,7 @@ from meshfit.shrinkwrap import (
 )
 
 from ..conftest import analytic_mesh, real_mesh
+from ..shapes import icosphere
 from .conftest import smap, wrap
 
 #: the issue's targets
@@ -169,10 +171,58 @@ def test_fill_holes_closes_the_bunny_and_it_wraps():
     bunny = real_mesh("bunny")
     closed = fill_holes(bunny)
     assert closed.is_closed and closed.genus == 0
-    assert closed.n_vertices == bunny.n_vertices + 5
     assert_allclose(closed.vertices[: bunny.n_vertices], bunny.vertices)
+    assert_array_equal(closed.faces[: bunny.n_faces], bunny.faces)
+    # five holes of 22 to 80 edges: patches of triangles about as large as the mesh's
+    new = closed.faces[bunny.n_faces :]
+    assert 300 < closed.n_vertices - bunny.n_vertices < 400  # 342
+    edges = np.linalg.norm(closed.vertices[new] - closed.vertices[np.roll(new, 1, axis=1)], axis=2)
+    assert 0.8 < edges.mean() / bunny.mean_edge_length < 1.5  # 1.16
+    assert np.percentile(_smallest_angles(closed.vertices, new), 5) > 20.0  # 27.2 degrees
     res = shrink_wrap(closed, levels=2)
     assert (spherical_orientation(res.levels[-1].sphere, res.levels[-1].faces) > 0).all()
+
+
+def _smallest_angles(V, F):
+    """Each triangle's smallest angle, degrees."""
+    out = []
+    for k in range(3):
+        u = V[F[:, (k + 1) % 3]] - V[F[:, k]]
+        w = V[F[:, (k + 2) % 3]] - V[F[:, k]]
+        out.append(np.arctan2(np.linalg.norm(np.cross(u, w), axis=1), (u * w).sum(axis=1)))
+    return np.degrees(np.min(out, axis=0))
+
+
+def test_fill_holes_continues_a_sphere_over_a_cut_cap():
+    # a cap of 40 degrees cut from a unit sphere: the thin-plate fill bulges out with it, the
+    # least-area patch alone stays near the cut's plane (1 - cos 40 = 0.23 below the pole)
+    sphere = icosphere(4)
+    V, F = sphere.vertices, sphere.faces
+    cap = V[F].mean(axis=1)[:, 2] > np.cos(np.radians(40.0))
+    keep = np.unique(F[~cap])
+    remap = np.full(len(V), -1)
+    remap[keep] = np.arange(len(keep))
+    cut = Mesh(V[keep], remap[F[~cap]])
+    assert len(cut.boundary_loops) == 1
+    flat = fill_holes(cut, fair=False)
+    fair = fill_holes(cut)
+    for m in (flat, fair):
+        assert m.is_closed and m.genus == 0
+    r_flat = np.linalg.norm(flat.vertices[cut.n_vertices :], axis=1)
+    r_fair = np.linalg.norm(fair.vertices[cut.n_vertices :], axis=1)
+    assert r_flat.min() < 0.8  # 0.77
+    dev = np.abs(r_fair - 1.0)
+    assert dev.max() < 0.06 and dev.mean() < 0.02, (dev.max(), dev.mean())  # 0.050, 0.017
+
+
+def test_fill_holes_of_a_scan_whose_rim_vertices_are_joined_outside_the_hole():
+    # nefertiti_fraunhofer's one hole (516 edges, the cut under the bust) has rim vertices
+    # joined by edges of the mesh: no fill triangle may repeat one (the mesh would have an
+    # edge of three faces, refused on construction)
+    scan = real_mesh("nefertiti_fraunhofer")
+    closed = fill_holes(scan)
+    assert closed.is_closed and closed.genus == 0
+    assert closed.vertex_colors is not None and len(closed.vertex_colors) == closed.n_vertices
 
 
 def test_fill_holes_refuses_large_holes():

@@ -203,7 +203,8 @@ def _wrap_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--fill-holes",
         action="store_true",
-        help=f"close holes (boundary loops of up to {_FILL_MAX_EDGES} edges) with fans first",
+        help=f"close holes (boundary loops of up to {_FILL_MAX_EDGES} edges) first, with patches "
+        "that continue the surface",
     )
     p.add_argument(
         "--sphere-method",
