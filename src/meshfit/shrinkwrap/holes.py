@@ -82,7 +82,10 @@ def fill_holes(mesh: Mesh, *, max_edges: int = 1000, fair: bool = True) -> Mesh:
     F = [mesh.faces]
     n = mesh.n_vertices
     edge_len = _vertex_edge_lengths(mesh)
-    existing = {(int(a), int(b)) for a, b in mesh.edges}
+    rim = np.zeros(mesh.n_vertices, dtype=bool)
+    rim[np.concatenate(loops)] = True
+    e = mesh.edges
+    existing = e[rim[e[:, 0]] & rim[e[:, 1]]]  # the edges a fill triangle could repeat
     colors = mesh.vertex_colors
     extra_colors = []
     cut = []
@@ -134,13 +137,13 @@ def _fan(P: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.int64]
     return np.vstack([P, P.mean(axis=0, keepdims=True)]), tris
 
 
-def _forbidden(lp: NDArray[np.int64], existing: set) -> NDArray[np.bool_]:
+def _forbidden(lp: NDArray[np.int64], existing: NDArray[np.int64]) -> NDArray[np.bool_]:
     """(k, k) bool: pairs of loop positions joined by an edge of the mesh that is not a
     side of the loop (a diagonal there would give that edge a third face)."""
     k = len(lp)
     where = {int(v): i for i, v in enumerate(lp.tolist())}
     out = np.zeros((k, k), dtype=bool)
-    for a, b in existing:
+    for a, b in existing.tolist():
         if a in where and b in where:
             i, j = where[a], where[b]
             if (i - j) % k not in (1, k - 1):
