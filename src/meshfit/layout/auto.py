@@ -44,7 +44,7 @@ from meshfit.layout.layout import Layout, layout_from_curves
 from meshfit.mesh import Mesh
 from meshfit.types import SurfaceCurve, SurfacePoints
 
-__all__ = ["auto_layout", "quad_depths", "quad_network"]
+__all__ = ["auto_layout", "balance_degrees", "quad_depths", "quad_network"]
 
 #: patches per base triangle
 PATCHES_PER_TRIANGLE = 3
@@ -77,8 +77,9 @@ FINE_RELAX_ITERATIONS = 50
 #: resumed fit does not re-use a layout cached by an earlier revision (2: shaped bases above
 #: `SHAPE_ABOVE_FACES` triangles; 3: fewer than 60 patches from an octahedron's base, where
 #: earlier revisions made 60; 4: base vertices moved onto protrusions, traced arcs sampled
-#: densely where the sphere map squeezes the surface)
-AUTO_LAYOUT_REVISION = 4
+#: densely where the sphere map squeezes the surface; 5: the degrees of a base mesh with
+#: split edges balanced by flips)
+AUTO_LAYOUT_REVISION = 5
 #: ``shape=None`` of `auto_layout` shapes base meshes of more than this many triangles. The
 #: bisections that take the relaxed icosahedron beyond 20 triangles leave cells of equal area
 #: that are slivers where the sphere map stretches (spring meshes of the 96-patch layouts, with
@@ -106,6 +107,8 @@ TRACE_MIN_STEP = 1e-12
 PROTRUSION_DEPTH = 0.65
 #: base vertices moved onto protrusions at most
 PROTRUSION_MOVES = 6
+#: degree-balancing flips of a base mesh at most, per triangle (`balance_degrees`)
+BALANCE_FLIPS_PER_FACE = 4
 #: a base triangle's image is split n x n ways to find its area centre
 _SPLIT_GRID = 12
 
@@ -543,6 +546,8 @@ def _network(
     start = "octahedron" if n_faces < STARTS["icosahedron"][1] else "icosahedron"
     base = base_mesh(smap, max_faces=n_faces, min_faces=n_faces, seed=seed, start=start)
     S, BF = base.sphere, base.faces
+    if len(BF) > STARTS[start][1]:  # edges were split: even out the vertex degrees
+        BF = balance_degrees(S, BF)
     if shape:
         S = shape_base(smap, S, BF, seed=seed).sphere
     network = _traced(mesh, smap, S, BF)
@@ -689,6 +694,48 @@ def _cuts_disks(mesh: Mesh, network, relax_iterations: int) -> bool:
         except MeshfitError:
             continue
     return False
+
+
+def balance_degrees(
+    S: NDArray[np.float64], BF: NDArray[np.int64], *, target: int = 6, least: int = 4
+) -> NDArray[np.int64]:
+    """The triangles ``BF`` of the spherical base mesh ``S`` with edges flipped, one at a
+    time, the flip that most lowers the summed squared deviation of the four vertices'
+    degrees from ``target`` first, while one lowers it. A flip keeps both new triangles
+    counter-clockwise on the sphere, repeats no edge and leaves no vertex below ``least``.
+
+    The base mesh's edge splits (:func:`meshfit.shrinkwrap.base_mesh`) pile up round a few
+    vertices where the sphere map squeezes the surface: nefertiti's 68-triangle base has
+    vertices of degree 12 and 15, whose corners get 15 curves 6 degrees apart that cross at
+    once (its 204-patch layout could not be made); balanced, the degrees are 4 to 7.
+    """
+    F = [[int(v) for v in f] for f in BF]
+    deg = np.bincount(np.asarray(BF).ravel(), minlength=len(S)).astype(np.int64)
+
+    def cost(v: int, change: int) -> int:
+        return int((deg[v] + change - target) ** 2 - (deg[v] - target) ** 2)
+
+    for _ in range(BALANCE_FLIPS_PER_FACE * len(F)):
+        where = {(f[s], f[(s + 1) % 3]): (t, s) for t, f in enumerate(F) for s in range(3)}
+        best = None
+        for (a, b), (t1, s1) in where.items():
+            if a > b:
+                continue
+            t2, s2 = where[(b, a)]
+            c, d = F[t1][(s1 + 2) % 3], F[t2][(s2 + 2) % 3]
+            if c == d or (c, d) in where or min(deg[a], deg[b]) - 1 < least:
+                continue
+            gain = -(cost(a, -1) + cost(b, -1) + cost(c, 1) + cost(d, 1))
+            if gain > 0 and (best is None or gain > best[0]):
+                if _upright(S, np.array([[c, a, d], [d, b, c]])):
+                    best = (gain, t1, t2, a, b, c, d)
+        if best is None:
+            break
+        _, t1, t2, a, b, c, d = best
+        F[t1], F[t2] = [c, a, d], [d, b, c]
+        deg[[a, b]] -= 1
+        deg[[c, d]] += 1
+    return np.asarray(F, dtype=np.int64)
 
 
 def _upright(S: NDArray[np.float64], BF: NDArray[np.int64]) -> bool:
