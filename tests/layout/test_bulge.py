@@ -32,3 +32,20 @@ def test_bulge_notes_name_the_bulging_patches_most_first():
     (two,) = bulge_notes({5: 4.0, 3: 11.06, 7: 1.0})
     assert two.startswith("2 patches bulge") and two.index("patch 3:") < two.index("patch 5:")
     assert "patch 7" not in two
+
+
+def test_thin_notes_name_the_slivers_thinnest_first():
+    from meshfit.layout.patch import THIN, patch_notes, thin_notes
+
+    # a 40 x 1 strip: 40 / (82 / 4)^2 = 0.095; 100 x 1: 0.039
+    assert param_patch(plane_map(100.0, 1.0)).bulge < THIN < param_patch(plane_map(40.0, 1.0)).bulge
+    assert thin_notes({0: 1.0, 1: 0.06}) == []
+    (one,) = thin_notes({0: 1.0, 4: 0.013})
+    assert one.startswith("1 patch is a sliver") and "patch 4: 0.013" in one
+    (two,) = thin_notes({2: 0.04, 4: 0.013, 7: 0.5})
+    assert two.startswith("2 patches are slivers") and two.index("patch 4:") < two.index("patch 2:")
+    assert "patch 7" not in two and "ask for fewer patches" in two
+    # among a fit's notes, after those of bulging patches
+    rows = [{"patch": 0, "bulge": 11.0}, {"patch": 1, "bulge": 0.02}]
+    notes = patch_notes(rows)
+    assert len(notes) == 2 and "bulges far" in notes[0] and "sliver" in notes[1]

@@ -25,6 +25,7 @@ __all__ = [
     "shape_figures",
     "sides_taper",
     "taper_notes",
+    "thin_notes",
 ]
 
 #: a patch whose :attr:`Patch.bulge` exceeds this bulges far beyond its boundary (a flat
@@ -33,6 +34,12 @@ __all__ = [
 #: projected cube, over neck, shoulders and base: 11.1 -- its spring mesh misses the surface
 #: by 1.8% of the bbox diagonal)
 BULGY = 3.0
+
+#: a patch whose :attr:`Patch.bulge` is below this is a sliver, two of its corners near 0
+#: degrees: the grid across it folds (bunny's 120-patch automatic layout, the strips along
+#: an ear: 0.013-0.023, 69-161 folded spring cells each; every patch of the test layouts
+#: and of the 60-patch automatic layouts of the scans is above 0.16)
+THIN = 0.05
 
 
 #: a patch whose :attr:`Patch.taper` exceeds this has one side much shorter than the side
@@ -223,6 +230,22 @@ def bulge_notes(bulge: dict[int, float]) -> list[str]:
     )
 
 
+def thin_notes(bulge: dict[int, float]) -> list[str]:
+    """`bulge_notes` of slivers: one note names the patches whose :attr:`Patch.bulge` is
+    below `THIN`, thinnest first (at most five), with what to do (none when there is no
+    such patch)."""
+    return _ranked_note(
+        bulge,
+        THIN,
+        lambda n, one: (
+            f"{n} patch{' is a sliver' if one else 'es are slivers'} (area under "
+            f"{THIN:.0%} of that of a square with the same perimeter): {{patches}}: the grid "
+            "across a sliver folds; ask for fewer patches, or give a layout file"
+        ),
+        below=True,
+    )
+
+
 def sides_taper(lengths) -> float:
     """:attr:`Patch.taper` of four side lengths.
 
@@ -294,11 +317,14 @@ def corner_notes(angles: dict[int, Sequence[float]]) -> list[str]:
     ]
 
 
-def _ranked_note(values: dict[int, float], bound: float, text) -> list[str]:
-    """One note naming the patches whose value exceeds ``bound``, largest first (at most
-    five, as ``patch i: v``), worded by ``text(count, single)`` with a ``{patches}`` slot;
-    empty when none exceeds it."""
-    big = sorted(((p, v) for p, v in values.items() if v > bound), key=lambda kv: -kv[1])
+def _ranked_note(values: dict[int, float], bound: float, text, below: bool = False) -> list[str]:
+    """One note naming the patches whose value exceeds ``bound`` (with ``below``: is below
+    it), farthest first (at most five, as ``patch i: v``), worded by ``text(count, single)``
+    with a ``{patches}`` slot; empty when there is none."""
+    sign = -1.0 if below else 1.0
+    big = sorted(
+        ((p, v) for p, v in values.items() if sign * v > sign * bound), key=lambda kv: -sign * kv[1]
+    )
     if not big:
         return []
     named = ", ".join(f"patch {p}: {v:.3g}" for p, v in big[:5])
@@ -332,10 +358,16 @@ def shape_figures(patch: Patch) -> dict:
 
 
 def patch_notes(rows: list[dict]) -> list[str]:
-    """`bulge_notes`, `taper_notes` and `corner_notes` of per-patch rows with a ``patch`` key
-    and the `shape_figures` keys (rows without one of those are left out of its note)."""
+    """`bulge_notes`, `thin_notes`, `taper_notes` and `corner_notes` of per-patch rows with a
+    ``patch`` key and the `shape_figures` keys (rows without one of those are left out of its
+    note)."""
 
     def of(key: str) -> dict:
         return {r["patch"]: r[key] for r in rows if key in r}
 
-    return bulge_notes(of("bulge")) + taper_notes(of("taper")) + corner_notes(of("corner_angles"))
+    return (
+        bulge_notes(of("bulge"))
+        + thin_notes(of("bulge"))
+        + taper_notes(of("taper"))
+        + corner_notes(of("corner_angles"))
+    )
