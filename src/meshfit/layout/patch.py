@@ -37,7 +37,7 @@ BULGY = 3.0
 
 #: a patch whose :attr:`Patch.bulge` is below this is a sliver, two of its corners near 0
 #: degrees: the grid across it folds (bunny's 120-patch automatic layout, the strips along
-#: an ear: 0.013-0.023, 69-161 folded spring cells each; every patch of the test layouts
+#: an ear: 0.013-0.024, 29-161 folded spring cells each; every patch of the test layouts
 #: and of the 60-patch automatic layouts of the scans is above 0.16)
 THIN = 0.05
 
