@@ -38,7 +38,8 @@ def fill_holes(mesh: Mesh, *, max_edges: int = 1000, fair: bool = True) -> Mesh:
     Each hole is triangulated by the triangulation of its boundary polygon of least area
     (dynamic programming over the polygon's diagonals, none along an edge the mesh already
     has), then refined: a triangle is split at its centroid while that lies farther than
-    `SPLIT_FACTOR` times the local edge length from its corners, and edges are flipped
+    `SPLIT_FACTOR` times the local edge length from its corners (that of the edges round the
+    hole, at least the mesh's mean edge length), and edges are flipped
     wherever the two angles opposite them add up to more than 180 degrees. With ``fair``
     the new vertices then solve the discrete thin-plate equation (the umbrella operator
     applied twice is zero at every new vertex, the hole's boundary and the ring of vertices
@@ -53,8 +54,8 @@ def fill_holes(mesh: Mesh, *, max_edges: int = 1000, fair: bool = True) -> Mesh:
     max_edges : int, keyword-only
         Largest hole closed, in boundary edges (default 1000).
     fair : bool, keyword-only
-        Move the new vertices to the thin-plate surface (default True); else they stay in
-        the least-area triangulation's triangles.
+        Move the new vertices to the thin-plate surface, or the membrane for a cut (default
+        True); else they stay in the least-area triangulation's triangles.
 
     Returns
     -------
