@@ -740,9 +740,10 @@ def balance_degrees(
 
 def _upright(S: NDArray[np.float64], BF: NDArray[np.int64]) -> bool:
     """Whether every spherical triangle of ``S``, ``BF`` is counter-clockwise seen from
-    outside."""
-    A, B, C = S[BF[:, 0]], S[BF[:, 1]], S[BF[:, 2]]
-    return bool((np.einsum("ij,ij->i", np.cross(B - A, C - A), A + B + C) > 0.0).all())
+    outside (:func:`meshfit.shrinkwrap.spherical_orientation` positive)."""
+    from meshfit.shrinkwrap import spherical_orientation
+
+    return bool((spherical_orientation(S, np.asarray(BF, dtype=np.int64)) > 0.0).all())
 
 
 def _relax_inputs(mesh: Mesh, curves: list[SurfaceCurve]) -> dict:
