@@ -320,7 +320,9 @@ def auto_layout(
         Wanted patch count; the base mesh gets ``round(patches / 3)`` faces (an even number,
         at least 8), so the result has about ``patches`` patches (default 60, at least
         `MIN_PATCHES` = 24). Bases of fewer than 20 faces are made from an octahedron, the
-        others from an icosahedron (:func:`meshfit.shrinkwrap.base_mesh`).
+        others from an icosahedron (:func:`meshfit.shrinkwrap.base_mesh`); a base whose
+        edges were split has its vertex degrees balanced by flips (:func:`balance_degrees`).
+        At most one patch per `MIN_FACES_PER_PATCH` (16) faces of ``mesh``.
     sphere : meshfit.shrinkwrap.SphereMap, keyword-only, optional
         A ready parameterization of ``mesh`` over the unit sphere; default
         :func:`meshfit.shrinkwrap.sphere_map` with ``max_aspect=sphere_max_aspect``.
