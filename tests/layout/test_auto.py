@@ -319,14 +319,22 @@ def test_traced_arcs_are_sampled_densely_where_the_sphere_map_squeezes_the_surfa
     arc = (a, b, float(np.arccos(np.clip(a @ b, -1.0, 1.0))))
     even = np.linspace(0.0, 1.0, 33)
 
-    def gaps(t):
-        x = smap.evaluate(_slerp(*arc, t))
+    def gaps(x):
         return np.linalg.norm(np.diff(x, axis=0), axis=1) / mesh.mean_edge_length
 
-    assert gaps(even).max() > 20  # the first step leaves the ear at once
-    (filled,) = _fill_gaps(mesh, smap, [arc], [even], TRACE_GAP_EDGES)
-    assert np.isin(even, filled).all() and (np.diff(filled) > 0).all()
-    assert gaps(filled).max() <= TRACE_GAP_EDGES
+    assert gaps(smap.evaluate(_slerp(*arc, even))).max() > 20  # the first step leaves the ear
+    (size,), inner = _fill_gaps(mesh, smap, [arc], [even], TRACE_GAP_EDGES)
+    assert size == len(inner) > 31  # the 31 inner samples and those added
+    ends = smap.evaluate(np.array([a, b]))
+    x = np.vstack([ends[:1], mesh.xyz(inner), ends[1:]])
+    assert gaps(x).max() <= TRACE_GAP_EDGES
+    # the even samples are kept, in order along the arc
+    kept = smap.locate(_slerp(*arc, even[1:-1]))
+    at = [
+        np.flatnonzero((inner.face == f) & np.all(inner.bary == b, axis=1))
+        for f, b in zip(kept.face, kept.bary, strict=True)
+    ]
+    assert all(i.size for i in at) and (np.diff([i[0] for i in at]) > 0).all()
 
 
 @pytest.mark.slow

@@ -26,13 +26,13 @@ def least_area_table(P, forbidden):
             j = i + gap
             lo = np.inf
             arg = i + 1
+            vx = P[j, 0] - P[i, 0]
+            vy = P[j, 1] - P[i, 1]
+            vz = P[j, 2] - P[i, 2]
             for m in range(i + 1, j):
                 ux = P[m, 0] - P[i, 0]
                 uy = P[m, 1] - P[i, 1]
                 uz = P[m, 2] - P[i, 2]
-                vx = P[j, 0] - P[i, 0]
-                vy = P[j, 1] - P[i, 1]
-                vz = P[j, 2] - P[i, 2]
                 cx = uy * vz - uz * vy
                 cy = uz * vx - ux * vz
                 cz = ux * vy - uy * vx

@@ -192,8 +192,9 @@ def _trace_all(
     mesh: Mesh, smap, pts: NDArray, ends: NDArray[np.int64], corners: SurfacePoints
 ) -> list[SurfaceCurve]:
     """The images of the great-circle arcs ``pts[a] -> pts[b]`` (rows of ``ends``) as
-    face-point curves between their corners (to be densified); the sphere map is evaluated
-    and searched once for all arcs."""
+    face-point curves between their corners (to be densified); the sphere map is searched
+    once for all arcs' samples, then for those added where the samples spread
+    (`_fill_gaps`)."""
     arcs = []
     for a, b in ends.tolist():
         w = float(np.arccos(np.clip(pts[a] @ pts[b], -1.0, 1.0)))
@@ -205,45 +206,52 @@ def _trace_all(
     )
     lengths = np.linalg.norm(np.diff(coarse, axis=1), axis=2).sum(axis=1)
     counts = [max(2, int(np.ceil(2.0 * x / mesh.mean_edge_length)) + 1) for x in lengths]
-    params = _fill_gaps(
+    sizes, inner = _fill_gaps(
         mesh, smap, arcs, [np.linspace(0.0, 1.0, n) for n in counts], TRACE_GAP_EDGES
     )
-    inner = [_slerp(a, b, w, t)[1:-1] for (a, b, w), t in zip(arcs, params, strict=True)]
-    located = smap.locate(np.vstack(inner))
-    return _between_corners(located, [t.size - 2 for t in params], corners, ends, "boundary")
+    return _between_corners(inner, sizes, corners, ends, "boundary")
 
 
-def _fill_gaps(mesh: Mesh, smap, arcs: list, params: list, edges: float) -> list:
-    """The arc parameters ``params`` (one increasing array from 0 to 1 per arc of ``arcs``,
-    ``(a, b, angle)``) with mid-parameters added, round after round, wherever the images of
-    two consecutive samples are more than ``edges`` mean edge lengths apart. Where the sphere
-    map squeezes part of the surface (a protrusion: on bunny an ear's tip gets 10^-7 of its
-    share of the sphere), samples evenly spaced on the arc step over it, and the traced curve
-    would cut across it instead of following the arc's image. At most `TRACE_ROUNDS` rounds."""
+def _fill_gaps(
+    mesh: Mesh, smap, arcs: list, params: list, edges: float
+) -> tuple[list[int], SurfacePoints]:
+    """The images of the arcs ``arcs`` (``(a, b, angle)``) sampled at the parameters
+    ``params`` (one increasing array from 0 to 1 per arc), with mid-parameters added, round
+    after round, wherever the images of two consecutive samples are more than ``edges`` mean
+    edge lengths apart. Where the sphere map squeezes part of the surface (a protrusion: on
+    bunny an ear's tip gets 10^-7 of its share of the sphere), samples evenly spaced on the
+    arc step over it, and the traced curve would cut across it instead of following the
+    arc's image. At most `TRACE_ROUNDS` rounds. Returns the inner samples' count per arc
+    and the inner samples as face points, arc after arc (the ends are the corners)."""
     gap = edges * mesh.mean_edge_length
     params = [np.asarray(t, dtype=np.float64) for t in params]
-    flat = smap.evaluate(np.vstack([_slerp(*arc, t) for arc, t in zip(arcs, params, strict=True)]))
-    xyz = np.split(flat, np.cumsum([t.size for t in params])[:-1])
+
+    def locate(ts: list) -> list:
+        at = smap.locate(np.vstack([_slerp(*arcs[k], t) for k, t in ts]))
+        cut = np.cumsum([t.size for _, t in ts])[:-1]
+        return list(zip(np.split(at.face, cut), np.split(at.bary, cut), strict=True))
+
+    pts = locate(list(enumerate(params)))
     todo = list(range(len(arcs)))
     for _ in range(TRACE_ROUNDS):
         wide = {}
         for k in todo:
-            far = np.linalg.norm(np.diff(xyz[k], axis=0), axis=1) > gap
+            x = mesh.xyz(SurfacePoints(*pts[k]))
+            far = np.linalg.norm(np.diff(x, axis=0), axis=1) > gap
             far &= np.diff(params[k]) > TRACE_MIN_STEP
             if far.any():
                 wide[k] = np.flatnonzero(far)
         if not wide:
             break
         mids = {k: 0.5 * (params[k][w] + params[k][w + 1]) for k, w in wide.items()}
-        flat = smap.evaluate(np.vstack([_slerp(*arcs[k], m) for k, m in mids.items()]))
-        at = 0
-        for k, w in wide.items():
-            new = flat[at : at + w.size]
-            at += w.size
+        for (k, w), (face, bary) in zip(wide.items(), locate(list(mids.items())), strict=True):
             params[k] = np.insert(params[k], w + 1, mids[k])
-            xyz[k] = np.insert(xyz[k], w + 1, new, axis=0)
+            pts[k] = (np.insert(pts[k][0], w + 1, face), np.insert(pts[k][1], w + 1, bary, axis=0))
         todo = list(wide)
-    return params
+    inner = SurfacePoints(
+        np.concatenate([f[1:-1] for f, _ in pts]), np.concatenate([b[1:-1] for _, b in pts])
+    )
+    return [t.size - 2 for t in params], inner
 
 
 def _between_corners(
@@ -594,8 +602,18 @@ def quad_depths(
     """How deep each quad of the base mesh ``S``, ``BF`` reaches into ``mesh``.
 
     The quads are those of :func:`quad_network` (spherical mid-points and centroids, base
-    vertex first); ``sphere`` (nv, 3) places the mesh's vertices on the sphere. A vertex
-    belongs to the quad whose four great-circle sides it lies inside.
+    vertex first). A vertex belongs to the quad whose four great-circle sides it lies inside.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        The closed genus-0 mesh.
+    sphere : (nv, 3) float64
+        Each mesh vertex on the unit sphere (``SphereMap.sphere``).
+    S : (nb, 3) float64
+        Base vertices, unit vectors.
+    BF : (nf, 3) int64
+        Base triangles, counter-clockwise seen from outside (``3 nf`` quads).
 
     Returns
     -------
@@ -606,6 +624,11 @@ def quad_depths(
         0 for a quad holding fewer than three vertices.
     tip : (nq,) int64
         The mesh vertex at that largest distance (-1 for an empty quad).
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 1.3 and 5.1 (patch layouts; a patch's parametric
+       distortion). Kobbelt, Vorsatz, Labsik & Seidel 1999, sec. 6 (the base mesh).
     """
     from scipy.sparse.csgraph import dijkstra
 
@@ -684,18 +707,17 @@ def _cuts_disks(mesh: Mesh, network, relax_iterations: int) -> bool:
     from meshfit.layout.extract import check_layout_topology
 
     corners, curves, ends, quads = network
-    tries = [curves]
-    if relax_iterations > 0:
-        tries.append(lambda: _relax_all(mesh, curves, relax_iterations))
-    for c in tries:
+
+    def cuts(c: list[SurfaceCurve]) -> bool:
         try:
-            check_layout_topology(
-                mesh, layout_from_curves(mesh, corners, c() if callable(c) else c, ends, quads)
-            )
-            return True
+            check_layout_topology(mesh, layout_from_curves(mesh, corners, c, ends, quads))
         except MeshfitError:
-            continue
-    return False
+            return False
+        return True
+
+    return cuts(curves) or (
+        relax_iterations > 0 and cuts(_relax_all(mesh, curves, relax_iterations))
+    )
 
 
 def balance_degrees(
@@ -710,6 +732,24 @@ def balance_degrees(
     vertices where the sphere map squeezes the surface: nefertiti's 68-triangle base has
     vertices of degree 12 and 15, whose corners get 15 curves 6 degrees apart that cross at
     once (its 204-patch layout could not be made); balanced, the degrees are 4 to 7.
+
+    Parameters
+    ----------
+    S : (nb, 3) float64
+        Base vertices, unit vectors.
+    BF : (nf, 3) int64
+        Base triangles, counter-clockwise seen from outside.
+    target, least : int, keyword-only
+        Degree aimed at (default 6) and the lowest allowed (default 4).
+
+    Returns
+    -------
+    (nf, 3) int64
+        The triangles after the flips (same vertices, same count).
+
+    References
+    ----------
+    .. [1] Kobbelt, Vorsatz, Labsik & Seidel 1999, sec. 6 (the base mesh).
     """
     F = [[int(v) for v in f] for f in BF]
     deg = np.bincount(np.asarray(BF).ravel(), minlength=len(S)).astype(np.int64)

@@ -57,9 +57,8 @@ TAPERED = 4.0
 #: 3 at 192 degrees: its least even grid line, arc-length CV 0.172, is at that corner;
 #: bunny's automatic layout of revision 3, patches 0 and 20 at 234 and 221 degrees at
 #: corner 1: the cell there folds in its triangle of three side points, which no repair
-#: moves). Every other
-#: corner of the four test layouts but nefertiti_bust's patch 27 (222 degrees, at corner 2:
-#: it meets the bounds) is between 17 and 160 degrees.
+#: moves). Every other corner of the four test layouts but nefertiti_bust's patch 27 (222
+#: degrees, at corner 2: it meets the bounds) is between 17 and 160 degrees.
 REFLEX = 180.0
 
 
