@@ -49,3 +49,18 @@ def test_thin_notes_name_the_slivers_thinnest_first():
     rows = [{"patch": 0, "bulge": 11.0}, {"patch": 1, "bulge": 0.02}]
     notes = patch_notes(rows)
     assert len(notes) == 2 and "bulges far" in notes[0] and "sliver" in notes[1]
+
+
+def test_patch_bulges_of_a_layout_match_its_patches():
+    from meshfit.layout import extract_patches, load_layout
+    from meshfit.layout.extract import patch_bulges
+
+    from ..conftest import ROOT, real_mesh
+
+    mesh = real_mesh("spot")
+    layout = load_layout(ROOT / "examples" / "layouts" / "spot.json", mesh)
+    got = patch_bulges(mesh, layout)
+    want = [p.bulge for p in extract_patches(mesh, layout)]
+    assert got.shape == (layout.n_patches,)
+    assert got == pytest.approx(want, rel=1e-12)
+    assert got.min() > 0.0

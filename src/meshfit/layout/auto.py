@@ -31,6 +31,9 @@ re-used.
    input's); corners and curve points are carried to their closest points on the mesh, the
    curves densified and relaxed a few more iterations there. If that network does not cut
    the mesh into disks, steps 1-4 run on the mesh itself.
+6. A layout with a sliver patch (:data:`meshfit.layout.patch.THIN`: a spring grid across
+   it folds) is made again from the next rotations of the base mesh, and the one with the
+   fewest slivers is kept.
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ from numpy.typing import NDArray
 from meshfit.curves.base import densify_curves
 from meshfit.errors import InputError, LayoutError, MeshfitError, TopologyError
 from meshfit.layout.layout import Layout, layout_from_curves
+from meshfit.layout.patch import THIN
 from meshfit.mesh import Mesh
 from meshfit.types import SurfaceCurve, SurfacePoints
 
@@ -62,7 +66,9 @@ MIN_FACES_PER_PATCH = 16
 #: aspect 571, 310 folded spring cells in the fit; bounded: 18)
 SPHERE_MAX_ASPECT = 10.0
 #: base-mesh rotations (seeds ``seed``, ``seed + 1``, ...) tried before the automatic layout
-#: gives up on curves that cross (bunny with 90 patches: seed 0 crosses, 1 does not)
+#: gives up on curves that cross (bunny with 90 patches: seed 0 crosses, 1 does not), or
+#: settles for the layout with the fewest sliver patches (bunny with 120 patches: seed 0 has
+#: four along an ear, whose grids fold, seed 1 none)
 SEED_TRIES = 3
 #: default face count of the coarse proxy a dense mesh is laid out on (``auto_layout``)
 PROXY_FACES = 25_000
@@ -78,8 +84,9 @@ FINE_RELAX_ITERATIONS = 50
 #: `SHAPE_ABOVE_FACES` triangles; 3: fewer than 60 patches from an octahedron's base, where
 #: earlier revisions made 60; 4: base vertices moved onto protrusions, traced arcs sampled
 #: densely where the sphere map squeezes the surface; 5: the degrees of a base mesh with
-#: split edges balanced by flips)
-AUTO_LAYOUT_REVISION = 5
+#: split edges balanced by flips; 6: another rotation of the base mesh tried where a patch
+#: is a sliver)
+AUTO_LAYOUT_REVISION = 6
 #: ``shape=None`` of `auto_layout` shapes base meshes of more than this many triangles. The
 #: bisections that take the relaxed icosahedron beyond 20 triangles leave cells of equal area
 #: that are slivers where the sphere map stretches (spring meshes of the 96-patch layouts, with
@@ -335,8 +342,12 @@ def auto_layout(
         A ready parameterization of ``mesh`` over the unit sphere; default
         :func:`meshfit.shrinkwrap.sphere_map` with ``max_aspect=sphere_max_aspect``.
     seed : int, keyword-only
-        Seed of the base mesh's starting rotation. Where the curves cross, the next
-        ``SEED_TRIES - 1`` seeds are tried (on the proxy first, then on ``mesh``).
+        Seed of the base mesh's starting rotation. Where the curves cross, or a patch is a
+        sliver (area under `THIN` of a square with its perimeter), the next
+        ``SEED_TRIES - 1`` seeds are tried (on the proxy first, then on ``mesh``); of
+        layouts that all have slivers, the one with the fewest is returned (bunny with 120
+        patches: seed 0 has four slivers along an ear, and its fit 366 folded spring
+        cells; seed 1 has none, and its fit 10).
     relax : bool, keyword-only
         Relax every traced curve as a surface snake with fixed ends (membrane and arc-length
         forces, :func:`meshfit.curves.relax_snake`; default True). If the relaxed curves
@@ -424,6 +435,7 @@ def auto_layout(
     iters = int(relax_iterations)
 
     seeds = [int(seed) + k for k in range(SEED_TRIES)]
+    pick = _Fewest(mesh)
     if proxy:
         from concurrent.futures import ThreadPoolExecutor
 
@@ -457,9 +469,13 @@ def auto_layout(
                         curves = _relax_all(mesh, curves, fine_iters)
                     out = layout_from_curves(mesh, corners, curves, ends, quads)
                     check_layout_topology(mesh, out)
-                    return out
                 except MeshfitError:
                     continue
+                if pick.take(out):
+                    return out
+                break  # slivers: the next rotation
+        if pick.best is not None:
+            return pick.best
         # the carried network does not cut the mesh: lay out on the mesh itself
 
     smap = sphere_map(mesh, max_aspect=sphere_max_aspect) if sphere is None else sphere
@@ -469,20 +485,46 @@ def auto_layout(
             mesh, smap, n_faces, s, shape, protrusions, iters if relax else 0
         )
         traced = layout_from_curves(mesh, corners, curves, ends, quads)
+        out = None
         if relax:
             relaxed = _relax_all(mesh, curves, iters)
             try:
                 out = layout_from_curves(mesh, corners, relaxed, ends, quads)
                 check_layout_topology(mesh, out)
-                return out
             except MeshfitError:
-                pass
-        try:
-            return _checked(mesh, traced, len(seeds))
-        except LayoutError as exc:  # another rotation of the base mesh
-            failed = failed or exc
+                out = None
+        if out is None:
+            try:
+                out = _checked(mesh, traced, len(seeds))
+            except LayoutError as exc:  # another rotation of the base mesh
+                failed = failed or exc
+                continue
+        if pick.take(out):
+            return out
+    if pick.best is not None:
+        return pick.best
     assert failed is not None
     raise failed
+
+
+class _Fewest:
+    """The layout with the fewest sliver patches among those offered (`THIN`: the grid
+    across a sliver folds), the thinnest one's bulge deciding between equal counts."""
+
+    def __init__(self, mesh: Mesh) -> None:
+        self.mesh = mesh
+        self.best: Layout | None = None
+        self._score: tuple[int, float] | None = None
+
+    def take(self, layout: Layout) -> bool:
+        """Offer ``layout`` (checked to cut the mesh into disks); True when it has no sliver."""
+        from meshfit.layout.extract import patch_bulges
+
+        bulge = patch_bulges(self.mesh, layout)
+        score = (int((bulge < THIN).sum()), -float(bulge.min(initial=np.inf)))
+        if self._score is None or score < self._score:
+            self.best, self._score = layout, score
+        return score[0] == 0
 
 
 def _one_sphere(mesh: Mesh) -> bool:

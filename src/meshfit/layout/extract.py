@@ -37,13 +37,13 @@ from meshfit import _threads, tol
 from meshfit._kernels.topology import vertex_face_components
 from meshfit.errors import CutError, LayoutError, MeshfitError
 from meshfit.layout.layout import Layout, check_layout
-from meshfit.layout.patch import Patch
+from meshfit.layout.patch import Patch, loop_bulge
 from meshfit.mesh import Mesh
 from meshfit.mesh.locate import barycentric
 from meshfit.surface.cut import NetworkCutArrays, network_cut_arrays
 from meshfit.types import SurfaceCurve, SurfacePoints
 
-__all__ = ["check_layout_topology", "extract_patches"]
+__all__ = ["check_layout_topology", "extract_patches", "patch_bulges"]
 
 
 @dataclass
@@ -291,6 +291,31 @@ def check_layout_topology(mesh: Mesh, layout: Layout) -> None:
     .. [1] Krishnamurthy 2000, sec. 1.3, fig. 1.2.
     """
     _partition(mesh, layout, None, None)
+
+
+def patch_bulges(mesh: Mesh, layout: Layout) -> NDArray[np.float64]:
+    """Each patch's :attr:`meshfit.layout.Patch.bulge`, without building the patches.
+
+    The regions of the layout's cut (the partition :func:`check_layout_topology` makes, reused
+    when it was just made for the same mesh and layout objects) give each patch's area and
+    boundary loop.
+
+    Returns
+    -------
+    (n_patches,) float64
+        Area over that of a square with the same perimeter, patch by patch.
+
+    Raises
+    ------
+    meshfit.errors.LayoutError
+        As :func:`check_layout_topology`.
+    """
+    _, regions, _ = _partition(mesh, layout, None, None)
+    out = np.empty(layout.n_patches)
+    for reg in regions:
+        loop = reg.sub.vertices[np.searchsorted(reg.used, reg.loop)]
+        out[reg.patch] = loop_bulge(reg.sub.area, loop)
+    return out
 
 
 def extract_patches(
