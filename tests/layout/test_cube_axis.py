@@ -160,9 +160,12 @@ def test_the_bust_test_layout_is_what_the_example_script_paints():
     painted = script._compact(mesh, script.axis_layout(mesh, script.AXIS_LAYOUTS["nefertiti_bust"]))
     stored = load_layout(ROOT / "examples" / "layouts" / "nefertiti_bust.json", mesh)
     assert painted.n_patches == stored.n_patches == 48
-    assert_allclose(painted.corners.bary, stored.corners.bary, rtol=0, atol=1e-11)
+    # the same points within rounding (a point on an edge may be named by either face: the
+    # painter's kernels round differently on other processors)
+    eps = 1e-11 * mesh.bbox_diagonal
+    assert_allclose(mesh.xyz(painted.corners), mesh.xyz(stored.corners), rtol=0, atol=eps)
     assert len(painted.curves) == len(stored.curves)
     for a, b in zip(painted.curves, stored.curves, strict=True):
-        assert np.array_equal(a.points.face, b.points.face)
-        assert_allclose(a.points.bary, b.points.bary, rtol=0, atol=1e-11)
+        assert len(a.points.face) == len(b.points.face)
+        assert_allclose(mesh.xyz(a.points), mesh.xyz(b.points), rtol=0, atol=eps)
     assert np.array_equal(painted.patch_curves, stored.patch_curves)
