@@ -97,10 +97,14 @@ def test_the_default_60_patch_layout_is_not_shaped():
 
 
 @pytest.mark.slow
-def test_shaped_layouts_of_many_patches_have_no_slivers_and_fold_far_less():
+def test_shaped_layouts_of_many_patches_have_no_slivers_and_fold_far_less(monkeypatch):
     # spot with 96 patches: unshaped, 12 patches with a bulge under 0.2 (a fifth of the area
     # of a square with their perimeter), the thinnest 0.014, and 242 folded spring cells;
-    # shaped, the thinnest 0.24
+    # shaped, the thinnest 0.24 (one base rotation each: the layout's retries of rotations
+    # with slivers are not what is measured here)
+    import meshfit.layout.auto as auto
+
+    monkeypatch.setattr(auto, "SEED_TRIES", 1)
     mesh = real_mesh("spot")
     out = {}
     for shape in (False, None):
