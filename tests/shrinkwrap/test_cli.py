@@ -101,3 +101,13 @@ def test_stream_encode_decode(tmp_path, capsys):
     bad.write_bytes(b"nope")
     assert main(["stream", "decode", str(bad), "-o", str(part)]) == 2
     assert "truncated header" in capsys.readouterr().err
+
+
+def test_wrap_sphere_stretch(capsys):
+    argv = ["wrap", str(mesh_path("spot")), "--levels", "1", "--json"]
+    assert main([*argv, "--sphere-stretch", "2"]) == 0
+    sm = json.loads(capsys.readouterr().out)["sphere_map"]
+    assert sm["flips"] == 0
+    assert any("2 rounds of stretch reweighting" in n for n in sm["notes"])
+    assert main([*argv, "--sphere-stretch", "-1"]) == 2
+    assert "--sphere-stretch must be >= 0" in capsys.readouterr().err

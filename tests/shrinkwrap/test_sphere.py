@@ -111,3 +111,57 @@ def test_sphere_map_aspect_bound_is_reached_without_flips(name):
     assert sm.flips == 0
     assert sm.max_aspect <= 10.0 + 1e-6 < free.max_aspect  # measured 9.7, 10.0, 9.9
     assert any("aspect bound" in n for n in sm.notes)
+
+
+def test_vertex_stretch_of_a_map_that_keeps_areas_is_one():
+    from meshfit.shrinkwrap.sphere import vertex_stretch
+
+    mesh = analytic_mesh("icosphere")
+    on_sphere = mesh.vertices / np.linalg.norm(mesh.vertices, axis=1, keepdims=True)
+    assert_allclose(vertex_stretch(mesh, on_sphere), 1.0, rtol=1e-12)
+    # the upper half's points pulled toward its pole (x and y scaled by 0.3, the equator
+    # kept): about the pole lengths shrink about 1 / 0.3 times, near the equator they
+    # grow; the lower half keeps its share
+    z = on_sphere[:, 2]
+    squeezed = on_sphere * np.where(z > 0, 0.3, 1.0)[:, None]
+    squeezed[:, 2] = z
+    squeezed /= np.linalg.norm(squeezed, axis=1, keepdims=True)
+    st = vertex_stretch(mesh, squeezed)
+    assert st[z > 0.9].min() > 2.5  # 2.9
+    assert st[(z > 0.05) & (z < 0.3)].max() < 0.9  # 0.86
+    assert_allclose(st[z < -0.1], 1.0, atol=0.01)
+
+
+@pytest.fixture(scope="module")
+def bunny_maps():
+    from meshfit.shrinkwrap import fill_holes
+
+    mesh = fill_holes(real_mesh("bunny"))
+    return mesh, sphere_map(mesh), sphere_map(mesh, stretch_iterations=4)
+
+
+def test_stretch_reweighting_gives_the_ears_their_share_of_the_sphere(bunny_maps):
+    # bunny's ears (above y = 0.15) hold 13.6% of its surface; the mean-value map gives
+    # them 0.4% of the sphere, their upper parts (y > 0.17, 3.6%) 0.0003%
+    from meshfit.shrinkwrap.sphere import vertex_stretch
+
+    mesh, plain, stretched = bunny_maps
+    y = mesh.vertices[mesh.faces].mean(axis=1)[:, 1]
+
+    def share(sm, sel):
+        S, F = sm.sphere, mesh.faces
+        a = np.linalg.norm(np.cross(S[F[:, 1]] - S[F[:, 0]], S[F[:, 2]] - S[F[:, 0]]), axis=1)
+        return a[sel].sum() / a.sum()
+
+    assert stretched.flips == 0 and stretched.min_det > 0
+    assert "4 rounds of stretch reweighting" in stretched.notes[0]
+    assert share(plain, y > 0.15) < 0.005 and share(plain, y > 0.17) < 1e-5
+    assert share(stretched, y > 0.15) > 0.04 and share(stretched, y > 0.17) > 0.003
+    assert vertex_stretch(mesh, plain.sphere).max() > 1000  # 2,811
+    assert vertex_stretch(mesh, stretched.sphere).max() < 5  # 3.8
+
+
+@pytest.mark.parametrize("bad", [-1, 1.5, True])
+def test_bad_stretch_iterations_are_an_input_error(bad):
+    with pytest.raises(errors.InputError, match="stretch_iterations"):
+        sphere_map(analytic_mesh("icosphere"), stretch_iterations=bad)

@@ -69,12 +69,15 @@ def _wrap(args: argparse.Namespace):
         raise errors.InputError(
             f"--sphere-max-aspect must be >= 1 (equilateral), got {args.sphere_max_aspect}"
         )
+    if args.sphere_stretch < 0:
+        raise errors.InputError(f"--sphere-stretch must be >= 0, got {args.sphere_stretch}")
     mesh = _load(args.mesh, args.fill_holes)
     opts = {
         "levels": args.levels,
         "base_faces": args.base_faces,
         "sphere_method": args.sphere_method,
         "sphere_max_aspect": args.sphere_max_aspect,
+        "sphere_stretch": args.sphere_stretch,
     }
     bar, cb = _progress(args.json)
     if bar is not None:
@@ -220,6 +223,16 @@ def _wrap_args(p: argparse.ArgumentParser) -> None:
         metavar="A",
         help="bound the aspect ratio of the spherical triangles by A (flip-guarded smoothing "
         "on the sphere; default: no bound)",
+    )
+    p.add_argument(
+        "--sphere-stretch",
+        type=int,
+        default=0,
+        metavar="N",
+        help="N rounds of stretch-minimizing reweighting of the sphere map (default 0): "
+        "protrusions such as ears get their share of the sphere, and the wrap reaches their "
+        "tips (bunny, 4 rounds: 5.3%% -> 1.4%% of the diagonal), at the price of less even "
+        "triangles",
     )
     p.add_argument("--json", action="store_true", help="print JSON")
 

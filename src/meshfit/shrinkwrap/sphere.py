@@ -29,6 +29,7 @@ __all__ = [
     "sphere_map",
     "spherical_orientation",
     "triangle_quality",
+    "vertex_stretch",
 ]
 
 #: walk-step cap of the spherical point location, times sqrt(number of faces)
@@ -348,10 +349,18 @@ def _boundary_cycle(faces: NDArray[np.int64], fn_outside: NDArray[np.bool_]) -> 
     return np.asarray(cyc, dtype=np.int64)
 
 
-def _tutte_disk(v, faces, boundary, bpos, n) -> NDArray[np.float64]:
+def _tutte_disk(v, faces, boundary, bpos, n, w=None, scale=None) -> NDArray[np.float64]:
     """Mean-value embedding of the disk ``faces`` with ``boundary`` vertices fixed at
-    ``bpos (k, 2)``; returns (n, 2) (rows of unused vertices are zero)."""
-    w = _mean_value_matrix(v, faces, n)
+    ``bpos (k, 2)``; returns (n, 2) (rows of unused vertices are zero). ``w``: the disk's
+    mean-value matrix, if already made; ``scale`` (n,): each weight ``w_ij`` multiplied by
+    ``scale[j] > 0`` (rows normalised again; the weights stay positive, the map flip-free)."""
+    if w is None:
+        w = _mean_value_matrix(v, faces, n)
+    if scale is not None:
+        w = w @ sparse.diags(scale)
+        rs = np.asarray(w.sum(axis=1)).ravel()
+        rs[rs == 0] = 1.0
+        w = sparse.diags(1.0 / rs) @ w
     used = np.zeros(n, dtype=bool)
     used[faces.reshape(-1)] = True
     fixed = np.zeros(n, dtype=bool)
@@ -366,10 +375,15 @@ def _tutte_disk(v, faces, boundary, bpos, n) -> NDArray[np.float64]:
     return uv
 
 
-def _tutte_sphere(mesh: Mesh) -> NDArray[np.float64]:
+def _tutte_sphere(mesh: Mesh, stretch_iterations: int = 0) -> NDArray[np.float64]:
     """Two-disk embedding: split into halves of equal area, embed both in the unit disk
     with the same boundary positions (arc length on the circle), lift one to each
-    hemisphere by inverse stereographic projection (the circle goes to the equator)."""
+    hemisphere by inverse stereographic projection (the circle goes to the equator).
+
+    With ``stretch_iterations``, the embeddings are solved again that many times, each
+    weight ``w_ij`` divided by the area stretch of vertex ``j`` on the sphere
+    (`vertex_stretch`), cumulatively: the stretch-minimizing reweighting of Yoshizawa,
+    Belyaev & Seidel (2004), which spreads out what the mean-value map squeezes."""
     n = mesh.n_vertices
     v = mesh.vertices
     f = mesh.faces
@@ -380,21 +394,58 @@ def _tutte_sphere(mesh: Mesh) -> NDArray[np.float64]:
     seg = np.linalg.norm(v[np.roll(cyc, -1)] - v[cyc], axis=1)
     ang = 2 * np.pi * np.concatenate([[0.0], np.cumsum(seg)[:-1]]) / seg.sum()
     bpos = np.stack([np.cos(ang), np.sin(ang)], axis=1)
-    uv_a = _tutte_disk(v, f[in_a], cyc, bpos, n)
-    uv_b = _tutte_disk(v, f[~in_a], cyc, bpos, n)
+    w_a = _mean_value_matrix(v, f[in_a], n)
+    w_b = _mean_value_matrix(v, f[~in_a], n)
     va = np.zeros(n, dtype=bool)
     va[f[in_a].reshape(-1)] = True
-    s = np.zeros((n, 3))
-    for uv, zsign, mask in ((uv_a, -1.0, va), (uv_b, 1.0, ~va)):
-        r2 = (uv**2).sum(axis=1)
-        d = 1.0 + r2
-        p = np.stack([2 * uv[:, 0] / d, 2 * uv[:, 1] / d, zsign * (1.0 - r2) / d], axis=1)
-        s[mask] = p[mask]
-    s[cyc, 2] = 0.0
-    dets = spherical_orientation(s, f)
-    if np.sum(dets) < 0:  # make the map orientation preserving
-        s[:, 1] *= -1.0
-    return s / np.linalg.norm(s, axis=1, keepdims=True)
+    scale = np.ones(n)
+    flip_y = None
+    for it in range(stretch_iterations + 1):
+        if it:
+            scale /= vertex_stretch(mesh, s)
+        uv_a = _tutte_disk(v, f[in_a], cyc, bpos, n, w_a, None if it == 0 else scale)
+        uv_b = _tutte_disk(v, f[~in_a], cyc, bpos, n, w_b, None if it == 0 else scale)
+        s = np.zeros((n, 3))
+        for uv, zsign, mask in ((uv_a, -1.0, va), (uv_b, 1.0, ~va)):
+            r2 = (uv**2).sum(axis=1)
+            d = 1.0 + r2
+            p = np.stack([2 * uv[:, 0] / d, 2 * uv[:, 1] / d, zsign * (1.0 - r2) / d], axis=1)
+            s[mask] = p[mask]
+        s[cyc, 2] = 0.0
+        if flip_y is None:  # make the map orientation preserving (the same way every time)
+            flip_y = bool(np.sum(spherical_orientation(s, f)) < 0)
+        if flip_y:
+            s[:, 1] *= -1.0
+        s /= np.linalg.norm(s, axis=1, keepdims=True)
+    return s
+
+
+def vertex_stretch(mesh: Mesh, sphere: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Area stretch of a sphere map at each vertex.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    sphere : (nv, 3) float64
+        The vertices' images on the unit sphere.
+
+    Returns
+    -------
+    (nv,) float64
+        ``sqrt(a / b)``: ``a`` the vertex's share of the surface area (its adjacent faces'),
+        ``b`` its share of the sphere's (their flat triangles spanned by the sphere points,
+        over all of them); 1 where the map keeps areas, large where it squeezes the surface
+        (a protrusion), below 1 where it spreads it out.
+    """
+    F = mesh.faces
+    s = sphere
+    sa = 0.5 * np.linalg.norm(np.cross(s[F[:, 1]] - s[F[:, 0]], s[F[:, 2]] - s[F[:, 0]]), axis=1)
+    fa = mesh.face_areas
+    n = mesh.n_vertices
+    a = np.bincount(F.reshape(-1), weights=np.repeat(fa, 3), minlength=n) / (3.0 * fa.sum())
+    b = np.bincount(F.reshape(-1), weights=np.repeat(sa, 3), minlength=n) / (3.0 * sa.sum())
+    tiny = np.finfo(np.float64).tiny
+    return np.sqrt(np.maximum(a, tiny) / np.maximum(b, tiny))
 
 
 def _untangle(mesh: Mesh, s: NDArray[np.float64], rounds: int) -> NDArray[np.float64]:
@@ -498,6 +549,7 @@ def sphere_map(
     relax_iterations: int = 0,
     relax_step: float = 0.5,
     max_aspect: float | None = None,
+    stretch_iterations: int = 0,
     progress: Callable[[str, float], None] | None = None,
 ) -> SphereMap:
     """Parameterize a closed genus-0 mesh over the unit sphere without flipped triangles.
@@ -530,6 +582,16 @@ def sphere_map(
         smoothing makes the sphere metric depart from the surface metric: nefertiti's
         level-5 wrap over base seeds 0-3 gave RMS 0.064 / 0.143 / 0.059 / 0.052 % of the
         diagonal with the bound against 0.048 / 0.060 / 0.073 / 0.046 % without.
+    stretch_iterations : int
+        Rounds of stretch-minimizing reweighting of the ``"tutte"`` embeddings (default 0):
+        each round divides every mean-value weight ``w_ij`` by the area stretch of vertex
+        ``j`` (:func:`vertex_stretch`) and solves the two disks again (the weights stay
+        positive, so the map stays flip-free; Yoshizawa, Belyaev & Seidel 2004). The
+        mean-value map squeezes protrusions: bunny's ears, 13.6% of its surface, get 0.4%
+        of the sphere, their upper parts (3.6%) 0.0003%, and a wrap over such a map misses
+        the ear tips. Four rounds give the ears 10% of the sphere; the sphere's triangles
+        are then less even in shape. About 0.25 s a round on bunny (35K vertices), 1 s on
+        igea (134K). Not with ``method="voxel"`` (unless it falls back to ``"tutte"``).
     progress : callable(stage, fraction), optional
 
     Returns
@@ -550,6 +612,12 @@ def sphere_map(
     check_genus0(mesh)
     if method not in ("tutte", "voxel"):
         raise errors.InputError(f"method must be 'tutte' or 'voxel', got {method!r}")
+    if isinstance(stretch_iterations, bool) or int(stretch_iterations) != stretch_iterations:
+        raise errors.InputError(
+            f"stretch_iterations must be a whole number, got {stretch_iterations!r}"
+        )
+    if stretch_iterations < 0:
+        raise errors.InputError(f"stretch_iterations must be >= 0, got {stretch_iterations}")
     notes: list[str] = []
     s = None
     used = "tutte"
@@ -574,7 +642,9 @@ def sphere_map(
     if s is None:
         if progress:
             progress("sphere map (tutte)", 0.0)
-        s = _tutte_sphere(mesh)
+        s = _tutte_sphere(mesh, int(stretch_iterations))
+        if stretch_iterations:
+            notes.append(f"tutte: {int(stretch_iterations)} rounds of stretch reweighting")
         if (spherical_orientation(s, mesh.faces) <= 0).any():
             nflip = int((spherical_orientation(s, mesh.faces) <= 0).sum())
             s = _untangle(mesh, s, _UNTANGLE_ROUNDS)

@@ -311,6 +311,7 @@ def shrink_wrap(
     base: BaseMesh | None = None,
     sphere_method: str = "tutte",
     sphere_max_aspect: float | None = None,
+    sphere_stretch: int = 0,
     base_options: dict | None = None,
     parameter_iterations: int = 6,
     surface_iterations: int = 4,
@@ -373,6 +374,14 @@ def shrink_wrap(
     sphere_max_aspect : float, optional
         Aspect-ratio bound of the spherical triangles when ``smap`` is omitted
         (``sphere_map(max_aspect=...)``; default ``None``: no bound).
+    sphere_stretch : int
+        Rounds of stretch-minimizing reweighting of the sphere map when ``smap`` is omitted
+        (``sphere_map(stretch_iterations=...)``; default 0). The default map squeezes
+        protrusions, and the wrap then misses their tips: bunny's wrap at level 5 misses
+        its ear tips by 5.3% of the bbox diagonal (RMS 0.45%); with 4 rounds by 1.4% (RMS
+        0.064%), spot's 0.85% -> 0.47%. Its triangles are less even: bunny's smallest angle
+        5.3 -> 0.2 degrees (1st percentile 15 -> 6.5), 27 triangles facing against the
+        input (3 without). Nefertiti's wrap is worse with it (1.23% against 0.75%).
     base_options : dict, optional
         Extra keyword arguments of :func:`base_mesh` (e.g. ``start_subdivisions=1``).
     parameter_iterations, surface_iterations : int
@@ -419,7 +428,11 @@ def shrink_wrap(
     t0 = time.perf_counter()
     if smap is None:
         smap = sphere_map(
-            mesh, method=sphere_method, max_aspect=sphere_max_aspect, progress=progress
+            mesh,
+            method=sphere_method,
+            max_aspect=sphere_max_aspect,
+            stretch_iterations=sphere_stretch,
+            progress=progress,
         )
     secs["sphere_map"] = time.perf_counter() - t0
     t0 = time.perf_counter()
