@@ -399,3 +399,19 @@ def test_of_layouts_that_all_have_slivers_the_one_with_fewest_is_kept(monkeypatc
     thinnest = [patch_bulges(mesh, x).min() for x in each]
     assert len(set(thinnest)) == len(thinnest)
     _same_layout(auto_layout(mesh), each[int(np.argmax(thinnest))])
+
+
+def test_slivers_on_a_proxy_are_retried_like_on_the_mesh(monkeypatch):
+    # the same choice when the layout is made on a coarse proxy and carried to the mesh
+    import meshfit.layout.auto as auto
+    from meshfit.layout.extract import patch_bulges
+
+    mesh = real_mesh("spot")  # 5,856 faces: over 4 times a proxy of 1,000
+    monkeypatch.setattr(auto, "THIN", 10.0)
+    tries = auto.SEED_TRIES
+    with monkeypatch.context() as m:
+        m.setattr(auto, "SEED_TRIES", 1)
+        each = [auto_layout(mesh, seed=3 + s, proxy_faces=1000) for s in range(tries)]
+    thinnest = [patch_bulges(mesh, x).min() for x in each]
+    assert int(np.argmax(thinnest)) == tries - 1  # 0.31, 0.04, 0.44: the last one wins
+    _same_layout(auto_layout(mesh, seed=3, proxy_faces=1000), each[-1])
