@@ -415,3 +415,23 @@ def test_slivers_on_a_proxy_are_retried_like_on_the_mesh(monkeypatch):
     thinnest = [patch_bulges(mesh, x).min() for x in each]
     assert int(np.argmax(thinnest)) == tries - 1  # 0.31, 0.04, 0.44: the last one wins
     _same_layout(auto_layout(mesh, seed=3, proxy_faces=1000), each[-1])
+
+
+@pytest.mark.slow
+def test_curves_relaxed_to_check_a_protrusion_move_are_not_relaxed_again(monkeypatch):
+    # bunny's last move onto an ear is kept on its relaxed curves, and the layout is made
+    # from those (they were relaxed twice before)
+    import meshfit.layout.auto as auto
+
+    calls = []
+    plain = auto._relax_all
+
+    def counted(mesh, curves, iterations):
+        calls.append(id(curves))
+        return plain(mesh, curves, iterations)
+
+    monkeypatch.setattr(auto, "_relax_all", counted)
+    mesh = _filled_bunny()
+    layout = auto_layout(mesh)
+    assert layout.n_patches == 60
+    assert calls and len(set(calls)) == len(calls)

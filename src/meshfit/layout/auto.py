@@ -436,6 +436,7 @@ def auto_layout(
 
     seeds = [int(seed) + k for k in range(SEED_TRIES)]
     pick = _Fewest(mesh)
+    relaxed = _RelaxMemo()
     if proxy:
         from concurrent.futures import ThreadPoolExecutor
 
@@ -452,14 +453,16 @@ def auto_layout(
                 raise _topology_error(mesh)
             c_smap = sphere_map(coarse, max_aspect=sphere_max_aspect)
             first = _proxy_tries(
-                coarse, c_smap, n_faces, seeds[0], relax, iters, shape, protrusions
+                coarse, c_smap, n_faces, seeds[0], relax, iters, shape, protrusions, relaxed
             )
             ready.result()
         for k, s in enumerate(seeds):
             c_corners, ends, quads, tries = (
                 first
                 if k == 0
-                else _proxy_tries(coarse, c_smap, n_faces, s, relax, iters, shape, protrusions)
+                else _proxy_tries(
+                    coarse, c_smap, n_faces, s, relax, iters, shape, protrusions, relaxed
+                )
             )
             corners = _carry_points(mesh, coarse, c_corners)
             for c_set, fine_iters in tries:
@@ -482,14 +485,13 @@ def auto_layout(
     failed: LayoutError | None = None
     for s in seeds:
         corners, curves, ends, quads = _network(
-            mesh, smap, n_faces, s, shape, protrusions, iters if relax else 0
+            mesh, smap, n_faces, s, shape, protrusions, iters if relax else 0, relaxed
         )
         traced = layout_from_curves(mesh, corners, curves, ends, quads)
         out = None
         if relax:
-            relaxed = _relax_all(mesh, curves, iters)
             try:
-                out = layout_from_curves(mesh, corners, relaxed, ends, quads)
+                out = layout_from_curves(mesh, corners, relaxed(mesh, curves, iters), ends, quads)
                 check_layout_topology(mesh, out)
             except MeshfitError:
                 out = None
@@ -527,6 +529,26 @@ class _Fewest:
         return score[0] == 0
 
 
+class _RelaxMemo:
+    """`_relax_all`, remembering its results for the curve lists they came from during one
+    `auto_layout` call: a move onto a protrusion accepted on its relaxed curves
+    (`_cuts_disks`) is not relaxed again when the layout is made from it."""
+
+    def __init__(self) -> None:
+        self._got: dict[tuple[int, int, int], tuple] = {}
+
+    def __call__(
+        self, mesh: Mesh, curves: list[SurfaceCurve], iterations: int
+    ) -> list[SurfaceCurve]:
+        key = (id(mesh), id(curves), int(iterations))
+        hit = self._got.get(key)
+        if hit is not None and hit[0] is mesh and hit[1] is curves:
+            return hit[2]
+        out = _relax_all(mesh, curves, iterations)
+        self._got[key] = (mesh, curves, out)  # the references keep the ids unique
+        return out
+
+
 def _one_sphere(mesh: Mesh) -> bool:
     """True for one connected genus-0 surface (the mesh is closed)."""
     return mesh.n_components == 1 and mesh.genus == 0
@@ -557,15 +579,17 @@ def _proxy_tries(
     iters: int,
     shape: bool,
     protrusions: bool = True,
+    relaxed: _RelaxMemo | None = None,
 ):
     """Corners, curve ends, quads and the curve sets to carry (relaxed first, then traced)
     of the base mesh of ``seed`` on the proxy ``coarse``."""
+    relaxed = relaxed or _RelaxMemo()
     c_corners, c_curves, ends, quads = _network(
-        coarse, smap, n_faces, seed, shape, protrusions, iters if relax else 0
+        coarse, smap, n_faces, seed, shape, protrusions, iters if relax else 0, relaxed
     )
     tries = []
     if relax:
-        tries.append((_relax_all(coarse, c_curves, iters), min(iters, FINE_RELAX_ITERATIONS)))
+        tries.append((relaxed(coarse, c_curves, iters), min(iters, FINE_RELAX_ITERATIONS)))
     tries.append((c_curves, 0))
     return c_corners, ends, quads, tries
 
@@ -586,11 +610,12 @@ def _network(
     shape: bool = False,
     protrusions: bool = True,
     relax_iterations: int = 0,
+    relaxed: _RelaxMemo | None = None,
 ):
     """Corners, traced curves, curve ends and quads of the base mesh of ``smap`` (its
     vertices moved by :func:`meshfit.layout.shaping.shape_base` with ``shape``, and onto
     protrusions by `_onto_protrusions` with ``protrusions``, which checks the curves relaxed
-    with ``relax_iterations`` too)."""
+    with ``relax_iterations`` too, through ``relaxed``)."""
     from meshfit.layout.shaping import shape_base
     from meshfit.shrinkwrap import base_mesh
     from meshfit.shrinkwrap.base import STARTS
@@ -604,7 +629,7 @@ def _network(
         S = shape_base(smap, S, BF, seed=seed).sphere
     network = _traced(mesh, smap, S, BF)
     if protrusions:
-        network = _onto_protrusions(mesh, smap, S, BF, network, relax_iterations)
+        network = _onto_protrusions(mesh, smap, S, BF, network, relax_iterations, relaxed)
     return network
 
 
@@ -702,7 +727,13 @@ def quad_depths(
 
 
 def _onto_protrusions(
-    mesh: Mesh, smap, S: NDArray, BF: NDArray, network, relax_iterations: int = 0
+    mesh: Mesh,
+    smap,
+    S: NDArray,
+    BF: NDArray,
+    network,
+    relax_iterations: int = 0,
+    relaxed: _RelaxMemo | None = None,
 ):
     """The traced network with base vertices moved onto the tips of protrusions.
 
@@ -735,7 +766,7 @@ def _onto_protrusions(
             if not _upright(T, BF):
                 continue
             trial = _traced(mesh, smap, T, BF)
-            if not _cuts_disks(mesh, trial, relax_iterations):
+            if not _cuts_disks(mesh, trial, relax_iterations, relaxed):
                 continue
             S, network = T, trial
             moved.add(b)
@@ -743,9 +774,12 @@ def _onto_protrusions(
     return network
 
 
-def _cuts_disks(mesh: Mesh, network, relax_iterations: int) -> bool:
+def _cuts_disks(
+    mesh: Mesh, network, relax_iterations: int, relaxed: _RelaxMemo | None = None
+) -> bool:
     """Whether the traced ``network`` (corners, curves, ends, quads), or its curves relaxed
-    with ``relax_iterations`` (when above 0), cuts ``mesh`` into disks."""
+    with ``relax_iterations`` (when above 0, through ``relaxed``), cuts ``mesh`` into
+    disks."""
     from meshfit.layout.extract import check_layout_topology
 
     corners, curves, ends, quads = network
@@ -757,9 +791,8 @@ def _cuts_disks(mesh: Mesh, network, relax_iterations: int) -> bool:
             return False
         return True
 
-    return cuts(curves) or (
-        relax_iterations > 0 and cuts(_relax_all(mesh, curves, relax_iterations))
-    )
+    relax = relaxed or _relax_all
+    return cuts(curves) or (relax_iterations > 0 and cuts(relax(mesh, curves, relax_iterations)))
 
 
 def balance_degrees(
