@@ -420,6 +420,12 @@ def test_auto_folded_spring_cells_are_at_reflex_corners(auto_fit):
     assert folded <= reflex
     assert any("back at a corner" in n for n in s["notes"]) == bool(reflex)
     assert reflex == ({1, 6, 20, 31, 41} if name == "spot" else set())
+    # where the patch notes name patches, another rotation of the base mesh is suggested
+    flagged = any(("taper" in n or "bulge" in n or "sliver" in n or "corner" in n)
+                  for n in s["notes"])  # fmt: skip
+    suggested = [n for n in s["notes"] if "--layout-seed" in n]
+    assert bool(suggested) == flagged
+    assert not suggested or "made from rotation 0" in suggested[0]
 
 
 @pytest.mark.slow
@@ -621,3 +627,29 @@ def test_shape_layout_option_reaches_the_automatic_layout(monkeypatch):
         assert opts.layout_shape is want
         pl._resolve_layout(mesh, "auto", opts)[1]()
     assert seen == [None, True, False]
+
+
+def test_layout_seed_option_reaches_the_automatic_layout(monkeypatch):
+    import meshfit.layout.auto as auto
+    import meshfit.pipeline as pl
+    from meshfit.cli import build_parser
+    from meshfit.demo import demo_mesh
+    from meshfit.fit_cli import _options
+
+    for bad in (-1, 1.5, True, "1"):
+        with pytest.raises(InputError, match="layout_seed"):
+            FitOptions(layout_seed=bad)
+    parser = build_parser()
+    seen = []
+    monkeypatch.setattr(auto, "auto_layout", lambda mesh, **kw: seen.append(kw["seed"]))
+    mesh = demo_mesh(400)
+    keys = []
+    for argv in ([], ["--layout-seed", "2"]):
+        opts = _options(parser.parse_args(["fit", "scan.ply", *argv]))
+        key, make = pl._resolve_layout(mesh, "auto", opts)
+        keys.append(key)
+        make()
+    assert seen == [0, 2]
+    # rotation 0 keeps the key it had; another rotation is another cached layout
+    assert keys[0] == f"auto:None:r{auto.AUTO_LAYOUT_REVISION}"
+    assert keys[1] == f"auto:None:seed2:r{auto.AUTO_LAYOUT_REVISION}"

@@ -87,6 +87,7 @@ def _options(args: argparse.Namespace):
         formats=_formats(args.formats),
         patches=args.patches,
         layout_shape={"auto": None, "on": True, "off": False}[args.shape_layout],
+        layout_seed=args.layout_seed,
         spring_level=args.level,
         spring_rescue=not args.no_rescue,
         map_shapes=args.map_shapes,
@@ -191,6 +192,14 @@ def _common(p: argparse.ArgumentParser) -> None:
         default="auto",
         help="move the automatic layout's corners so that its patches are square on the "
         "surface (default auto: above 60 patches)",
+    )
+    p.add_argument(
+        "--layout-seed",
+        type=int,
+        default=0,
+        metavar="N",
+        help="rotation of the automatic layout's base mesh (default 0): another one gives "
+        "other patches where the notes name slivers, tapered or bulging patches",
     )
     p.add_argument(
         "--cv", default="16x16", help="control points per patch, MUxMV (default: %(default)s)"

@@ -111,6 +111,10 @@ class FitOptions:
     layout_shape : bool, optional
         ``shape`` of :func:`meshfit.layout.auto.auto_layout`: move the base vertices so that
         the quads are square on the surface (default None: above 60 patches).
+    layout_seed : int
+        ``seed`` of :func:`meshfit.layout.auto.auto_layout`: the rotation of the automatic
+        layout's base mesh (default 0). Another rotation gives other patches where the
+        summary's notes name slivers, tapered or bulging patches, or corners that turn back.
     spring_level : int, optional
         Final spring-mesh level (default: the level whose point count is closest to the
         patch's vertex count, :func:`meshfit.springs.resample_patch`).
@@ -155,6 +159,7 @@ class FitOptions:
     formats: tuple[str, ...] = ("usd", "obj", "glb", "exr", "png")
     patches: int | None = None
     layout_shape: bool | None = None
+    layout_seed: int = 0
     spring_level: int | None = None
     spring_max_points: int | None = None
     spring_rescue: bool = True
@@ -198,6 +203,10 @@ class FitOptions:
             raise InputError(f"patches must be >= 1, got {self.patches}")
         if self.layout_shape not in (None, True, False):
             raise InputError(f"layout_shape must be True, False or None, got {self.layout_shape!r}")
+        seed = self.layout_seed
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise InputError(f"layout_seed must be a whole number >= 0, got {seed!r}")
+        object.__setattr__(self, "layout_seed", int(seed))
         if int(self.image_size) < 16:
             raise InputError(f"image_size must be >= 16 pixels, got {self.image_size}")
 
@@ -730,10 +739,13 @@ def _resolve_layout(mesh: Mesh, layout, options: FitOptions):
         def make():
             from meshfit.layout.auto import auto_layout
 
-            return auto_layout(mesh, patches=options.patches, shape=options.layout_shape)
+            return auto_layout(
+                mesh, patches=options.patches, shape=options.layout_shape, seed=options.layout_seed
+            )
 
         shape = {None: "", True: ":shaped", False: ":unshaped"}[options.layout_shape]
-        return f"auto:{options.patches}{shape}:r{AUTO_LAYOUT_REVISION}", make
+        seed = f":seed{options.layout_seed}" if options.layout_seed else ""
+        return f"auto:{options.patches}{shape}{seed}:r{AUTO_LAYOUT_REVISION}", make
     if not isinstance(layout, (str, os.PathLike)):
         raise InputError(
             f"layout must be a Layout, a layout file's path, 'auto' or None, got "
@@ -801,6 +813,7 @@ def run_fit(
     from meshfit.bspline import BSplineSurface, fit_bspline, fit_errors
     from meshfit.displacement import DisplacementMap, displacement_map, reconstruct
     from meshfit.layout import extract_patches, save_layout
+    from meshfit.layout.patch import patch_notes
 
     options = options or FitOptions()
     _prefetch_exporters(options.formats)
@@ -1126,6 +1139,12 @@ def run_fit(
             }
         )
     notes.extend(_quality_notes(patch_rows))
+    if source.startswith("auto") and patch_notes(patch_rows):
+        notes.append(
+            f"the automatic layout was made from rotation {options.layout_seed} of its base "
+            "mesh; another rotation (--layout-seed N, FitOptions.layout_seed) gives other "
+            "patches"
+        )
     summary: dict[str, Any] = {
         "meshfit_fit": PIPELINE_FORMAT,
         "version": __version__,
