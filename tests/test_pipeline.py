@@ -425,7 +425,7 @@ def test_auto_folded_spring_cells_are_at_reflex_corners(auto_fit):
                   for n in s["notes"])  # fmt: skip
     suggested = [n for n in s["notes"] if "--layout-seed" in n]
     assert bool(suggested) == flagged
-    assert not suggested or "made from rotation 0" in suggested[0]
+    assert not suggested or "starts from rotation 0" in suggested[0]
 
 
 @pytest.mark.slow

@@ -1140,9 +1140,12 @@ def run_fit(
         )
     notes.extend(_quality_notes(patch_rows))
     if source.startswith("auto") and patch_notes(patch_rows):
+        from meshfit.layout.auto import SEED_TRIES
+
         notes.append(
-            f"the automatic layout was made from rotation {options.layout_seed} of its base "
-            "mesh; another rotation (--layout-seed N, FitOptions.layout_seed) gives other "
+            f"the automatic layout starts from rotation {options.layout_seed} of its base "
+            f"mesh (the next {SEED_TRIES - 1} are tried where its curves cross or a patch is "
+            "a sliver): another start (--layout-seed N, FitOptions.layout_seed) gives other "
             "patches"
         )
     summary: dict[str, Any] = {
