@@ -111,3 +111,5 @@ def test_wrap_sphere_stretch(capsys):
     assert any("2 rounds of stretch reweighting" in n for n in sm["notes"])
     assert main([*argv, "--sphere-stretch", "-1"]) == 2
     assert "--sphere-stretch must be >= 0" in capsys.readouterr().err
+    assert main([*argv, "--sphere-stretch", "2", "--sphere-method", "voxel"]) == 2
+    assert "not with --sphere-method voxel" in capsys.readouterr().err

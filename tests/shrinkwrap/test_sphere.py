@@ -165,3 +165,8 @@ def test_stretch_reweighting_gives_the_ears_their_share_of_the_sphere(bunny_maps
 def test_bad_stretch_iterations_are_an_input_error(bad):
     with pytest.raises(errors.InputError, match="stretch_iterations"):
         sphere_map(analytic_mesh("icosphere"), stretch_iterations=bad)
+
+
+def test_stretch_iterations_need_the_tutte_map():
+    with pytest.raises(errors.InputError, match="not with method='voxel'"):
+        sphere_map(analytic_mesh("icosphere"), method="voxel", stretch_iterations=2)

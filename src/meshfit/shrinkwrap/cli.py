@@ -71,6 +71,10 @@ def _wrap(args: argparse.Namespace):
         )
     if args.sphere_stretch < 0:
         raise errors.InputError(f"--sphere-stretch must be >= 0, got {args.sphere_stretch}")
+    if args.sphere_stretch and args.sphere_method != "tutte":
+        raise errors.InputError(
+            "--sphere-stretch reweights the tutte map: not with --sphere-method voxel"
+        )
     mesh = _load(args.mesh, args.fill_holes)
     opts = {
         "levels": args.levels,

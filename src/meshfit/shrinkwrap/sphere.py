@@ -595,8 +595,8 @@ def sphere_map(
         of the sphere, their upper parts (3.6%) 0.0003%, and a wrap over such a map misses
         the ear tips. Four rounds give the ears 4.7% of the sphere, their upper parts 0.34%
         (largest vertex stretch 2,811 -> 3.8); the sphere's triangles are then less even
-        in shape. About 0.15 s a round on bunny (35K vertices), 1 s on igea (134K). Not
-        with ``method="voxel"`` (unless it falls back to ``"tutte"``).
+        in shape. About 0.15 s a round on bunny (35K vertices), 1 s on igea (134K). Only
+        with ``method="tutte"`` (else InputError).
     progress : callable(stage, fraction), optional
 
     Returns
@@ -623,6 +623,10 @@ def sphere_map(
         )
     if stretch_iterations < 0:
         raise errors.InputError(f"stretch_iterations must be >= 0, got {stretch_iterations}")
+    if stretch_iterations and method != "tutte":
+        raise errors.InputError(
+            "stretch_iterations reweights the 'tutte' map: not with method='voxel'"
+        )
     notes: list[str] = []
     s = None
     used = "tutte"
