@@ -420,6 +420,7 @@ def _tutte_sphere(mesh: Mesh, stretch_iterations: int = 0) -> NDArray[np.float64
     scale = np.ones(n)
     for _ in range(stretch_iterations):
         scale /= vertex_stretch(mesh, s)
+        scale /= scale.max()  # only ratios matter (rows are normalised): keep them in range
         s = lifted(scale)
     return s
 
