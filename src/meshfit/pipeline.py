@@ -813,7 +813,6 @@ def run_fit(
     from meshfit.bspline import BSplineSurface, fit_bspline, fit_errors
     from meshfit.displacement import DisplacementMap, displacement_map, reconstruct
     from meshfit.layout import extract_patches, save_layout
-    from meshfit.layout.patch import patch_notes
 
     options = options or FitOptions()
     _prefetch_exporters(options.formats)
@@ -1138,16 +1137,9 @@ def run_fit(
                 "displacement_max": float(np.abs(d).max() / diag),
             }
         )
-    notes.extend(_quality_notes(patch_rows))
-    if source.startswith("auto") and patch_notes(patch_rows):
-        from meshfit.layout.auto import SEED_TRIES
-
-        notes.append(
-            f"the automatic layout starts from rotation {options.layout_seed} of its base "
-            f"mesh (the next {SEED_TRIES - 1} are tried where its curves cross or a patch is "
-            "a sliver): another start (--layout-seed N, FitOptions.layout_seed) gives other "
-            "patches"
-        )
+    notes.extend(
+        _quality_notes(patch_rows, options.layout_seed if source.startswith("auto") else None)
+    )
     summary: dict[str, Any] = {
         "meshfit_fit": PIPELINE_FORMAT,
         "version": __version__,
@@ -1217,8 +1209,10 @@ def run_fit(
 FAR_INPUT = 0.01
 
 
-def _quality_notes(rows: list[dict]) -> list[str]:
-    """Warnings about patches whose spring mesh cannot be trusted."""
+def _quality_notes(rows: list[dict], auto_seed: int | None = None) -> list[str]:
+    """Warnings about patches whose spring mesh cannot be trusted; with ``auto_seed`` (the
+    layout is automatic, from that base rotation), where the layout's patches are flagged,
+    how to ask for another rotation."""
     from meshfit.layout.patch import patch_notes
 
     notes = []
@@ -1242,7 +1236,16 @@ def _quality_notes(rows: list[dict]) -> list[str]:
             f"spring meshes with collapsed (zero-area) cells in patches {collapsed}: their "
             "fit does not cover the whole patch; split those patches in the layout"
         )
-    notes.extend(patch_notes(rows))
+    layout = patch_notes(rows)
+    notes.extend(layout)
+    if layout and auto_seed is not None:
+        from meshfit.layout.auto import SEED_TRIES
+
+        notes.append(
+            f"the automatic layout starts from rotation {auto_seed} of its base mesh (the "
+            f"next {SEED_TRIES - 1} are tried where its curves cross or a patch is a sliver): "
+            "another start (--layout-seed N, FitOptions.layout_seed) gives other patches"
+        )
     finer = {r["patch"]: r["finer"] for r in rows if r.get("finer", 0)}
     if finer:
         notes.append(

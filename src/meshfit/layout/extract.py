@@ -309,6 +309,11 @@ def patch_bulges(mesh: Mesh, layout: Layout) -> NDArray[np.float64]:
     ------
     meshfit.errors.LayoutError
         As :func:`check_layout_topology`.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 1.3 (four-sided patches) and sec. 5.3 (a patch's grid;
+       a sliver's grid folds).
     """
     _, regions, _ = _partition(mesh, layout, None, None)
     out = np.empty(layout.n_patches)

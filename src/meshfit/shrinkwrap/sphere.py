@@ -441,6 +441,13 @@ def vertex_stretch(mesh: Mesh, sphere: NDArray[np.float64]) -> NDArray[np.float6
         ``b`` its share of the sphere's (their flat triangles spanned by the sphere points,
         over all of them); 1 where the map keeps areas, large where it squeezes the surface
         (a protrusion), below 1 where it spreads it out.
+
+    References
+    ----------
+    .. [1] Kobbelt, Vorsatz, Labsik & Seidel 1999, sec. 6 (the sphere parameterization) and
+       sec. 7 (its metric against the surface's).
+    .. [2] Yoshizawa, Belyaev & Seidel, "A fast and simple stretch-minimizing mesh
+       parameterization", Shape Modeling International 2004 (the reweighting).
     """
     F = mesh.faces
     s = sphere
