@@ -23,6 +23,7 @@ from meshfit.curves.base import (
     _as_curve,
     _resample,
     _topology,
+    curve_length,
     resample_curve,
 )
 from meshfit.errors import InputError, PathError
@@ -115,7 +116,15 @@ def _segment(
     out, _ = _resample(
         mesh, SurfaceCurve(straight), spacing=spacing, n=None, cv=PAINT_SPACING_CV, checked=True
     )
-    return out.points
+    # attraction by continuation can settle on a detour where the chord runs over a hollow
+    # (a concave stretch of nefertiti's side: 0.8% longer than the graph path); the
+    # straightened segment is kept only when it is no longer than the graph path's samples
+    if curve_length(mesh, SurfaceCurve(raw)) >= curve_length(mesh, out):
+        return out.points
+    graph, _ = _resample(
+        mesh, SurfaceCurve(raw), spacing=spacing, n=None, cv=PAINT_SPACING_CV, checked=True
+    )
+    return graph.points
 
 
 def paint_curve(
