@@ -50,9 +50,10 @@ DIGITS = 12
 #: The knots, heights, turn and tilt started from hand-placed values and were adjusted by a
 #: random search scored by the spring meshes' quality bounds (4 patches over the arc-length
 #: bound before, 2 after: the ears; painted again after the painter learnt to smooth a
-#: segment longer than its graph path, 1: patch 42, an ear). The point is a fortunate one: moving the knots and
-#: heights by about 1 model unit (0.15% of the diagonal) gives 3 to 6 patches over the bound
-#: (worst 0.33 to 0.44), and in 3 of 10 such tries two curves touch near a cap.
+#: segment longer than its graph path, 1: patch 42, an ear). The point is a fortunate one:
+#: moving the knots and heights by about 1 model unit (0.15% of the diagonal) gives 3 to 6
+#: patches over the bound (worst 0.33 to 0.44), and in 3 of 10 such tries two curves touch
+#: near a cap.
 AXIS_LAYOUTS = {
     "nefertiti_bust": {
         "mesh": "nefertiti",
