@@ -83,6 +83,18 @@ def test_bulging_patches_get_a_note(spot_fit):
     assert any("patch 2: 7.5" in n for n in pl._quality_notes(rows))
 
 
+def test_notes_count_patches_and_levels_in_the_singular_and_plural():
+    import meshfit.pipeline as pl
+
+    notes = pl._quality_notes([{"patch": 56, "finer": 1, "folded": 1}])
+    assert "(patch 56: 1 level): their displacement maps are larger" in notes[0]
+    assert notes[1] == "1 folded spring-mesh cell in 1 patch (most: patch 56: 1)"
+    rows = [{"patch": 4, "finer": 2, "folded": 3}, {"patch": 7, "folded": 1}]
+    notes = pl._quality_notes(rows)
+    assert "(patch 4: 2 levels)" in notes[0]
+    assert notes[1] == "4 folded spring-mesh cells in 2 patches (most: patch 4: 3, patch 7: 1)"
+
+
 def test_tapered_patches_get_a_note(spot_fit):
     # spot's test layout: the four head patches taper beyond meshfit.layout.patch.TAPERED
     _, _, summary = spot_fit

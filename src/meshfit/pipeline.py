@@ -1209,6 +1209,13 @@ def run_fit(
 FAR_INPUT = 0.01
 
 
+def _count(n: int, word: str) -> str:
+    """``n`` and ``word``, plural unless ``n`` is 1 ("patch" -> "patches")."""
+    if n == 1:
+        return f"1 {word}"
+    return f"{n} {word}{'es' if word.endswith('ch') else 's'}"
+
+
 def _quality_notes(rows: list[dict], auto_seed: int | None = None) -> list[str]:
     """Warnings about patches whose spring mesh cannot be trusted; with ``auto_seed`` (the
     layout is automatic, from that base rotation), where the layout's patches are flagged,
@@ -1248,16 +1255,17 @@ def _quality_notes(rows: list[dict], auto_seed: int | None = None) -> list[str]:
         )
     finer = {r["patch"]: r["finer"] for r in rows if r.get("finer", 0)}
     if finer:
+        which = ", ".join(f"patch {p}: {_count(k, 'level')}" for p, k in finer.items())
         notes.append(
-            f"spring meshes made finer than the patch's vertex count to reach a protrusion or "
-            f"pleat inside it ({', '.join(f'patch {p}: {k} levels' for p, k in finer.items())}):"
-            " their displacement maps are larger"
+            "spring meshes made finer than the patch's vertex count to reach a protrusion or "
+            f"pleat inside it ({which}): their displacement maps are larger"
         )
     folded = {r["patch"]: r["folded"] for r in rows if r.get("folded", 0)}
     if folded:
         worst = sorted(folded.items(), key=lambda kv: -kv[1])[:5]
         notes.append(
-            f"{sum(folded.values())} folded spring-mesh cells in {len(folded)} patches "
+            f"{_count(sum(folded.values()), 'folded spring-mesh cell')} in "
+            f"{_count(len(folded), 'patch')} "
             f"(most: {', '.join(f'patch {p}: {n}' for p, n in worst)})"
         )
     return notes
