@@ -49,6 +49,7 @@ from meshfit import __version__, tol
 from meshfit._atomic import atomic_write, write_bytes, write_text
 from meshfit._kernels.geometry import label_corner_max
 from meshfit._threads import map_threads, n_workers
+from meshfit._words import plural
 from meshfit.errors import InputError, LayoutError
 from meshfit.mesh import Mesh
 from meshfit.mesh.locate import grid_tree, triangle_distances
@@ -1209,13 +1210,6 @@ def run_fit(
 FAR_INPUT = 0.01
 
 
-def _count(n: int, word: str) -> str:
-    """``n`` and ``word``, plural unless ``n`` is 1 ("patch" -> "patches")."""
-    if n == 1:
-        return f"1 {word}"
-    return f"{n} {word}{'es' if word.endswith('ch') else 's'}"
-
-
 def _quality_notes(rows: list[dict], auto_seed: int | None = None) -> list[str]:
     """Warnings about patches whose spring mesh cannot be trusted; with ``auto_seed`` (the
     layout is automatic, from that base rotation), where the layout's patches are flagged,
@@ -1255,7 +1249,7 @@ def _quality_notes(rows: list[dict], auto_seed: int | None = None) -> list[str]:
         )
     finer = {r["patch"]: r["finer"] for r in rows if r.get("finer", 0)}
     if finer:
-        which = ", ".join(f"patch {p}: {_count(k, 'level')}" for p, k in finer.items())
+        which = ", ".join(f"patch {p}: {plural(k, 'level')}" for p, k in finer.items())
         notes.append(
             "spring meshes made finer than the patch's vertex count to reach a protrusion or "
             f"pleat inside it ({which}): their displacement maps are larger"
@@ -1264,8 +1258,8 @@ def _quality_notes(rows: list[dict], auto_seed: int | None = None) -> list[str]:
     if folded:
         worst = sorted(folded.items(), key=lambda kv: -kv[1])[:5]
         notes.append(
-            f"{_count(sum(folded.values()), 'folded spring-mesh cell')} in "
-            f"{_count(len(folded), 'patch')} "
+            f"{plural(sum(folded.values()), 'folded spring-mesh cell')} in "
+            f"{plural(len(folded), 'patch')} "
             f"(most: {', '.join(f'patch {p}: {n}' for p, n in worst)})"
         )
     return notes

@@ -274,3 +274,30 @@ def test_rays_from_the_centre_of_igea_hit():
     d = np.random.default_rng(0).normal(size=(300, 3))
     hits = ray_first_hit(mesh, np.repeat(mesh.vertices.mean(0)[None], 300, 0), d)
     assert hits.hit.mean() > 0.99
+
+
+def test_a_ray_tree_alive_at_exit_is_freed_before_libigl_is_torn_down():
+    # a mesh whose igl.AABB tree outlives the main thread (held by a daemon thread, as the web
+    # app's session is) made nanobind report the tree as leaked at interpreter exit
+    import subprocess
+    import sys
+    import textwrap
+
+    script = textwrap.dedent(
+        """
+        import threading, time
+        import numpy as np
+        from meshfit.mesh import Mesh
+        V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
+        F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+        m = Mesh(V, F)
+        hit = m.ray_first_hit(np.array([[0.2, 0.2, 5.0]]), np.array([[0, 0, -1.0]]))
+        assert hit.face[0] >= 0
+        threading.Thread(target=lambda mesh: time.sleep(60), args=(m,), daemon=True).start()
+        """
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=120
+    )
+    assert out.returncode == 0, out.stderr
+    assert "leaked" not in out.stderr, out.stderr

@@ -336,7 +336,7 @@ def test_repair_report_summary():
     v = np.vstack([[[9, 9, 9]], SQUARE_V])
     mesh = Mesh.from_arrays(v, SQUARE_F + 1, repair=True)
     assert mesh.repairs.summary() == (
-        "repaired (unreferenced vertex: 1): dropped 0 faces and 1 vertices, flipped 0 faces"
+        "repaired (unreferenced vertex: 1): dropped 0 faces and 1 vertex, flipped 0 faces"
     )
     clean = Mesh.from_arrays(SQUARE_V, SQUARE_F, repair=True)
     assert clean.repairs.summary().startswith("repaired (nothing to do)")

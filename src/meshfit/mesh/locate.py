@@ -7,6 +7,8 @@ one ``igl.AABB`` tree per mesh.
 
 from __future__ import annotations
 
+import atexit
+import weakref
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, NamedTuple
 
@@ -32,12 +34,28 @@ __all__ = [
 ]
 
 
+#: meshes holding an ``igl.AABB`` tree (``mesh.aabb``), whose trees are dropped at exit
+_WITH_AABB: weakref.WeakSet = weakref.WeakSet()
+
+
+def _drop_aabb_trees() -> None:
+    """Free the ``igl.AABB`` trees of meshes still alive at interpreter exit: a tree freed
+    after libigl's bindings are torn down is reported by nanobind as a leak (a mesh kept
+    by a daemon thread, e.g. the web app's session)."""
+    for mesh in list(_WITH_AABB):
+        mesh.__dict__.pop("aabb", None)
+
+
+atexit.register(_drop_aabb_trees)
+
+
 def build_aabb(mesh: Mesh):
     """Build the ``igl.AABB`` tree of ``mesh`` (called once, through ``mesh.aabb``)."""
     import igl
 
     tree = igl.AABB()
     tree.init(mesh.vertices, mesh.faces)
+    _WITH_AABB.add(mesh)
     return tree
 
 

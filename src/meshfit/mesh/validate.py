@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 
 from meshfit import errors, tol
 from meshfit._kernels import topology as _kt
+from meshfit._words import plural
 from meshfit.mesh import topology
 
 __all__ = [
@@ -87,12 +88,6 @@ _ERRORS: dict[str, type[errors.MeshValidationError]] = {
         errors.UnreferencedVertexError,
     )
 }
-
-
-def _plural(n: int, word: str) -> str:
-    if n == 1:
-        return f"1 {word}"
-    return f"{n} {word[:-2] + 'ices' if word.endswith('vertex') else word + 's'}"
 
 
 def _area2_limit(diag: float) -> float:
@@ -227,7 +222,7 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
         out.append(
             Finding(
                 "non_finite",
-                f"{_plural(idx.size, 'vertex')} with NaN or infinite coordinates "
+                f"{plural(idx.size, 'vertex')} with NaN or infinite coordinates "
                 f"(first: vertex {idx[0]} = {vertices[idx[0]].tolist()})",
                 (int(idx[0]),),
                 int(idx.size),
@@ -240,7 +235,7 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
         out.append(
             Finding(
                 "index_range",
-                f"{_plural(idx.size, 'face')} with vertex indices outside [0, {nv}) "
+                f"{plural(idx.size, 'face')} with vertex indices outside [0, {nv}) "
                 f"(first: face {idx[0]} = {faces[idx[0]].tolist()})",
                 (int(idx[0]),),
                 int(idx.size),
@@ -269,7 +264,7 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
         out.append(
             Finding(
                 "non_manifold_edge",
-                f"{_plural(nm.size, 'non-manifold edge')} shared by more than two faces "
+                f"{plural(nm.size, 'non-manifold edge')} shared by more than two faces "
                 f"(first: edge ({e[0]}, {e[1]}) in faces {fs}){cause}",
                 (int(e[0]), int(e[1])),
                 int(nm.size),
@@ -290,7 +285,7 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
         out.append(
             Finding(
                 "non_manifold_vertex",
-                f"{_plural(nmv.size, 'non-manifold vertex')} where separate fans of faces "
+                f"{plural(nmv.size, 'non-manifold vertex')} where separate fans of faces "
                 f"meet (first: vertex {nmv[0]}, {fans_per_vertex[nmv[0]]} fans)",
                 (int(nmv[0]),),
                 int(nmv.size),
@@ -303,7 +298,7 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
         out.append(
             Finding(
                 "degenerate_face",
-                f"{_plural(idx.size, 'degenerate face')} (zero area or repeated vertex; "
+                f"{plural(idx.size, 'degenerate face')} (zero area or repeated vertex; "
                 f"first: face {idx[0]} = {faces[idx[0]].tolist()})",
                 (int(idx[0]),),
                 int(idx.size),
@@ -320,7 +315,7 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
         out.append(
             Finding(
                 "duplicate_face",
-                f"{_plural(idx.size, 'duplicate face')}{extra} (first: face {idx[0]} "
+                f"{plural(idx.size, 'duplicate face')}{extra} (first: face {idx[0]} "
                 f"repeats face {orig}, vertices {sorted(faces[orig].tolist())})",
                 (int(idx[0]),),
                 int(idx.size),
@@ -334,7 +329,7 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
         out.append(
             Finding(
                 "unreferenced_vertex",
-                f"{_plural(idx.size, 'vertex')} not used by any face (first: vertex {idx[0]})",
+                f"{plural(idx.size, 'vertex')} not used by any face (first: vertex {idx[0]})",
                 (int(idx[0]),),
                 int(idx.size),
                 True,
@@ -358,7 +353,7 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
         out.append(
             Finding(
                 "inconsistent_orientation",
-                f"{_plural(i.size, 'edge')} where neighbouring faces have opposite "
+                f"{plural(i.size, 'edge')} where neighbouring faces have opposite "
                 f"winding (first: edge ({e[0]}, {e[1]}) between faces "
                 f"{int(tidx[ha[i[0]] // 3])} and {int(tidx[hb[i[0]] // 3])}){why}",
                 (int(e[0]), int(e[1])),
@@ -469,8 +464,9 @@ class RepairReport:
         dropped_f = int((self.face_map < 0).sum())
         dropped_v = int((self.vertex_map < 0).sum())
         return (
-            f"repaired ({', '.join(parts) or 'nothing to do'}): dropped {dropped_f} faces and "
-            f"{dropped_v} vertices, flipped {self.flipped_faces.size} faces"
+            f"repaired ({', '.join(parts) or 'nothing to do'}): dropped "
+            f"{plural(dropped_f, 'face')} and {plural(dropped_v, 'vertex')}, flipped "
+            f"{plural(self.flipped_faces.size, 'face')}"
         )
 
 

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from meshfit._words import plural
 from meshfit.errors import MeshfitError
 from meshfit.mesh import Mesh
 from meshfit.ui.files import LAYOUT_SUFFIXES, FilePolicy, mesh_from_upload
@@ -378,7 +379,10 @@ class App:
         if mode in ("boundary", "feature"):
             what = self._run(s.click, o, d, kind=mode)
             if what is not FAILED:
-                self.say(f"{mode} pick: {what} ({len(s.curves)} curves, {len(s.corners)} corners)")
+                self.say(
+                    f"{mode} pick: {what} ({plural(len(s.curves), 'curve')}, "
+                    f"{plural(len(s.corners), 'corner')})"
+                )
             return
         if mode == "edit":
             with self.lock:
@@ -608,7 +612,7 @@ class App:
         self.selected = self.edit_point = None
         out = self._run(load)
         if out is not FAILED:
-            self.say(f"layout loaded from {out} ({len(self.session.curves)} curves)")
+            self.say(f"layout loaded from {out} ({plural(len(self.session.curves), 'curve')})")
 
     def _on_export(self) -> None:
         def export():
