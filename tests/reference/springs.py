@@ -80,6 +80,7 @@ def relax_sweeps(
     w_fair_end,
     omega,
     eps_rel,
+    lazy=0.0,
 ):
     """Gauss-Seidel sweeps as documented in the kernel, one point at a time in Python."""
     face = face.copy()
@@ -89,7 +90,10 @@ def relax_sweeps(
     X = mesh.xyz(SurfacePoints(face, bary))
     N = mesh.face_normals[face].copy()
     done, worst, rms = 0, 0.0, 0.0
+    size = nu * nv
+    active = set(range(size))  # the points to move in this sweep (all, without lazy)
     for k in range(n_sweeps):
+        moving = set()  # points that moved, and their neighbours: the next sweep's
         it = it0 + k
         t = min(1.0, it / ramp) if ramp > 0 else 1.0
         w_fair = w_fair_end * t
@@ -97,6 +101,9 @@ def relax_sweeps(
         moves = []
         for p in order:
             if not movable[p]:
+                continue
+            if lazy > 0 and p not in active:
+                moves.append(0.0)  # settled
                 continue
             n = mesh.face_normals[face[p]]
             force, h = spring_force(X, nv, p, 1.0 - w_fair, w_fair, n if tangent else None)
@@ -122,6 +129,12 @@ def relax_sweeps(
                     face[p], bary[p], X[p], N[p], moved = f0, b0, x0, n0, 0.0
             prev[p] = X[p] - x0
             moves.append(moved / h)
+            if h > 0 and moved > lazy * h:
+                near = {r for r in (p, p - 1, p + 1, p - nv, p + nv) if 0 <= r < size}
+                moving |= near
+                active |= near  # those still ahead in this sweep move in it too
+        if lazy > 0:
+            active = moving
         done = k + 1
         worst = max(moves) if moves else 0.0
         rms = float(np.sqrt(np.mean(np.square(moves)))) if moves else 0.0

@@ -24,9 +24,12 @@ def patches():
     }
 
 
-@pytest.mark.parametrize("tangent,guard", [(False, False), (True, False), (False, True)])
+@pytest.mark.parametrize(
+    "tangent,guard,lazy",
+    [(False, False, 0.0), (True, False, 0.0), (False, True, 0.0), (True, True, 0.02)],
+)
 @pytest.mark.parametrize("name", ["cap", "spot"])
-def test_relax_sweeps_matches_oracle(patches, name, tangent, guard, rng):
+def test_relax_sweeps_matches_oracle(patches, name, tangent, guard, lazy, rng):
     patch = patches[name]
     mesh = patch.mesh
     sm = resample_patch(patch, level=1, max_iter=1, metrics=False).final
@@ -37,12 +40,12 @@ def test_relax_sweeps_matches_oracle(patches, name, tangent, guard, rng):
     alpha = np.ones(nu * nv)
     prev = np.zeros((nu * nv, 3))
     want = ref.relax_sweeps(
-        mesh, face, bary, nu, nv, movable, tangent, guard, alpha, prev, 5, 0, 3, 0.5, 1.0, 0.0
+        mesh, face, bary, nu, nv, movable, tangent, guard, alpha, prev, 5, 0, 3, 0.5, 1.0, 0.0, lazy
     )
     done, worst, rms = K.relax_sweeps(
         mesh.vertices, mesh.faces, mesh.face_neighbors, face, bary, nu, nv, movable, tangent,
         guard, alpha, prev,
-        5, 0, 3, 0.5, 1.0, 0.0, tol.BARY_EPS, 10_000,
+        5, 0, 3, 0.5, 1.0, 0.0, tol.BARY_EPS, 10_000, lazy,
     )  # fmt: skip
     got = mesh.xyz(SurfacePoints(face, bary))
     assert done == want[2] == 5

@@ -364,6 +364,7 @@ def relax_sweeps(
     eps_rel,
     bary_eps,
     max_faces,
+    lazy,
 ):
     """Gauss-Seidel relaxation sweeps of the free spring points, in place.
 
@@ -377,7 +378,10 @@ def relax_sweeps(
     fairness weight ramps linearly from 0 at sweep 0 to ``w_fair_end`` at sweep ``ramp``
     (eq. 5.4: arc length first, fairness later); sweep ``k`` of this call is sweep ``it0 + k``
     of the schedule. Stops early, once the ramp is over, when the root-mean-square move of the
-    free points is below ``eps_rel`` times their mean spring lengths. Returns (sweeps done,
+    free points is below ``eps_rel`` times their mean spring lengths. With ``lazy > 0`` a
+    sweep after the first moves only the points that moved, or had one of their four
+    neighbours move, more than ``lazy`` times their mean spring length in the sweep before
+    (or earlier in the same sweep); the others count as not moving. Returns (sweeps done,
     largest and root-mean-square relative move of the last sweep). Kernel of
     `meshfit.springs.relax.relax`.
     """
@@ -399,7 +403,11 @@ def relax_sweeps(
     arc = np.empty(3)
     worst = 0.0
     done = 0
+    active = np.ones(n, dtype=np.bool_)
+    nxt = np.zeros(n, dtype=np.bool_)
     for k in range(n_sweeps):
+        if lazy > 0.0:
+            nxt[:] = False
         it = it0 + k
         t = min(1.0, it / ramp) if ramp > 0 else 1.0
         w_fair = w_fair_end * t
@@ -411,6 +419,9 @@ def relax_sweeps(
         for q in range(n):
             p = q if forward else n - 1 - q
             if not movable[p]:
+                continue
+            if lazy > 0.0 and not active[p]:
+                count += 1  # settled: counted as a zero move
                 continue
             # N[p] is the unit normal of face[p] (kept with every move): no recomputation
             for c in range(3):
@@ -497,6 +508,13 @@ def relax_sweeps(
             count += 1
             for c in range(3):
                 prev[p, c] = X[p, c] - sx[c]
+            if lazy > 0.0 and h > 0.0 and moved > lazy * h:
+                for r in (p, p - 1, p + 1, p - nv, p + nv):
+                    if 0 <= r < n:
+                        nxt[r] = True
+                        active[r] = True
+        if lazy > 0.0:
+            active, nxt = nxt, active
         done = k + 1
         rms = np.sqrt(sq / max(count, 1))
         if it + 1 >= ramp and rms < eps_rel:

@@ -53,6 +53,12 @@ CHART_GOAL = 0.05
 #: grids differ by no more than between two runs of 16)
 LINE_SAMPLES = 8
 
+#: `relax` sweeps a free point again only while it or one of its four neighbours moved more
+#: than this many times the convergence tolerance (``eps``) of its spring lengths in the
+#: sweep before: on the nefertiti test layout the spring meshes take a third less time, and
+#: no patch of the test layouts breaks a quality bound it met (at 5, four do)
+LAZY_MOVES = 2.0
+
 
 def _curve_step(state: State, X: np.ndarray, w_arc: float, w_fair: float) -> float:
     """Move the curve points along their feature curves (eq. 5.14-5.17); returns the root-mean-
@@ -114,6 +120,7 @@ def relax(
     tangent: bool = True,
     guard: bool = True,
     only: np.ndarray | None = None,
+    lazy: bool = True,
 ) -> tuple[int, float]:
     """Relax the spring mesh of ``state`` at its current level, in place.
 
@@ -127,7 +134,9 @@ def relax(
     lengths (see `meshfit._kernels.springs.spring_force`), else they are Euclidean. With
     ``guard`` a move that folds more triangles of the point's cells than before is halved
     (up to three times) or dropped. ``only`` ((nu, nv) bool) limits the moving free points
-    to those it marks.
+    to those it marks. With ``lazy`` (and no feature curves) a sweep moves only the points
+    near a move of more than `LAZY_MOVES` times ``eps`` in the sweep before (the rest have
+    settled).
 
     Returns
     -------
@@ -165,6 +174,7 @@ def relax(
             eps,
             tol.BARY_EPS,
             _MAX_FACES,
+            LAZY_MOVES * eps if lazy else 0.0,
         )
         return int(done), float(rms)
     done, worst = 0, np.inf
@@ -188,6 +198,7 @@ def relax(
             eps,
             tol.BARY_EPS,
             _MAX_FACES,
+            0.0,  # one sweep a call: nothing to skip
         )
         t = min(1.0, (start + it) / ramp) if ramp > 0 else 1.0
         X = _k.grid_xyz(mesh.vertices, mesh.faces, state.face, state.bary)
@@ -233,7 +244,7 @@ def untangle(
         _k.relax_sweeps(
             mesh.vertices, mesh.faces, mesh.face_neighbors, state.face, state.bary,
             state.nu, state.nv, near.ravel(), tangent, guard, np.ones(n), np.zeros((n, 3)),
-            sweeps, 1, 1, 1.0, 1.0, 0.0, tol.BARY_EPS, _MAX_FACES,
+            sweeps, 1, 1, 1.0, 1.0, 0.0, tol.BARY_EPS, _MAX_FACES, 0.0,
         )  # fmt: skip
         folds = folded_cells(state)
     return int(folds.sum())

@@ -284,13 +284,24 @@ def _initialize_map(state: State, pmap: PlanarMap) -> None:
 def _repair(state: State, pmap) -> None:
     """Fold repair: free points re-placed in the planar map, then moved one by one; side
     points of cells still folded slid along their sides, and the free points moved again;
-    last, the free points around each cell still folded moved together in a chart."""
-    unfold_in_map(state, pmap)
-    left = repair_folds(state)
-    if left and slide_side_points(state):
-        left = repair_folds(state)
-    if left:
-        untangle_in_charts(state)
+    last, the free points around each cell still folded moved together in a chart. Done
+    again, up to `REPAIR_PASSES` times in all, while each pass leaves fewer folded cells
+    (a pass moves the points around a fold it cannot undo, which can free the next)."""
+    left = int(folded_cells(state).sum())
+    for _ in range(REPAIR_PASSES):
+        unfold_in_map(state, pmap)
+        now = repair_folds(state)
+        if now and slide_side_points(state):
+            now = repair_folds(state)
+        if now:
+            now = untangle_in_charts(state)
+        if not now or now >= left:
+            break
+        left = now
+
+
+#: most passes of the fold repair (`_repair`)
+REPAIR_PASSES = 3
 
 
 #: most points of a grid at a level asked for (``level`` without ``max_points``): 2,000 x
