@@ -1022,7 +1022,7 @@ def resample_patches(
 
     The relaxation, subdivision and planar-map kernels release the GIL, so the patches of
     a layout resample in parallel: on a 2-core machine nefertiti's test layout (54 patches)
-    takes 0.76 s on one thread and 0.46 s on two (``benchmarks/springs.py``, medians of
+    takes 0.50 s on one thread and 0.29 s on two (``benchmarks/springs.py``, medians of
     5). Each patch's grid is the same whatever the number of workers (a patch is resampled
     by one thread, from its own mesh).
 
