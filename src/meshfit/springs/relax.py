@@ -120,7 +120,6 @@ def relax(
     tangent: bool = True,
     guard: bool = True,
     only: np.ndarray | None = None,
-    lazy: bool = True,
 ) -> tuple[int, float]:
     """Relax the spring mesh of ``state`` at its current level, in place.
 
@@ -134,9 +133,9 @@ def relax(
     lengths (see `meshfit._kernels.springs.spring_force`), else they are Euclidean. With
     ``guard`` a move that folds more triangles of the point's cells than before is halved
     (up to three times) or dropped. ``only`` ((nu, nv) bool) limits the moving free points
-    to those it marks. With ``lazy`` (and no feature curves) a sweep moves only the points
-    near a move of more than `LAZY_MOVES` times ``eps`` in the sweep before (the rest have
-    settled).
+    to those it marks. Without feature curves, a sweep after the first moves only the
+    points near a move of more than `LAZY_MOVES` times ``eps`` in the sweep before (the rest
+    have settled).
 
     Returns
     -------
@@ -174,7 +173,7 @@ def relax(
             eps,
             tol.BARY_EPS,
             _MAX_FACES,
-            LAZY_MOVES * eps if lazy else 0.0,
+            LAZY_MOVES * eps,
         )
         return int(done), float(rms)
     done, worst = 0, np.inf
