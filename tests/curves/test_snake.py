@@ -240,3 +240,26 @@ def test_converges_on_a_bumpy_scan():
     assert res.converged
     assert curve_length(mesh, res.curve) < curve_length(mesh, curve)
     on_surface(mesh, res.curve)
+
+
+def test_points_on_vertices_keep_the_pair_rule():
+    # a painted boundary curve of the nefertiti test layout passes through mesh vertices;
+    # point 59 of curve 38 lies on a vertex, written in a face that shares no vertex with
+    # point 58's face (the layout accepts the pair: some face around the vertex does). The
+    # snake writes such points in a face around the vertex that keeps the pair rule, so it
+    # guards those segments too (unguarded, 3 steps took point 59 to a face sharing nothing)
+    from meshfit.layout import load_layout
+    from meshfit.mesh import load_mesh
+
+    from ..conftest import ROOT, mesh_path
+
+    mesh = load_mesh(mesh_path("nefertiti"))
+    curve = load_layout(ROOT / "examples" / "layouts" / "nefertiti.json", mesh).curves[38]
+    assert not _pairs_ok(mesh.faces, curve.points.face, False).all()
+    for steps in (1, 3, 5):
+        out = relax_snake(mesh, curve, levels=1, max_iter=steps, tol_move=0.0).curve
+        assert _pairs_ok(mesh.faces, out.points.face, False).all(), steps
+        on_surface(mesh, out)
+    # written in another face, the point is where it was
+    res = relax_snake(mesh, curve, max_iter=0)
+    assert_allclose(mesh.xyz(res.curve.points), mesh.xyz(curve.points), rtol=0, atol=1e-12)

@@ -198,6 +198,58 @@ def _pairs_ok(faces: NDArray[np.int64], face: NDArray[np.int64], closed: bool) -
     return _ks.pairs_ok(faces, np.ascontiguousarray(face, dtype=np.int64), bool(closed))
 
 
+def _share_pairs(
+    mesh: Mesh,
+    face: NDArray[np.int64],
+    bary: NDArray[np.float64],
+    closed: bool,
+    fixed: NDArray[np.bool_] | None = None,
+) -> NDArray[np.int64]:
+    """``face`` with curve points that lie on a mesh vertex or edge written in another face
+    there, where that makes a segment's two faces share a vertex (the pair rule the moves
+    keep). A painted curve passes through vertices; written in any one face around the
+    vertex, its segments may pass the layout's check (which looks at every face holding the
+    point) but not the face-based test of `_pairs_ok`, and a segment that fails that test at
+    the start is not protected during the relaxation. Barycentrics are permuted with the
+    face, so the points do not move; ``fixed`` points keep their faces. ``bary`` is
+    permuted in place."""
+    ok = _pairs_ok(mesh.faces, face, closed)
+    if ok.all():
+        return face
+    F = mesh.faces
+    ptr, around = mesh.vertex_faces
+    n = face.shape[0]
+    face = face.copy()
+
+    def shares(a: int, b: int) -> bool:
+        return bool(np.isin(F[a], F[b]).any())
+
+    def fits(p: int, g: int) -> bool:
+        ends = [q % n for q in (p - 1, p + 1) if closed or 0 <= q < n]
+        return all(shares(g, int(face[q])) for q in ends)
+
+    for seg in np.flatnonzero(~ok):
+        for p in (int(seg + 1) % n, int(seg)):
+            if fixed is not None and fixed[p]:
+                continue
+            f = int(face[p])
+            on = np.flatnonzero(bary[p] > tol.BARY_EPS)
+            if on.size == 3:
+                continue  # inside its face: one way to write it
+            held = F[f, on]  # the vertex (or edge's two vertices) the point lies on
+            cands = around[ptr[held[0]] : ptr[held[0] + 1]]
+            cands = [int(g) for g in cands if g != f and np.isin(held, F[g]).all()]
+            best = next((g for g in cands if fits(p, g)), None)
+            if best is not None:
+                w = np.zeros(3)
+                for k, v in zip(on, held, strict=True):
+                    w[int(np.flatnonzero(F[best] == v)[0])] = bary[p, k]
+                bary[p] = w
+                face[p] = best
+                break
+    return face
+
+
 class _Stepper:
     """Walk curve points by capped tangent moves without breaking the sampling rule."""
 
@@ -427,6 +479,7 @@ def relax_snake(
     if neg.any():
         c = np.clip(bary[neg], 0.0, None)
         bary[neg] = c / c.sum(axis=1, keepdims=True)
+    face = _share_pairs(mesh, face, bary, curve.closed, mask)
     face, bary, history, converged = _relax(
         mesh,
         face,
@@ -551,6 +604,7 @@ def edit_snake(
     fixed[[0, local, m - 1]] = True
     face = np.array(curve.points.face[ids], dtype=np.int64)
     bary = np.array(curve.points.bary[ids], dtype=np.float64, order="C")
+    face = _share_pairs(mesh, face, bary, False, fixed)
     stepper = _Stepper(mesh, False)
     h = mesh.mean_edge_length
     # pull the edit point in sub-steps, letting the section follow

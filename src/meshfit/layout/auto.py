@@ -38,6 +38,8 @@ re-used.
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -873,7 +875,7 @@ def _relax_inputs(mesh: Mesh, curves: list[SurfaceCurve]) -> dict:
     """
     from meshfit import tol
     from meshfit._kernels.snake import positions
-    from meshfit.curves.snake import _MAX_FACES, SNAKE_MOVE_TOL, _auto_levels
+    from meshfit.curves.snake import _MAX_FACES, SNAKE_MOVE_TOL, _auto_levels, _share_pairs
 
     sizes = np.array([len(c) for c in curves], dtype=np.int64)
     start = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
@@ -883,6 +885,10 @@ def _relax_inputs(mesh: Mesh, curves: list[SurfaceCurve]) -> dict:
     if neg.any():
         c = np.clip(bary[neg], 0.0, None)
         bary[neg] = c / c.sum(axis=1, keepdims=True)
+    for a, b in itertools.pairwise(start.tolist()):  # (the kernel keeps the ends)
+        ends = np.zeros(b - a, dtype=bool)
+        ends[[0, -1]] = True
+        face[a:b] = _share_pairs(mesh, face[a:b], bary[a:b], False, ends)
     x = positions(mesh.vertices, mesh.faces, face, bary)
     seg_len = np.linalg.norm(np.diff(x, axis=0), axis=1)
     # segments inside a curve (the pair from one curve's end to the next's start is not one)
