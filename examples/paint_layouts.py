@@ -108,10 +108,7 @@ def _compact(mesh, layout):
     def curve(c: SurfaceCurve) -> SurfaceCurve:
         return SurfaceCurve(_rounded(c.points), kind=c.kind)
 
-    patches = [
-        [(int(layout.patch_curves[p, s]), bool(layout.patch_reversed[p, s])) for s in range(4)]
-        for p in range(layout.n_patches)
-    ]
+    patches = [layout.patch_sides(p) for p in range(layout.n_patches)]
     return layout_from_curves(
         mesh,
         _rounded(layout.corners),

@@ -58,10 +58,7 @@ def sphere_layout() -> Layout:
 
 # ------------------------------------------------------------------------- helpers
 def _patch_list(layout: Layout) -> list[list[tuple[int, bool]]]:
-    return [
-        [(int(layout.patch_curves[p, s]), bool(layout.patch_reversed[p, s])) for s in range(4)]
-        for p in range(layout.n_patches)
-    ]
+    return [layout.patch_sides(p) for p in range(layout.n_patches)]
 
 
 def _rebuild(mesh, layout, *, curves=None, patches=None, corners=None, features=None):
@@ -113,6 +110,21 @@ def test_real_layout_round_trips(name, tmp_path):
     assert path.read_text() == (LAYOUTS / f"{name}.json").read_text()
     assert path.stat().st_size < 5_000_000
     assert not list(tmp_path.glob(".*.tmp"))  # the temporary file was renamed
+
+
+def test_patch_sides_rebuild_the_layout():
+    layout = sphere_layout()
+    sides = layout.patch_sides(3)
+    assert [c for c, _ in sides] == layout.patch_curves[3].tolist()
+    assert [r for _, r in sides] == layout.patch_reversed[3].tolist()
+    assert all(type(c) is int and type(r) is bool for c, r in sides)
+    # side s runs from corner s to corner s + 1
+    ends = [layout.curve_ends[c][::-1] if r else layout.curve_ends[c] for c, r in sides]
+    assert [int(e[0]) for e in ends] == layout.patch_corners(3).tolist()
+    assert [int(e[1]) for e in ends] == np.roll(layout.patch_corners(3), -1).tolist()
+    again = _rebuild(sphere(), layout)
+    assert (again.patch_curves == layout.patch_curves).all()
+    assert (again.patch_reversed == layout.patch_reversed).all()
 
 
 def test_analytic_layout_round_trips_bit_exactly(tmp_path):

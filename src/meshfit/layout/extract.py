@@ -268,9 +268,7 @@ def _match(
     if len(seq) != 4:
         return None
     for p in by_set.get(frozenset(s[0] for s in seq), []):
-        want = [
-            (int(layout.patch_curves[p, s]), bool(layout.patch_reversed[p, s])) for s in range(4)
-        ]
+        want = layout.patch_sides(p)
         for rot in range(4):
             if [seq[(rot + s) % 4] for s in range(4)] == want:
                 return p, rot

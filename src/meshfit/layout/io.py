@@ -70,10 +70,7 @@ def layout_to_json(layout: Layout, *, mesh_counts: tuple[int, int] | None = None
     lines.append('"patches": [')
     for p in range(layout.n_patches):
         d = {
-            "sides": [
-                [int(layout.patch_curves[p, s]), bool(layout.patch_reversed[p, s])]
-                for s in range(4)
-            ],
+            "sides": [list(side) for side in layout.patch_sides(p)],
             "features": [_points_json(f.points) for f in layout.features[p]],
         }
         sep = "," if p + 1 < layout.n_patches else ""

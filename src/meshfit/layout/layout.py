@@ -157,6 +157,14 @@ class Layout:
     def n_patches(self) -> int:
         return int(self.patch_curves.shape[0])
 
+    def patch_sides(self, patch: int) -> list[tuple[int, bool]]:
+        """A patch's four sides as ``(curve, reversed)`` pairs, side 0 first: the form
+        :func:`layout_from_curves` takes."""
+        return [
+            (int(self.patch_curves[patch, s]), bool(self.patch_reversed[patch, s]))
+            for s in range(4)
+        ]
+
     def patch_corners(self, patch: int) -> NDArray[np.int64]:
         """(4,) int64: layout corner ids of a patch's corners 0..3."""
         return np.asarray(

@@ -132,10 +132,7 @@ def smooth_layout(mesh: Mesh, layout: Layout, *, iterations: int = SMOOTH_ITERAT
             moving, _relaxed_curves(mesh, picked, args["start"], face, bary), strict=True
         ):
             curves[i] = c
-    patches = [
-        [(int(layout.patch_curves[p, s]), bool(layout.patch_reversed[p, s])) for s in range(4)]
-        for p in range(layout.n_patches)
-    ]
+    patches = [layout.patch_sides(p) for p in range(layout.n_patches)]
     return layout_from_curves(
         mesh,
         layout.corners,
