@@ -281,13 +281,15 @@ def _initialize_map(state: State, pmap: PlanarMap) -> None:
     state.set_feature_points()
 
 
-def _repair(state: State, pmap) -> None:
+def _repair(state: State, pmap, left: int | None = None) -> None:
     """Fold repair: free points re-placed in the planar map, then moved one by one; side
     points of cells still folded slid along their sides, and the free points moved again;
     last, the free points around each cell still folded moved together in a chart. Done
     again, up to `REPAIR_PASSES` times in all, while each pass leaves fewer folded cells
-    (a pass moves the points around a fold it cannot undo, which can free the next)."""
-    left = int(folded_cells(state).sum())
+    (a pass moves the points around a fold it cannot undo, which can free the next).
+    ``left``: the folded cells of ``state`` when the caller has just counted them."""
+    if left is None:
+        left = int(folded_cells(state).sum())
     for _ in range(REPAIR_PASSES):
         unfold_in_map(state, pmap)
         now = repair_folds(state)
@@ -808,7 +810,7 @@ def resample_patch(
             )
         if repair:
             if left != 0:  # (with no folded cell left the repair has nothing to do)
-                _repair(state, pmap)
+                _repair(state, pmap, left)
             unpinch_side_points(state)
 
     def run(
