@@ -159,7 +159,23 @@ class Layout:
 
     def patch_sides(self, patch: int) -> list[tuple[int, bool]]:
         """A patch's four sides as ``(curve, reversed)`` pairs, side 0 first: the form
-        :func:`layout_from_curves` takes."""
+        :func:`layout_from_curves` takes.
+
+        Parameters
+        ----------
+        patch : int
+            Patch index, ``0 <= patch < n_patches``.
+
+        Returns
+        -------
+        list of four (int, bool)
+            Curve index and whether side ``s`` runs along it backwards (``patch_curves`` and
+            ``patch_reversed`` of the patch as Python values).
+
+        References
+        ----------
+        .. [1] Krishnamurthy 2000, sec. 1.3, fig. 1.2 (four-sided patches bounded by curves).
+        """
         return [
             (int(self.patch_curves[patch, s]), bool(self.patch_reversed[patch, s]))
             for s in range(4)
