@@ -7,14 +7,6 @@ repository. A missing folder is an error, not a skip.
 from __future__ import annotations
 
 import os
-
-# OpenBLAS picks its kernels by CPU, and its AVX-512 kernels round some products
-# differently: on an AVX-512 machine a near tie then flips a decision of the spring-mesh
-# rescue (nefertiti's cube patch 4) and of the fold repair, and three tests that pass with
-# the AVX2 kernels fail. The tests fix the kernel set so that their figures are the same on
-# every x86-64 machine (set before numpy loads OpenBLAS; a value given by the caller wins).
-os.environ.setdefault("OPENBLAS_CORETYPE", "Haswell")
-
 from functools import cache
 from pathlib import Path
 

@@ -9,6 +9,17 @@ from meshfit.surface import walk_points
 from meshfit.types import SurfacePoints
 
 
+def _dot(a, b) -> float:
+    """Dot product of two short vectors summed in index order, as the kernels do (``a @ b``
+    goes to BLAS, whose CPU-specific kernels may round differently)."""
+    return float((np.asarray(a) * np.asarray(b)).sum())
+
+
+def _norm(a) -> float:
+    """Euclidean length of a short vector (see `_dot`)."""
+    return float(np.sqrt(_dot(a, a)))
+
+
 def spring_force(X, nv, p, w_arc, w_fair, nrm=None):
     """Eq. 5.1 (per direction: toward the farther neighbour by the length difference) and
     the fairness sum (sec. 5.5.2), both over 4; returns (force (3,), mean spring length).
@@ -19,15 +30,15 @@ def spring_force(X, nv, p, w_arc, w_fair, nrm=None):
         d = X[q] - X[p]
         if nrm is None:
             return d
-        t = d - (d @ nrm) * nrm
-        n = np.linalg.norm(t)
-        return t * (np.linalg.norm(d) / n) if n > 0 else t
+        t = d - _dot(d, nrm) * nrm
+        n = _norm(t)
+        return t * (_norm(d) / n) if n > 0 else t
 
     arc = np.zeros(3)
     lengths = []
     for a, b in ((p - nv, p + nv), (p - 1, p + 1)):
         fa, fb = vec(a), vec(b)
-        la, lb = np.linalg.norm(fa), np.linalg.norm(fb)
+        la, lb = _norm(fa), _norm(fb)
         lengths += [la, lb]
         if la > lb:
             arc += (la - lb) * fa / la
@@ -42,7 +53,7 @@ def _walk_inside(mesh: Mesh, f, b, vec, tries=6):
     for _ in range(tries + 1):
         res = walk_points(mesh, SurfacePoints(np.array([f]), b[None]), vec[None])
         if not res.hit_boundary[0]:
-            return int(res.end.face[0]), res.end.bary[0].copy(), float(np.linalg.norm(vec))
+            return int(res.end.face[0]), res.end.bary[0].copy(), _norm(vec)
         vec = 0.5 * vec
     return f, b.copy(), 0.0
 
@@ -59,7 +70,7 @@ def _bad_around(X, N, nu, nv, p):
                 c, d = b + 1, a + 1
                 for t in ((a, b, c), (a, c, d)):
                     n = np.cross(X[t[1]] - X[t[0]], X[t[2]] - X[t[0]])
-                    bad += int(n @ N[list(t)].sum(axis=0) <= 0)
+                    bad += int(_dot(n, N[list(t)].sum(axis=0)) <= 0)
     return bad
 
 
@@ -107,11 +118,11 @@ def relax_sweeps(
                 continue
             n = mesh.face_normals[face[p]]
             force, h = spring_force(X, nv, p, 1.0 - w_fair, w_fair, n if tangent else None)
-            step = force - (force @ n) * n
-            total = np.linalg.norm(step)
+            step = force - _dot(force, n) * n
+            total = _norm(step)
             if total <= 0:
                 continue
-            alpha[p] = alpha[p] * 0.5 if (step / total) @ prev[p] < 0 else min(1.0, alpha[p] * 1.25)
+            alpha[p] = alpha[p] * 0.5 if _dot(step / total, prev[p]) < 0 else min(1.0, alpha[p] * 1.25)
             step = step * omega * alpha[p]
             before = _bad_around(X, N, nu, nv, p)
             f0, b0, x0, n0 = face[p], bary[p].copy(), X[p].copy(), N[p].copy()
@@ -190,15 +201,15 @@ def find_midpoints(mesh: Mesh, a: SurfacePoints, b: SurfacePoints, n_fair, max_s
             else:
                 f, bb, step = int(b.face[i]), b.bary[i].copy(), 0.5 * (xa[i] - xb[i])
             n = mesh.face_normals[f]
-            step = step - (step @ n) * n
-            if np.linalg.norm(step) > 0:
+            step = step - _dot(step, n) * n
+            if _norm(step) > 0:
                 f, bb, _ = _walk_inside(mesh, f, bb, step)
         for _ in range(n_fair):
             x = mesh.xyz(SurfacePoints(np.array([f]), bb[None]))[0]
             n = mesh.face_normals[f]
             step = 0.5 * (xa[i] + xb[i]) - x
-            step = step - (step @ n) * n
-            if np.linalg.norm(step) <= 0:
+            step = step - _dot(step, n) * n
+            if _norm(step) <= 0:
                 break
             f, bb, _ = _walk_inside(mesh, f, bb, step)
         out_f[i], out_b[i] = f, bb
@@ -239,9 +250,9 @@ def _fold_score(X, N, nu, nv, p, margin):
                 for t in ((a, b, c), (a, c, d)):
                     n = np.cross(X[t[1]] - X[t[0]], X[t[2]] - X[t[0]])
                     s = N[list(t)].sum(axis=0)
-                    bad += int(n @ s <= 0)
-                    den = np.linalg.norm(n) * np.linalg.norm(s)
-                    cos = (n @ s) / den if den > 0 else -1.0
+                    bad += int(_dot(n, s) <= 0)
+                    den = _norm(n) * _norm(s)
+                    cos = _dot(n, s) / den if den > 0 else -1.0
                     short += max(0.0, margin - cos)
     return bad, short
 
@@ -267,10 +278,10 @@ def repair_folds(mesh: Mesh, face, bary, nu, nv, movable, rounds, n_dirs, margin
             h = np.linalg.norm(nbrs - x0, axis=1).mean()
             n = mesh.face_normals[f0]
             e1 = X[p + nv] - X[p - nv]
-            e1 = e1 - (e1 @ n) * n
-            if np.linalg.norm(e1) <= 0 or h <= 0:
+            e1 = e1 - _dot(e1, n) * n
+            if _norm(e1) <= 0 or h <= 0:
                 continue
-            e1 /= np.linalg.norm(e1)
+            e1 /= _norm(e1)
             e2 = np.cross(n, e1)
             steps = [0.25 * (nbrs.sum(axis=0) - 4 * x0), 0.125 * (nbrs.sum(axis=0) - 4 * x0)]
             for r in (0.15, 0.35, 0.7):
@@ -279,8 +290,8 @@ def repair_folds(mesh: Mesh, face, bary, nu, nv, movable, rounds, n_dirs, margin
                     steps.append(r * h * (np.cos(a) * e1 + np.sin(a) * e2))
             best = (bad0, short0, 0.0, f0, b0)
             for step in steps:
-                step = step - (step @ n) * n
-                if np.linalg.norm(step) <= 0:
+                step = step - _dot(step, n) * n
+                if _norm(step) <= 0:
                     continue
                 f, b, moved = _walk_inside(mesh, f0, b0.copy(), step, tries=2)
                 if moved == 0:

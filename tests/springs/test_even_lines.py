@@ -103,4 +103,28 @@ def test_the_rescue_evens_a_grid_no_remake_can_rescue():
     for a, b in zip(res.levels[:-1], plain.levels[:-1], strict=True):
         assert_allclose(a.xyz, b.xyz, rtol=0, atol=0)
     got = spring_metrics(patch.mesh, res.final, scale=mesh.bbox_diagonal)["fidelity_max"]
-    assert got < 0.004  # 1.8% -> 0.29% of the bbox diagonal
+    assert got < 0.003  # 1.8% -> 0.22% of the bbox diagonal
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [1, 2, 3, 6])
+def test_the_rescue_of_a_bulge_survives_rounding_noise(seed):
+    # the rescue above, on the patch's vertices moved by 1e-13 of the bbox diagonal (more
+    # than the last-bit differences between CPUs' BLAS kernels): with one evening pass
+    # seeds 1 and 3 (OpenBLAS's AVX2 kernels) or 2 and 6 (its AVX-512 kernels) kept a folded
+    # cell next to the base, the evened grid was dropped and the patch stayed missed by 1.8%
+    # of the diagonal
+    from meshfit.layout import Patch
+    from meshfit.mesh import Mesh
+
+    mesh = real_mesh("nefertiti")
+    layout = load_layout(ROOT / "examples" / "layouts" / "nefertiti.json", mesh)
+    patch = extract_patches(mesh, layout)[4]
+    noise = np.random.default_rng(seed).normal(size=patch.mesh.vertices.shape)
+    moved = Mesh(patch.mesh.vertices + 1e-13 * mesh.bbox_diagonal * noise, patch.mesh.faces)
+    patch = replace(patch, mesh=moved)
+    res = resample_patch(patch, metrics=False, rescue=True)
+    assert res.rescued and res.evened and _folds(moved, res) == 0
+    assert _miss(moved, res.final)[0] < 1.0
+    got = spring_metrics(moved, res.final, scale=mesh.bbox_diagonal)["fidelity_max"]
+    assert got < 0.003

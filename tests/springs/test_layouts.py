@@ -57,7 +57,7 @@ KNOWN = {
         "0.33% worst (patch 5): at about the vertex count the grid is too coarse for 0.05%",
         "nefertiti": "two-sided max distance 0.11% of the bbox diagonal on the median patch, "
         "1.8% on patch 4 (a bulge the grid under-samples; rescue=True evens its grid lines "
-        "in the map: 0.29%)",
+        "in the map: 0.22%)",
         "nefertiti_bust": "two-sided max distance 0.12% of the bbox diagonal on the median "
         "patch, 1.5% worst (patch 42, an ear)",
         "spot": "two-sided max distance 0.092% of the bbox diagonal on the median patch, "
