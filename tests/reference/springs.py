@@ -122,7 +122,8 @@ def relax_sweeps(
             total = _norm(step)
             if total <= 0:
                 continue
-            alpha[p] = alpha[p] * 0.5 if _dot(step / total, prev[p]) < 0 else min(1.0, alpha[p] * 1.25)
+            turn = _dot(step / total, prev[p])
+            alpha[p] = alpha[p] * 0.5 if turn < 0 else min(1.0, alpha[p] * 1.25)
             step = step * omega * alpha[p]
             before = _bad_around(X, N, nu, nv, p)
             f0, b0, x0, n0 = face[p], bary[p].copy(), X[p].copy(), N[p].copy()

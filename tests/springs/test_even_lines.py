@@ -114,7 +114,6 @@ def test_the_rescue_of_a_bulge_survives_rounding_noise(seed):
     # seeds 1 and 3 (OpenBLAS's AVX2 kernels) or 2 and 6 (its AVX-512 kernels) kept a folded
     # cell next to the base, the evened grid was dropped and the patch stayed missed by 1.8%
     # of the diagonal
-    from meshfit.layout import Patch
     from meshfit.mesh import Mesh
 
     mesh = real_mesh("nefertiti")
