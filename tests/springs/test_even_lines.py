@@ -4,6 +4,7 @@ rescue that uses it."""
 from __future__ import annotations
 
 from dataclasses import replace
+from functools import cache
 
 import numpy as np
 import pytest
@@ -12,6 +13,7 @@ from numpy.testing import assert_allclose
 from meshfit import tol
 from meshfit.errors import InputError
 from meshfit.layout import extract_patches, load_layout
+from meshfit.mesh import Mesh
 from meshfit.springs import FREE, resample_patch, spring_metrics
 from meshfit.springs.planar import square_map
 from meshfit.springs.relax import LINE_SAMPLES, even_lines_in_map
@@ -85,15 +87,21 @@ def test_nothing_to_even_without_a_map_or_with_feature_curves_and_bad_counts_rai
     assert (state.face == face).all() and (state.bary == bary).all()
 
 
+@cache
+def _bulge_patch():
+    """Nefertiti and its cube test layout's patch 4 (neck, shoulders and base)."""
+    mesh = real_mesh("nefertiti")
+    layout = load_layout(ROOT / "examples" / "layouts" / "nefertiti.json", mesh)
+    return mesh, extract_patches(mesh, layout)[4]
+
+
 @pytest.mark.slow
 def test_the_rescue_evens_a_grid_no_remake_can_rescue():
     # nefertiti's test patch 4 (neck, shoulders and base): the relaxed grid misses the base
     # by 8.5 grid spacings; the area-balanced remakes fold cells and the finer grids miss as
     # much, so the rescue evens the grid's last level along its lines: it misses by less
     # than a spacing, folds nothing, and its coarser levels are those of the relaxation
-    mesh = real_mesh("nefertiti")
-    layout = load_layout(ROOT / "examples" / "layouts" / "nefertiti.json", mesh)
-    patch = extract_patches(mesh, layout)[4]
+    mesh, patch = _bulge_patch()
     plain = resample_patch(patch, metrics=False, fairness_fallback=False)
     res = resample_patch(patch, metrics=False, rescue=True)
     assert res.rescued and res.evened and res.finer == 0 and res.fairness == 0.5
@@ -114,11 +122,7 @@ def test_the_rescue_of_a_bulge_survives_rounding_noise(seed):
     # seeds 1 and 3 (OpenBLAS's AVX2 kernels) or 2 and 6 (its AVX-512 kernels) kept a folded
     # cell next to the base, the evened grid was dropped and the patch stayed missed by 1.8%
     # of the diagonal
-    from meshfit.mesh import Mesh
-
-    mesh = real_mesh("nefertiti")
-    layout = load_layout(ROOT / "examples" / "layouts" / "nefertiti.json", mesh)
-    patch = extract_patches(mesh, layout)[4]
+    mesh, patch = _bulge_patch()
     noise = np.random.default_rng(seed).normal(size=patch.mesh.vertices.shape)
     moved = Mesh(patch.mesh.vertices + 1e-13 * mesh.bbox_diagonal * noise, patch.mesh.faces)
     patch = replace(patch, mesh=moved)
