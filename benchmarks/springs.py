@@ -15,7 +15,11 @@ axis through the bust):
   on the same ``(nu, nv)`` grid (grid parameters located in the flattened patch with libigl's
   point-mesh distance, positions interpolated barycentrically);
 - every quality metric of :func:`meshfit.springs.grid_metrics` for both, side by side
-  (fidelity relative to the whole model's bounding-box diagonal);
+  (fidelity relative to the whole model's bounding-box diagonal), with the median over
+  patches of the largest distance, the largest root-mean-square distance, and where each
+  patch's largest distance lies (``fidelity_max_places``: at a side, a corner or inside the
+  grid; at a side it measures how far the painted side curve wanders between two grid
+  points);
 - ``layout_threads``: the whole layout's wall time one patch after the other and with
   :func:`meshfit.springs.resample_patches` on every core, and the peer's one patch after the
   other, on a thread pool over every core and on a pool of forked processes, one per core
@@ -33,6 +37,7 @@ import os
 import platform
 import statistics
 import time
+from collections import Counter
 
 import numpy as np
 from _common import ROOT, median_time, mesh_path, write_result
@@ -238,7 +243,7 @@ def run_layout(name: str, repeats: int) -> dict:
             cached.append(median_time(lambda p=cold: resample_patch(p, metrics=False), 1)[0])
         t_ours, t_peer = statistics.median(ours), statistics.median(peer)
         xyz, nrm = harmonic_grid(patch, nu, nv)
-        ours = spring_metrics(patch.mesh, res.final, scale=diag)
+        ours = spring_metrics(patch.mesh, res.final, scale=diag, places=True)
         peer = grid_metrics(patch.mesh, xyz, nrm, scale=diag)
         rows.append(
             {
@@ -270,6 +275,10 @@ def run_layout(name: str, repeats: int) -> dict:
                     ),
                 },
                 "springs": _round({k: ours[k] for k in METRICS}),
+                # where the largest two-sided distance lies: at a "side", a "corner" or the
+                # "interior" of the grid, and whether it is a patch vertex far from the grid
+                # ("patch") or a grid point far from the patch ("grid")
+                "fidelity_max_at": {k: ours["places"]["fidelity"][k] for k in ("place", "from")},
                 "harmonic": _round({k: peer[k] for k in METRICS}),
             }
         )
@@ -284,6 +293,8 @@ def run_layout(name: str, repeats: int) -> dict:
             "aspect_median_max": max(r[who]["aspect_median"] for r in rows),
             "folded_total": sum(r[who]["folded"] for r in rows),
             "fidelity_max": max(r[who]["fidelity_max"] for r in rows),
+            "fidelity_max_median": statistics.median(r[who]["fidelity_max"] for r in rows),
+            "fidelity_rms_max": max(r[who]["fidelity_rms"] for r in rows),
             "area_cv_median": statistics.median(r[who]["area_cv"] for r in rows),
         }
     return {
@@ -318,6 +329,10 @@ def run_layout(name: str, repeats: int) -> dict:
         },
         "layout_threads": threads,
         "worst_over_patches": worst,
+        # patches whose largest distance (`fidelity_max`) lies at each place of the grid
+        "fidelity_max_places": dict(
+            Counter(r["fidelity_max_at"]["place"] for r in rows).most_common()
+        ),
         "per_patch": rows,
     }
 
