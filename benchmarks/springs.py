@@ -18,8 +18,8 @@ axis through the bust):
   (fidelity relative to the whole model's bounding-box diagonal), with the median over
   patches of the largest distance, the largest root-mean-square distance, and where each
   patch's largest distance lies (``fidelity_max_places``: at a side, a corner or inside the
-  grid; at a side it measures how far the painted side curve wanders between two grid
-  points);
+  grid; at a side it is mostly a vertex of the painted side curve away from the chord
+  between two grid points, see ``fidelity_max_at`` per patch);
 - ``layout_threads``: the whole layout's wall time one patch after the other and with
   :func:`meshfit.springs.resample_patches` on every core, and the peer's one patch after the
   other, on a thread pool over every core and on a pool of forked processes, one per core
