@@ -445,3 +445,22 @@ def chart_least_area(Y, nu, nv, var):
                 u, w = q - p, r - p
                 out = min(out, u[0] * w[1] - u[1] * w[0])
     return out
+
+
+def window_trials(mesh: Mesh, face, bary, rows, cols, at, t_face, t_bary):
+    """Folded cells and shortest neighbour chord of a window of grid face points as it is
+    and with the points ``at`` put at each trial's face points, one trial at a time."""
+    from meshfit.springs import grid_metrics
+
+    folds, short = [], []
+    for t in range(len(t_face) + 1):
+        f, b = np.array(face), np.array(bary)
+        if t > 0:
+            f[at], b[at] = t_face[t - 1], t_bary[t - 1]
+        X = mesh.xyz(SurfacePoints(f, b)).reshape(rows, cols, 3)
+        N = mesh.face_normals[f].reshape(rows, cols, 3)
+        folds.append(grid_metrics(mesh, X, N, fidelity=False)["folded"])
+        du = np.linalg.norm(np.diff(X, axis=0), axis=2)
+        dv = np.linalg.norm(np.diff(X, axis=1), axis=2)
+        short.append(min(du.min(initial=np.inf), dv.min(initial=np.inf)))
+    return np.array(folds), np.array(short)

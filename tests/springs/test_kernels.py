@@ -120,6 +120,27 @@ def test_folded_cells_kernel_matches_the_metric(patches, rng):
     assert got.sum() == want > 0
 
 
+def test_window_trials_matches_oracle(patches, rng):
+    # a side window of a relaxed grid, two lines deep, with its side points moved to random
+    # places: every trial's fold count and shortest chord as the oracle finds them
+    patch = patches["spot"]
+    mesh = patch.mesh
+    sm = resample_patch(patch, level=2, metrics=False).final
+    nu, nv = sm.shape
+    win = np.arange(nu * nv).reshape(nu, nv)[2:9, :2].ravel()
+    face, bary = sm.points.face[win].copy(), sm.points.bary[win].copy()
+    at = np.array([2, 4, 6, 8, 10])
+    pool = sm.points.face.size
+    picks = rng.integers(0, pool, size=(12, at.size))
+    t_face = sm.points.face[picks]
+    t_bary = sm.points.bary[picks]
+    got = K.window_trials(mesh.vertices, mesh.faces, face, bary, 7, 2, at, t_face, t_bary)
+    want = ref.window_trials(mesh, face, bary, 7, 2, at, t_face, t_bary)
+    assert_array_equal(got[0], want[0])
+    assert got[0][1:].max() > 0  # some trials fold the window
+    assert_allclose(got[1], want[1], rtol=1e-12)
+
+
 def test_locate_uv_matches_oracle(patches, rng):
     from meshfit.springs.planar import square_map
     from meshfit.springs.resample import _sides

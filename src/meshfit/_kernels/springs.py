@@ -869,6 +869,49 @@ def folded_cells(V, F, face, bary, nu, nv):
     return out
 
 
+@njit(cache=True, nogil=True, fastmath=False)
+def _shortest_grid_edge(X, rows, cols):
+    """Shortest chord between neighbouring points of a (rows, cols) row-major grid ``X``."""
+    best = np.inf
+    for i in range(rows):
+        for j in range(cols):
+            p = i * cols + j
+            for q in (p + cols if i + 1 < rows else -1, p + 1 if j + 1 < cols else -1):
+                if q < 0:
+                    continue
+                dx = X[q, 0] - X[p, 0]
+                dy = X[q, 1] - X[p, 1]
+                dz = X[q, 2] - X[p, 2]
+                best = min(best, np.sqrt(dx * dx + dy * dy + dz * dz))
+    return best
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def window_trials(V, F, face, bary, rows, cols, at, t_face, t_bary):
+    """Folded cells and shortest chord of a (rows, cols) window of grid face points as it
+    is and with the points at window places ``at`` (m,) i8 put at each trial's face points
+    (t_face (T, m) i8, t_bary (T, m, 3) f8).
+
+    face (rows cols,) i8 and bary (rows cols, 3) f8 are the window's points, row-major.
+    Returns (folds (T + 1,) i8, shortest (T + 1,) f8), entry 0 for the window as it is and
+    entry ``t + 1`` for trial ``t``: the `folded_cells` count and the shortest chord between
+    neighbouring points. Kernel of `meshfit.springs.relax.slide_side_points`."""
+    T = t_face.shape[0]
+    folds = np.zeros(T + 1, dtype=np.int64)
+    short = np.empty(T + 1)
+    f = face.copy()
+    b = bary.copy()
+    for t in range(T + 1):
+        if t > 0:
+            for m in range(at.shape[0]):
+                f[at[m]] = t_face[t - 1, m]
+                for c in range(3):
+                    b[at[m], c] = t_bary[t - 1, m, c]
+        folds[t] = folded_cells(V, F, f, b, rows, cols).sum()
+        short[t] = _shortest_grid_edge(grid_xyz(V, F, f, b), rows, cols)
+    return folds, short
+
+
 # ------------------------------------------------------------ point location in a planar map
 
 

@@ -440,23 +440,25 @@ def _slide(state: State, idx, ends, name: str, k: int, *, pinched: bool) -> tupl
     pts = chain_points(mesh, chain, arc, trials.ravel(), state.sides.edge_faces[name])
     faces = pts.face.reshape(trials.shape)
     barys = pts.bary.reshape(*trials.shape, 3)
-    here = _window_folds(state, sub, rows, cols)
-    best = (here, -_shortest_edge(mesh, state, win) if pinched else 0.0)
+    # the window's folds and shortest chord as it is (entry 0) and for every trial
+    place = {int(g): i for i, g in enumerate(sub.tolist())}
+    at = np.array([place[int(g)] for g in gs], dtype=np.int64)
+    folds, short = _k.window_trials(
+        mesh.vertices, mesh.faces, state.face[sub], state.bary[sub], rows, cols, at, faces, barys
+    )
+    here = int(folds[0])
+    best = (here, -float(short[0]) if pinched else 0.0)
     best_t = None
-    keep_face, keep_bary = state.face[gs].copy(), state.bary[gs].copy()
     for t in range(trials.shape[0]):
-        state.face[gs], state.bary[gs] = faces[t], barys[t]
-        c = _window_folds(state, sub, rows, cols)
+        c = int(folds[t + 1])
         if c > here or (c == here and not pinched):
             continue
         # fewest folds; of those, the trial whose shortest cell edge is longest (a side
         # point slid right under its interior neighbour leaves a sliver cell)
-        score = (c, -_shortest_edge(mesh, state, win))
+        score = (c, -float(short[t + 1]))
         if (best_t is None and not pinched) or score < best:
             best, best_t = score, t
-    if best_t is None:
-        state.face[gs], state.bary[gs] = keep_face, keep_bary
-    else:
+    if best_t is not None:
         state.face[gs], state.bary[gs] = faces[best_t], barys[best_t]
         pos[js] = trials[best_t]
     return here, best[0], best_t is not None
@@ -484,21 +486,6 @@ def _side_points(idx: np.ndarray, name: str, js: np.ndarray) -> np.ndarray:
 def _xyz(mesh, face: np.ndarray, bary: np.ndarray) -> np.ndarray:
     """Positions of face points (arrays known to be valid)."""
     return np.einsum("ij,ijk->ik", bary, mesh.vertices[mesh.faces[face]])
-
-
-def _shortest_edge(mesh, state: State, win: np.ndarray) -> float:
-    """Shortest edge between neighbouring grid points of the window ``win`` (flat indices)."""
-    X = _xyz(mesh, state.face[win.ravel()], state.bary[win.ravel()]).reshape(*win.shape, 3)
-    du = np.linalg.norm(np.diff(X, axis=0), axis=2)
-    dv = np.linalg.norm(np.diff(X, axis=1), axis=2)
-    return float(min(du.min(initial=np.inf), dv.min(initial=np.inf)))
-
-
-def _window_folds(state: State, sub: np.ndarray, rows: int, cols: int) -> int:
-    """Folded cells of the (rows, cols) window of grid points ``sub`` (flat indices)."""
-    mesh = state.mesh
-    f, b = state.face[sub], state.bary[sub]
-    return int(_k.folded_cells(mesh.vertices, mesh.faces, f, b, rows, cols).sum())
 
 
 def _near_folds(state: State, folds: np.ndarray, reach: int) -> np.ndarray:
