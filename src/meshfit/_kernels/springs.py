@@ -841,31 +841,21 @@ def folded_cells(V, F, face, bary, nu, nv):
     """Cells of an (nu, nv) grid of face points with a triangle whose normal points against
     the summed face normals at its corners; -> (nu - 1, nv - 1) bool. Kernel of
     `meshfit.springs.relax.folded_cells` (the test of `meshfit.springs.grid_metrics`)."""
-    X = grid_xyz(V, F, face, bary)
-    N = _point_normals(V, F, face)
+    return _folded_grid(grid_xyz(V, F, face, bary), _point_normals(V, F, face), nu, nv)
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _folded_grid(X, N, nu, nv):
+    """`folded_cells` of the grid points ``X`` (nu nv, 3) with unit normals ``N``."""
     out = np.zeros((nu - 1, nv - 1), dtype=np.bool_)
     for i in range(nu - 1):
         for j in range(nv - 1):
             a = i * nv + j
             b = (i + 1) * nv + j
-            c_ = (i + 1) * nv + j + 1
+            c = (i + 1) * nv + j + 1
             d = i * nv + j + 1
-            for t in range(2):
-                p, q, r = (a, b, c_) if t == 0 else (a, c_, d)
-                ux = X[q, 0] - X[p, 0]
-                uy = X[q, 1] - X[p, 1]
-                uz = X[q, 2] - X[p, 2]
-                wx = X[r, 0] - X[p, 0]
-                wy = X[r, 1] - X[p, 1]
-                wz = X[r, 2] - X[p, 2]
-                cx = uy * wz - uz * wy
-                cy = uz * wx - ux * wz
-                cz = ux * wy - uy * wx
-                sx = N[p, 0] + N[q, 0] + N[r, 0]
-                sy = N[p, 1] + N[q, 1] + N[r, 1]
-                sz = N[p, 2] + N[q, 2] + N[r, 2]
-                if cx * sx + cy * sy + cz * sz <= 0.0:
-                    out[i, j] = True
+            if _tri_bad(X, N, a, b, c) or _tri_bad(X, N, a, c, d):
+                out[i, j] = True
     return out
 
 
@@ -895,7 +885,8 @@ def window_trials(V, F, face, bary, rows, cols, at, t_face, t_bary):
     face (rows cols,) i8 and bary (rows cols, 3) f8 are the window's points, row-major.
     Returns (folds (T + 1,) i8, shortest (T + 1,) f8), entry 0 for the window as it is and
     entry ``t + 1`` for trial ``t``: the `folded_cells` count and the shortest chord between
-    neighbouring points. Kernel of `meshfit.springs.relax.slide_side_points`."""
+    neighbouring points. Kernel of the side-point slides of `meshfit.springs.relax`
+    (`slide_side_points`, `unpinch_side_points`)."""
     T = t_face.shape[0]
     folds = np.zeros(T + 1, dtype=np.int64)
     short = np.empty(T + 1)
@@ -907,8 +898,9 @@ def window_trials(V, F, face, bary, rows, cols, at, t_face, t_bary):
                 f[at[m]] = t_face[t - 1, m]
                 for c in range(3):
                     b[at[m], c] = t_bary[t - 1, m, c]
-        folds[t] = folded_cells(V, F, f, b, rows, cols).sum()
-        short[t] = _shortest_grid_edge(grid_xyz(V, F, f, b), rows, cols)
+        X = grid_xyz(V, F, f, b)
+        folds[t] = _folded_grid(X, _point_normals(V, F, f), rows, cols).sum()
+        short[t] = _shortest_grid_edge(X, rows, cols)
     return folds, short
 
 
