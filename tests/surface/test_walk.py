@@ -673,3 +673,37 @@ def test_attraction_cutting_hopeless_walks_short_changes_nothing(name):
         assert_array_equal(got.end.bary[i], bary)
         assert got.distance[i] == dist
         assert got.iterations[i] == it
+
+
+@pytest.mark.parametrize("name", ["spot", "bunny", "plane"])
+def test_move_in_face_is_the_walk_when_it_stays_in_its_face(name, rng):
+    """`_move_in_face` (the spring relaxation's short cut) gives the walk's barycentrics bit
+    for bit when the walk ends in its start face, and declines every other walk."""
+    from meshfit._kernels import walk as kernels
+
+    mesh = any_mesh(name)
+    V, F, FN = mesh.vertices, mesh.faces, mesh.face_neighbors
+    start = random_surface_points(mesh, 400, rng)
+    bary = start.bary.copy()
+    bary[:100, 0] = 0.0  # on an edge, and (next) on a vertex: the walk's edge cases
+    bary[50:100, 1] = 0.0
+    bary[:100] /= bary[:100].sum(axis=1)[:, None]
+    step = tangent_steps(mesh, start, rng, 0.01, 1.0)
+    stayed = declined = 0
+    for i in range(len(start)):
+        f = int(start.face[i])
+        u = np.empty(3)
+        length = kernels._start_direction(V, F, f, step[i], u)
+        ok, *b = kernels._move_in_face(V, F, f, *bary[i], *u, length, tol.BARY_EPS)
+        walked = bary[i].copy()
+        g, rest, status, crossed = kernels._walk_one(
+            V, F, FN, f, walked, u, length, 100, tol.BARY_EPS
+        )
+        if ok:
+            stayed += 1
+            assert (g, rest, status, crossed) == (f, 0.0, kernels.DONE, 0)
+            assert_array_equal(np.array(b), walked)
+        else:
+            declined += 1
+            assert crossed > 0 or status != kernels.DONE
+    assert stayed > 50 and declined > 50  # both branches taken

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from meshfit._kernels.walk import DONE, _face_normal, _in_plane, _start_direction, _walk_one
+from meshfit._kernels.walk import DONE, _face_normal, _in_plane, _move_in_face, _start_direction, _walk_one
 
 #: fraction of the way to its face's centre that a point stuck on the boundary is moved
 NUDGE = 1e-2
@@ -460,9 +460,19 @@ def relax_sweeps(
                         * alpha[p]
                         / (2.0 ** (attempt - 1))
                     )
-                f, moved = walk_inside(
-                    V, F, FN, f0, bary[p], u, total, max_faces, bary_eps, 6, s0, s1
+                ok, n0, n1, n2 = _move_in_face(
+                    V, F, f0, bary[p, 0], bary[p, 1], bary[p, 2], u[0], u[1], u[2], total,
+                    bary_eps,
                 )
+                if ok:
+                    bary[p, 0] = n0
+                    bary[p, 1] = n1
+                    bary[p, 2] = n2
+                    f, moved = f0, total
+                else:
+                    f, moved = walk_inside(
+                        V, F, FN, f0, bary[p], u, total, max_faces, bary_eps, 6, s0, s1
+                    )
                 if moved == 0.0 and _on_boundary_edge(FN, f, bary[p], bary_eps):
                     # stuck on the boundary (every walk leaves the patch at once): step off
                     # it toward the face's centre so that later sweeps can move it inward

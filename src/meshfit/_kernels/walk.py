@@ -206,6 +206,67 @@ def _walk_core(V, F, FN, f, b, u, length, max_faces, bary_eps, tgt, bound):
         crossed += 1
 
 
+@njit(cache=True, nogil=True, fastmath=False, inline="always")
+def _move_in_face(V, F, f, b0, b1, b2, u0, u1, u2, length, bary_eps):
+    """`_walk_one` of face point ``(f, (b0, b1, b2))`` by ``length`` along the unit in-plane
+    ``(u0, u1, u2)`` when the walk ends in face ``f``, on scalars (the same operations in
+    the same order, so the same result bit for bit).
+
+    Returns ``(ok, b0, b1, b2)``: ``ok`` False when the walk would leave the face or the
+    coordinates would not renormalise (the caller then runs the full walk).
+    """
+    a = F[f, 0]
+    b = F[f, 1]
+    c = F[f, 2]
+    e1x = V[b, 0] - V[a, 0]
+    e1y = V[b, 1] - V[a, 1]
+    e1z = V[b, 2] - V[a, 2]
+    e2x = V[c, 0] - V[a, 0]
+    e2y = V[c, 1] - V[a, 1]
+    e2z = V[c, 2] - V[a, 2]
+    a11 = e1x * e1x + e1y * e1y + e1z * e1z
+    a12 = e1x * e2x + e1y * e2y + e1z * e2z
+    a22 = e2x * e2x + e2y * e2y + e2z * e2z
+    r1 = u0 * e1x + u1 * e1y + u2 * e1z
+    r2 = u0 * e2x + u1 * e2y + u2 * e2z
+    det = a11 * a22 - a12 * a12
+    if det <= 0.0:
+        d0 = 0.0
+        d1 = 0.0
+        d2 = 0.0
+    else:
+        d1 = (a22 * r1 - a12 * r2) / det
+        d2 = (a11 * r2 - a12 * r1) / det
+        d0 = -d1 - d2
+    scale = max(abs(d0), max(abs(d1), abs(d2)))
+    lim = bary_eps * scale
+    # the walk leaves the face where a falling coordinate reaches 0 within ``length``
+    if d0 < 0.0 and not (b0 <= bary_eps and -d0 <= lim) and max(b0, 0.0) / -d0 < length:
+        return False, b0, b1, b2
+    if d1 < 0.0 and not (b1 <= bary_eps and -d1 <= lim) and max(b1, 0.0) / -d1 < length:
+        return False, b0, b1, b2
+    if d2 < 0.0 and not (b2 <= bary_eps and -d2 <= lim) and max(b2, 0.0) / -d2 < length:
+        return False, b0, b1, b2
+    n0 = b0 + length * d0
+    n1 = b1 + length * d1
+    n2 = b2 + length * d2
+    if n0 < 0.0:
+        n0 = 0.0
+    if n1 < 0.0:
+        n1 = 0.0
+    if n2 < 0.0:
+        n2 = 0.0
+    s = n0 + n1 + n2
+    if s == 0.0:
+        return False, b0, b1, b2
+    n0 /= s
+    n1 /= s
+    n2 /= s
+    if not np.isfinite(n0 + n1 + n2):
+        return False, b0, b1, b2
+    return True, n0, n1, n2
+
+
 @njit(cache=True, nogil=True, fastmath=False)
 def _start_direction(V, F, f, step, u):
     """Project ``step`` (3,) onto face ``f``'s plane; unit direction into ``u``, returns length."""

@@ -97,6 +97,8 @@ def prepare_features(
         end on those sides, or two feature curves of one direction cross (or touch) each
         other.
     """
+    if not len(features):
+        return [], [], [], [], [], []
     eps = tol.length(mesh, tol.FEATURE_END_ON_SIDE)
     us, vs = [], []
     for k, (curve, (a, b)) in enumerate(zip(features, feature_sides, strict=True)):
