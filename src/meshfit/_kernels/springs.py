@@ -11,7 +11,14 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from meshfit._kernels.walk import DONE, _face_normal, _in_plane, _move_in_face, _start_direction, _walk_one
+from meshfit._kernels.walk import (
+    DONE,
+    _face_normal,
+    _in_plane,
+    _move_in_face,
+    _start_direction,
+    _walk_one,
+)
 
 #: fraction of the way to its face's centre that a point stuck on the boundary is moved
 NUDGE = 1e-2
@@ -461,7 +468,16 @@ def relax_sweeps(
                         / (2.0 ** (attempt - 1))
                     )
                 ok, n0, n1, n2 = _move_in_face(
-                    V, F, f0, bary[p, 0], bary[p, 1], bary[p, 2], u[0], u[1], u[2], total,
+                    V,
+                    F,
+                    f0,
+                    bary[p, 0],
+                    bary[p, 1],
+                    bary[p, 2],
+                    u[0],
+                    u[1],
+                    u[2],
+                    total,
                     bary_eps,
                 )
                 if ok:
