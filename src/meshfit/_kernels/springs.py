@@ -75,56 +75,80 @@ def walk_inside(V, F, FN, f, b, u, total, max_faces, bary_eps, tries, b0, u0):
     return f, 0.0
 
 
-@njit(cache=True, nogil=True, fastmath=False)
-def _pair_arc(D, a, b, out):
-    """Add the arc-length force (eq. 5.1) of spring vectors ``D[a]``, ``D[b]`` to ``out``:
-    toward the farther neighbour by the difference of the lengths."""
-    la = np.sqrt(D[a, 0] ** 2 + D[a, 1] ** 2 + D[a, 2] ** 2)
-    lb = np.sqrt(D[b, 0] ** 2 + D[b, 1] ** 2 + D[b, 2] ** 2)
-    if la > lb and la > 0.0:
-        s = (la - lb) / la
-        for c in range(3):
-            out[c] += s * D[a, c]
-    elif lb > la and lb > 0.0:
-        s = (lb - la) / lb
-        for c in range(3):
-            out[c] += s * D[b, c]
-    return la + lb
+@njit(cache=True, nogil=True, fastmath=False, inline="always")
+def _spring_vector(X, p, q, n0, n1, n2, tangent):
+    """Spring vector from grid point ``p`` to its neighbour ``q`` (three scalars); with
+    ``tangent`` turned into the plane of unit normal ``(n0, n1, n2)`` keeping its length."""
+    d0 = X[q, 0] - X[p, 0]
+    d1 = X[q, 1] - X[p, 1]
+    d2 = X[q, 2] - X[p, 2]
+    if tangent:
+        dn = d0 * n0 + d1 * n1 + d2 * n2
+        full = np.sqrt(d0**2 + d1**2 + d2**2)
+        d0 -= dn * n0
+        d1 -= dn * n1
+        d2 -= dn * n2
+        flat = np.sqrt(d0**2 + d1**2 + d2**2)
+        if flat > 0.0:
+            r = full / flat
+            d0 *= r
+            d1 *= r
+            d2 *= r
+    return d0, d1, d2
 
 
 @njit(cache=True, nogil=True, fastmath=False, inline="always")
-def spring_force(X, nv, p, w_arc, w_fair, nrm, tangent, out, D, arc):
-    """Resultant force (eq. 5.4) on interior grid point ``p``; returns its mean spring length.
+def _pair_arc(a0, a1, a2, b0, b1, b2):
+    """Arc-length force (eq. 5.1) of the spring vectors ``a`` and ``b`` to the two
+    neighbours along one grid line, toward the farther one by the difference of the
+    lengths: the force (three scalars) and the sum of the two lengths."""
+    la = np.sqrt(a0**2 + a1**2 + a2**2)
+    lb = np.sqrt(b0**2 + b1**2 + b2**2)
+    f0 = 0.0
+    f1 = 0.0
+    f2 = 0.0
+    if la > lb and la > 0.0:
+        s = (la - lb) / la
+        f0 += s * a0
+        f1 += s * a1
+        f2 += s * a2
+    elif lb > la and lb > 0.0:
+        s = (lb - la) / lb
+        f0 += s * b0
+        f1 += s * b1
+        f2 += s * b2
+    return f0, f1, f2, la + lb
+
+
+@njit(cache=True, nogil=True, fastmath=False, inline="always")
+def spring_force(X, nv, p, w_arc, w_fair, n0, n1, n2, tangent):
+    """Resultant force (eq. 5.4) on interior grid point ``p`` and its mean spring length:
+    ``(f0, f1, f2, h)``, on scalars (no scratch arrays).
 
     The spring vectors to the four neighbours are the Euclidean ones (sec. 5.5); with
-    ``tangent`` each is turned into the tangent plane of unit normal ``nrm`` (3,) keeping its
-    length, a first-order stand-in for the geodesic forces of sec. 5.5.3. ``out`` (3,)
-    receives ``w_fair * F_fair / 4 + w_arc * F_arc / 4`` (a Gauss-Seidel step: the fairness
-    part alone moves the point to the centroid of its four neighbours). ``D`` (4, 3) and
-    ``arc`` (3,) are scratch (allocated once per sweep loop, not per point).
+    ``tangent`` each is turned into the tangent plane of unit normal ``(n0, n1, n2)``
+    keeping its length, a first-order stand-in for the geodesic forces of sec. 5.5.3. The
+    force is ``w_fair * F_fair / 4 + w_arc * F_arc / 4`` (a Gauss-Seidel step: the fairness
+    part alone moves the point to the centroid of its four neighbours).
     """
-    nb = (p - nv, p + nv, p - 1, p + 1)  # left, right, down, up
-    for k in range(4):
-        q = nb[k]
-        for c in range(3):
-            D[k, c] = X[q, c] - X[p, c]
-        if tangent:
-            dn = D[k, 0] * nrm[0] + D[k, 1] * nrm[1] + D[k, 2] * nrm[2]
-            full = np.sqrt(D[k, 0] ** 2 + D[k, 1] ** 2 + D[k, 2] ** 2)
-            for c in range(3):
-                D[k, c] -= dn * nrm[c]
-            flat = np.sqrt(D[k, 0] ** 2 + D[k, 1] ** 2 + D[k, 2] ** 2)
-            if flat > 0.0:
-                for c in range(3):
-                    D[k, c] *= full / flat
-    for c in range(3):
-        arc[c] = 0.0
-    h = _pair_arc(D, 0, 1, arc)
-    h += _pair_arc(D, 2, 3, arc)
-    for c in range(3):
-        fair = D[0, c] + D[1, c] + D[2, c] + D[3, c]
-        out[c] = 0.25 * (w_fair * fair + w_arc * arc[c])
-    return 0.25 * h
+    l0, l1, l2 = _spring_vector(X, p, p - nv, n0, n1, n2, tangent)  # left
+    r0, r1, r2 = _spring_vector(X, p, p + nv, n0, n1, n2, tangent)  # right
+    d0, d1, d2 = _spring_vector(X, p, p - 1, n0, n1, n2, tangent)  # down
+    u0, u1, u2 = _spring_vector(X, p, p + 1, n0, n1, n2, tangent)  # up
+    a0, a1, a2, h = _pair_arc(l0, l1, l2, r0, r1, r2)
+    c0, c1, c2, h2 = _pair_arc(d0, d1, d2, u0, u1, u2)
+    # the arc-length force summed from 0 as the line pairs come: (0 + a) + c
+    x0 = 0.0 + a0
+    x1 = 0.0 + a1
+    x2 = 0.0 + a2
+    x0 += c0
+    x1 += c1
+    x2 += c2
+    h += h2
+    f0 = 0.25 * (w_fair * (l0 + r0 + d0 + u0) + w_arc * x0)
+    f1 = 0.25 * (w_fair * (l1 + r1 + d1 + u1) + w_arc * x1)
+    f2 = 0.25 * (w_fair * (l2 + r2 + d2 + u2) + w_arc * x2)
+    return f0, f1, f2, 0.25 * h
 
 
 @njit(cache=True, nogil=True, fastmath=False)
@@ -406,8 +430,6 @@ def relax_sweeps(
     sn = np.empty(3)
     kx = np.empty(3)
     kn = np.empty(3)
-    dvec = np.empty((4, 3))
-    arc = np.empty(3)
     worst = 0.0
     done = 0
     active = np.ones(n, dtype=np.bool_)
@@ -433,7 +455,9 @@ def relax_sweeps(
             # N[p] is the unit normal of face[p] (kept with every move): no recomputation
             for c in range(3):
                 nrm[c] = N[p, c]
-            h = spring_force(X, nv, p, w_arc, w_fair, nrm, tangent, step, dvec, arc)
+            step[0], step[1], step[2], h = spring_force(
+                X, nv, p, w_arc, w_fair, nrm[0], nrm[1], nrm[2], tangent
+            )
             total = _in_plane(nrm[0], nrm[1], nrm[2], step, u)
             if total <= 0.0:
                 continue
