@@ -92,3 +92,22 @@ def grid_triangles(nu: int, nv: int) -> NDArray[np.int64]:
     c = idx[1:, 1:].ravel()
     d = idx[:-1, 1:].ravel()
     return np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+
+
+def dilate_grid(mask: NDArray[np.bool_], reach: int) -> NDArray[np.bool_]:
+    """(a, b) bool: the grid points within ``reach`` steps along rows and columns of a point
+    of ``mask`` (a, b) (``scipy.ndimage.binary_dilation`` with its default cross-shaped
+    structure, ``reach`` iterations, nothing outside the grid); a new array."""
+    out = np.array(mask, dtype=bool)
+    if out.ndim != 2:
+        raise ValueError(f"dilate_grid needs a 2-d mask, got shape {out.shape}")
+    for _ in range(int(reach)):
+        if not out.any():
+            break
+        grown = out.copy()
+        grown[1:] |= out[:-1]
+        grown[:-1] |= out[1:]
+        grown[:, 1:] |= out[:, :-1]
+        grown[:, :-1] |= out[:, 1:]
+        out = grown
+    return out

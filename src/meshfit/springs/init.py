@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from meshfit._kernels import springs_aux as _aux
 from meshfit._kernels.springs import chain_points as _chain_points
 from meshfit.mesh import Mesh
 from meshfit.surface import astar_path
@@ -15,8 +16,12 @@ __all__ = ["chain_arc", "chain_points", "closest_approach", "project_on_chain"]
 
 def chain_arc(mesh: Mesh, chain: NDArray[np.int64]) -> NDArray[np.float64]:
     """(k,) float64 cumulative length along a vertex chain, model units."""
-    seg = np.linalg.norm(np.diff(mesh.vertices[chain], axis=0), axis=1)
-    return np.concatenate([[0.0], np.cumsum(seg)])
+    chain = np.ascontiguousarray(chain, dtype=np.int64).reshape(-1)
+    if chain.size == 0:
+        return np.zeros(1)
+    if chain.min() < 0 or chain.max() >= mesh.n_vertices:
+        raise IndexError("chain_arc: vertex index out of range")
+    return _aux.chain_arc(mesh.vertices, chain)
 
 
 def chain_edge_faces(
@@ -24,25 +29,27 @@ def chain_edge_faces(
 ) -> list[tuple[NDArray, NDArray, NDArray]]:
     """For each edge of vertex chains along the mesh boundary: the face holding it and the
     slots of the edge's two vertices in that face; per chain, three (k - 1,) int64 arrays."""
-    F = mesh.faces
-    f, k = np.nonzero(mesh.face_neighbors < 0)  # boundary edge k of face f
-    a, b = F[f, k], F[f, (k + 1) % 3]
-    n = np.int64(mesh.n_vertices)
-    key = np.concatenate([a * n + b, b * n + a])
-    face = np.concatenate([f, f])
-    sa = np.concatenate([k, (k + 1) % 3])
-    sb = np.concatenate([(k + 1) % 3, k])
-    order = np.argsort(key)
-    skey = key[order]
-    out = []
-    for chain in chains:
-        want = chain[:-1] * n + chain[1:]
-        pos = np.minimum(np.searchsorted(skey, want), len(order) - 1)
-        hit = order[pos]
-        if not np.array_equal(key[hit], want):
-            raise AssertionError("side chains follow the patch boundary")
-        out.append((face[hit], sa[hit], sb[hit]))
-    return out
+    chains = [np.ascontiguousarray(c, dtype=np.int64).reshape(-1) for c in chains]
+    if not chains:
+        return []
+    sizes = [max(c.size, 1) for c in chains]
+    # an empty chain (no edges) stands in as one vertex
+    flat = np.concatenate([c if c.size else np.zeros(1, dtype=np.int64) for c in chains])
+    if flat.min() < 0 or flat.max() >= mesh.n_vertices:
+        raise IndexError("chain_edge_faces: vertex index out of range")
+    ends = np.zeros(len(chains) + 1, dtype=np.int64)
+    np.cumsum(sizes, out=ends[1:])
+    face, sa, sb, ok = _aux.chain_edge_faces(
+        mesh.faces, mesh.face_neighbors, np.int64(mesh.n_vertices), flat, ends
+    )
+    if not ok:
+        raise AssertionError("side chains follow the patch boundary")
+    cut = ends[1:] - np.arange(1, len(chains) + 1)  # edge ends: one fewer per chain
+    starts = np.concatenate([[0], cut[:-1]])
+    return [
+        (face[a:b].copy(), sa[a:b].copy(), sb[a:b].copy())
+        for a, b in zip(starts.tolist(), cut.tolist(), strict=True)
+    ]
 
 
 def chain_points(

@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from meshfit import tol
 from meshfit._kernels import planar as _kp
 from meshfit._kernels import springs as _k
+from meshfit._kernels import springs_aux as _aux
 from meshfit.mesh import Mesh
 from meshfit.springs.features import Sides
 from meshfit.types import SurfacePoints
@@ -45,8 +46,39 @@ class PlanarMap:
         self._buckets = _k.uv_buckets(uv, mesh.faces, self._g)
 
     def uv_of(self, face: NDArray[np.int64], bary: NDArray[np.float64]) -> NDArray[np.float64]:
-        """(m, 2) parameters of face points."""
-        return np.einsum("ij,ijk->ik", bary, self.uv[self.mesh.faces[face]])
+        """(m, 2) parameters of face points (``face`` (m,), ``bary`` (m, 3))."""
+        face = np.ascontiguousarray(face, dtype=np.int64).reshape(-1)
+        bary = np.ascontiguousarray(bary, dtype=np.float64)
+        if bary.shape != (face.size, 3):
+            raise ValueError(f"uv_of needs bary of shape ({face.size}, 3), got {bary.shape}")
+        self._check_faces(face)
+        return _aux.face_point_sums(self.uv, self.mesh.faces, face, bary)
+
+    def mid_uv(
+        self,
+        face: NDArray[np.int64],
+        bary: NDArray[np.float64],
+        a: NDArray[np.int64],
+        b: NDArray[np.int64],
+    ) -> NDArray[np.float64]:
+        """(m, 2) mean parameters of the face points ``a`` and ``b`` ((m,) indices into the
+        points ``face`` (g,), ``bary`` (g, 3)): ``0.5 * (uv_of(a) + uv_of(b))``."""
+        face = np.ascontiguousarray(face, dtype=np.int64).reshape(-1)
+        bary = np.ascontiguousarray(bary, dtype=np.float64)
+        a = np.ascontiguousarray(a, dtype=np.int64).reshape(-1)
+        b = np.ascontiguousarray(b, dtype=np.int64).reshape(-1)
+        g = face.size
+        if bary.shape != (g, 3) or a.size != b.size:
+            raise ValueError("mid_uv needs bary (g, 3) for face (g,) and as many a as b")
+        if a.size and (min(a.min(), b.min()) < 0 or max(a.max(), b.max()) >= g):
+            raise IndexError("mid_uv: point index out of range")
+        self._check_faces(face)
+        return _aux.mid_parameters(self.uv, self.mesh.faces, face, bary, a, b)
+
+    def _check_faces(self, face: NDArray[np.int64]) -> None:
+        """Raise IndexError unless every entry of ``face`` is a face of the patch mesh."""
+        if face.size and (face.min() < 0 or face.max() >= self.mesh.n_faces):
+            raise IndexError("face index out of range of the patch mesh")
 
     def locate(self, q: NDArray[np.float64]) -> SurfacePoints:
         """Face points of the patch mesh whose parameters are ``q`` (m, 2), clamped into the

@@ -7,7 +7,7 @@ import numpy as np
 from meshfit import tol
 from meshfit._kernels import springs as _k
 from meshfit.errors import InputError
-from meshfit.springs.grid import FREE
+from meshfit.springs.grid import FREE, dilate_grid
 from meshfit.springs.state import State
 
 __all__ = [
@@ -147,7 +147,7 @@ def relax(
     .. [1] Krishnamurthy 2000, sec. 5.5.1-5.5.3, eq. 5.1 and 5.4; sec. 5.11.3, eq. 5.14-5.17.
     """
     mesh = state.mesh
-    movable = (state.kind() == FREE).ravel()
+    movable = state.free()
     if only is not None:
         movable &= np.asarray(only, dtype=bool).ravel()
     args = (mesh.vertices, mesh.faces, mesh.face_neighbors)
@@ -263,7 +263,7 @@ def repair_folds(state: State, *, rounds: int = 8) -> int:
     if not folded_cells(state).any():
         return 0
     mesh = state.mesh
-    movable = (state.kind() == FREE).ravel()
+    movable = state.free()
     _k.repair_folds(
         mesh.vertices, mesh.faces, mesh.face_neighbors, state.face, state.bary,
         state.nu, state.nv, movable, int(rounds), REPAIR_DIRECTIONS, REPAIR_MARGIN,
@@ -490,16 +490,14 @@ def _xyz(mesh, face: np.ndarray, bary: np.ndarray) -> np.ndarray:
 
 def _near_folds(state: State, folds: np.ndarray, reach: int) -> np.ndarray:
     """(nu, nv) bool: free points within ``reach`` grid steps of a corner of a folded cell."""
-    from scipy.ndimage import binary_dilation
-
     near = np.zeros((state.nu, state.nv), dtype=bool)
     near[:-1, :-1] |= folds
     near[1:, :-1] |= folds
     near[:-1, 1:] |= folds
     near[1:, 1:] |= folds
     if reach > 0:
-        near = binary_dilation(near, iterations=reach)
-    return near & (state.kind() == FREE)
+        near = dilate_grid(near, reach)
+    return near & state.free().reshape(state.nu, state.nv)
 
 
 def unfold_in_map(state: State, pmap, *, reach: int = 2, sweeps: int = 40) -> int:
@@ -693,7 +691,7 @@ def even_lines_in_map(state: State, pmap, *, rounds: int = 1, samples: int | Non
     for _ in range(int(rounds)):
         _even_lines(pmap, uv, int(samples))  # the lines along u (rows i = 0 .. nu - 1)
         _even_lines(pmap, uv.transpose(1, 0, 2), int(samples))
-    free = (state.kind() == FREE).ravel()
+    free = state.free()
     pts = pmap.locate(uv.reshape(-1, 2)[free])
     state.face[free] = pts.face
     state.bary[free] = pts.bary

@@ -15,7 +15,7 @@ from meshfit._threads import map_threads, n_workers
 from meshfit.errors import InputError
 from meshfit.mesh import Mesh
 from meshfit.springs.features import FeatureLine, Sides, intersect_lines, prepare_features
-from meshfit.springs.grid import FREE, SpringMesh, grid_triangles
+from meshfit.springs.grid import SpringMesh, dilate_grid, grid_triangles
 from meshfit.springs.init import chain_arc, chain_edge_faces, closest_approach, dijkstra_paths
 from meshfit.springs.metrics import QUALITY_BOUNDS, _fidelity, _section_ends, spring_metrics
 from meshfit.springs.planar import PlanarMap, square_map
@@ -277,7 +277,7 @@ def _initialize_map(state: State, pmap: PlanarMap) -> None:
     state.face = np.zeros(nu * nv, dtype=np.int64)
     state.bary = np.zeros((nu * nv, 3))
     uv = grid_parameters(state).reshape(-1, 2)
-    free = (state.kind() == FREE).ravel()
+    free = state.free()
     pts = pmap.locate(uv[free])
     state.face[free] = pts.face
     state.bary[free] = pts.bary
@@ -472,32 +472,36 @@ def _line_cvs(
 def _shape(state: State) -> tuple[int, float, np.ndarray, np.ndarray]:
     """Folded cells and median cell aspect ratio of the current level, and the columns' and
     rows' arc-length coefficients of variation (`_line_cvs`)."""
-    col, row, aspect = _line_cvs(
-        state.mesh, state.face, state.bary, (state.nu, state.nv), state.u_lines, state.v_lines
+    mesh, nu, nv = state.mesh, state.nu, state.nv
+    face = np.ascontiguousarray(state.face, dtype=np.int64)
+    bary = np.ascontiguousarray(state.bary, dtype=np.float64)
+    _, _, ends_u, ends_v = state._kind()
+    col, row, aspect = _k.line_spacing(
+        mesh.vertices, mesh.faces, face, bary, nu, nv, ends_u, ends_v
     )
-    return int(folded_cells(state).sum()), aspect, col, row
+    folded = _k.folded_cells(mesh.vertices, mesh.faces, face, bary, nu, nv)
+    return int(folded.sum()), float(aspect), col, row
 
 
 def _uneven_lines(col: np.ndarray, row: np.ndarray, cv: float, reach: int) -> np.ndarray:
     """(nu, nv) bool: the points of the grid columns and rows whose spacing's coefficient of
     variation (``col`` (nv,), ``row`` (nu,), see `_line_cvs`) exceeds ``cv``, and those within
     ``reach`` steps of them."""
-    from scipy.ndimage import binary_dilation
-
     out = np.zeros((row.size, col.size), dtype=bool)
     out[:, col > cv] = True
     out[row > cv, :] = True
     if reach > 0 and out.any():
-        out = binary_dilation(out, iterations=reach)
+        out = dilate_grid(out, reach)
     return out
 
 
 def _polish(
     state: State, sweeps: int, omega: float, forces: str, guard: bool, lines: bool = False
-) -> bool:
+) -> tuple[bool, int]:
     """Sweeps of the arc-length force alone on the current level, kept only when they fold
     no more cells and leave the median cell aspect ratio within :data:`POLISH_ASPECT` (or
-    no higher than before); returns whether they were kept. With ``lines`` only the grid
+    no higher than before); returns whether they were kept, and the folded cells of the level
+    as it is left. With ``lines`` only the grid
     lines spaced unevenly (coefficient of variation above :data:`POLISH_LINE_CV`) and their
     neighbours within :data:`POLISH_REACH` lines move, and the sweeps are kept only if every
     line's coefficient of variation ends within :data:`POLISH_CV_GOAL`; they are tried only
@@ -508,7 +512,7 @@ def _polish(
     if lines:
         worst = max(before[2].max(), before[3].max())
         if not POLISH_CV_GOAL < worst <= POLISH_CV_HOPELESS:
-            return False
+            return False, before[0]
         only = _uneven_lines(before[2], before[3], POLISH_LINE_CV, POLISH_REACH)
     saved = (
         state.face.copy(),
@@ -535,7 +539,7 @@ def _polish(
     if not ok:
         state.face, state.bary = saved[0], saved[1]
         state.s_u, state.s_v = saved[2], saved[3]
-    return ok
+    return ok, (after if ok else before)[0]
 
 
 def resample_patch(
@@ -802,11 +806,14 @@ def resample_patch(
     mesh = patch.mesh
     sides = _sides(patch)
 
-    def settle(state: State, pmap, reach: int, sweeps: int) -> None:
+    def settle(state: State, pmap, reach: int, sweeps: int, folds: int | None = None) -> None:
         """Untangling rounds around folded cells (``reach`` rings), then the fold repair and
-        the sliding apart of pinched side points."""
+        the sliding apart of pinched side points. ``folds``: the folded cells of ``state``
+        when the caller has just counted them (0: the untangling is skipped)."""
         left = None
-        if untangle_rounds:
+        if untangle_rounds and folds == 0:
+            left = 0
+        elif untangle_rounds:
             left = untangle(
                 state,
                 rounds=untangle_rounds,
@@ -863,10 +870,11 @@ def resample_patch(
                 tangent=forces == "tangent",
                 guard=guard,
             )
+            folds = None
             if polish and ((k <= 1 and k < final) or 0 < k == final):  # arc-length sweeps
                 n = int(polish) * _polish_factor(k, final)
-                _polish(state, n, omega, forces, guard, lines=k == final)
-            settle(state, pmap, 2, max_iter)
+                folds = _polish(state, n, omega, forces, guard, lines=k == final)[1]
+            settle(state, pmap, 2, max_iter, folds)
             return done
 
         def advance(

@@ -8,20 +8,30 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
+from meshfit._kernels import springs_aux as _aux
+from meshfit._kernels.springs import chain_points as _chain_points
 from meshfit._kernels.springs import chord_rounds
 from meshfit.mesh import Mesh
 from meshfit.springs.features import FeatureLine, Sides
 from meshfit.springs.grid import ANCHOR, BOUNDARY, CURVE, FREE, SpringMesh
 from meshfit.springs.init import chain_points
+from meshfit.springs.metrics import _section_ends
 from meshfit.types import SurfacePoints
 
 
 def section_positions(breaks: list[float], counts: list[int]) -> NDArray[np.float64]:
-    """Arc-length positions of grid points along a side: uniform within each section."""
-    out = [np.array([breaks[0]])]
-    for k, c in enumerate(counts):
-        out.append(np.linspace(breaks[k], breaks[k + 1], c + 1)[1:])
-    return np.concatenate(out)
+    """Arc-length positions of grid points along a side: uniform within each section
+    (``np.linspace`` over each section, its start dropped after the first)."""
+    return _sections(breaks, counts)[0]
+
+
+def _sections(breaks, counts) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """:func:`section_positions` and which of them end a section."""
+    b = np.asarray(breaks, dtype=np.float64)
+    c = np.asarray(counts, dtype=np.int64)
+    if c.ndim != 1 or b.shape != (c.size + 1,) or (c.size and c.min() < 1):
+        raise ValueError("section_positions needs one more break than counts, counts >= 1")
+    return _aux.section_positions(b, c)
 
 
 #: Jacobi rounds that even out the chords between side points (a few per level suffice)
@@ -43,10 +53,8 @@ def chord_positions(
     positions of :func:`section_positions` moved along the polyline until neighbouring
     chords agree (section ends stay). Where a side bends, equal arc lengths give unequal
     chords, i.e. uneven spacing of the grid's boundary iso-curves."""
-    pos = section_positions(breaks, counts)
-    fixed = np.zeros(len(pos), dtype=bool)
-    fixed[np.cumsum([0, *counts])] = True
-    if fixed.all():
+    pos, fixed = _sections(breaks, counts)
+    if pos.size == len(counts) + 1:  # every position ends a section
         return pos
     chord_rounds(
         np.ascontiguousarray(xyz, dtype=np.float64),
@@ -81,11 +89,16 @@ class State:
 
     def side_positions(self, name: str) -> NDArray[np.float64]:
         """Arc-length positions of the grid points along side ``name`` at this level."""
+        return self._static_positions(name).copy()
+
+    def _static_positions(self, name: str) -> NDArray[np.float64]:
+        """:meth:`side_positions` itself, kept for the level (not to be changed)."""
         counts = self.counts_u if name in ("bottom", "top") else self.counts_v
         key = (name, tuple(counts))
-        if key not in self._side_cache:
-            self._side_cache[key] = self._side_positions(name, counts)
-        return self._side_cache[key].copy()
+        pos = self._side_cache.get(key)
+        if pos is None:
+            pos = self._side_cache[key] = self._side_positions(name, counts)
+        return pos
 
     def pinch_tried(self) -> set:
         """The (side, place) pairs :func:`meshfit.springs.relax.unpinch_side_points` could not
@@ -139,17 +152,29 @@ class State:
 
     def kind(self) -> NDArray[np.uint8]:
         """(nu, nv) uint8: each grid point's kind at this level (a new array each call)."""
+        return self._kind()[0].copy()
+
+    def free(self) -> NDArray[np.bool_]:
+        """(nu nv,) bool: the FREE grid points at this level, row-major (a new array each
+        call)."""
+        return self._kind()[1].copy()
+
+    def _kind(self) -> tuple[NDArray[np.uint8], NDArray[np.bool_], NDArray, NDArray]:
+        """The level's kinds (nu, nv), flat FREE mask (nu nv,) and section ends along u and
+        v (:func:`meshfit.springs.metrics._section_ends`), kept (not to be changed)."""
         key = (tuple(self.counts_u), tuple(self.counts_v))
-        k = self._kind_cache.get(key)
-        if k is None:
+        hit = self._kind_cache.get(key)
+        if hit is None:
             k = np.full((self.nu, self.nv), FREE, dtype=np.uint8)
             ul, vl = self.u_lines, self.v_lines
             k[ul, :] = CURVE
             k[:, vl] = CURVE
             k[np.ix_(ul, vl)] = ANCHOR
             k[0, :] = k[-1, :] = k[:, 0] = k[:, -1] = BOUNDARY
-            self._kind_cache[key] = k
-        return k.copy()
+            ends_u = _section_ends(self.nu, ul)
+            ends_v = _section_ends(self.nv, vl)
+            hit = self._kind_cache[key] = (k, (k == FREE).ravel(), ends_u, ends_v)
+        return hit
 
     def boundary_points(self) -> dict[str, SurfacePoints]:
         """Static resampling of the four sides at this level (sec. 5.6)."""
@@ -166,17 +191,27 @@ class State:
         return out
 
     def set_boundary(self) -> None:
+        """Place the grid points of the four sides by the static resampling (sec. 5.6)."""
         nu, nv = self.nu, self.nv
-        idx = np.arange(nu * nv).reshape(nu, nv)
-        bp = self.boundary_points()
+        # each side's grid points as slices of the flat row-major arrays (views)
         for name, rows in (
-            ("bottom", idx[:, 0]),
-            ("top", idx[:, -1]),
-            ("left", idx[0, :]),
-            ("right", idx[-1, :]),
+            ("bottom", slice(0, None, nv)),
+            ("top", slice(nv - 1, None, nv)),
+            ("left", slice(0, nv)),
+            ("right", slice((nu - 1) * nv, None)),
         ):
-            self.face[rows] = bp[name].face
-            self.bary[rows] = bp[name].bary
+            ef, ea, eb = (
+                np.ascontiguousarray(a, dtype=np.int64) for a in self.sides.edge_faces[name]
+            )
+            face, bary = _chain_points(
+                np.ascontiguousarray(self.sides.arcs[name], dtype=np.float64),
+                ef,
+                ea,
+                eb,
+                self._static_positions(name),
+            )
+            self.face[rows] = face
+            self.bary[rows] = bary
 
     def set_feature_points(self) -> None:
         """Place every point of the feature columns / rows at its arc position."""
@@ -212,5 +247,7 @@ class State:
 
     def snapshot(self) -> SpringMesh:
         sp = SurfacePoints.owned(self.face.astype(np.int64), self.bary.astype(np.float64))
-        xyz = self.mesh.xyz(sp).reshape(self.nu, self.nv, 3)
+        # the kernel forms mesh.xyz(sp)'s sums in einsum's order: the same positions
+        xyz = _aux.face_point_sums(self.mesh.vertices, self.mesh.faces, sp.face, sp.bary)
+        xyz = xyz.reshape(self.nu, self.nv, 3)
         return SpringMesh(sp, self.kind(), self.level, self.patch, xyz, self.u_lines, self.v_lines)

@@ -6,6 +6,7 @@ import numpy as np
 
 from meshfit import tol
 from meshfit._kernels import springs as _k
+from meshfit.springs.planar import PlanarMap
 from meshfit.springs.state import State
 
 __all__ = ["subdivide"]
@@ -41,7 +42,12 @@ def _mid(state: State, a: np.ndarray, b: np.ndarray, n_fair: int):
 
 def _mid_mapped(state: State, pmap, a: np.ndarray, b: np.ndarray):
     """Mid-points in the planar map: the image of the mean of the two points' parameters."""
-    uv = 0.5 * (pmap.uv_of(state.face[a], state.bary[a]) + pmap.uv_of(state.face[b], state.bary[b]))
+    if isinstance(pmap, PlanarMap):
+        uv = pmap.mid_uv(state.face, state.bary, a, b)
+    else:
+        uv = 0.5 * (
+            pmap.uv_of(state.face[a], state.bary[a]) + pmap.uv_of(state.face[b], state.bary[b])
+        )
     pts = pmap.locate(uv)
     return pts.face, pts.bary
 
