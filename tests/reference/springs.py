@@ -20,11 +20,13 @@ def _norm(a) -> float:
     return float(np.sqrt(_dot(a, a)))
 
 
-def spring_force(X, nv, p, w_arc, w_fair, nrm=None):
+def spring_force(X, nv, p, w_arc, w_fair, nrm=None, N=None):
     """Eq. 5.1 (per direction: toward the farther neighbour by the length difference) and
     the fairness sum (sec. 5.5.2), both over 4; returns (force (3,), mean spring length).
     With a unit normal ``nrm`` every spring vector is first turned into its tangent plane,
-    keeping its length."""
+    keeping its length. With the grid points' unit normals ``N``, a spring vector to a
+    neighbour whose normal is at more than 90 degrees to ``nrm`` (the other neighbour on the
+    line's not) points away from that other neighbour instead, keeping its length."""
 
     def vec(q):
         d = X[q] - X[p]
@@ -34,17 +36,33 @@ def spring_force(X, nv, p, w_arc, w_fair, nrm=None):
         n = _norm(t)
         return t * (_norm(d) / n) if n > 0 else t
 
+    def along(q, r):
+        """The spring vector to q across a fold: away from r, with q's length."""
+        fq, fr = vec(q), vec(r)
+        return -fr * (_norm(fq) / _norm(fr)) if _norm(fr) > 0 else fq
+
+    def line(a, b):
+        if N is not None and nrm is not None:
+            ca, cb = _dot(N[a], nrm), _dot(N[b], nrm)
+            if ca < 0.0 <= cb:
+                return along(a, b), vec(b)
+            if cb < 0.0 <= ca:
+                return vec(a), along(b, a)
+        return vec(a), vec(b)
+
     arc = np.zeros(3)
     lengths = []
+    vecs = []
     for a, b in ((p - nv, p + nv), (p - 1, p + 1)):
-        fa, fb = vec(a), vec(b)
+        fa, fb = line(a, b)
+        vecs += [fa, fb]
         la, lb = _norm(fa), _norm(fb)
         lengths += [la, lb]
         if la > lb:
             arc += (la - lb) * fa / la
         elif lb > la:
             arc += (lb - la) * fb / lb
-    fair = vec(p - nv) + vec(p + nv) + vec(p - 1) + vec(p + 1)
+    fair = vecs[0] + vecs[1] + vecs[2] + vecs[3]
     return 0.25 * (w_fair * fair + w_arc * arc), float(np.mean(lengths))
 
 
@@ -92,6 +110,7 @@ def relax_sweeps(
     omega,
     eps_rel,
     lazy=0.0,
+    fold=False,
 ):
     """Gauss-Seidel sweeps as documented in the kernel, one point at a time in Python."""
     face = face.copy()
@@ -117,7 +136,9 @@ def relax_sweeps(
                 moves.append(0.0)  # settled
                 continue
             n = mesh.face_normals[face[p]]
-            force, h = spring_force(X, nv, p, 1.0 - w_fair, w_fair, n if tangent else None)
+            force, h = spring_force(
+                X, nv, p, 1.0 - w_fair, w_fair, n if tangent else None, N if fold else None
+            )
             step = force - _dot(force, n) * n
             total = _norm(step)
             if total <= 0:

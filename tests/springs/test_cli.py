@@ -242,3 +242,19 @@ def test_running_out_of_memory_is_one_error_line(capsys, monkeypatch):
     assert cli.main([]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("meshfit: error: out of memory")
+
+
+def test_springs_command_follows_folds_on_request(capsys):
+    """``--follow-folds`` carries the grid over spot's horns and ears (patches 1 and 3 miss
+    far less of their surface) and leaves the other patches' figures as they were."""
+    layout = ROOT / "examples" / "layouts" / "spot.json"
+    args = ["springs", str(mesh_path("spot")), "--layout", str(layout), "--json"]
+    rows = []
+    for extra in ([], ["--follow-folds"]):
+        assert main(args + extra) == 0
+        rows.append({r["patch"]: r for r in json.loads(capsys.readouterr().out)["patches"]})
+    plain, folds = rows
+    for k in (1, 3):
+        assert folds[k]["fidelity_max"] < 0.5 * plain[k]["fidelity_max"]
+    same = [k for k in plain if folds[k]["fidelity_max"] == plain[k]["fidelity_max"]]
+    assert len(same) >= 12  # most of spot's patches cross no fold

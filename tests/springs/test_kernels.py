@@ -25,11 +25,17 @@ def patches():
 
 
 @pytest.mark.parametrize(
-    "tangent,guard,lazy",
-    [(False, False, 0.0), (True, False, 0.0), (False, True, 0.0), (True, True, 0.02)],
+    "tangent,guard,lazy,fold",
+    [
+        (False, False, 0.0, False),
+        (True, False, 0.0, False),
+        (False, True, 0.0, False),
+        (True, True, 0.02, False),
+        (True, True, 0.02, True),
+    ],
 )
 @pytest.mark.parametrize("name", ["cap", "spot"])
-def test_relax_sweeps_matches_oracle(patches, name, tangent, guard, lazy, rng):
+def test_relax_sweeps_matches_oracle(patches, name, tangent, guard, lazy, fold, rng):
     patch = patches[name]
     mesh = patch.mesh
     sm = resample_patch(patch, level=1, max_iter=1, metrics=False).final
@@ -40,12 +46,13 @@ def test_relax_sweeps_matches_oracle(patches, name, tangent, guard, lazy, rng):
     alpha = np.ones(nu * nv)
     prev = np.zeros((nu * nv, 3))
     want = ref.relax_sweeps(
-        mesh, face, bary, nu, nv, movable, tangent, guard, alpha, prev, 5, 0, 3, 0.5, 1.0, 0.0, lazy
-    )
+        mesh, face, bary, nu, nv, movable, tangent, guard, alpha, prev, 5, 0, 3, 0.5, 1.0, 0.0,
+        lazy, fold,
+    )  # fmt: skip
     done, worst, rms = K.relax_sweeps(
         mesh.vertices, mesh.faces, mesh.face_neighbors, face, bary, nu, nv, movable, tangent,
         guard, alpha, prev,
-        5, 0, 3, 0.5, 1.0, 0.0, tol.BARY_EPS, 10_000, lazy,
+        5, 0, 3, 0.5, 1.0, 0.0, tol.BARY_EPS, 10_000, lazy, fold,
     )  # fmt: skip
     got = mesh.xyz(SurfacePoints(face, bary))
     assert done == want[2] == 5
@@ -58,12 +65,46 @@ def test_spring_force_matches_oracle(rng):
     X = rng.normal(size=(12, 3))
     nv = 4
     nrm = np.array([0.6, 0.0, 0.8])
+    N = np.tile(nrm, (12, 1))
     for p in (5, 6):
         for tangent in (False, True):
-            *out, h = K.spring_force(X, nv, p, 0.7, 0.3, *nrm, tangent)
+            *out, h = K.spring_force(X, N, nv, p, 0.7, 0.3, *nrm, tangent, False)
             want, wh = ref.spring_force(X, nv, p, 0.7, 0.3, nrm if tangent else None)
             assert_allclose(out, want, atol=1e-14)
             assert_allclose(h, wh)
+
+
+def test_spring_force_follows_the_line_across_a_fold(rng):
+    """A neighbour whose normal faces away (a curled rim crossed) pulls along the grid line,
+    away from the neighbour on the other side, with its own spring length."""
+    X = rng.normal(size=(12, 3))
+    nv = 4
+    nrm = np.array([0.6, 0.0, 0.8])
+    for p, across in ((5, 5 + nv), (5, 4), (6, 6 - nv), (6, 7)):
+        N = np.tile(nrm, (12, 1))
+        N[across] = -nrm
+        *out, h = K.spring_force(X, N, nv, p, 0.7, 0.3, *nrm, True, True)
+        want, wh = ref.spring_force(X, nv, p, 0.7, 0.3, nrm, N)
+        assert_allclose(out, want, atol=1e-14)
+        assert_allclose(h, wh)
+        *plain, _ = K.spring_force(X, N, nv, p, 0.7, 0.3, *nrm, True, False)
+        assert not np.allclose(out, plain)  # the fold changed the force
+        # with only the fairness force: the vector across the fold is the opposite
+        # neighbour's, reversed and rescaled, so the two along the line cancel in direction
+        *fair, _ = K.spring_force(X, N, nv, p, 0.0, 1.0, *nrm, True, True)
+        other = 2 * p - across
+
+        def t(q, p=p):
+            d = X[q] - X[p]
+            return d - (d @ nrm) * nrm
+
+        lq = np.linalg.norm(X[across] - X[p])
+        lo = np.linalg.norm(X[other] - X[p])
+        to_other = t(other) * (lo / np.linalg.norm(t(other)))
+        side = [q for q in (p - nv, p + nv, p - 1, p + 1) if q not in (across, other)]
+        rest = sum(t(q) * (np.linalg.norm(X[q] - X[p]) / np.linalg.norm(t(q))) for q in side)
+        expect = 0.25 * (rest + to_other - to_other * (lq / lo))
+        assert_allclose(fair, expect, atol=1e-12)
 
 
 @pytest.mark.parametrize("name", ["cap", "spot"])

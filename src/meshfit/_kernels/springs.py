@@ -121,20 +121,51 @@ def _pair_arc(a0, a1, a2, b0, b1, b2):
 
 
 @njit(cache=True, nogil=True, fastmath=False, inline="always")
-def spring_force(X, nv, p, w_arc, w_fair, n0, n1, n2, tangent):
+def _line_springs(X, N, p, a, b, n0, n1, n2, tangent, fold):
+    """Spring vectors from grid point ``p`` to its two neighbours ``a`` and ``b`` along one
+    grid line (six scalars, `_spring_vector`). With ``fold``, a vector to a neighbour across
+    a fold (its unit normal ``N[a]`` or ``N[b]`` at more than 90 degrees to p's
+    ``(n0, n1, n2)``, the other neighbour's not) points along the line instead, away from
+    the other neighbour, keeping its length: the chord across a curled rim, turned into p's
+    tangent plane, can point anywhere (often back along the line), and the grid line would
+    not cross the rim."""
+    a0, a1, a2 = _spring_vector(X, p, a, n0, n1, n2, tangent)
+    b0, b1, b2 = _spring_vector(X, p, b, n0, n1, n2, tangent)
+    if fold:
+        ca = N[a, 0] * n0 + N[a, 1] * n1 + N[a, 2] * n2
+        cb = N[b, 0] * n0 + N[b, 1] * n1 + N[b, 2] * n2
+        if ca < 0.0 <= cb:
+            la = np.sqrt(a0**2 + a1**2 + a2**2)
+            lb = np.sqrt(b0**2 + b1**2 + b2**2)
+            if lb > 0.0:
+                a0 = -b0 * (la / lb)
+                a1 = -b1 * (la / lb)
+                a2 = -b2 * (la / lb)
+        elif cb < 0.0 <= ca:
+            la = np.sqrt(a0**2 + a1**2 + a2**2)
+            lb = np.sqrt(b0**2 + b1**2 + b2**2)
+            if la > 0.0:
+                b0 = -a0 * (lb / la)
+                b1 = -a1 * (lb / la)
+                b2 = -a2 * (lb / la)
+    return a0, a1, a2, b0, b1, b2
+
+
+@njit(cache=True, nogil=True, fastmath=False, inline="always")
+def spring_force(X, N, nv, p, w_arc, w_fair, n0, n1, n2, tangent, fold):
     """Resultant force (eq. 5.4) on interior grid point ``p`` and its mean spring length:
     ``(f0, f1, f2, h)``, on scalars (no scratch arrays).
 
     The spring vectors to the four neighbours are the Euclidean ones (sec. 5.5); with
     ``tangent`` each is turned into the tangent plane of unit normal ``(n0, n1, n2)``
-    keeping its length, a first-order stand-in for the geodesic forces of sec. 5.5.3. The
-    force is ``w_fair * F_fair / 4 + w_arc * F_arc / 4`` (a Gauss-Seidel step: the fairness
-    part alone moves the point to the centroid of its four neighbours).
+    keeping its length, a first-order stand-in for the geodesic forces of sec. 5.5.3; with
+    ``fold`` a vector across a fold follows the grid line instead (`_line_springs`; ``N``
+    (n, 3) holds the grid points' unit normals). The force is
+    ``w_fair * F_fair / 4 + w_arc * F_arc / 4`` (a Gauss-Seidel step: the fairness part
+    alone moves the point to the centroid of its four neighbours).
     """
-    l0, l1, l2 = _spring_vector(X, p, p - nv, n0, n1, n2, tangent)  # left
-    r0, r1, r2 = _spring_vector(X, p, p + nv, n0, n1, n2, tangent)  # right
-    d0, d1, d2 = _spring_vector(X, p, p - 1, n0, n1, n2, tangent)  # down
-    u0, u1, u2 = _spring_vector(X, p, p + 1, n0, n1, n2, tangent)  # up
+    l0, l1, l2, r0, r1, r2 = _line_springs(X, N, p, p - nv, p + nv, n0, n1, n2, tangent, fold)
+    d0, d1, d2, u0, u1, u2 = _line_springs(X, N, p, p - 1, p + 1, n0, n1, n2, tangent, fold)
     a0, a1, a2, h = _pair_arc(l0, l1, l2, r0, r1, r2)
     c0, c1, c2, h2 = _pair_arc(d0, d1, d2, u0, u1, u2)
     # the arc-length force summed from 0 as the line pairs come: (0 + a) + c
@@ -396,6 +427,7 @@ def relax_sweeps(
     bary_eps,
     max_faces,
     lazy,
+    fold,
 ):
     """Gauss-Seidel relaxation sweeps of the free spring points, in place.
 
@@ -412,7 +444,8 @@ def relax_sweeps(
     free points is below ``eps_rel`` times their mean spring lengths. With ``lazy > 0`` a
     sweep after the first moves only the points that moved, or had one of their four
     neighbours move, more than ``lazy`` times their mean spring length in the sweep before
-    (or earlier in the same sweep); the others count as not moving. Returns (sweeps done,
+    (or earlier in the same sweep); the others count as not moving. With ``fold`` a spring
+    vector across a fold follows its grid line (see `spring_force`). Returns (sweeps done,
     largest and root-mean-square relative move of the last sweep). Kernel of
     `meshfit.springs.relax.relax`.
     """
@@ -456,7 +489,7 @@ def relax_sweeps(
             for c in range(3):
                 nrm[c] = N[p, c]
             step[0], step[1], step[2], h = spring_force(
-                X, nv, p, w_arc, w_fair, nrm[0], nrm[1], nrm[2], tangent
+                X, N, nv, p, w_arc, w_fair, nrm[0], nrm[1], nrm[2], tangent, fold
             )
             total = _in_plane(nrm[0], nrm[1], nrm[2], step, u)
             if total <= 0.0:

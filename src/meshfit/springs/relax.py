@@ -120,6 +120,7 @@ def relax(
     tangent: bool = True,
     guard: bool = True,
     only: np.ndarray | None = None,
+    fold: bool = False,
 ) -> tuple[int, float]:
     """Relax the spring mesh of ``state`` at its current level, in place.
 
@@ -133,9 +134,11 @@ def relax(
     lengths (see `meshfit._kernels.springs.spring_force`), else they are Euclidean. With
     ``guard`` a move that folds more triangles of the point's cells than before is halved
     (up to three times) or dropped. ``only`` ((nu, nv) bool) limits the moving free points
-    to those it marks. Without feature curves, a sweep after the first moves only the
-    points near a move of more than `LAZY_MOVES` times ``eps`` in the sweep before (the rest
-    have settled).
+    to those it marks. With ``fold`` a spring vector to a neighbour across a fold (normals
+    more than 90 degrees apart) follows the grid line instead of the chord turned into the
+    tangent plane (see `meshfit._kernels.springs.spring_force`). Without feature curves, a
+    sweep after the first moves only the points near a move of more than `LAZY_MOVES` times
+    ``eps`` in the sweep before (the rest have settled).
 
     Returns
     -------
@@ -174,6 +177,7 @@ def relax(
             tol.BARY_EPS,
             _MAX_FACES,
             LAZY_MOVES * eps,
+            fold,
         )
         return int(done), float(rms)
     done, worst = 0, np.inf
@@ -198,6 +202,7 @@ def relax(
             tol.BARY_EPS,
             _MAX_FACES,
             0.0,  # one sweep a call: nothing to skip
+            fold,
         )
         t = min(1.0, (start + it) / ramp) if ramp > 0 else 1.0
         X = _k.grid_xyz(mesh.vertices, mesh.faces, state.face, state.bary)
@@ -225,13 +230,16 @@ def untangle(
     reach: int,
     tangent: bool = True,
     guard: bool = True,
+    fold: bool = False,
 ) -> int:
     """Smooth the free points around folded cells with the fairness force alone, in place.
 
     The fairness force moves a point to the centroid of its neighbours (a discrete harmonic
     map), which unfolds cells that the arc-length force folded where Euclidean springs pull
     across a bump or into a hollow (sec. 5.5.3, fig. 5.5). Points within ``reach`` cells of
-    a fold move; up to ``rounds`` rounds of ``sweeps`` sweeps. Returns the folded cells left.
+    a fold move; up to ``rounds`` rounds of ``sweeps`` sweeps. ``fold``: spring vectors
+    across a fold of the surface follow the grid line (see `relax`). Returns the folded
+    cells left.
     """
     mesh = state.mesh
     folds = folded_cells(state)
@@ -243,7 +251,7 @@ def untangle(
         _k.relax_sweeps(
             mesh.vertices, mesh.faces, mesh.face_neighbors, state.face, state.bary,
             state.nu, state.nv, near.ravel(), tangent, guard, np.ones(n), np.zeros((n, 3)),
-            sweeps, 1, 1, 1.0, 1.0, 0.0, tol.BARY_EPS, _MAX_FACES, 0.0,
+            sweeps, 1, 1, 1.0, 1.0, 0.0, tol.BARY_EPS, _MAX_FACES, 0.0, fold,
         )  # fmt: skip
         folds = folded_cells(state)
     return int(folds.sum())
