@@ -14,7 +14,8 @@ axis through the bust):
   the unit square (``igl.harmonic``, boundary fixed by arc length along each side) resampled
   on the same ``(nu, nv)`` grid (grid parameters located in the flattened patch with libigl's
   point-mesh distance, positions interpolated barycentrically);
-- every quality metric of :func:`meshfit.springs.grid_metrics` for both, side by side
+- every quality metric of :func:`meshfit.springs.grid_metrics` for both, side by side,
+  and for ``resample_patch(follow_folds=True)`` (``springs_follow_folds``, not timed)
   (fidelity relative to the whole model's bounding-box diagonal), with the median over
   patches of the largest distance, the largest root-mean-square distance, and where each
   patch's largest distance lies (``fidelity_max_places``: at a side, a corner or inside the
@@ -245,6 +246,12 @@ def run_layout(name: str, repeats: int) -> dict:
         xyz, nrm = harmonic_grid(patch, nu, nv)
         ours = spring_metrics(patch.mesh, res.final, scale=diag, places=True)
         peer = grid_metrics(patch.mesh, xyz, nrm, scale=diag)
+        # the same patch with follow_folds (untimed): grid lines across curled rims
+        folds = spring_metrics(
+            patch.mesh,
+            resample_patch(_fresh(patch), follow_folds=True, metrics=False).final,
+            scale=diag,
+        )
         rows.append(
             {
                 "patch": patch.index,
@@ -280,6 +287,7 @@ def run_layout(name: str, repeats: int) -> dict:
                 # ("patch") or a grid point far from the patch ("grid")
                 "fidelity_max_at": {k: ours["places"]["fidelity"][k] for k in ("place", "from")},
                 "harmonic": _round({k: peer[k] for k in METRICS}),
+                "springs_follow_folds": _round({k: folds[k] for k in METRICS}),
             }
         )
     threads = _layout_on_threads(patches, [r["grid"] for r in rows], repeats)
@@ -287,7 +295,7 @@ def run_layout(name: str, repeats: int) -> dict:
     total = sum(r["seconds"] for r in rows)
     total_peer = sum(r["peer_seconds"] for r in rows)
     worst = {}
-    for who in ("springs", "harmonic"):
+    for who in ("springs", "harmonic", "springs_follow_folds"):
         worst[who] = {
             "arc_cv_max": max(r[who]["arc_cv_max"] for r in rows),
             "aspect_median_max": max(r[who]["aspect_median"] for r in rows),
