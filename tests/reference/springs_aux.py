@@ -57,3 +57,9 @@ def chain_edge_faces(F, FN, n_vertices, chains):
             raise AssertionError("side chains follow the patch boundary")
         out.append((face[hit], sa[hit], sb[hit]))
     return out
+
+
+def mean_face_edge(V, F):
+    """Mean length over the faces' three edges each (numpy; agrees to round-off)."""
+    d = V[F[:, [1, 2, 0]]] - V[F]
+    return float(np.linalg.norm(d, axis=2).mean()) if len(F) else 0.0

@@ -117,3 +117,11 @@ def test_dilate_grid_matches_binary_dilation(rng):
         mask = rng.random((a, b)) < 0.1 * rng.random()
         reach = int(rng.integers(1, 4))
         assert_array_equal(dilate_grid(mask, reach), binary_dilation(mask, iterations=reach))
+
+
+@pytest.mark.parametrize("name", ["cap", "spot"])
+def test_mean_face_edge_matches_oracle(patches, name):
+    mesh = patches[name].mesh
+    got = K.mean_face_edge(mesh.vertices, mesh.faces)
+    assert got == pytest.approx(ref.mean_face_edge(mesh.vertices, mesh.faces), rel=1e-12)
+    assert K.mean_face_edge(mesh.vertices, mesh.faces[:0]) == 0.0

@@ -226,3 +226,31 @@ def chain_edge_faces(F, FN, n_vertices, chains, ends):
             slot_b[out] = sb[hit] if nb > 0 else -1
             out += 1
     return face, slot_a, slot_b, ok
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def mean_face_edge(V, F):
+    """Mean length of the faces' edges, each face's three counted (an interior edge twice).
+
+    Parameters
+    ----------
+    V : (n, 3) float64
+        Vertex positions.
+    F : (n_faces, 3) int64
+        Triangles.
+
+    Returns
+    -------
+    float
+        The mean over the ``3 n_faces`` face edges (0 without faces).
+    """
+    total = 0.0
+    for f in range(F.shape[0]):
+        for k in range(3):
+            a = F[f, k]
+            b = F[f, (k + 1) % 3]
+            dx = V[b, 0] - V[a, 0]
+            dy = V[b, 1] - V[a, 1]
+            dz = V[b, 2] - V[a, 2]
+            total += np.sqrt(dx * dx + dy * dy + dz * dz)
+    return total / (3 * F.shape[0]) if F.shape[0] else 0.0

@@ -102,7 +102,12 @@ def _interior_system(
     n, m = mesh.n_vertices, free.size
     at = np.full(n, -1, dtype=np.int64)
     at[free] = np.arange(m)
-    floor = tol.BARY_EPS * mesh.mean_edge_length
+    # the floor only keeps zero-length edges finite: the mean over the faces' three edges
+    # sets its scale without the unique-edge table that Mesh.mean_edge_length builds
+    floor = tol.BARY_EPS * _aux.mean_face_edge(
+        np.ascontiguousarray(mesh.vertices, dtype=np.float64),
+        np.ascontiguousarray(mesh.faces, dtype=np.int64),
+    )
     indptr, indices, data, rhs = _kp.mean_value_system(
         np.ascontiguousarray(mesh.vertices, dtype=np.float64),
         np.ascontiguousarray(mesh.faces, dtype=np.int64),
