@@ -1070,8 +1070,8 @@ def resample_patches(
 
     The relaxation, subdivision and planar-map kernels release the GIL, so the patches of
     a layout resample in parallel: on a 2-core machine nefertiti's test layout (54 patches)
-    takes 0.40 s on one thread and 0.25 s on two (``benchmarks/springs.py``, medians of
-    5; the machines are shared). Each patch's grid
+    takes 0.34 s on one thread and 0.24 s on two (``benchmarks/springs.py``, medians of
+    5; 0.40 s and 0.25 s on another run: the machines are shared). Each patch's grid
     is the same whatever the number of workers (a patch is resampled by one thread, from
     its own mesh).
 
