@@ -351,6 +351,27 @@ def test_cli_fit(tmp_path, capsys):
     assert "no such layout" in capsys.readouterr().err
 
 
+def test_cli_fit_follows_folds_on_request(tmp_path, capsys):
+    """``--follow-folds`` reaches the springs stage: it is in the summary's options, and a
+    resumed run without it makes the spring meshes again (the stage's key holds it)."""
+    from meshfit import cli
+
+    from .conftest import mesh_path
+
+    argv = ["fit", str(mesh_path("spot")), "--layout", str(LAYOUT), "--cv", "5x4"]
+    argv += ["--level", "1", "--formats", "", "--out", str(tmp_path), "--no-report", "--json"]
+    assert cli.main([*argv, "--follow-folds"]) == 0
+    folds = json.loads(capsys.readouterr().out)
+    assert folds["options"]["spring_follow_folds"] is True
+    assert cli.main([*argv, "--resume"]) == 0
+    plain = json.loads(capsys.readouterr().out)
+    assert plain["options"]["spring_follow_folds"] is False
+    assert plain["stages"]["layout"]["cached"] and not plain["stages"]["springs"]["cached"]
+    # spot's horn-and-ear patches 1 and 3 are the ones whose grids cross a fold
+    for k in (1, 3):
+        assert folds["patches"][k]["arc_cv_max"] != plain["patches"][k]["arc_cv_max"]
+
+
 # ---------------------------------------------------------------- end to end, automatic layout
 #: issue 7 targets of the displaced reconstruction, fractions of the input's bbox diagonal
 DISPLACED_RMS = 5e-4

@@ -90,6 +90,7 @@ def _options(args: argparse.Namespace):
         layout_seed=args.layout_seed,
         spring_level=args.level,
         spring_rescue=not args.no_rescue,
+        spring_follow_folds=args.follow_folds,
         map_shapes=args.map_shapes,
         workers=args.workers,
         report=not args.no_report,
@@ -222,6 +223,13 @@ def _common(p: argparse.ArgumentParser) -> None:
         help="keep every relaxed spring mesh, also where it misses its patch (a pleat, a "
         "squeezed bulge, a protrusion) by more than a grid spacing: no area-balanced remake "
         "and no finer grid",
+    )
+    p.add_argument(
+        "--follow-folds",
+        action="store_true",
+        help="spring vectors across a fold of the surface follow the grid line, so the "
+        "spring meshes cross the curled rims of ears and horns (see meshfit springs; with "
+        "the rescue on, the displaced error does not fall: the rescued grids fit closer)",
     )
     p.add_argument(
         "--map-shapes",
