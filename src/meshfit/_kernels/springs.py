@@ -135,20 +135,21 @@ def _line_springs(X, N, p, a, b, n0, n1, n2, tangent, fold):
         ca = N[a, 0] * n0 + N[a, 1] * n1 + N[a, 2] * n2
         cb = N[b, 0] * n0 + N[b, 1] * n1 + N[b, 2] * n2
         if ca < 0.0 <= cb:
-            la = np.sqrt(a0**2 + a1**2 + a2**2)
-            lb = np.sqrt(b0**2 + b1**2 + b2**2)
-            if lb > 0.0:
-                a0 = -b0 * (la / lb)
-                a1 = -b1 * (la / lb)
-                a2 = -b2 * (la / lb)
+            a0, a1, a2 = _away_from(a0, a1, a2, b0, b1, b2)
         elif cb < 0.0 <= ca:
-            la = np.sqrt(a0**2 + a1**2 + a2**2)
-            lb = np.sqrt(b0**2 + b1**2 + b2**2)
-            if la > 0.0:
-                b0 = -a0 * (lb / la)
-                b1 = -a1 * (lb / la)
-                b2 = -a2 * (lb / la)
+            b0, b1, b2 = _away_from(b0, b1, b2, a0, a1, a2)
     return a0, a1, a2, b0, b1, b2
+
+
+@njit(cache=True, nogil=True, fastmath=False, inline="always")
+def _away_from(x0, x1, x2, y0, y1, y2):
+    """The spring vector ``x`` turned to point away from ``y`` (the other neighbour on the
+    grid line), keeping its length; ``x`` itself when ``y`` has no length."""
+    lx = np.sqrt(x0**2 + x1**2 + x2**2)
+    ly = np.sqrt(y0**2 + y1**2 + y2**2)
+    if ly > 0.0:
+        return -y0 * (lx / ly), -y1 * (lx / ly), -y2 * (lx / ly)
+    return x0, x1, x2
 
 
 @njit(cache=True, nogil=True, fastmath=False, inline="always")

@@ -32,6 +32,12 @@ def _bary_rate(V, F, f, u, out):
 @njit(cache=True, nogil=True, fastmath=False)
 def _bary_rate3(V, F, f, u):
     """`_bary_rate` as three scalars (no output array)."""
+    return _bary_rate_of(V, F, f, u[0], u[1], u[2])
+
+
+@njit(cache=True, nogil=True, fastmath=False, inline="always")
+def _bary_rate_of(V, F, f, u0, u1, u2):
+    """`_bary_rate` of the in-plane vector ``(u0, u1, u2)``, on scalars."""
     a = F[f, 0]
     b = F[f, 1]
     c = F[f, 2]
@@ -44,8 +50,8 @@ def _bary_rate3(V, F, f, u):
     a11 = e1x * e1x + e1y * e1y + e1z * e1z
     a12 = e1x * e2x + e1y * e2y + e1z * e2z
     a22 = e2x * e2x + e2y * e2y + e2z * e2z
-    r1 = u[0] * e1x + u[1] * e1y + u[2] * e1z
-    r2 = u[0] * e2x + u[1] * e2y + u[2] * e2z
+    r1 = u0 * e1x + u1 * e1y + u2 * e1z
+    r2 = u0 * e2x + u1 * e2y + u2 * e2z
     det = a11 * a22 - a12 * a12
     if det <= 0.0:  # a face of zero area (a sliver left by cutting): no direction moves in it
         return 0.0, 0.0, 0.0
@@ -215,29 +221,7 @@ def _move_in_face(V, F, f, b0, b1, b2, u0, u1, u2, length, bary_eps):
     Returns ``(ok, b0, b1, b2)``: ``ok`` False when the walk would leave the face or the
     coordinates would not renormalise (the caller then runs the full walk).
     """
-    a = F[f, 0]
-    b = F[f, 1]
-    c = F[f, 2]
-    e1x = V[b, 0] - V[a, 0]
-    e1y = V[b, 1] - V[a, 1]
-    e1z = V[b, 2] - V[a, 2]
-    e2x = V[c, 0] - V[a, 0]
-    e2y = V[c, 1] - V[a, 1]
-    e2z = V[c, 2] - V[a, 2]
-    a11 = e1x * e1x + e1y * e1y + e1z * e1z
-    a12 = e1x * e2x + e1y * e2y + e1z * e2z
-    a22 = e2x * e2x + e2y * e2y + e2z * e2z
-    r1 = u0 * e1x + u1 * e1y + u2 * e1z
-    r2 = u0 * e2x + u1 * e2y + u2 * e2z
-    det = a11 * a22 - a12 * a12
-    if det <= 0.0:
-        d0 = 0.0
-        d1 = 0.0
-        d2 = 0.0
-    else:
-        d1 = (a22 * r1 - a12 * r2) / det
-        d2 = (a11 * r2 - a12 * r1) / det
-        d0 = -d1 - d2
+    d0, d1, d2 = _bary_rate_of(V, F, f, u0, u1, u2)
     scale = max(abs(d0), max(abs(d1), abs(d2)))
     lim = bary_eps * scale
     # the walk leaves the face where a falling coordinate reaches 0 within ``length``

@@ -449,13 +449,16 @@ def _polish_factor(k: int, final: int) -> int:
 
 
 def _line_cvs(
-    mesh: Mesh, face: np.ndarray, bary: np.ndarray, shape, u_lines, v_lines
+    mesh: Mesh, face: np.ndarray, bary: np.ndarray, shape, u_lines, v_lines, ends=None
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """The largest arc-length coefficient of variation along each grid column (nv,) and
     row (nu,) over its sections, as :func:`meshfit.springs.spring_metrics` counts them, and
     the median cell aspect ratio, of the grid of face points ``face``, ``bary`` (row-major,
-    ``shape = (nu, nv)``)."""
+    ``shape = (nu, nv)``). ``ends``: the section ends along u and v of ``u_lines`` and
+    ``v_lines`` when the caller keeps them (:func:`meshfit.springs.metrics._section_ends`)."""
     nu, nv = shape
+    if ends is None:
+        ends = (_section_ends(nu, u_lines), _section_ends(nv, v_lines))
     col, row, aspect = _k.line_spacing(
         mesh.vertices,
         mesh.faces,
@@ -463,8 +466,7 @@ def _line_cvs(
         np.ascontiguousarray(bary, dtype=np.float64),
         nu,
         nv,
-        _section_ends(nu, u_lines),
-        _section_ends(nv, v_lines),
+        *ends,
     )
     return col, row, float(aspect)
 
@@ -473,14 +475,11 @@ def _shape(state: State) -> tuple[int, float, np.ndarray, np.ndarray]:
     """Folded cells and median cell aspect ratio of the current level, and the columns' and
     rows' arc-length coefficients of variation (`_line_cvs`)."""
     mesh, nu, nv = state.mesh, state.nu, state.nv
-    face = np.ascontiguousarray(state.face, dtype=np.int64)
-    bary = np.ascontiguousarray(state.bary, dtype=np.float64)
-    _, _, ends_u, ends_v = state._kind()
-    col, row, aspect = _k.line_spacing(
-        mesh.vertices, mesh.faces, face, bary, nu, nv, ends_u, ends_v
+    col, row, aspect = _line_cvs(
+        mesh, state.face, state.bary, (nu, nv), None, None, ends=state._kind()[2:]
     )
-    folded = _k.folded_cells(mesh.vertices, mesh.faces, face, bary, nu, nv)
-    return int(folded.sum()), float(aspect), col, row
+    folded = _k.folded_cells(mesh.vertices, mesh.faces, state.face, state.bary, nu, nv)
+    return int(folded.sum()), aspect, col, row
 
 
 def _uneven_lines(col: np.ndarray, row: np.ndarray, cv: float, reach: int) -> np.ndarray:

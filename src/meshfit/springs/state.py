@@ -14,7 +14,6 @@ from meshfit._kernels.springs import chord_rounds
 from meshfit.mesh import Mesh
 from meshfit.springs.features import FeatureLine, Sides
 from meshfit.springs.grid import ANCHOR, BOUNDARY, CURVE, FREE, SpringMesh
-from meshfit.springs.init import chain_points
 from meshfit.springs.metrics import _section_ends
 from meshfit.types import SurfacePoints
 
@@ -175,20 +174,6 @@ class State:
             ends_v = _section_ends(self.nv, vl)
             hit = self._kind_cache[key] = (k, (k == FREE).ravel(), ends_u, ends_v)
         return hit
-
-    def boundary_points(self) -> dict[str, SurfacePoints]:
-        """Static resampling of the four sides at this level (sec. 5.6)."""
-        out = {}
-        for name in ("bottom", "top", "left", "right"):
-            pos = self.side_positions(name)
-            out[name] = chain_points(
-                self.mesh,
-                self.sides.chains[name],
-                self.sides.arcs[name],
-                pos,
-                self.sides.edge_faces[name],
-            )
-        return out
 
     def set_boundary(self) -> None:
         """Place the grid points of the four sides by the static resampling (sec. 5.6)."""
