@@ -21,6 +21,11 @@ axis through the bust):
   patch's largest distance lies (``fidelity_max_places``: at a side, a corner or inside the
   grid; at a side it is mostly a vertex of the painted side curve away from the chord
   between two grid points, see ``fidelity_max_at`` per patch);
+- ``fidelity_reach``: the fidelity bound (``QUALITY_BOUNDS["fidelity_max"]``, 0.05% of the
+  diagonal) against the grids at the vertex-count level and refined with
+  ``resample_patch(tolerance=...)`` (finer levels while the grid misses by more, up to 16
+  points per patch vertex; untimed), ours and the peer's map on the same finer grids: how
+  many patches meet it, how far the refinement went and the distances left;
 - ``layout_threads``: the whole layout's wall time one patch after the other and with
   :func:`meshfit.springs.resample_patches` on every core, and the peer's one patch after the
   other, on a thread pool over every core and on a pool of forked processes, one per core
@@ -45,7 +50,17 @@ from _common import ROOT, median_time, mesh_path, write_result
 
 from meshfit.layout import extract_patches, load_layout
 from meshfit.mesh import load_mesh
-from meshfit.springs import grid_metrics, resample_patch, resample_patches, spring_metrics
+from meshfit.springs import (
+    QUALITY_BOUNDS,
+    grid_metrics,
+    resample_patch,
+    resample_patches,
+    spring_metrics,
+)
+
+#: the issue's fidelity bound: largest two-sided distance at the final level, as a fraction
+#: of the bounding-box diagonal (`meshfit.springs.QUALITY_BOUNDS`)
+FIDELITY_BOUND = QUALITY_BOUNDS["fidelity_max"]
 
 METRICS = (
     "arc_cv_max",
@@ -252,6 +267,21 @@ def run_layout(name: str, repeats: int) -> dict:
             resample_patch(_fresh(patch), follow_folds=True, metrics=False).final,
             scale=diag,
         )
+        # the same patch refined to the fidelity bound (untimed): `tolerance` resamples it
+        # finer while the final grid misses by more (up to 16 points per patch vertex); the
+        # peer's map resampled on that finer grid for comparison
+        tol = resample_patch(_fresh(patch), tolerance=FIDELITY_BOUND, scale=diag, metrics=False)
+        tu, tv = tol.final.shape
+        reach = {
+            "finer": tol.finer,
+            "grid": [tu, tv],
+            "points_per_vertex": round(tu * tv / patch.mesh.n_vertices, 2),
+            "fidelity_max": round(float(tol.distance), 6),
+            "harmonic_fidelity_max": round(
+                grid_metrics(patch.mesh, *harmonic_grid(patch, tu, tv), scale=diag)["fidelity_max"],
+                6,
+            ),
+        }
         rows.append(
             {
                 "patch": patch.index,
@@ -288,6 +318,7 @@ def run_layout(name: str, repeats: int) -> dict:
                 "fidelity_max_at": {k: ours["places"]["fidelity"][k] for k in ("place", "from")},
                 "harmonic": _round({k: peer[k] for k in METRICS}),
                 "springs_follow_folds": _round({k: folds[k] for k in METRICS}),
+                "fidelity_reach": reach,
             }
         )
     threads = _layout_on_threads(patches, [r["grid"] for r in rows], repeats)
@@ -341,7 +372,31 @@ def run_layout(name: str, repeats: int) -> dict:
         "fidelity_max_places": dict(
             Counter(r["fidelity_max_at"]["place"] for r in rows).most_common()
         ),
+        "fidelity_reach": _fidelity_reach(rows),
         "per_patch": rows,
+    }
+
+
+def _fidelity_reach(rows: list[dict]) -> dict:
+    """How many patches meet `FIDELITY_BOUND` at the vertex-count level, and refined with
+    ``tolerance`` (ours, and the peer on the same finer grids); the largest distances left."""
+    reach = [r["fidelity_reach"] for r in rows]
+    return {
+        "bound": FIDELITY_BOUND,
+        "patches": len(rows),
+        "within_at_vertex_count": sum(r["springs"]["fidelity_max"] <= FIDELITY_BOUND for r in rows),
+        "peer_within_at_vertex_count": sum(
+            r["harmonic"]["fidelity_max"] <= FIDELITY_BOUND for r in rows
+        ),
+        "within_refined": sum(r["fidelity_max"] <= FIDELITY_BOUND for r in reach),
+        "peer_within_refined": sum(r["harmonic_fidelity_max"] <= FIDELITY_BOUND for r in reach),
+        "finer_levels": dict(sorted(Counter(r["finer"] for r in reach).items())),
+        "points_per_vertex_median": statistics.median(r["points_per_vertex"] for r in reach),
+        "fidelity_max_refined_median": statistics.median(r["fidelity_max"] for r in reach),
+        "fidelity_max_refined_worst": max(r["fidelity_max"] for r in reach),
+        "peer_fidelity_max_refined_median": statistics.median(
+            r["harmonic_fidelity_max"] for r in reach
+        ),
     }
 
 

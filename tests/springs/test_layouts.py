@@ -54,14 +54,19 @@ KNOWN = {
     },
     "fidelity": {
         "igea": "two-sided max distance 0.087% of the bbox diagonal on the median patch, "
-        "0.33% worst (patch 5): at about the vertex count the grid is too coarse for 0.05%",
+        "0.33% worst (patch 5, a scan spike): at about the vertex count no patch is within "
+        "0.05% (libigl's harmonic map on the same grids: none either); refined with "
+        "tolerance=5e-4 (about 4 points per patch vertex) 21 of 24 are",
         "nefertiti": "two-sided max distance 0.11% of the bbox diagonal on the median patch, "
         "1.8% on patch 4 (a bulge the grid under-samples; rescue=True evens its grid lines "
-        "in the map: 0.22%)",
+        "in the map: 0.22%); 10 of 54 patches within 0.05%, refined with tolerance=5e-4 35",
         "nefertiti_bust": "two-sided max distance 0.12% of the bbox diagonal on the median "
-        "patch, 1.5% worst (patch 42, an ear)",
+        "patch, 1.5% worst (patch 42, an ear); 5 of 48 patches within 0.05%, refined with "
+        "tolerance=5e-4 24",
         "spot": "two-sided max distance 0.092% of the bbox diagonal on the median patch, "
-        "3.5% worst (patch 1; with rescue=True patches 1 and 3 go to 0.62% and 0.60%)",
+        "3.5% worst (patch 1; with rescue=True patches 1 and 3 go to 0.62% and 0.60%); 2 of "
+        "24 patches within 0.05% (the grid cuts the coarse mesh's creases), refined with "
+        "tolerance=5e-4 14",
     },
 }
 
