@@ -58,8 +58,8 @@ from meshfit.springs import (
     spring_metrics,
 )
 
-#: the issue's fidelity bound: largest two-sided distance at the final level, as a fraction
-#: of the bounding-box diagonal (`meshfit.springs.QUALITY_BOUNDS`)
+#: the fidelity bound of the spring meshes: largest two-sided distance at the final level, as a
+#: fraction of the bounding-box diagonal (`meshfit.springs.QUALITY_BOUNDS`)
 FIDELITY_BOUND = QUALITY_BOUNDS["fidelity_max"]
 
 METRICS = (
