@@ -73,3 +73,128 @@ def torus(n_major: int = 48, n_minor: int = 24, major: float = 1.0, minor: float
         ]
     )
     return Mesh(verts, faces, name="torus")
+
+
+def _from_manifold(m, name: str) -> Mesh:
+    mesh = m.to_mesh()
+    verts = np.asarray(mesh.vert_properties, dtype=np.float64)[:, :3]
+    return Mesh(verts, np.asarray(mesh.tri_verts, dtype=np.int64), name=name)
+
+
+def tori(genus: int, *, edge: float = 0.09, minor: float = 0.32, blend: float = 0.12) -> Mesh:
+    """Closed smooth surface of ``genus`` handles: tori in a row blended by a smooth minimum
+    (marching tetrahedra of manifold3d on the blended distance field)."""
+    import manifold3d as m3
+
+    R = 1.0
+    centres = [2.0 * R * (k - (genus - 1) / 2.0) * 0.8 for k in range(genus)]
+
+    def sdf(x: float, y: float, z: float) -> float:
+        d = None
+        for cx in centres:
+            q = np.hypot(np.hypot(x - cx, y) - R, z) - minor
+            if d is None:
+                d = q
+            else:  # polynomial smooth minimum
+                h = max(blend - abs(d - q), 0.0) / blend
+                d = min(d, q) - h * h * blend / 4.0
+        return -float(d)  # positive inside
+
+    half = abs(centres[0]) + R + minor + 0.2
+    bounds = [-half, -R - minor - 0.2, -minor - 0.2, half, R + minor + 0.2, minor + 0.2]
+    return _from_manifold(m3.Manifold.level_set(sdf, bounds, edge), f"genus{genus}")
+
+
+def box_with_holes(holes: int = 3, *, segments: int = 24) -> Mesh:
+    """A genus-``holes`` CAD-like solid with sharp edges: a slab with round through holes."""
+    import manifold3d as m3
+
+    width = 1.2 * holes
+    slab = m3.Manifold.cube([width, 1.2, 0.5], center=True)
+    for k in range(holes):
+        x = 1.2 * (k - (holes - 1) / 2.0)
+        hole = m3.Manifold.cylinder(1.0, 0.3, 0.3, segments, center=True).translate([x, 0, 0])
+        slab = slab - hole
+    return _from_manifold(slab.refine_to_length(0.06), f"slab{holes}")
+
+
+def cube(*, rounded: float = 0.0, n: int = 12) -> Mesh:
+    """Closed cube of side 2, ``n`` x ``n`` quads a face (each split in two); with
+    ``rounded`` > 0 its edges and corners are rounded with that radius (the points pushed
+    onto the rounded box), else its 12 edges are sharp."""
+    t = np.linspace(-1.0, 1.0, n + 1)
+    verts, faces = [], []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            U, V = np.meshgrid(t, t, indexing="ij")
+            p = np.zeros((n + 1, n + 1, 3))
+            a, b = (axis + 1) % 3, (axis + 2) % 3
+            p[..., axis] = sign
+            p[..., a], p[..., b] = U, V
+            base = len(verts) and sum(len(x) for x in verts)
+            verts.append(p.reshape(-1, 3))
+            idx = base + np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+            q = np.stack(
+                [
+                    idx[:-1, :-1].ravel(),
+                    idx[1:, :-1].ravel(),
+                    idx[1:, 1:].ravel(),
+                    idx[:-1, 1:].ravel(),
+                ],
+                1,
+            )
+            if sign < 0:
+                q = q[:, ::-1]
+            faces += [q[:, [0, 1, 2]], q[:, [0, 2, 3]]]
+    V = np.concatenate(verts)
+    F = np.concatenate(faces)
+    # weld the shared edge points of the six faces
+    key = np.round(V * 1e6).astype(np.int64)
+    _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    V, F = V[first], inv.reshape(-1)[F]
+    if rounded > 0.0:
+        inner = np.clip(V, -1.0 + rounded, 1.0 - rounded)
+        d = V - inner
+        nd = np.linalg.norm(d, axis=1, keepdims=True)
+        V = np.where(nd > 0, inner + rounded * d / np.maximum(nd, 1e-300), V)
+    return Mesh(V, F, name="rounded_cube" if rounded else "cube")
+
+
+def hemisphere(subdivisions: int = 3) -> Mesh:
+    """Open half sphere (z >= 0), one boundary loop."""
+    s = icosphere(subdivisions)
+    keep = s.vertices[s.faces].mean(axis=1)[:, 2] > 0.0
+    f = s.faces[keep]
+    used, inv = np.unique(f, return_inverse=True)
+    return Mesh(s.vertices[used], inv.reshape(-1, 3), name="hemisphere")
+
+
+def disk(n: int = 24) -> Mesh:
+    """Flat round disk of radius 1 (the jittered plane pushed into the circle)."""
+    p = plane(n, 2.0)
+    xy = p.vertices[:, :2] - 1.0
+    r = np.abs(xy).max(axis=1, keepdims=True)
+    nr = np.linalg.norm(xy, axis=1, keepdims=True)
+    xy = np.where(nr > 0, xy * r / np.maximum(nr, 1e-300), xy)
+    return Mesh(np.column_stack([xy, np.zeros(len(xy))]), p.faces, name="disk")
+
+
+def two_spheres() -> Mesh:
+    """Two disjoint closed spheres of different sizes."""
+    a, b = icosphere(3), icosphere(2, radius=0.6)
+    v = np.vstack([a.vertices, b.vertices + np.array([3.0, 0.0, 0.0])])
+    f = np.vstack([a.faces, b.faces + a.n_vertices])
+    return Mesh(v, f, name="two_spheres")
+
+
+def dirty_sphere() -> tuple[np.ndarray, np.ndarray]:
+    """Arrays of a sphere with a fin (a non-manifold edge), duplicate faces and unreferenced
+    vertices: what a raw range-scan merge holds."""
+    s = icosphere(3)
+    v = np.vstack([s.vertices, [[5.0, 5.0, 5.0], [6.0, 5.0, 5.0]]])  # two unreferenced
+    f = np.asarray(s.faces)
+    e0, e1 = f[0, 0], f[0, 1]
+    tip = len(v)
+    v = np.vstack([v, (v[e0] + v[e1]) / 2.0 * 1.3])
+    fin = [[e1, e0, tip]]
+    return v, np.vstack([f, f[5:8], fin])

@@ -9,6 +9,7 @@ import pytest
 
 from meshfit import __version__, cli
 
+from . import shapes
 from .conftest import REAL, mesh_path
 from .mesh.test_validate import moebius_strip
 
@@ -98,12 +99,12 @@ def test_repair_flag_exits_zero_on_every_real_mesh(capsys, name):
 
 def test_bunny_reports_unreferenced_vertices(capsys):
     path = str(mesh_path("bunny"))
-    rc, out, err = info(capsys, path, "--json")
+    rc, out, err = info(capsys, path, "--json", "--no-repair")
     assert rc == 2
     line = one_line(err)
     assert line == (
         f"meshfit: error: {path}: 1113 vertices not used by any face "
-        "(first: vertex 8) (run with --repair)"
+        "(first: vertex 8) (repairable: run without --no-repair)"
     )
     data = json.loads(out)
     assert data["vertices"] == 35_947
@@ -134,14 +135,16 @@ def test_bunny_repaired(capsys):
 
 def test_nefertiti_fraunhofer_reported_precisely(capsys):
     path = str(mesh_path("nefertiti_fraunhofer"))
-    rc, out, err = info(capsys, path, "--json")
+    rc, out, err = info(capsys, path, "--json", "--no-repair")
     assert rc == 2
     line = one_line(err)
     assert line.startswith(
         f"meshfit: error: {path}: 3 non-manifold edges shared by more than "
         "two faces (first: edge (695, 696) in faces [841, 975, "
     )
-    assert line.endswith("(all caused by duplicate or back-to-back faces) (run with --repair)")
+    assert line.endswith(
+        "(all caused by duplicate or back-to-back faces) (repairable: run without --no-repair)"
+    )
     data = json.loads(out)
     nm, dup = data["findings"]
     assert (nm["kind"], nm["count"], nm["first"], nm["repairable"]) == (
@@ -165,7 +168,7 @@ def test_nefertiti_fraunhofer_reported_precisely(capsys):
 
 
 def test_nefertiti_fraunhofer_table_lists_both_findings(capsys):
-    rc, out, err = info(capsys, str(mesh_path("nefertiti_fraunhofer")))
+    rc, out, err = info(capsys, str(mesh_path("nefertiti_fraunhofer")), "--no-repair")
     assert rc == 2
     assert "repairable: 3 non-manifold edges" in out
     assert "repairable: 3 duplicate faces, 3 of them back-to-back" in out
@@ -204,11 +207,11 @@ def _write_obj(path, v, f):
 def test_moebius_strip_is_not_repairable(tmp_path, capsys):
     v, f = moebius_strip()
     p = _write_obj(tmp_path / "moebius.obj", v, f)
-    rc, out, err = info(capsys, str(p))
+    rc, out, err = info(capsys, str(p), "--no-repair")
     assert rc == 2
     line = one_line(err)
     assert "not orientable" in line
-    assert not line.endswith("(run with --repair)")  # repair cannot fix it: no false hint
+    assert "repairable" not in line  # repair cannot fix it: no false hint
     assert "error: " in out
     rc, out, err = info(capsys, str(p), "--repair")
     assert rc == 2
@@ -217,15 +220,32 @@ def test_moebius_strip_is_not_repairable(tmp_path, capsys):
     assert line.startswith("meshfit: error: moebius.obj: the surface is not orientable")
 
 
-def test_unrepairable_problem_with_repair_flag(tmp_path, capsys):
-    # a fin: three faces on edge (0, 2)
+def test_fin_is_split_apart_by_default(tmp_path, capsys):
+    # a fin: three faces on edge (0, 2); the default repair splits the sheets apart
     v = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 0.5, 1]]
     p = _write_obj(tmp_path / "fin.obj", v, [[0, 1, 2], [0, 2, 3], [0, 2, 4]])
-    rc, _out, err = info(capsys, str(p), "--repair")
+    rc, out, err = info(capsys, str(p), "--json")
+    assert rc == 0, err
+    data = json.loads(out)
+    assert data["repaired"] is True
+    assert data["faces"] == 3
+    assert "split" in data["repair"]
+    rc, _out, err = info(capsys, str(p), "--no-repair")
     assert rc == 2
-    line = one_line(err)
-    assert "after repair: 1 non-manifold edge" in line
-    assert "edge (0, 2)" in line
+    assert "edge (0, 2)" in one_line(err)
+
+
+def test_inside_out_sphere_is_noted_and_turned(tmp_path, capsys):
+    sphere = shapes.icosphere(2)
+    p = _write_obj(tmp_path / "inside_out.obj", sphere.vertices, np.asarray(sphere.faces)[:, ::-1])
+    rc, out, err = info(capsys, str(p), "--json")
+    assert rc == 0, err
+    data = json.loads(out)
+    assert data["repaired"] is True
+    assert "inside out: 1 component" in data["repair"]
+    rc, out, _err = info(capsys, str(p), "--json", "--no-repair")
+    assert rc == 0
+    assert json.loads(out)["repaired"] is False
 
 
 def test_repair_of_a_valid_mesh_changes_nothing(capsys):

@@ -575,9 +575,10 @@ def test_exporter_modules_load_on_a_thread_the_interpreter_waits_for():
 
 @pytest.mark.slow
 def test_a_fit_that_fails_at_the_layout_exits_with_its_error_code(tmp_path):
-    # the exporters' modules load while the fit runs; an open mesh fails at the automatic
-    # layout about a second in, inside USD's import: exit code 2 and one error line, never
-    # "terminate called without an active exception" (exit code 134, 4 runs in 6 before)
+    # the exporters' modules load while the fit runs; a request for more patches than the
+    # mesh has faces for fails at the automatic layout about a second in, inside USD's
+    # import: exit code 2 and one error line, never "terminate called without an active
+    # exception" (exit code 134, 4 runs in 6 before)
     import subprocess
 
     from meshfit.demo import demo_mesh
@@ -587,7 +588,7 @@ def test_a_fit_that_fails_at_the_layout_exits_with_its_error_code(tmp_path):
     path = save_mesh(Mesh(d.vertices, d.faces[1:]), tmp_path / "holey.ply")
     for k in range(3):
         run = subprocess.run(
-            ["meshfit", "fit", str(path), "--out", str(tmp_path / f"out{k}")],
+            ["meshfit", "fit", str(path), "--patches", "5000", "--out", str(tmp_path / f"out{k}")],
             capture_output=True,
             text=True,
             timeout=600,
@@ -595,7 +596,7 @@ def test_a_fit_that_fails_at_the_layout_exits_with_its_error_code(tmp_path):
         )
         assert run.returncode == 2, run.stderr[-2000:]
         assert "terminate" not in run.stderr
-        assert "automatic layout needs one closed genus-0 surface" in run.stderr
+        assert "an automatic layout needs at least 16 faces a patch" in run.stderr
 
 
 def test_known_distances_skip_only_points_on_the_input(rng):

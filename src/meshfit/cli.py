@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from meshfit import __version__, errors
+from meshfit._cliargs import CLI_REPAIR_HINT, add_repair_option
 from meshfit._malloc import tune_malloc
 
 __all__ = ["EXIT_ERROR", "EXIT_OK", "build_parser", "main", "print_json", "print_table"]
@@ -91,9 +92,15 @@ def cmd_info(args: argparse.Namespace) -> int:
     try:  # a valid mesh is validated once, by its constructor
         mesh = Mesh(raw.vertices, raw.faces, raw.vertex_colors, name=name)
         findings = []
+        if args.repair:  # valid, but perhaps inside out
+            fixed = Mesh.from_arrays(
+                raw.vertices, raw.faces, raw.vertex_colors, name=name, repair=True
+            )
+            if fixed.repairs is not None and fixed.repairs.changed():
+                mesh = fixed
     except errors.MeshValidationError:
         findings = find_problems(raw.vertices, raw.faces)
-        if args.repair:
+        if args.repair:  # raises, naming the problem, where the repair cannot fix it
             mesh = Mesh.from_arrays(
                 raw.vertices, raw.faces, raw.vertex_colors, name=name, repair=True
             )
@@ -102,7 +109,7 @@ def cmd_info(args: argparse.Namespace) -> int:
         out.update(mesh_statistics(mesh))
         if mesh.repairs is not None:
             out["repair"] = mesh.repairs.summary()
-    out["repaired"] = bool(findings) and mesh is not None
+    out["repaired"] = mesh is not None and mesh.repairs is not None and mesh.repairs.changed()
     out = {"file": str(args.mesh), **out, "seconds": round(time.perf_counter() - t0, 3)}
     if args.json:
         print_json(out)
@@ -117,7 +124,8 @@ def cmd_info(args: argparse.Namespace) -> int:
             print("valid: no problems found")
     if mesh is None:
         first = findings[0]
-        hint = " (run with --repair)" if all(f.repairable for f in findings) else ""
+        repairable = all(f.repairable for f in findings)
+        hint = CLI_REPAIR_HINT if repairable and not args.repair else ""
         sys.stderr.write(f"meshfit: error: {args.mesh}: {first.message}{hint}\n")
         return EXIT_ERROR
     return EXIT_OK
@@ -133,12 +141,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("info", help="print statistics and every validation finding of a mesh")
     p.add_argument("mesh", help="mesh file (.ply .obj .stl .off .glb .gltf)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
-    p.add_argument(
-        "--repair",
-        action="store_true",
-        help="repair what can be repaired (degenerate, duplicate faces, "
-        "unreferenced vertices, orientation) and report the result",
-    )
+    add_repair_option(p)
     p.set_defaults(func=cmd_info)
 
     p = sub.add_parser("demo", help="run on the embedded default input (no files needed)")
@@ -195,7 +198,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if isinstance(exc, errors.MeshValidationError) and hasattr(args, "repair"):
             from meshfit.mesh.validate import REPAIR_HINT
 
-            msg = msg.replace(REPAIR_HINT, " (run with --repair)")
+            msg = msg.replace(REPAIR_HINT, CLI_REPAIR_HINT)
         sys.stderr.write(f"meshfit: error: {msg}\n")
         return EXIT_ERROR
     except BrokenPipeError:  # output piped into a pager or head that closed early

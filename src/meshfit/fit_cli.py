@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from meshfit._cliargs import add_repair_option
 from meshfit.errors import InputError
 
 __all__ = ["add_commands", "cmd_batch", "cmd_fit", "parse_controls", "stage_progress"]
@@ -297,7 +298,7 @@ def add_commands(sub) -> None:
     )
     p.add_argument("--resume", action="store_true", help="re-use finished stages in --out")
     p.add_argument("--workers", type=int, default=None, help="threads (default: all cores)")
-    p.add_argument("--repair", action="store_true", help="repair the mesh where possible")
+    add_repair_option(p)
     p.add_argument(
         "--fill-holes",
         action="store_true",

@@ -839,7 +839,7 @@ def run_fit(
     if not isinstance(mesh, Mesh):
         from meshfit.mesh import load_mesh
 
-        mesh = load_mesh(mesh)
+        mesh = load_mesh(mesh, repair=True)
     # the content hash (hashlib releases the GIL) is taken on a thread while a layout is
     # made; a resumed run waits for it first, to look for a finished layout
     hasher = ThreadPoolExecutor(max_workers=1)

@@ -186,6 +186,8 @@ CASES = [
         errors.NonManifoldEdgeError,
         ("edge (0, 2)", "faces [0, 1, 2]"),
         (0, 2),
+        ("ply", "plyb", "obj", "off"),
+        True,
     ),
     Case(
         "non_manifold_vertex",
@@ -194,6 +196,8 @@ CASES = [
         errors.NonManifoldVertexError,
         ("vertex 2",),
         (2,),
+        ("ply", "plyb", "obj", "off"),
+        True,
     ),
     Case(
         "inconsistent_orientation",
@@ -289,16 +293,23 @@ def test_malformed_file_raises_named_error(tmp_path, case, fmt):
 @pytest.mark.parametrize(("case", "fmt"), PARAMS)
 def test_malformed_file_fails_info_with_one_line(tmp_path, capsys, case, fmt):
     p = write(tmp_path, f"{case.name}{SUFFIX[fmt]}", WRITERS[fmt](case.vertices, case.faces))
-    rc, _out, err = run_info(capsys, str(p))
+    rc, _out, err = run_info(capsys, str(p), "--no-repair")
     assert rc == 2
     line = assert_one_error_line(err, str(p), *case.names)
-    assert line.endswith("(run with --repair)") == case.repairable
+    assert line.endswith("(repairable: run without --no-repair)") == case.repairable
+    # repair is the default: a repairable mesh is usable, listed as repaired
+    rc, out, err = run_info(capsys, str(p), "--json")
+    assert (rc == 0) == case.repairable, err
+    if case.repairable:
+        data = json.loads(out)
+        assert data["repaired"] is True
+        assert data["findings"][0]["kind"] == case.error.kind
 
 
 @pytest.mark.parametrize(("case", "fmt"), PARAMS)
 def test_malformed_file_json_lists_the_finding(tmp_path, capsys, case, fmt):
     p = write(tmp_path, f"{case.name}{SUFFIX[fmt]}", WRITERS[fmt](case.vertices, case.faces))
-    rc, out, _err = run_info(capsys, str(p), "--json")
+    rc, out, _err = run_info(capsys, str(p), "--json", "--no-repair")
     assert rc == 2
     if case.error is errors.IndexRangeError and fmt in ("obj", "off"):
         # the OBJ / OFF readers reject a face naming a missing vertex while reading, with its
@@ -322,9 +333,9 @@ def test_interior_duplicate_face_is_a_repairable_non_manifold_edge(tmp_path, cap
         load_mesh(p)
     assert "edge (0, 2) in faces [0, 1, 2]" in str(info.value)
     assert "also: duplicate face" in str(info.value)
-    rc, _out, err = run_info(capsys, str(p))
+    rc, _out, err = run_info(capsys, str(p), "--no-repair")
     assert rc == 2
-    assert_one_error_line(err, "edge (0, 2)", "(run with --repair)")
+    assert_one_error_line(err, "edge (0, 2)", "(repairable: run without --no-repair)")
     mesh = load_mesh(p, repair=True)
     assert_array_equal(mesh.repairs.face_map, [0, 1, -1])
     assert_array_equal(mesh.faces, SQUARE_F)
@@ -685,8 +696,9 @@ def test_repairable_files_load_with_repair(tmp_path, capsys, fmt):
         v_in = np.asarray(case.vertices, dtype=np.float64)
         f_in = np.asarray(case.faces)
         kept = np.flatnonzero(mesh.repairs.face_map >= 0)
-        new = mesh.faces[mesh.repairs.face_map[kept]]
-        mapped = mesh.repairs.vertex_map[f_in[kept]]
+        # every kept face names the same input vertices (through the copies of split ones)
+        new = mesh.repairs.vertex_parent[mesh.faces[mesh.repairs.face_map[kept]]]
+        mapped = f_in[kept].copy()
         flipped = np.isin(kept, mesh.repairs.flipped_faces)
         mapped[flipped] = mapped[flipped][:, ::-1]
         assert_array_equal(new, mapped)

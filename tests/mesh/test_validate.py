@@ -55,13 +55,16 @@ def check_repair_maps(v_in, f_in, mesh: Mesh) -> None:
     assert_array_equal(np.sort(rep.face_map[kept_f]), np.arange(mesh.n_faces))  # a bijection
     assert_array_equal(rep.face_map[kept_f], np.arange(kept_f.size))  # order is kept
     kept_v = np.flatnonzero(rep.vertex_map >= 0)
-    assert_array_equal(rep.vertex_map[kept_v], np.arange(mesh.n_vertices))
-    assert_array_equal(mesh.vertices[rep.vertex_map[kept_v]], v_in[kept_v])
-    want = rep.vertex_map[f_in[kept_f]]
+    # kept vertices first, in order; copies of split vertices after them
+    assert_array_equal(rep.vertex_map[kept_v], np.arange(kept_v.size))
+    assert rep.vertex_parent.shape == (mesh.n_vertices,)
+    assert_array_equal(rep.vertex_parent[: kept_v.size], kept_v)
+    assert_array_equal(mesh.vertices, v_in[rep.vertex_parent])
+    want = f_in[kept_f].copy()
     flipped = np.isin(kept_f, rep.flipped_faces)
     assert np.isin(rep.flipped_faces, kept_f).all()
     want[flipped] = want[flipped][:, ::-1]
-    assert_array_equal(mesh.faces[rep.face_map[kept_f]], want)
+    assert_array_equal(rep.vertex_parent[mesh.faces[rep.face_map[kept_f]]], want)
     # the geometry of every kept face is unchanged (same corner positions, as a set)
     assert_array_equal(
         np.sort(mesh.vertices[mesh.faces[rep.face_map[kept_f]]], axis=1),
@@ -175,28 +178,57 @@ def test_duplicate_faces_same_and_opposite_winding():
     check_repair_maps(v, f, mesh)
 
 
-def test_non_manifold_edge_fin_is_not_repairable():
+def test_non_manifold_edge_fin_is_split_apart():
     v = np.vstack([SQUARE_V, [[0.5, 0.5, 1]]])
     f = np.vstack([SQUARE_F, [[0, 2, 4]]])
     (finding,) = find_problems(v, f)
     assert finding.kind == "non_manifold_edge"
     assert finding.first == (0, 2)
     assert "edge (0, 2) in faces [0, 1, 2]" in finding.message
-    assert not finding.repairable
-    with pytest.raises(errors.NonManifoldEdgeError, match=r"after repair: .*edge \(0, 2\)"):
-        Mesh.from_arrays(v, f, repair=True)
+    assert finding.repairable
+    with pytest.raises(errors.NonManifoldEdgeError, match=r"edge \(0, 2\)"):
+        Mesh(v, f)
+    mesh = Mesh.from_arrays(v, f, repair=True)
+    assert mesh.n_faces == 3
+    # no edge is shared by more than two faces, and no face was dropped
+    assert mesh.edge_face_count.max() <= 2
+    assert mesh.repairs.split_vertices >= 1
+    assert "split" in mesh.repairs.summary()
+    check_repair_maps(v, f, mesh)
 
 
-def test_bow_tie_vertex_is_not_repairable():
+def test_bow_tie_vertex_is_split_apart():
     v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [2, 1, 0], [2, 2, 0]], dtype=float)
     f = np.array([[0, 1, 2], [2, 3, 4]])
     (finding,) = find_problems(v, f)
     assert finding.kind == "non_manifold_vertex"
     assert finding.first == (2,)
     assert "vertex 2, 2 fans" in finding.message
-    assert not finding.repairable
-    with pytest.raises(errors.NonManifoldVertexError, match="vertex 2"):
-        Mesh.from_arrays(v, f, repair=True)
+    assert finding.repairable
+    mesh = Mesh.from_arrays(v, f, repair=True)
+    assert mesh.n_vertices == 6
+    assert mesh.n_components == 2
+    assert mesh.repairs.split_vertices == 1
+    check_repair_maps(v, f, mesh)
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e4])
+def test_inside_out_sphere_is_turned_right_side_out(scale):
+    sphere = shapes.icosphere(2)
+    v = np.asarray(sphere.vertices) * scale + 5.0 * scale
+    f = np.asarray(sphere.faces)[:, ::-1]
+    assert find_problems(v, f) == []  # a valid mesh, only inside out
+    mesh = Mesh.from_arrays(v, f, repair=True)
+    assert mesh.repairs.inverted_components == 1
+    assert_array_equal(mesh.faces, np.asarray(sphere.faces))
+    assert "inside out" in mesh.repairs.summary()
+    # the outward sphere is left as it is, and an open cap is never flipped
+    right = Mesh.from_arrays(np.asarray(sphere.vertices), np.asarray(sphere.faces), repair=True)
+    assert right.repairs.inverted_components == 0
+    assert not right.repairs.changed()
+    cap = f[np.asarray(sphere.vertices)[f].mean(axis=1)[:, 2] > 0.3]
+    opened = Mesh.from_arrays(np.asarray(sphere.vertices), cap, repair=True)
+    assert opened.repairs.inverted_components == 0
 
 
 def test_pinched_cone_vertex():
@@ -488,9 +520,9 @@ def test_find_problems_and_repair_never_crash(mesh):
         check_repair_maps(v, f, repaired)
 
 
-def test_back_to_back_copies_on_a_surface_that_would_leave_a_bow_tie():
+def test_back_to_back_copies_on_a_surface_that_leave_a_bow_tie_are_split():
     # two surface faces meeting at a single vertex each get a reversed copy: repair drops all
-    # four, leaving two holes that touch at that vertex; find_problems says so up front
+    # four, leaving two holes that touch at that vertex, which it then splits apart
     sphere = shapes.icosphere(1)
     f = np.array(sphere.faces)
     corner = f[0, 0]
@@ -500,10 +532,16 @@ def test_back_to_back_copies_on_a_surface_that_would_leave_a_bow_tie():
     bad = np.vstack([f, f[0][::-1], f[other][::-1]])
     findings = find_problems(sphere.vertices, bad)
     assert kinds(findings)[:2] == ["non_manifold_edge", "duplicate_face"]
-    assert not findings[0].repairable
-    assert f"would leave a non-manifold vertex (first: vertex {corner})" in findings[0].message
-    with pytest.raises(errors.NonManifoldVertexError, match=f"vertex {corner}"):
-        Mesh.from_arrays(sphere.vertices, bad, repair=True)
+    assert all(x.repairable for x in findings)
+    mesh = Mesh.from_arrays(sphere.vertices, bad, repair=True)
+    assert mesh.repairs.split_vertices == 1
+    assert mesh.repairs.vertex_parent[-1] == corner
+    # the two triangular holes become one loop through both copies of the corner
+    (loop,) = mesh.boundary_loops
+    assert loop.size == 6
+    assert set(mesh.repairs.vertex_parent[loop].tolist()) >= {int(corner)}
+    assert (mesh.repairs.vertex_parent[loop] == corner).sum() == 2
+    check_repair_maps(sphere.vertices, bad, mesh)
 
 
 def test_bow_tie_made_by_a_degenerate_face_is_repairable():
@@ -514,7 +552,7 @@ def test_bow_tie_made_by_a_degenerate_face_is_repairable():
     assert kinds(findings) == ["non_manifold_vertex", "degenerate_face"]
     assert findings[0].first == (2,)
     assert findings[0].repairable
-    assert "removed by dropping the faces repair drops" in findings[0].message
     mesh = Mesh.from_arrays(v, f, repair=True)
+    assert mesh.repairs.split_vertices == 0
     assert_array_equal(mesh.faces, SQUARE_F)
     check_repair_maps(v, f, mesh)

@@ -87,8 +87,8 @@ FINE_RELAX_ITERATIONS = 50
 #: earlier revisions made 60; 4: base vertices moved onto protrusions, traced arcs sampled
 #: densely where the sphere map squeezes the surface; 5: the degrees of a base mesh with
 #: split edges balanced by flips; 6: another rotation of the base mesh tried where a patch
-#: is a sliver)
-AUTO_LAYOUT_REVISION = 6
+#: is a sliver; 7: meshes of any other topology laid out by :mod:`meshfit.layout.regions`)
+AUTO_LAYOUT_REVISION = 7
 #: ``shape=None`` of `auto_layout` shapes base meshes of more than this many triangles. The
 #: bisections that take the relaxed icosahedron beyond 20 triangles leave cells of equal area
 #: that are slivers where the sphere map stretches (spring meshes of the 96-patch layouts, with
@@ -412,9 +412,12 @@ def auto_layout(
     if proxy_faces is not None and int(proxy_faces) < 20:
         raise InputError(f"proxy_faces must be >= 20, got {proxy_faces}")
     proxy = sphere is None and proxy_faces is not None and mesh.n_faces > PROXY_RATIO * proxy_faces
+    if sphere is None and not (mesh.is_closed and _one_sphere(mesh)):
+        # any genus, open boundaries, several components: the sphere map does not exist
+        from meshfit.layout.regions import region_layout
+
+        return region_layout(mesh, patches=patches, relax=relax, relax_iterations=relax_iterations)
     if not mesh.is_closed:
-        raise _topology_error(mesh)
-    if not proxy and not _one_sphere(mesh):
         raise _topology_error(mesh)
     want = DEFAULT_PATCHES if patches is None else int(patches)
     n_faces = max(MIN_PATCHES // PATCHES_PER_TRIANGLE, round(want / PATCHES_PER_TRIANGLE))

@@ -6,6 +6,8 @@ from __future__ import annotations
 import argparse
 import time
 
+from meshfit._cliargs import add_repair_option
+
 __all__ = ["add_commands", "cmd_layout"]
 
 
@@ -25,6 +27,7 @@ def add_commands(sub) -> None:
         ),
     )
     p.add_argument("mesh", help="mesh file the layout was made for")
+    add_repair_option(p)
     p.add_argument("layout", help="layout .json file")
     p.add_argument(
         "--smooth",
@@ -44,7 +47,7 @@ def cmd_layout(args: argparse.Namespace) -> int:
     from meshfit.layout.patch import patch_notes, shape_figures
     from meshfit.mesh import load_mesh
 
-    mesh = load_mesh(args.mesh)
+    mesh = load_mesh(args.mesh, repair=args.repair)
     t0 = time.perf_counter()
     layout = load_layout(args.layout, mesh, check_topology=False)
     load_s = time.perf_counter() - t0

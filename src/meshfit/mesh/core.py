@@ -162,8 +162,11 @@ class Mesh:
         vertex_colors : (nv, 3 | 4) uint8, optional
         name : str
         repair : bool
-            Drop degenerate / duplicate / back-to-back faces and unreferenced vertices and
-            make the orientation consistent; the index maps are in ``mesh.repairs``.
+            Drop degenerate / duplicate / back-to-back faces and unreferenced vertices, split
+            non-manifold edges and vertices apart, make the orientation consistent and turn
+            inside-out closed components right side out
+            (:func:`meshfit.mesh.validate.repair_arrays`); the index maps are in
+            ``mesh.repairs``.
         """
         v = _as_vertices(vertices)
         f = _as_faces(faces)

@@ -732,8 +732,11 @@ def load_mesh(path: str | os.PathLike, *, repair: bool = False) -> Mesh:
     path : str or PathLike
         A ``.ply``, ``.obj``, ``.stl``, ``.off``, ``.glb`` or ``.gltf`` file.
     repair : bool
-        Drop degenerate, duplicate and back-to-back faces and unreferenced vertices, and make
-        the orientation consistent, instead of raising; index maps are in ``mesh.repairs``.
+        Repair what can be repaired safely instead of raising
+        (:func:`meshfit.mesh.validate.repair_arrays`: degenerate, duplicate and back-to-back
+        faces and unreferenced vertices dropped, non-manifold edges and vertices split apart,
+        orientation made consistent, inside-out closed components turned); index maps are in
+        ``mesh.repairs``. Default False: the file as it is, or an error.
 
     Returns
     -------

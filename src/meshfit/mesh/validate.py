@@ -253,14 +253,18 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
     if nm.size:
         e = table.edges[nm[0]]
         fs = sorted(tidx[table.halfedges_of(int(nm[0])) // 3].tolist())
-        # repairable when dropping duplicate / back-to-back / degenerate faces fixes every one
+        # the repair drops duplicate / back-to-back / degenerate faces and splits the rest
         dup, back = _duplicate_faces(faces)
         dropped = (dup | back | _degenerate_faces(vertices, faces))[tidx]
         left = np.bincount(
             table.halfedge_edge[np.repeat(~dropped, 3)], minlength=table.edges.shape[0]
         )
-        fixable = bool((left[nm] <= 2).all())
-        cause = " (all caused by duplicate or back-to-back faces)" if fixable else ""
+        by_drops = bool((left[nm] <= 2).all())
+        cause = (
+            " (all caused by duplicate or back-to-back faces)"
+            if by_drops
+            else " (repair splits the sheets apart along them)"
+        )
         out.append(
             Finding(
                 "non_manifold_edge",
@@ -268,7 +272,7 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
                 f"(first: edge ({e[0]}, {e[1]}) in faces {fs}){cause}",
                 (int(e[0]), int(e[1])),
                 int(nm.size),
-                fixable,
+                True,
             )
         )
     if tf.size:
@@ -286,10 +290,11 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
             Finding(
                 "non_manifold_vertex",
                 f"{plural(nmv.size, 'non-manifold vertex')} where separate fans of faces "
-                f"meet (first: vertex {nmv[0]}, {fans_per_vertex[nmv[0]]} fans)",
+                f"meet (first: vertex {nmv[0]}, {fans_per_vertex[nmv[0]]} fans; repair gives "
+                "each fan its own copy)",
                 (int(nmv[0]),),
                 int(nmv.size),
-                False,
+                True,
             )
         )
     deg = _degenerate_faces(vertices, faces) & ~bad_v[faces].any(axis=1)
@@ -361,69 +366,29 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
                 orientable,
             )
         )
-    if all(x.repairable for x in out if x.kind != "non_manifold_vertex"):
-        drop = bad_v[faces].any(axis=1) | deg | dup | back
-        if drop.any() or nmv.size:
-            out = _simulate_repair(vertices, faces, drop, nmv, out)
+    if out and all(x.repairable for x in out):
+        out = _check_repair(vertices, faces, out)
     return out
+
+
+def _check_repair(vertices: NDArray, faces: NDArray, findings: list[Finding]) -> list[Finding]:
+    """The findings, marked not repairable (with the reason) when the repair itself fails:
+    nothing left, or a surface that cannot be oriented."""
+    try:
+        _repair_core(vertices, faces)
+    except errors.MeshValidationError as exc:
+        why = str(exc).split(" (")[0]
+        note = f"; repair cannot fix it: {why}"
+        out = []
+        for x in findings:
+            if x.kind in ("inconsistent_orientation", *_DROPPING, "non_manifold_vertex"):
+                x = Finding(x.kind, x.message + note, x.first, x.count, False)
+            out.append(x)
+        return out
+    return findings
 
 
 _DROPPING = ("non_finite", "non_manifold_edge", "degenerate_face", "duplicate_face")
-
-
-def _simulate_repair(
-    vertices: NDArray,
-    faces: NDArray,
-    drop: NDArray[np.bool_],
-    nmv_before: NDArray[np.int64],
-    findings: list[Finding],
-) -> list[Finding]:
-    """Set the ``repairable`` flags from the faces :func:`repair_arrays` would keep.
-
-    A non-manifold vertex is repairable when dropping faces removes it. The face-dropping
-    findings are not when the drop would leave no face, a new non-manifold vertex (two
-    holes meeting at a vertex where back-to-back faces leave a surface) or a non-orientable
-    surface.
-    """
-    nv = vertices.shape[0]
-    kept = faces[~drop]
-    why = ""
-    nmv_left = nmv_before
-    if kept.size == 0:
-        why = "no face"
-    else:
-        table = topology.edge_table(kept, nv)
-        fan, n_fans = topology.corner_fans(kept, nv, table)
-        fan_vertex = np.empty(n_fans, dtype=np.int64)
-        fan_vertex[fan] = kept.reshape(-1)
-        after = np.flatnonzero(np.bincount(fan_vertex, minlength=nv) > 1)
-        nmv_left = np.intersect1d(after, nmv_before)
-        new = np.setdiff1d(after, nmv_before)
-        if new.size:
-            why = f"a non-manifold vertex (first: vertex {new[0]})"
-        else:
-            tail, _ = topology.halfedges(kept)
-            two = table.start[table.edge_count == 2]
-            if (tail[table.order[two]] == tail[table.order[two + 1]]).any():
-                try:
-                    _orient(kept, nv)
-                except errors.OrientationError:
-                    why = "a non-orientable surface"
-    note = f"; repair cannot fix it: dropping the faces would leave {why}" if why else ""
-    out = []
-    for x in findings:
-        if x.kind == "non_manifold_vertex" and nmv_left.size == 0 and not why:
-            x = Finding(
-                x.kind,
-                x.message + " (removed by dropping the faces repair drops)",
-                x.first,
-                x.count,
-                True,
-            )
-        elif x.kind in _DROPPING and why:
-            x = Finding(x.kind, x.message + note, x.first, x.count, False)
-        out.append(x)
-    return out
 
 
 def raise_first(findings: list[Finding], *, where: str = "") -> None:
@@ -449,23 +414,50 @@ class RepairReport:
     face_map : (nf_in,) int64
         New index of every input face, -1 where it was dropped.
     flipped_faces : (k,) int64
-        Input face indices whose winding was reversed for consistent orientation.
+        Input face indices whose winding was reversed: for consistent orientation, or
+        because their closed component was inside out (negative signed volume).
     fixed : list of Finding
         The problems found before the repair.
+    vertex_parent : (nv',) int64
+        Input vertex of every output vertex. Where non-manifold edges or vertices were
+        split, the copies come after the kept vertices (``vertex_map`` names the first).
+    inverted_components : int
+        Closed components turned right side out.
     """
 
     vertex_map: NDArray[np.int64]
     face_map: NDArray[np.int64]
     flipped_faces: NDArray[np.int64]
     fixed: list[Finding] = field(default_factory=list)
+    vertex_parent: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
+    inverted_components: int = 0
+
+    @property
+    def split_vertices(self) -> int:
+        """Copies made where non-manifold edges and vertices were split apart."""
+        return int(self.vertex_parent.size - (self.vertex_map >= 0).sum())
+
+    def changed(self) -> bool:
+        """Whether the repair changed anything."""
+        return bool(
+            self.fixed
+            or self.inverted_components
+            or (self.face_map < 0).any()
+            or (self.vertex_map < 0).any()
+        )
 
     def summary(self) -> str:
         parts = [f"{f.kind.replace('_', ' ')}: {f.count}" for f in self.fixed]
+        if self.inverted_components:
+            parts.append(f"inside out: {plural(self.inverted_components, 'component')}")
         dropped_f = int((self.face_map < 0).sum())
         dropped_v = int((self.vertex_map < 0).sum())
+        split = (
+            f", split {plural(self.split_vertices, 'vertex')} apart" if self.split_vertices else ""
+        )
         return (
             f"repaired ({', '.join(parts) or 'nothing to do'}): dropped "
-            f"{plural(dropped_f, 'face')} and {plural(dropped_v, 'vertex')}, flipped "
+            f"{plural(dropped_f, 'face')} and {plural(dropped_v, 'vertex')}{split}, flipped "
             f"{plural(self.flipped_faces.size, 'face')}"
         )
 
@@ -519,6 +511,87 @@ def _orient(faces: NDArray[np.int64], nv: int) -> NDArray[np.int64]:
     return np.flatnonzero(flip == 1)
 
 
+def _split_fans(faces: NDArray[np.int64], nv: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Faces with one vertex per fan of corners (non-manifold edges and vertices split
+    apart), and the vertex each output vertex copies (copies after the first ``nv``)."""
+    table = topology.edge_table(faces, nv)
+    fan, n_fans = topology.corner_fans(faces, nv, table)
+    if n_fans == nv:
+        return faces, np.arange(nv, dtype=np.int64)
+    corner_v = faces.reshape(-1)
+    fan_vertex = np.empty(n_fans, dtype=np.int64)
+    fan_vertex[fan] = corner_v
+    # the fan of each vertex's first corner keeps the vertex; the others are new copies
+    first_corner = np.full(nv, -1, dtype=np.int64)
+    order = np.arange(corner_v.size)[::-1]
+    first_corner[corner_v[order]] = order
+    keeps = np.zeros(n_fans, dtype=bool)
+    keeps[fan[first_corner]] = True
+    new_id = np.empty(n_fans, dtype=np.int64)
+    new_id[keeps] = fan_vertex[keeps]
+    extra = np.flatnonzero(~keeps)
+    new_id[extra] = nv + np.arange(extra.size)
+    parent = np.concatenate([np.arange(nv), fan_vertex[extra]]).astype(np.int64)
+    return new_id[fan].reshape(-1, 3), parent
+
+
+def _inside_out(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> NDArray[np.bool_]:
+    """Faces of closed components whose signed volume is negative."""
+    nv = vertices.shape[0]
+    table = topology.edge_table(faces, nv)
+    n, comp = topology.face_components(faces.shape[0], topology.face_neighbors(faces, table))
+    open_edge = table.edge_count == 1
+    is_open = np.zeros(n, dtype=bool)
+    he_face = np.arange(faces.size) // 3
+    is_open[comp[he_face[open_edge[table.halfedge_edge]]]] = True
+    a, b, c = (vertices[faces[:, k]] for k in range(3))
+    centre = vertices[faces.reshape(-1)].mean(axis=0)  # volumes about a nearby point
+    vol = np.einsum("ij,ij->i", a - centre, np.cross(b - centre, c - centre))
+    total = np.bincount(comp, weights=vol, minlength=n)
+    return (total < 0)[comp] & ~is_open[comp]
+
+
+def _repair_core(vertices: NDArray[np.float64], faces: NDArray[np.int64]):
+    """The repair without the findings: (vertices, faces, kept input faces, vertex map,
+    vertex parents, flipped output faces, inverted components)."""
+    nv = vertices.shape[0]
+    bad_v = ~np.isfinite(vertices).all(axis=1)
+    drop = bad_v[faces].any(axis=1)
+    drop |= _degenerate_faces(vertices, faces)
+    dup, back = _duplicate_faces(faces)
+    drop |= dup | back
+    keep = np.flatnonzero(~drop)
+    if keep.size == 0:
+        raise errors.EmptyMeshError(
+            "no face is left after dropping the degenerate, duplicate and back-to-back faces",
+            first=(),
+            count=0,
+        )
+    kept = faces[keep]
+    used = np.zeros(nv, dtype=bool)
+    used[kept.reshape(-1)] = True
+    vertex_map = np.full(nv, -1, dtype=np.int64)
+    vertex_map[used] = np.arange(int(used.sum()))
+    new_faces, parent_local = _split_fans(vertex_map[kept], int(used.sum()))
+    vertex_parent = np.flatnonzero(used)[parent_local]
+    new_vertices = vertices[vertex_parent]
+    flipped = _orient(new_faces, new_vertices.shape[0])
+    flip = np.zeros(new_faces.shape[0], dtype=bool)
+    flip[flipped] = True
+    oriented = np.where(flip[:, None], new_faces[:, ::-1], new_faces)
+    inside = _inside_out(new_vertices, oriented)
+    inverted = 0
+    if inside.any():
+        table = topology.edge_table(oriented, new_vertices.shape[0])
+        _, comp = topology.face_components(
+            oriented.shape[0], topology.face_neighbors(oriented, table)
+        )
+        inverted = int(np.unique(comp[inside]).size)
+        flip ^= inside
+    new_faces = np.where(flip[:, None], new_faces[:, ::-1], new_faces)
+    return new_vertices, new_faces, keep, vertex_map, vertex_parent, np.flatnonzero(flip), inverted
+
+
 def repair_arrays(
     vertices: NDArray[np.float64],
     faces: NDArray[np.int64],
@@ -527,9 +600,11 @@ def repair_arrays(
     """Remove the repairable problems of a mesh.
 
     Drops faces that touch non-finite vertices, degenerate faces, later copies of duplicate
-    faces and both faces of back-to-back pairs, then unreferenced vertices; flips faces to a
-    consistent orientation. Problems that cannot be repaired (indices out of range,
-    non-manifold edges or vertices that remain, an empty result) raise.
+    faces and both faces of back-to-back pairs, then unreferenced vertices; splits the
+    sheets meeting at a non-manifold edge or vertex apart (one vertex copy per fan of
+    faces); flips faces to a consistent orientation, and turns closed components that are
+    inside out (negative signed volume) right side out. Problems that cannot be repaired
+    (indices out of range, a non-orientable surface, an empty result) raise.
 
     Parameters
     ----------
@@ -548,33 +623,28 @@ def repair_arrays(
     fatal = [f for f in findings if not f.repairable]
     if fatal and fatal[0].kind in ("empty", "index_range"):
         raise_first(fatal)
-    nv, nf = vertices.shape[0], faces.shape[0]
-    bad_v = ~np.isfinite(vertices).all(axis=1)
-    drop = bad_v[faces].any(axis=1)
-    drop |= _degenerate_faces(vertices, faces)
-    dup, back = _duplicate_faces(faces)
-    drop |= dup | back
-    keep = np.flatnonzero(~drop)
+    nf = faces.shape[0]
+    if not findings and not _inside_out(vertices, faces).any():
+        # a valid mesh the right way out: nothing to change
+        ident = np.arange(vertices.shape[0], dtype=np.int64)
+        report = RepairReport(
+            ident, np.arange(nf, dtype=np.int64), np.zeros(0, dtype=np.int64), [], ident, 0
+        )
+        return vertices, faces, vertex_colors, report
+    try:
+        new_vertices, new_faces, keep, vertex_map, parent, flipped_new, inverted = _repair_core(
+            vertices, faces
+        )
+    except errors.EmptyMeshError as exc:
+        raise type(exc)(f"after repair: {exc}", first=exc.first, count=exc.count) from None
     face_map = np.full(nf, -1, dtype=np.int64)
     face_map[keep] = np.arange(keep.size)
-    kept = faces[keep]
-    used = np.zeros(nv, dtype=bool)
-    used[kept.reshape(-1)] = True
-    vertex_map = np.full(nv, -1, dtype=np.int64)
-    vertex_map[used] = np.arange(int(used.sum()))
-    new_faces = vertex_map[kept]
-    new_vertices = vertices[used]
-    new_colors = vertex_colors[used] if vertex_colors is not None else None
+    new_colors = vertex_colors[parent] if vertex_colors is not None else None
     after = find_problems(new_vertices, new_faces)
-    remaining = [f for f in after if f.kind != "inconsistent_orientation"]
-    if remaining:
-        raise_first(remaining, where="after repair")
-    flipped_new = (
-        _orient(new_faces, new_vertices.shape[0]) if after else np.zeros(0, dtype=np.int64)
-    )
-    if flipped_new.size:
-        new_faces = new_faces.copy()
-        new_faces[flipped_new] = new_faces[flipped_new][:, ::-1]
+    if after:
+        raise_first(after, where="after repair")
     flipped = keep[flipped_new]
-    report = RepairReport(vertex_map, face_map, flipped.astype(np.int64), findings)
+    report = RepairReport(
+        vertex_map, face_map, flipped.astype(np.int64), findings, parent, inverted
+    )
     return new_vertices, new_faces, new_colors, report

@@ -10,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
+from meshfit._cliargs import add_repair_option
+
 __all__ = ["add_commands", "cmd_springs", "save_spring_mesh"]
 
 #: format version of the .npz files written by `save_spring_mesh`
@@ -72,7 +74,7 @@ def cmd_springs(args: argparse.Namespace) -> int:
     from meshfit.springs.metrics import out_of_bounds
 
     t0 = time.perf_counter()
-    mesh = load_mesh(args.mesh)
+    mesh = load_mesh(args.mesh, repair=args.repair)
     layout = load_layout(args.layout, mesh)
     t_load = time.perf_counter() - t0
     t = time.perf_counter()
@@ -304,6 +306,7 @@ def add_commands(sub) -> None:
         help="resample every patch of a layout into a spring mesh (gridded resampling)",
     )
     p.add_argument("mesh", help="mesh file the layout was made for")
+    add_repair_option(p)
     p.add_argument("--layout", required=True, help="layout JSON file (meshfit_layout 1)")
     p.add_argument(
         "--level",

@@ -7,6 +7,7 @@ import sys
 import time
 from pathlib import Path
 
+from meshfit._cliargs import add_repair_option
 from meshfit.errors import InputError
 
 __all__ = ["add_commands", "build_app", "cmd_ui"]
@@ -45,7 +46,7 @@ def add_commands(sub) -> None:
         default=200.0,
         help="largest mesh upload accepted, MB (default: %(default)s)",
     )
-    p.add_argument("--repair", action="store_true", help="repair the mesh while loading it")
+    add_repair_option(p)
     p.set_defaults(func=cmd_ui)
 
 

@@ -1,0 +1,835 @@
+"""Automatic four-sided layouts of meshes of any topology: geodesic Voronoi cells split into quads.
+
+Method
+------
+1. **Seeds.** Farthest-point sampling by distance along mesh edges, on every component in
+   proportion to its area (at least one seed each), then Lloyd steps: each seed moves to the
+   vertex of its cell nearest the cell's area centroid (a centroidal Voronoi tessellation,
+   whose cells are close to regular hexagons, so their sides have similar lengths).
+2. **Cells.** Every vertex takes the label of its nearest seed (one multi-source Dijkstra).
+   A cell must be a disk: its vertex-induced subcomplex has Euler characteristic 1 (a cell
+   that wraps round a handle or a hole has a lower one). And it must hold a shape one patch
+   can: no more than `CONE_SHARE` of its area may turn more than `NORMAL_CONE` from its
+   mean normal (an ear, a horn, a fold back). A cell that fails either test gets a second
+   seed at its vertex farthest from its seed, and the round repeats within a budget.
+3. **Cell boundaries.** The mesh is clipped along the label field: cut points at the
+   mid-points of edges whose ends differ and at the centroids of faces with three labels,
+   so each cell is a submesh of exact face points of the input, and where the mesh is open
+   its boundary runs along the mesh boundary. Points where three cells meet, or where two
+   meet on the mesh boundary, are corners; a cell with fewer than three gets more at even
+   arc length (a cell that is a whole disk-shaped component, a cap surrounded by one cell).
+4. **Quads.** Each side of a cell is halved at its arc-length mid-point; the cell is mapped
+   onto a convex polygon inscribed in the unit circle (Tutte's embedding with mean value
+   weights, a bijection for a disk: Floater 2003) and its centre, the image of the origin,
+   is joined to the mid-points by the images of straight radii, which cannot cross. A
+   k-sided cell gives k quads (corner, mid-point, centre, mid-point), as one Catmull-Clark
+   step splits a polygon.
+5. Interior curves are relaxed as surface snakes with fixed ends; if the relaxed network
+   no longer cuts the mesh into disks, the unrelaxed one is kept. Curves on the mesh
+   boundary are not moved.
+
+Why this route: it needs no global parameterization, so it works for every genus, open
+meshes and several components alike, and its tests (disk, normal cone) say directly why a
+cell gets more patches instead of retrying rotations. The sphere-map route of
+:mod:`meshfit.layout.auto` stays the choice for one closed genus-0 surface where it
+measures better (see :func:`meshfit.layout.auto.auto_layout` and the layout benchmark).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import sparse
+from scipy.sparse import csgraph
+from scipy.sparse.linalg import spsolve
+from scipy.spatial import cKDTree
+
+from meshfit.errors import InputError, LayoutError, MeshfitError
+from meshfit.layout.layout import Layout, layout_from_curves
+from meshfit.mesh import Mesh
+from meshfit.mesh.topology import boundary_loops, edge_table, face_neighbors
+from meshfit.types import SurfaceCurve, SurfacePoints
+
+__all__ = ["CellReport", "region_layout"]
+
+#: quads per cell on average on a closed surface (a Voronoi cell has about six sides)
+QUADS_PER_CELL = 6
+#: Lloyd steps of the seeds before and after seeds are added
+LLOYD_STEPS = 4
+#: a cell may have at most this share of its area turning more than `NORMAL_CONE` from its
+#: mean normal (a few noisy scan faces do not split it)
+CONE_SHARE = 0.02
+#: largest angle (degrees) between a cell's mean normal and its surface before the cell is
+#: split: within it the cell is a height field over its mean plane, so none of its quads
+#: folds over itself
+NORMAL_CONE = 90.0
+#: rounds of seed insertion at most (each round adds a seed to every cell that fails)
+MAX_ROUNDS = 40
+#: fewest input faces per patch (more patches are refused: a spring grid needs faces)
+MIN_FACES_PER_PATCH = 16
+#: a traced radius has consecutive samples at most this many mean edge lengths apart ...
+TRACE_GAP_EDGES = 1.0
+#: ... within this many rounds of halving
+TRACE_ROUNDS = 30
+
+
+@dataclass(frozen=True)
+class CellReport:
+    """What :func:`region_layout` did, for the fit summary.
+
+    Attributes
+    ----------
+    cells : int
+        Voronoi cells (each gives as many patches as it has sides).
+    seeds_added : dict
+        Seeds added because a cell was not a disk (``"disk"``) or turned too far
+        (``"normal_cone"``).
+    components : int
+        Connected components laid out.
+    rounds : int
+        Rounds of the cell tests.
+    """
+
+    cells: int
+    seeds_added: dict
+    components: int
+    rounds: int
+
+
+# ----------------------------------------------------------------------------- seeds, cells
+
+
+def _voronoi(graph: sparse.csr_matrix, seeds: NDArray[np.int64]):
+    """(distance, label) of every vertex to its nearest seed along mesh edges."""
+    dist, _, src = csgraph.dijkstra(
+        graph, directed=False, indices=seeds, min_only=True, return_predecessors=True
+    )
+    label = np.full(src.shape[0], -1, dtype=np.int64)
+    ok = src >= 0
+    lookup = np.full(int(seeds.max()) + 1, -1, dtype=np.int64)
+    lookup[seeds] = np.arange(seeds.size)
+    label[ok] = lookup[src[ok]]
+    return dist, label
+
+
+def _vertex_areas(mesh: Mesh) -> NDArray[np.float64]:
+    return np.bincount(
+        mesh.faces.reshape(-1),
+        weights=np.repeat(mesh.face_areas / 3.0, 3),
+        minlength=mesh.n_vertices,
+    )
+
+
+def _initial_seeds(mesh: Mesh, graph, n_cells: int) -> NDArray[np.int64]:
+    """Farthest-point seeds, at least one per component, the rest by area share."""
+    comp = mesh.vertex_components
+    used = np.zeros(mesh.n_vertices, dtype=bool)
+    used[mesh.faces.reshape(-1)] = True
+    n_comp = int(comp.max()) + 1 if comp.size else 0
+    vareas = _vertex_areas(mesh)
+    areas = np.bincount(comp, weights=vareas, minlength=n_comp)
+    share = areas / max(areas.sum(), 1e-300)
+    counts = np.maximum(1, np.round(share * n_cells)).astype(np.int64)
+    seeds: list[int] = []
+    for c in range(n_comp):
+        members = np.flatnonzero((comp == c) & used)
+        if members.size == 0:
+            continue
+        # start at the vertex farthest from the component's area centroid: the same vertex
+        # for any rigid motion or scaling of the mesh
+        centre = (mesh.vertices[members] * vareas[members, None]).sum(0) / max(
+            vareas[members].sum(), 1e-300
+        )
+        first = int(members[np.argmax(((mesh.vertices[members] - centre) ** 2).sum(1))])
+        d = csgraph.dijkstra(graph, directed=False, indices=first)
+        mine = [first]
+        for _ in range(int(counts[c]) - 1):
+            dm = np.where(np.isfinite(d), d, -1.0)
+            dm[~((comp == c) & used)] = -1.0
+            nxt = int(np.argmax(dm))
+            if dm[nxt] <= 0:
+                break
+            mine.append(nxt)
+            d = np.minimum(d, csgraph.dijkstra(graph, directed=False, indices=nxt))
+        seeds.extend(mine)
+    return np.asarray(seeds, dtype=np.int64)
+
+
+def _lloyd(mesh: Mesh, graph, seeds: NDArray[np.int64], steps: int, vareas) -> NDArray[np.int64]:
+    """Seeds moved ``steps`` times to the vertex of their cell nearest its area centroid."""
+    for _ in range(steps):
+        _, label = _voronoi(graph, seeds)
+        ok = label >= 0
+        k = seeds.size
+        w = np.bincount(label[ok], weights=vareas[ok], minlength=k)
+        cen = (
+            np.stack(
+                [
+                    np.bincount(label[ok], weights=vareas[ok] * mesh.vertices[ok, j], minlength=k)
+                    for j in range(3)
+                ],
+                axis=1,
+            )
+            / np.maximum(w, 1e-300)[:, None]
+        )
+        d2 = ((mesh.vertices - cen[np.maximum(label, 0)]) ** 2).sum(1)
+        d2[~ok] = np.inf
+        order = np.lexsort((d2, label))
+        lab_sorted = label[order]
+        first = np.searchsorted(lab_sorted, np.arange(k))
+        new = order[np.minimum(first, order.size - 1)]
+        keep = (first < order.size) & (
+            lab_sorted[np.minimum(first, order.size - 1)] == np.arange(k)
+        )
+        moved = np.where(keep, new, seeds)
+        if np.array_equal(np.sort(moved), np.sort(seeds)) or np.unique(moved).size < k:
+            break
+        seeds = moved
+    return seeds
+
+
+def _euler_per_cell(mesh: Mesh, label: NDArray[np.int64], k: int) -> NDArray[np.int64]:
+    """Euler characteristic of each cell's vertex-induced subcomplex."""
+    nv = np.bincount(label[label >= 0], minlength=k)
+    e = mesh.edges
+    le = label[e]
+    same = le[:, 0] == le[:, 1]
+    ne = np.bincount(le[same, 0], minlength=k)
+    lf = label[mesh.faces]
+    fs = (lf[:, 0] == lf[:, 1]) & (lf[:, 1] == lf[:, 2])
+    nf = np.bincount(lf[fs, 0], minlength=k)
+    return (nv - ne + nf).astype(np.int64)
+
+
+def _cone_fails(mesh: Mesh, label: NDArray[np.int64], k: int, vareas):
+    """Cells with more than `CONE_SHARE` of their area beyond `NORMAL_CONE` of their mean
+    normal, and the mask of the vertices beyond it."""
+    n = mesh.vertex_normals
+    ok = label >= 0
+    lab = np.where(ok, label, 0)
+    mean = np.stack(
+        [np.bincount(lab, weights=vareas * n[:, j] * ok, minlength=k) for j in range(3)], axis=1
+    )
+    norm = np.linalg.norm(mean, axis=1)
+    mean = mean / np.maximum(norm, 1e-300)[:, None]
+    dots = (n * mean[lab]).sum(1)
+    far = (dots < np.cos(np.radians(NORMAL_CONE))) & ok
+    far_area = np.bincount(lab[far], weights=vareas[far], minlength=k)
+    total = np.bincount(lab[ok], weights=vareas[ok], minlength=k)
+    return far_area > CONE_SHARE * np.maximum(total, 1e-300), far
+
+
+def _cells(mesh: Mesh, n_cells: int, max_cells: int):
+    """Seeds and labels whose cells are disks within the normal cone (or the budget's end)."""
+    graph = mesh.edge_graph
+    vareas = _vertex_areas(mesh)
+    seeds = _initial_seeds(mesh, graph, n_cells)
+    seeds = _lloyd(mesh, graph, seeds, LLOYD_STEPS, vareas)
+    added = {"disk": 0, "normal_cone": 0}
+    rounds = 0
+    for rounds in range(1, MAX_ROUNDS + 1):
+        dist, label = _voronoi(graph, seeds)
+        k = seeds.size
+        chi = _euler_per_cell(mesh, label, k)
+        not_disk = chi != 1
+        cone, far = _cone_fails(mesh, label, k, vareas)
+        cone &= ~not_disk
+        bad = np.flatnonzero(not_disk | cone)
+        if bad.size == 0:
+            return seeds, label, added, rounds
+        room = max_cells - k
+        if room <= 0:
+            if not_disk.any():
+                break
+            return seeds, label, added, rounds
+        # the vertex of each failing cell farthest from its seed (cells that are no disk
+        # first, when the budget is short)
+        take = bad[np.argsort(~not_disk[bad], kind="stable")][:room]
+        # (a cell that turns too far: its turned vertex farthest from the seed)
+        rank = np.where(far | not_disk[np.maximum(label, 0)], dist, -1.0)
+        order = np.lexsort((-rank, label))
+        new = order[np.searchsorted(label[order], take)]
+        for c in take:
+            added["disk" if not_disk[c] else "normal_cone"] += 1
+        seeds = np.unique(np.concatenate([seeds, new]))
+        seeds = _lloyd(mesh, graph, seeds, 1, vareas)
+    bad = int(np.flatnonzero(_euler_per_cell(mesh, label, seeds.size) != 1)[0])
+    raise LayoutError(
+        f"the automatic layout could not make every cell a disk within {max_cells} cells "
+        f"(the cell round vertex {int(seeds[bad])} is not one): ask for more patches "
+        "(--patches) or give a layout file"
+    )
+
+
+# ----------------------------------------------------------------------------- clipping
+
+
+@dataclass
+class _Clip:
+    """The mesh clipped along the label field: sub-triangles of the input faces, each in one
+    cell, over the input's vertices plus edge and face cut points."""
+
+    tri: NDArray[np.int64]  # (nt, 3) clipped-vertex ids
+    tri_label: NDArray[np.int64]  # (nt,)
+    tri_face: NDArray[np.int64]  # (nt,) input face
+    tri_bary: NDArray[np.float64]  # (nt, 3, 3) corner barycentrics in the input face
+    src_face: NDArray[np.int64]  # (nc,) a face holding each clipped vertex
+    src_bary: NDArray[np.float64]  # (nc, 3)
+    xyz: NDArray[np.float64]  # (nc, 3)
+    is_junction: NDArray[np.bool_]  # (nc,) three cells meet, or two on the mesh boundary
+
+
+def _clip(mesh: Mesh, label: NDArray[np.int64]) -> _Clip:
+    F = mesh.faces
+    nv = mesh.n_vertices
+    E = mesh.edges
+    le = label[E]
+    cut_edge = le[:, 0] != le[:, 1]
+    edge_node = np.full(E.shape[0], -1, dtype=np.int64)
+    edge_node[cut_edge] = nv + np.arange(int(cut_edge.sum()))
+    n_en = int(cut_edge.sum())
+    L = label[F]
+    three = (L[:, 0] != L[:, 1]) & (L[:, 1] != L[:, 2]) & (L[:, 2] != L[:, 0])
+    face_node = np.full(F.shape[0], -1, dtype=np.int64)
+    face_node[three] = nv + n_en + np.arange(int(three.sum()))
+    n_clip = nv + n_en + int(three.sum())
+
+    eye = np.eye(3)
+    mid = np.array([(eye[k] + eye[(k + 1) % 3]) / 2.0 for k in range(3)])
+    cen = np.full(3, 1.0 / 3.0)
+    FE = mesh.face_edges
+    tris, labs, faces, barys = [], [], [], []
+
+    def add(f, ids, bary, lab):
+        tris.append(ids)
+        labs.append(lab)
+        faces.append(f)
+        barys.append(bary)
+
+    # one label: the face itself
+    one = (L[:, 0] == L[:, 1]) & (L[:, 1] == L[:, 2])
+    f1 = np.flatnonzero(one)
+    add(f1, F[f1], np.broadcast_to(eye, (f1.size, 3, 3)), L[f1, 0])
+    # two labels: the odd vertex k cut off by the mid-points of its two edges
+    two = ~one & ~three
+    for k in range(3):
+        a, b, c = k, (k + 1) % 3, (k + 2) % 3
+        fk = np.flatnonzero(two & (L[:, b] == L[:, c]))
+        if not fk.size:
+            continue
+        m_ab = edge_node[FE[fk, a]]  # edge a is (F[a], F[a+1])
+        m_ca = edge_node[FE[fk, c]]  # edge c is (F[c], F[a])
+        va, vb, vc = F[fk, a], F[fk, b], F[fk, c]
+        ba = np.broadcast_to(np.stack([eye[a], mid[a], mid[c]]), (fk.size, 3, 3))
+        add(fk, np.stack([va, m_ab, m_ca], 1), ba, L[fk, a])
+        b1 = np.broadcast_to(np.stack([mid[a], eye[b], eye[c]]), (fk.size, 3, 3))
+        add(fk, np.stack([m_ab, vb, vc], 1), b1, L[fk, b])
+        b2 = np.broadcast_to(np.stack([mid[a], eye[c], mid[c]]), (fk.size, 3, 3))
+        add(fk, np.stack([m_ab, vc, m_ca], 1), b2, L[fk, b])
+    # three labels: each vertex keeps the quad (vertex, mid-point, centroid, mid-point)
+    f3 = np.flatnonzero(three)
+    for k in range(3):
+        a, c = k, (k + 2) % 3
+        va = F[f3, a]
+        m_next, m_prev, cf = edge_node[FE[f3, a]], edge_node[FE[f3, c]], face_node[f3]
+        b1 = np.broadcast_to(np.stack([eye[a], mid[a], cen]), (f3.size, 3, 3))
+        add(f3, np.stack([va, m_next, cf], 1), b1, L[f3, a])
+        b2 = np.broadcast_to(np.stack([eye[a], cen, mid[c]]), (f3.size, 3, 3))
+        add(f3, np.stack([va, cf, m_prev], 1), b2, L[f3, a])
+
+    tri = np.concatenate(tris).astype(np.int64)
+    tri_bary = np.concatenate([np.asarray(b) for b in barys])
+    tri_face = np.concatenate(faces).astype(np.int64)
+    # each clipped vertex's source: the first sub-triangle corner that names it
+    src_face = np.zeros(n_clip, dtype=np.int64)
+    src_bary = np.zeros((n_clip, 3))
+    flat = tri.reshape(-1)
+    first = np.full(n_clip, -1, dtype=np.int64)
+    order = np.arange(flat.size)[::-1]
+    first[flat[order]] = order
+    has = first >= 0
+    src_face[has] = tri_face[first[has] // 3]
+    src_bary[has] = tri_bary.reshape(-1, 3)[first[has]]
+    xyz = np.einsum("nk,nkj->nj", src_bary, mesh.vertices[mesh.faces[src_face]])
+    junction = np.zeros(n_clip, dtype=bool)
+    junction[face_node[three]] = True
+    border_cut = cut_edge & (mesh.edge_face_count == 1)
+    junction[edge_node[border_cut]] = True
+    return _Clip(
+        tri,
+        np.concatenate(labs).astype(np.int64),
+        tri_face,
+        tri_bary,
+        src_face,
+        src_bary,
+        xyz,
+        junction,
+    )
+
+
+# ----------------------------------------------------------------------------- cells' loops
+
+
+@dataclass
+class _Cell:
+    tris: NDArray[np.int64]  # sub-triangles of the clip
+    verts: NDArray[np.int64]  # clipped vertices used, ascending (local index = position)
+    loop: NDArray[np.int64]  # boundary loop, clipped ids, cell on the left
+
+
+def _cell_loops(clip: _Clip, k: int) -> list[_Cell]:
+    order = np.argsort(clip.tri_label, kind="stable")
+    starts = np.searchsorted(clip.tri_label[order], np.arange(k + 1))
+    cells = []
+    for c in range(k):
+        tris = order[starts[c] : starts[c + 1]]
+        T = clip.tri[tris]
+        verts, inv = np.unique(T.reshape(-1), return_inverse=True)
+        local = inv.reshape(-1, 3).astype(np.int64)
+        loops = boundary_loops(local, edge_table(local, verts.size))
+        if len(loops) != 1:
+            raise LayoutError(f"cell {c} has {len(loops)} boundary loops")
+        cells.append(_Cell(tris, verts, verts[loops[0]]))
+    return cells
+
+
+def _arc(xyz: NDArray[np.float64], ids: NDArray[np.int64], closed: bool) -> NDArray[np.float64]:
+    p = xyz[ids]
+    if closed:
+        p = np.vstack([p, p[:1]])
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+
+
+def _corners(clip: _Clip, cells: list[_Cell]) -> NDArray[np.bool_]:
+    """The junctions, plus corners added at even arc length on every cell loop with fewer
+    than three."""
+    corner = clip.is_junction.copy()
+    for _ in range(3 * len(cells) + 3):
+        changed = False
+        for cell in cells:
+            loop = cell.loop
+            pos = np.flatnonzero(corner[loop])
+            if pos.size >= 3:
+                continue
+            arc = _arc(clip.xyz, loop, True)
+            total = arc[-1]
+            if pos.size == 0:
+                picks = [int(np.argmin(np.abs(arc[:-1] - t * total))) for t in (0, 1 / 3, 2 / 3)]
+            else:
+                # halve the longest stretch between consecutive corners (arc lengths along
+                # the loop run twice round, so a stretch may pass the loop's start)
+                arc2 = np.concatenate([arc[:-1], total + arc[:-1]])
+                ends = np.append(pos, pos[0] + loop.size)
+                lens = arc2[ends[1:]] - arc2[ends[:-1]]
+                j = int(np.argmax(lens))
+                a, b = int(ends[j]), int(ends[j + 1])
+                idx = np.arange(a + 1, b)
+                if idx.size == 0:
+                    raise LayoutError("a cell side too short to take another corner")
+                half = arc2[a] + lens[j] / 2.0
+                picks = [int(idx[np.argmin(np.abs(arc2[idx] - half))] % loop.size)]
+            corner[loop[picks]] = True
+            changed = True
+        if not changed:
+            return corner
+    raise LayoutError("corners could not be placed on every cell")
+
+
+# ----------------------------------------------------------------------------- the layout
+
+
+@dataclass
+class _Stretch:
+    ids: NDArray[np.int64]  # clipped vertices, corner to corner
+    mid_seg: int  # the mid-point lies on segment ids[mid_seg] -> ids[mid_seg + 1] ...
+    mid_t: float  # ... at this fraction
+    uses: int
+
+
+def _stretches(clip: _Clip, cells: list[_Cell], corner: NDArray[np.bool_]):
+    """Every cell's sides as (stretch, reversed) in loop order, and the stretches."""
+    found: dict[tuple[int, int], tuple[int, bool]] = {}
+    stretches: list[_Stretch] = []
+    sides: list[list[tuple[int, bool]]] = []
+    for cell in cells:
+        loop = cell.loop
+        pos = np.flatnonzero(corner[loop])
+        loop = np.roll(loop, -int(pos[0]))
+        pos = pos - pos[0]
+        mine = []
+        for j in range(pos.size):
+            a = int(pos[j])
+            b = int(pos[j + 1]) if j + 1 < pos.size else loop.size
+            ids = np.append(loop[a:b], loop[b % loop.size])
+            key = (int(ids[0]), int(ids[1]))
+            if key in found:
+                s, rev = found[key]
+                stretches[s].uses += 1
+                mine.append((s, rev))
+                continue
+            arc = _arc(clip.xyz, ids, False)
+            if ids.size > 2:
+                # the mid-point at the inner vertex nearest half the length: a point just
+                # beside a vertex of the stretch would put the radius that ends at it
+                # within the cut's snapping distance of the stretch
+                j = 1 + int(np.argmin(np.abs(arc[1:-1] - arc[-1] / 2.0)))
+                seg, t = j - 1, 1.0
+            else:
+                seg, t = 0, 0.5
+            s = len(stretches)
+            stretches.append(_Stretch(ids, seg, t, 1))
+            found[key] = (s, False)
+            found[(int(ids[-1]), int(ids[-2]))] = (s, True)
+            mine.append((s, False))
+        sides.append(mine)
+    return stretches, sides
+
+
+def _segment_point(clip: _Clip, cell: _Cell, u: int, w: int, t: float):
+    """Face point at fraction ``t`` from clipped vertex ``u`` to ``w`` along a boundary edge
+    of ``cell`` (in the input face of the sub-triangle holding that edge)."""
+    T = clip.tri[cell.tris]
+    for k in range(3):
+        hit = np.flatnonzero(
+            ((T[:, k] == u) & (T[:, (k + 1) % 3] == w))
+            | ((T[:, k] == w) & (T[:, (k + 1) % 3] == u))
+        )
+        if hit.size:
+            i = int(hit[0])
+            ku = int(np.flatnonzero(T[i] == u)[0])
+            kw = int(np.flatnonzero(T[i] == w)[0])
+            b = clip.tri_bary[cell.tris[i]]
+            return int(clip.tri_face[cell.tris[i]]), (1.0 - t) * b[ku] + t * b[kw]
+    raise LayoutError("a cell side has no sub-triangle")
+
+
+def _mean_value_weights(P: NDArray[np.float64], T: NDArray[np.int64], n: int) -> sparse.csr_matrix:
+    """Floater's mean value weights ``w[i, j]`` (positive, so Tutte's embedding with them is a
+    bijection onto a convex boundary polygon)."""
+    rows, cols, vals = [], [], []
+    for k in range(3):
+        i, j, l = T[:, k], T[:, (k + 1) % 3], T[:, (k + 2) % 3]
+        eij, eil = P[j] - P[i], P[l] - P[i]
+        nij = np.linalg.norm(eij, axis=1)
+        nil = np.linalg.norm(eil, axis=1)
+        cosang = np.clip((eij * eil).sum(1) / np.maximum(nij * nil, 1e-300), -1.0, 1.0)
+        t = np.tan(np.arccos(cosang) / 2.0)
+        rows += [i, i]
+        cols += [j, l]
+        vals += [t / np.maximum(nij, 1e-300), t / np.maximum(nil, 1e-300)]
+    W = sparse.csr_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)
+    )
+    return W
+
+
+def _disc_map(clip: _Clip, cell: _Cell) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """2-d positions of the cell's vertices (boundary on the unit circle by arc length) and
+    its sub-triangles in local indices."""
+    verts = cell.verts
+    T = np.searchsorted(verts, clip.tri[cell.tris])
+    loop = np.searchsorted(verts, cell.loop)
+    P = clip.xyz[verts]
+    n = verts.size
+    arc = _arc(clip.xyz, cell.loop, True)
+    ang = 2.0 * np.pi * arc[:-1] / max(arc[-1], 1e-300)
+    uv = np.zeros((n, 2))
+    uv[loop] = np.stack([np.cos(ang), np.sin(ang)], 1)
+    inner = np.ones(n, dtype=bool)
+    inner[loop] = False
+    if inner.any():
+        W = _mean_value_weights(P, T, n)
+        deg = np.asarray(W.sum(axis=1)).ravel()
+        A = sparse.diags(deg) - W
+        A = A.tocsr()
+        ii = np.flatnonzero(inner)
+        bb = np.flatnonzero(~inner)
+        Aii = A[ii][:, ii].tocsc()
+        rhs = -(A[ii][:, bb] @ uv[bb])
+        sol = spsolve(Aii, rhs)
+        uv[ii] = np.asarray(sol).reshape(-1, 2)
+    return uv, T
+
+
+class _Locator:
+    """Point location in a cell's 2-d triangulation."""
+
+    def __init__(self, uv: NDArray[np.float64], T: NDArray[np.int64]) -> None:
+        self.uv, self.T = uv, T
+        self.tree = cKDTree(uv[T].mean(axis=1))
+        self.neighbors = face_neighbors(T, edge_table(T, uv.shape[0]))
+
+    def bary(self, q: NDArray[np.float64], tris: NDArray[np.int64]):
+        a, b, c = (self.uv[self.T[tris, k]] for k in range(3))
+        v0, v1, v2 = b - a, c - a, q - a
+        den = v0[:, 0] * v1[:, 1] - v1[:, 0] * v0[:, 1]
+        den = np.where(np.abs(den) > 1e-300, den, 1e-300)
+        l1 = (v2[:, 0] * v1[:, 1] - v1[:, 0] * v2[:, 1]) / den
+        l2 = (v0[:, 0] * v2[:, 1] - v2[:, 0] * v0[:, 1]) / den
+        return np.stack([1.0 - l1 - l2, l1, l2], 1)
+
+    def locate(self, q: NDArray[np.float64]) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+        n = q.shape[0]
+        out_t = np.full(n, -1, dtype=np.int64)
+        out_b = np.zeros((n, 3))
+        best = np.full(n, -np.inf)
+        nt = self.T.shape[0]
+        for kk in (8, 32, 128, nt):
+            todo = np.flatnonzero(best < -1e-9)
+            if not todo.size:
+                break
+            kq = min(kk, nt)
+            _, cand = self.tree.query(q[todo], k=kq)
+            cand = np.asarray(cand).reshape(todo.size, kq)
+            for j in range(kq):
+                b = self.bary(q[todo], cand[:, j])
+                m = b.min(axis=1)
+                better = m > best[todo]
+                sel = todo[better]
+                best[sel] = m[better]
+                out_t[sel] = cand[better, j]
+                out_b[sel] = b[better]
+            if kq == nt:
+                break
+        out_b = np.clip(out_b, 0.0, None)
+        out_b /= out_b.sum(axis=1, keepdims=True)
+        return out_t, out_b
+
+
+def _face_points(clip: _Clip, cell: _Cell, tloc: NDArray[np.int64], b: NDArray[np.float64]):
+    g = cell.tris[tloc]
+    bary = np.einsum("nk,nkj->nj", b, clip.tri_bary[g])
+    return clip.tri_face[g], bary
+
+
+def _radius(mesh: Mesh, clip: _Clip, cell: _Cell, loc: _Locator, start, end):
+    """Face points of the image of the 2-d segment ``start -> end``.
+
+    Sampled until consecutive samples lie in the same or edge-adjacent sub-triangles and at
+    most `TRACE_GAP_EDGES` apart; where two consecutive samples lie in different input
+    faces, the point where the segment crosses their shared edge is inserted, so that
+    consecutive points always share an input face and the curve follows the map exactly
+    (the cut would otherwise join them by unfolding the two faces, which is another path
+    where the surface bends)."""
+    gap = TRACE_GAP_EDGES * mesh.mean_edge_length
+    nbr = loc.neighbors
+    ts = np.linspace(0.0, 1.0, 17)
+    for _ in range(TRACE_ROUNDS):
+        t_loc, b = loc.locate(start[None] + ts[:, None] * (end - start)[None])
+        f, bary = _face_points(clip, cell, t_loc, b)
+        x = np.einsum("nk,nkj->nj", bary, mesh.vertices[mesh.faces[f]])
+        a, c = t_loc[:-1], t_loc[1:]
+        touching = (a == c) | (nbr[a] == c[:, None]).any(axis=1)
+        bad = ~touching | (np.linalg.norm(np.diff(x, axis=0), axis=1) > gap)
+        if not bad.any() or ts.size > 1 << 16:
+            break
+        ts = np.sort(np.concatenate([ts, (ts[:-1][bad] + ts[1:][bad]) / 2.0]))
+    else:
+        t_loc, b = loc.locate(start[None] + ts[:, None] * (end - start)[None])
+        f, bary = _face_points(clip, cell, t_loc, b)
+    faces_out, bary_out = [int(f[0])], [bary[0]]
+    g = cell.tris[t_loc]
+    for i in range(1, ts.size):
+        ta, tc = int(t_loc[i - 1]), int(t_loc[i])
+        if clip.tri_face[g[i - 1]] != clip.tri_face[g[i]] and ta != tc:
+            qa = start + ts[i - 1] * (end - start)
+            qc = start + ts[i] * (end - start)
+            cross = _crossing(clip, cell, loc, ta, tc, qa, qc)
+            if cross is not None:
+                faces_out.append(cross[0])
+                bary_out.append(cross[1])
+        faces_out.append(int(f[i]))
+        bary_out.append(bary[i])
+    return np.asarray(faces_out, dtype=np.int64), np.asarray(bary_out)
+
+
+def _crossing(clip: _Clip, cell: _Cell, loc: _Locator, ta: int, tc: int, qa, qc):
+    """Face point where the 2-d segment ``qa -> qc`` crosses the sub-edge shared by local
+    sub-triangles ``ta`` and ``tc`` (in the input face of ``ta``), or None."""
+    Ta, Tc = loc.T[ta], loc.T[tc]
+    shared = [k for k in range(3) if Ta[k] in Tc]
+    if len(shared) != 2:
+        return None
+    k0, k1 = shared
+    p, r = loc.uv[Ta[k0]], loc.uv[Ta[k1]]
+    d, e = qc - qa, r - p
+    den = d[0] * e[1] - d[1] * e[0]
+    if abs(den) < 1e-300:
+        return None
+    w = p - qa
+    s = float(np.clip((w[0] * d[1] - w[1] * d[0]) / den, 0.0, 1.0))
+    gb = clip.tri_bary[cell.tris[ta]]
+    return int(clip.tri_face[cell.tris[ta]]), (1.0 - s) * gb[k0] + s * gb[k1]
+
+
+def _assemble(mesh: Mesh, clip: _Clip, cells: list[_Cell], corner: NDArray[np.bool_]):
+    """Corners, curves, curve ends, patches and the indices of curves on the mesh boundary."""
+    stretches, sides = _stretches(clip, cells, corner)
+    corner_ids = np.flatnonzero(corner)
+    c_index = np.full(corner.size, -1, dtype=np.int64)
+    c_index[corner_ids] = np.arange(corner_ids.size)
+    cf = list(clip.src_face[corner_ids])
+    cb = list(clip.src_bary[corner_ids])
+    curves: list[SurfacePoints] = []
+    ends: list[tuple[int, int]] = []
+    border: list[bool] = []
+    halves: list[tuple[int, int]] = []
+    owner: dict[int, int] = {}
+    for ci, cs in enumerate(sides):
+        for s, rev in cs:
+            if not rev:
+                owner.setdefault(s, ci)
+
+    def pts(ids: NDArray[np.int64]):
+        return list(clip.src_face[ids]), list(clip.src_bary[ids])
+
+    mid_index = []
+    for s, st in enumerate(stretches):
+        cell = cells[owner[s]]
+        u, w = int(st.ids[st.mid_seg]), int(st.ids[st.mid_seg + 1])
+        f, b = _segment_point(clip, cell, u, w, st.mid_t)
+        mid_index.append(len(cf))
+        cf.append(f)
+        cb.append(b)
+        ff, bb = pts(st.ids[: st.mid_seg + 1])
+        first = ([*ff, f], [*bb, b])
+        # (a mid-point at the vertex ids[mid_seg + 1] replaces it in the second half)
+        ff, bb = pts(st.ids[st.mid_seg + 1 + int(st.mid_t == 1.0) :])
+        second = ([f, *ff], [b, *bb])
+        a_c, b_c = int(c_index[st.ids[0]]), int(c_index[st.ids[-1]])
+        h0 = len(curves)
+        for (fs, bs), e in ((first, (a_c, mid_index[-1])), (second, (mid_index[-1], b_c))):
+            curves.append(SurfacePoints(np.asarray(fs), np.asarray(bs)))
+            ends.append(e)
+            border.append(st.uses == 1)
+        halves.append((h0, h0 + 1))
+
+    patches: list[list[tuple[int, bool]]] = []
+    for ci, cell in enumerate(cells):
+        uv, T = _disc_map(clip, cell)
+        loc = _Locator(uv, T)
+        # the centre: the centroid of the sub-triangle holding the disc's centre, inside an
+        # input face (a centre on an edge would start the radii on it)
+        tloc, _ = loc.locate(np.zeros((1, 2)))
+        start = uv[T[tloc[0]]].mean(axis=0)
+        f0, b0 = _face_points(clip, cell, tloc, np.full((1, 3), 1.0 / 3.0))
+        centre = len(cf)
+        cf.append(int(f0[0]))
+        cb.append(b0[0])
+        loop_local = np.searchsorted(cell.verts, cell.loop)
+        pos_of = {int(v): i for i, v in enumerate(cell.loop)}
+        spokes = []
+        for s, _ in sides[ci]:
+            st = stretches[s]
+            u, w = int(st.ids[st.mid_seg]), int(st.ids[st.mid_seg + 1])
+            pu, pw = uv[loop_local[pos_of[u]]], uv[loop_local[pos_of[w]]]
+            end = (1.0 - st.mid_t) * pu + st.mid_t * pw
+            f, bary = _radius(mesh, clip, cell, loc, start, end)
+            f = f.copy()
+            bary = bary.copy()
+            f[-1], bary[-1] = cf[mid_index[s]], cb[mid_index[s]]
+            spokes.append(len(curves))
+            curves.append(SurfacePoints(f, bary))
+            ends.append((centre, mid_index[s]))
+            border.append(False)
+        k = len(sides[ci])
+        for i in range(k):
+            s_i, r_i = sides[ci][i]
+            s_p, r_p = sides[ci][i - 1]
+            first_half = (halves[s_i][1], True) if r_i else (halves[s_i][0], False)
+            second_half = (halves[s_p][0], True) if r_p else (halves[s_p][1], False)
+            patches.append([first_half, (spokes[i], True), (spokes[i - 1], False), second_half])
+    corners = SurfacePoints(np.asarray(cf, dtype=np.int64), np.asarray(cb, dtype=np.float64))
+    return corners, curves, np.asarray(ends, dtype=np.int64), patches, np.asarray(border)
+
+
+def region_layout(
+    mesh: Mesh,
+    *,
+    patches: int | None = None,
+    relax: bool = True,
+    relax_iterations: int = 200,
+    report: list | None = None,
+) -> Layout:
+    """A four-sided layout of a mesh of any genus, open or closed, of one or more components.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        A valid (repaired) mesh.
+    patches : int, keyword-only, optional
+        About how many patches (default 60): ``patches / 6`` cells on a closed genus-0
+        surface, more where the genus, the boundary or the cell tests ask for them. At most
+        one patch per `MIN_FACES_PER_PATCH` faces.
+    relax : bool, keyword-only
+        Relax the interior curves as surface snakes with fixed ends (default True).
+    relax_iterations : int, keyword-only
+        Iteration cap of each snake (default 200).
+    report : list, keyword-only, optional
+        A :class:`CellReport` is appended to it.
+
+    Returns
+    -------
+    Layout
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        ``patches`` below 1.
+    meshfit.errors.LayoutError
+        The cells could not all be made disks within the patch budget (a mesh with more
+        handles than its faces can hold patches for).
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 1.3 (four-sided patch layouts).
+    .. [2] Du, Faber & Gunzburger 1999 (centroidal Voronoi tessellations); Floater 2003
+       (mean value coordinates).
+    """
+    from meshfit.layout.auto import _relax_all
+    from meshfit.layout.extract import check_layout_topology
+
+    want = 60 if patches is None else int(patches)
+    if want < 1:
+        raise InputError(f"patches must be >= 1, got {patches}")
+    most = mesh.n_faces // MIN_FACES_PER_PATCH
+    if want > most:
+        raise InputError(
+            f"{want} patches on {mesh.name or 'the mesh'} ({mesh.n_faces} faces): an "
+            f"automatic layout needs at least {MIN_FACES_PER_PATCH} faces a patch, ask for "
+            f"at most {most} patches"
+        )
+    genus_term = 0
+    if mesh.is_closed:
+        genus_term = max(0, 2 * int(mesh.genus))
+    n_cells = max(mesh.n_components, round(want / QUADS_PER_CELL) + 2 - genus_term)
+    max_cells = max(n_cells, mesh.n_faces // (MIN_FACES_PER_PATCH * QUADS_PER_CELL))
+    seeds, label, added, rounds = _cells(mesh, n_cells, max_cells)
+    clip = _clip(mesh, label)
+    cells = _cell_loops(clip, seeds.size)
+    corner = _corners(clip, cells)
+    corners, curves, ends, quads, border = _assemble(mesh, clip, cells, corner)
+    if report is not None:
+        report.append(CellReport(int(seeds.size), added, int(mesh.n_components), rounds))
+    surface_curves = [SurfaceCurve(c, False, "boundary") for c in curves]
+    from meshfit.curves.base import densify_curves
+
+    surface_curves = densify_curves(mesh, surface_curves)
+    plain = layout_from_curves(mesh, corners, surface_curves, ends, quads)
+    if not relax:
+        check_layout_topology(mesh, plain)
+        return plain
+    inner = np.flatnonzero(~border)
+    moved = _relax_all(mesh, [surface_curves[i] for i in inner], int(relax_iterations))
+    relaxed = list(surface_curves)
+    for i, c in zip(inner.tolist(), moved, strict=True):
+        relaxed[i] = c
+    try:
+        out = layout_from_curves(mesh, corners, relaxed, ends, quads)
+        check_layout_topology(mesh, out)
+        return out
+    except MeshfitError:
+        check_layout_topology(mesh, plain)
+        return plain
