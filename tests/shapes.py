@@ -170,13 +170,13 @@ def hemisphere(subdivisions: int = 3) -> Mesh:
 
 
 def disk(n: int = 24) -> Mesh:
-    """Flat round disk of radius 1 (the jittered plane pushed into the circle)."""
+    """Flat round disk of radius 1: the jittered plane mapped onto it by the elliptical grid
+    mapping (a smooth bijection of the square onto the disk, so no triangle folds)."""
     p = plane(n, 2.0)
-    xy = p.vertices[:, :2] - 1.0
-    r = np.abs(xy).max(axis=1, keepdims=True)
-    nr = np.linalg.norm(xy, axis=1, keepdims=True)
-    xy = np.where(nr > 0, xy * r / np.maximum(nr, 1e-300), xy)
-    return Mesh(np.column_stack([xy, np.zeros(len(xy))]), p.faces, name="disk")
+    x, y = p.vertices[:, 0] - 1.0, p.vertices[:, 1] - 1.0
+    u = x * np.sqrt(1.0 - y * y / 2.0)
+    v = y * np.sqrt(1.0 - x * x / 2.0)
+    return Mesh(np.column_stack([u, v, np.zeros(len(u))]), p.faces, name="disk")
 
 
 def two_spheres() -> Mesh:

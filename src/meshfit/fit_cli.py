@@ -89,6 +89,7 @@ def _options(args: argparse.Namespace):
         patches=args.patches,
         layout_shape={"auto": None, "on": True, "off": False}[args.shape_layout],
         layout_seed=args.layout_seed,
+        crease_angle=None if args.crease_angle == 0 else args.crease_angle,
         spring_level=args.level,
         spring_rescue=not args.no_rescue,
         spring_follow_folds=args.follow_folds,
@@ -204,10 +205,22 @@ def _common(p: argparse.ArgumentParser) -> None:
         "other patches where the notes name slivers, tapered or bulging patches",
     )
     p.add_argument(
+        "--crease-angle",
+        type=float,
+        default=40.0,
+        metavar="DEG",
+        help="chains of edges sharper than this become patch boundaries of the automatic "
+        "layout, C0 with --continuity auto (default: %(default)s; 0: none)",
+    )
+    p.add_argument(
         "--cv", default="16x16", help="control points per patch, MUxMV (default: %(default)s)"
     )
     p.add_argument(
-        "--continuity", choices=("c0", "g1"), default="c0", help="across patches (default: c0)"
+        "--continuity",
+        choices=("auto", "c0", "g1"),
+        default="auto",
+        help="across patches: auto is G1 except across sharp creases, which stay C0 "
+        "(default: auto)",
     )
     p.add_argument(
         "--formats",
@@ -260,7 +273,7 @@ def _fit_grids(grid_func, args: argparse.Namespace) -> int:
         grids=args.mesh,
         controls=[mu, mv],
         class_controls=parse_class_controls(getattr(args, "class_cv", None)),
-        continuity=args.continuity.upper(),
+        continuity="C0" if args.continuity == "c0" else "G1",
         out=args.out,
         formats=",".join(f for f in _formats(args.formats) if f != "png") if args.out else "",
         json=args.json,

@@ -17,7 +17,9 @@ follows it (end points pinned to the layout corners), and every patch using the 
 its boundary row of control points to that curve's control points (Krishnamurthy 2000,
 sec. 8.1.3: boundary constraints at the fitting step). Control counts are unified across
 curves so that patches sharing a curve agree. ``continuity="g1"`` then makes the network G1
-with :func:`meshfit.stitch.stitch_surfaces`; the seams of vector displacement maps are
+with :func:`meshfit.stitch.stitch_surfaces`, and ``"auto"`` (the default) does so across
+every curve but those the layout marks as creases (:attr:`meshfit.layout.Layout.creases`),
+which stay C0 (the surface is meant to break there); the seams of vector displacement maps are
 closed with :func:`meshfit.stitch.stitch_displacements` (with ``map_shapes="matched"`` the
 maps first take equal texel counts along shared curves, and the seams are crack-free at
 every output resolution). The seams are measured either way (gap and normal jump across each
@@ -103,8 +105,9 @@ class FitOptions:
         share one count) are listed in ``summary["control_classes"]`` with their members and
         the largest count their spring grids allow; a count above that is capped (with a
         note). Stored as sorted ``(class, count)`` pairs.
-    continuity : {"c0", "g1"}
-        Continuity across shared boundaries (default ``"c0"``; see the module notes).
+    continuity : {"auto", "c0", "g1"}
+        Continuity across shared boundaries (default ``"auto"``: G1 except across the
+        layout's crease curves, which stay C0; see the module notes).
     formats : tuple of str
         Outputs among :data:`FORMATS` (default usd, obj, glb, exr, png).
     patches : int, optional
@@ -112,6 +115,10 @@ class FitOptions:
     layout_shape : bool, optional
         ``shape`` of :func:`meshfit.layout.auto.auto_layout`: move the base vertices so that
         the quads are square on the surface (default None: above 60 patches).
+    crease_angle : float, optional
+        ``crease_angle`` of :func:`meshfit.layout.auto.auto_layout`: chains of edges
+        sharper than this many degrees become patch boundaries, C0 with continuity
+        ``"auto"`` (default 40; None: no creases).
     layout_seed : int
         ``seed`` of :func:`meshfit.layout.auto.auto_layout`: the rotation of the automatic
         layout's base mesh (default 0). Another rotation gives other patches where the
@@ -165,11 +172,12 @@ class FitOptions:
 
     controls: tuple[int, int] = (16, 16)
     class_controls: Any = ()
-    continuity: str = "c0"
+    continuity: str = "auto"
     formats: tuple[str, ...] = ("usd", "obj", "glb", "exr", "png")
     patches: int | None = None
     layout_shape: bool | None = None
     layout_seed: int = 0
+    crease_angle: float | None = 40.0
     spring_level: int | None = None
     spring_max_points: int | None = None
     spring_rescue: bool = True
@@ -190,8 +198,8 @@ class FitOptions:
             raise InputError(f"controls must be at least 4 x 4, got {mu} x {mv}")
         object.__setattr__(self, "controls", (mu, mv))
         object.__setattr__(self, "class_controls", _class_pairs(self.class_controls))
-        if self.continuity not in ("c0", "g1"):
-            raise InputError(f"continuity must be 'c0' or 'g1', got {self.continuity!r}")
+        if self.continuity not in ("auto", "c0", "g1"):
+            raise InputError(f"continuity must be 'auto', 'c0' or 'g1', got {self.continuity!r}")
         fm = tuple(str(f).strip().lower() for f in self.formats if str(f).strip())
         bad = [f for f in fm if f not in FORMATS]
         if bad:
@@ -218,6 +226,11 @@ class FitOptions:
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
             raise InputError(f"layout_seed must be a whole number >= 0, got {seed!r}")
         object.__setattr__(self, "layout_seed", int(seed))
+        if self.crease_angle is not None:
+            a = float(self.crease_angle)
+            if not 0.0 < a < 180.0:
+                raise InputError(f"crease_angle must be between 0 and 180 degrees, got {a}")
+            object.__setattr__(self, "crease_angle", a)
         if int(self.image_size) < 16:
             raise InputError(f"image_size must be >= 16 pixels, got {self.image_size}")
 
@@ -517,7 +530,9 @@ def _boundary_pins(layout, corner_xyz, grids, counts) -> list[dict[str, NDArray]
 
 
 def _seam_metrics(layout, surfaces, grids_displaced, diag: float, samples: int = 33) -> dict:
-    """Gap and normal jump across every curve shared by two patches."""
+    """Gap and normal jump across every curve shared by two patches (the normal jumps over
+    smooth curves; those over the layout's crease curves, where the surface is meant to
+    break, apart as ``crease_normal_jump_max_deg``)."""
     t = np.linspace(0.0, 1.0, samples)
     users: dict[int, list[tuple[int, int, bool]]] = {}
     for p in range(len(surfaces)):
@@ -542,10 +557,13 @@ def _seam_metrics(layout, surfaces, grids_displaced, diag: float, samples: int =
     disp_gap = 0.0
     disp_any = 0.0
     shared = 0
-    for uses in users.values():
+    crease_angle = 0.0
+    n_crease = 0
+    for curve, uses in users.items():
         if len(uses) != 2:
             continue
         shared += 1
+        on_crease = bool(layout.creases[curve])
         pts, nrm = [], []
         for p, s, rev in uses:
             along = t[::-1] if rev else t  # both in the curve's own direction
@@ -556,6 +574,10 @@ def _seam_metrics(layout, surfaces, grids_displaced, diag: float, samples: int =
         gap = max(gap, float(np.linalg.norm(pts[0] - pts[1], axis=1).max()))
         cos = np.clip((nrm[0] * nrm[1]).sum(axis=1), -1.0, 1.0)
         a = np.degrees(np.arccos(cos))
+        if on_crease:
+            n_crease += 1
+            crease_angle = max(crease_angle, float(a.max()))
+            a = np.zeros_like(a)
         angle = max(angle, float(a.max()))
         angle_ends = max(angle_ends, float(a[0]), float(a[-1]))
         p0, s0, _ = uses[0]
@@ -584,6 +606,8 @@ def _seam_metrics(layout, surfaces, grids_displaced, diag: float, samples: int =
         "spline_normal_jump_max_deg": angle,
         "spline_normal_jump_inner_max_deg": angle_inner,
         "spline_normal_jump_corner_point_max_deg": angle_ends,
+        "crease_curves": n_crease,
+        "crease_normal_jump_max_deg": crease_angle,
         "displaced_gap_max": disp_gap / diag,
         "displaced_gap_any_resolution_max": disp_any / diag,
     }
@@ -751,12 +775,17 @@ def _resolve_layout(mesh: Mesh, layout, options: FitOptions):
             from meshfit.layout.auto import auto_layout
 
             return auto_layout(
-                mesh, patches=options.patches, shape=options.layout_shape, seed=options.layout_seed
+                mesh,
+                patches=options.patches,
+                shape=options.layout_shape,
+                seed=options.layout_seed,
+                crease_angle=options.crease_angle,
             )
 
         shape = {None: "", True: ":shaped", False: ":unshaped"}[options.layout_shape]
         seed = f":seed{options.layout_seed}" if options.layout_seed else ""
-        return f"auto:{options.patches}{shape}{seed}:r{AUTO_LAYOUT_REVISION}", make
+        crease = f":crease{options.crease_angle}"
+        return f"auto:{options.patches}{shape}{seed}{crease}:r{AUTO_LAYOUT_REVISION}", make
     if not isinstance(layout, (str, os.PathLike)):
         raise InputError(
             f"layout must be a Layout, a layout file's path, 'auto' or None, got "
@@ -846,6 +875,8 @@ def run_fit(
     hashed = hasher.submit(mesh_hash, mesh)
     hasher.shutdown(wait=False)
     diag = float(mesh.bbox_diagonal)
+    if mesh.repairs is not None and mesh.repairs.changed():
+        notes.append(f"the input was {mesh.repairs.summary()}")
     st.done("validate", t0, cached=False)
 
     # ---- layout
@@ -869,12 +900,18 @@ def run_fit(
         write_bytes(out / "layout.json", staged.read_bytes())
     n_patches = int(lay.n_patches)
     if source.startswith("auto") and options.patches is not None and n_patches != options.patches:
-        from meshfit.layout.auto import MIN_PATCHES
+        from meshfit.layout.auto import MIN_PATCHES, auto_route
 
+        route = auto_route(mesh, patches=options.patches, crease_angle=options.crease_angle)
+        why = (
+            f"it makes three per base triangle, an even number of triangles, at least "
+            f"{MIN_PATCHES} patches"
+            if route == "sphere"
+            else "it makes one per side of every cell, and more cells where a cell is not a "
+            "disk or turns too far for one patch (meshfit.layout.regions)"
+        )
         notes.append(
-            f"the automatic layout has {n_patches} patches for the {options.patches} asked: it "
-            f"makes three per base triangle, an even number of triangles, at least {MIN_PATCHES} "
-            "patches"
+            f"the automatic layout has {n_patches} patches for the {options.patches} asked: {why}"
         )
     st.done("layout", t0, cached=cached is not None, patches=n_patches)
 
@@ -982,8 +1019,9 @@ def run_fit(
         res = _parallel(fit, list(range(n_patches)), workers, "fit", st)
         surfaces = [s for s, _ in res]
         fit_info = [i for _, i in res]
-        if options.continuity == "g1":
-            surfaces = _stitch_g1(grids, surfaces, notes)
+        if options.continuity in ("g1", "auto"):
+            creases = lay.creases if options.continuity == "auto" else None
+            surfaces = _stitch_g1(surfaces, notes, lay, creases)
         arrays = {f"ctrl_{p}": s.control_points for p, s in enumerate(surfaces)}
         arrays["info"] = _as_bytes(_untimed(fit_info))
         _save_npz(st.path("fit", k_fit, ".npz"), arrays)
@@ -1038,7 +1076,7 @@ def run_fit(
         seams = _from_bytes(z["seams"])
     else:
         if options.map_kind == "vector":
-            dmaps = _stitch_maps(grids, surfaces, dmaps, notes, options.map_shapes == "matched")
+            dmaps = _stitch_maps(lay, surfaces, dmaps, notes, options.map_shapes == "matched")
 
     @cache
     def displaced_grids() -> list[NDArray[np.float64]]:
@@ -1149,11 +1187,17 @@ def run_fit(
                     "displaced_from_input_max_per_patch", [None] * n_patches
                 )[p],
                 "displacement_max": float(np.abs(d).max() / diag),
+                "crease_sides": int(lay.creases[lay.patch_curves[p]].sum()),
             }
         )
-    notes.extend(
-        _quality_notes(patch_rows, options.layout_seed if source.startswith("auto") else None)
-    )
+    sphere_route = False
+    if source.startswith("auto"):
+        from meshfit.layout.auto import auto_route
+
+        sphere_route = (
+            auto_route(mesh, patches=options.patches, crease_angle=options.crease_angle) == "sphere"
+        )
+    notes.extend(_quality_notes(patch_rows, options.layout_seed if sphere_route else None))
     summary: dict[str, Any] = {
         "meshfit_fit": PIPELINE_FORMAT,
         "version": __version__,
@@ -1356,18 +1400,56 @@ def spring_task(item) -> tuple[NDArray[np.float64], dict]:
     return spring_patch(patch, **kw)
 
 
-def _stitch_g1(grids, surfaces, notes: list[str]) -> list:
-    """G1 across shared boundaries and at corners with :mod:`meshfit.stitch`."""
+#: pipeline side index (0..3, from corner s to s + 1) -> the stitch package's side name
+_SIDE_NAME = ("v0", "u1", "v1", "u0")
+#: grid index of each patch corner 0..3 (side s runs from corner s to corner s + 1)
+_CORNER_SLOT = ((0, 0), (-1, 0), (-1, -1), (0, -1))
+
+
+def _layout_network(layout, continuity: str, creases=None):
+    """The stitch network from the layout's topology: a shared boundary for every curve two
+    patches share, a corner class for every layout corner (the grids' positions need not
+    be matched, so curves between the same corners never get confused); boundaries on the
+    curves marked in ``creases`` are C0."""
+    from meshfit.stitch import Network, SharedBoundary
+
+    users: dict[int, list[tuple[int, int]]] = {}
+    for p in range(layout.n_patches):
+        for s in range(4):
+            users.setdefault(int(layout.patch_curves[p, s]), []).append((p, s))
+
+    def forward(p: int, s: int) -> bool:  # the side's parameter runs along its curve
+        return (s in (0, 1)) != bool(layout.patch_reversed[p, s])
+
+    boundaries = []
+    for curve, uses in sorted(users.items()):
+        if len(uses) != 2:
+            continue
+        (pa, sa), (pb, sb) = sorted(uses)
+        c = "C0" if continuity == "C0" or (creases is not None and creases[curve]) else "G1"
+        rev = forward(pa, sa) != forward(pb, sb)
+        boundaries.append(SharedBoundary(pa, _SIDE_NAME[sa], pb, _SIDE_NAME[sb], rev, c))
+    by_corner: dict[int, list[tuple[int, int, int]]] = {}
+    for p in range(layout.n_patches):
+        for s, c in enumerate(layout.patch_corners(p).tolist()):
+            i, j = _CORNER_SLOT[s]
+            by_corner.setdefault(int(c), []).append((p, i, j))
+    corners = tuple(tuple(v) for _, v in sorted(by_corner.items()))
+    return Network(layout.n_patches, tuple(boundaries), corners)
+
+
+def _stitch_g1(surfaces, notes: list[str], layout, creases=None) -> list:
+    """G1 across shared boundaries and at corners with :mod:`meshfit.stitch`; boundaries
+    on the layout curves marked in ``creases`` stay C0."""
     try:
-        from meshfit.stitch import network_from_grids, stitch_surfaces
+        from meshfit.stitch import stitch_surfaces
     except ImportError:
         notes.append("continuity g1 needs meshfit.stitch, which is not installed: C0 only")
         return surfaces
-    net = network_from_grids(grids, continuity="G1")
-    return stitch_surfaces(surfaces, net)
+    return stitch_surfaces(surfaces, _layout_network(layout, "G1", creases))
 
 
-def _stitch_maps(grids, surfaces, dmaps, notes: list[str], match: bool) -> list:
+def _stitch_maps(layout, surfaces, dmaps, notes: list[str], match: bool) -> list:
     """Crack-free displacement seams with :mod:`meshfit.stitch` (unchanged without it).
 
     With ``match`` the maps first take equal texel counts along shared boundaries
@@ -1375,11 +1457,11 @@ def _stitch_maps(grids, surfaces, dmaps, notes: list[str], match: bool) -> list:
     resolution.
     """
     try:
-        from meshfit.stitch import match_map_shapes, network_from_grids, stitch_displacements
+        from meshfit.stitch import match_map_shapes, stitch_displacements
     except ImportError:
         notes.append("meshfit.stitch is not installed: displacement seams left open")
         return dmaps
-    net = network_from_grids(grids, continuity="C0")
+    net = _layout_network(layout, "C0")
     if match:
         dmaps = match_map_shapes(surfaces, dmaps, net)
     return stitch_displacements(surfaces, dmaps, net)

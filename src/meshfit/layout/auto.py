@@ -50,7 +50,7 @@ from meshfit.layout.patch import THIN
 from meshfit.mesh import Mesh
 from meshfit.types import SurfaceCurve, SurfacePoints
 
-__all__ = ["auto_layout", "balance_degrees", "quad_depths", "quad_network"]
+__all__ = ["auto_layout", "auto_route", "balance_degrees", "quad_depths", "quad_network"]
 
 #: patches per base triangle
 PATCHES_PER_TRIANGLE = 3
@@ -314,6 +314,31 @@ def _slerp(a, b, w, t):
     return (np.sin((1.0 - t) * w) / s)[:, None] * a[None] + (np.sin(t * w) / s)[:, None] * b[None]
 
 
+def auto_route(mesh: Mesh, *, patches: int | None = None, crease_angle: float | None = 40.0) -> str:
+    """Which method :func:`auto_layout` uses for ``mesh`` (without a ready sphere map).
+
+    Returns
+    -------
+    str
+        ``"sphere"`` (the sphere map and the shrink-wrap base mesh) for one closed genus-0
+        surface without creases and with faces for at least `MIN_PATCHES` patches;
+        ``"regions"`` (:func:`meshfit.layout.regions.region_layout`) for every other mesh:
+        any genus, open boundaries, several components (the sphere map does not exist), sharp
+        creases (the sphere map's curves would cross them), or a mesh too small for the
+        fewest patches of a base mesh when no count is asked.
+    """
+    from meshfit.layout.regions import crease_edges
+
+    few = patches is None and mesh.n_faces < MIN_FACES_PER_PATCH * MIN_PATCHES
+    if (
+        few
+        or not (mesh.is_closed and _one_sphere(mesh))
+        or (crease_angle is not None and crease_edges(mesh, crease_angle).any())
+    ):
+        return "regions"
+    return "sphere"
+
+
 def auto_layout(
     mesh: Mesh,
     *,
@@ -326,6 +351,7 @@ def auto_layout(
     proxy_faces: int | None = PROXY_FACES,
     shape: bool | None = None,
     protrusions: bool = True,
+    crease_angle: float | None = 40.0,
 ) -> Layout:
     """A four-sided layout of a closed genus-0 mesh: three quads per base-mesh triangle.
 
@@ -373,6 +399,11 @@ def auto_layout(
         are traced. None (default): when the base mesh has more than ``SHAPE_ABOVE_FACES``
         (20) triangles, i.e. from ``patches=62`` on (22 triangles), where the area-equalised
         base mesh gives slivers (see ``SHAPE_ABOVE_FACES``).
+    crease_angle : float or None, keyword-only
+        A mesh with chains of edges sharper than this many degrees
+        (:func:`meshfit.layout.regions.crease_edges`), like a mesh that is not one closed
+        genus-0 surface, is laid out by :func:`meshfit.layout.regions.region_layout`, which
+        puts the creases on patch boundaries (default 40; None: creases are not looked for).
     protrusions : bool, keyword-only
         Move base vertices onto the tips of protrusions that a quad would hold whole (an
         ear, a tail), so that its curves run along the protrusion (default True; see
@@ -412,11 +443,16 @@ def auto_layout(
     if proxy_faces is not None and int(proxy_faces) < 20:
         raise InputError(f"proxy_faces must be >= 20, got {proxy_faces}")
     proxy = sphere is None and proxy_faces is not None and mesh.n_faces > PROXY_RATIO * proxy_faces
-    if sphere is None and not (mesh.is_closed and _one_sphere(mesh)):
-        # any genus, open boundaries, several components: the sphere map does not exist
+    if sphere is None and auto_route(mesh, patches=patches, crease_angle=crease_angle) != "sphere":
         from meshfit.layout.regions import region_layout
 
-        return region_layout(mesh, patches=patches, relax=relax, relax_iterations=relax_iterations)
+        return region_layout(
+            mesh,
+            patches=patches,
+            crease_angle=crease_angle,
+            relax=relax,
+            relax_iterations=relax_iterations,
+        )
     if not mesh.is_closed:
         raise _topology_error(mesh)
     want = DEFAULT_PATCHES if patches is None else int(patches)

@@ -64,6 +64,8 @@ def layout_to_json(layout: Layout, *, mesh_counts: tuple[int, int] | None = None
     lines.append('"curves": [')
     for i, c in enumerate(layout.curves):
         d = {"corners": layout.curve_ends[i].tolist(), **_points_json(c.points)}
+        if layout.creases[i]:
+            d["crease"] = True
         sep = "," if i + 1 < len(layout.curves) else ""
         lines.append(dump(d, separators=(",", ":")) + sep)
     lines.append("],")
@@ -169,7 +171,7 @@ def layout_from_json(text: str, *, source: str = "layout") -> Layout:
         mesh = _get(doc, "mesh", "", dict)
         fingerprint = _get(mesh, "sha256", "mesh", str)
         corners = _points(_get(doc, "corners", "", dict), "corners")
-        curves, ends = [], []
+        curves, ends, creases = [], [], []
         for i, c in enumerate(_get(doc, "curves", "", list)):
             where = f"curves[{i}]"
             ab = _get(c, "corners", where, list)
@@ -177,6 +179,10 @@ def layout_from_json(text: str, *, source: str = "layout") -> Layout:
                 raise LayoutError(f"key '{where}.corners': expected two corner indices")
             ends.append(ab)
             curves.append(SurfaceCurve(_points(c, where), kind="boundary"))
+            crease = c.get("crease", False)
+            if not isinstance(crease, bool):
+                raise LayoutError(f"key '{where}.crease': expected true or false")
+            creases.append(crease)
         patch_curves, patch_rev, features = [], [], []
         for p, d in enumerate(_get(doc, "patches", "", list)):
             where = f"patches[{p}]"
@@ -214,6 +220,7 @@ def layout_from_json(text: str, *, source: str = "layout") -> Layout:
             np.asarray(patch_rev, dtype=bool).reshape(-1, 4),
             tuple(features),
             fingerprint,
+            np.asarray(creases, dtype=bool),
         )
     except LayoutError as exc:
         raise LayoutError(f"{source}: {exc}") from None

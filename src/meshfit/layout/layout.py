@@ -77,6 +77,9 @@ class Layout:
         a point of one side to a point of the opposite side.
     fingerprint : str
         :func:`mesh_fingerprint` of the mesh the layout was made for.
+    creases : (nk,) bool
+        Which curves run along a sharp crease of the mesh (default none): the fit keeps
+        them C0 where its continuity is ``auto`` (the surface is meant to break there).
 
     Notes
     -----
@@ -98,9 +101,18 @@ class Layout:
     patch_reversed: NDArray[np.bool_]
     features: tuple[tuple[SurfaceCurve, ...], ...]
     fingerprint: str
+    creases: NDArray[np.bool_] | None = None
 
     def __post_init__(self) -> None:
         curves = tuple(self.curves)
+        creases = (
+            np.zeros(len(curves), dtype=bool)
+            if self.creases is None
+            else np.asarray(self.creases, dtype=bool).reshape(-1)
+        )
+        if creases.shape != (len(curves),):
+            raise LayoutError(f"creases has {creases.size} entries for {len(curves)} curves")
+        object.__setattr__(self, "creases", _readonly(creases))
         ends = np.asarray(self.curve_ends, dtype=np.int64).reshape(-1, 2)
         pc = np.asarray(self.patch_curves, dtype=np.int64)
         pr = np.asarray(self.patch_reversed, dtype=bool)
@@ -204,6 +216,7 @@ class Layout:
             and np.array_equal(self.curve_ends, other.curve_ends)
             and np.array_equal(self.patch_curves, other.patch_curves)
             and np.array_equal(self.patch_reversed, other.patch_reversed)
+            and np.array_equal(self.creases, other.creases)
             and len(self.features) == len(other.features)
             and all(
                 len(fa) == len(fb) and all(_curve_equal(a, b) for a, b in zip(fa, fb, strict=True))
@@ -300,6 +313,7 @@ def layout_from_curves(
     features: list[list[SurfaceCurve | SurfacePoints]] | None = None,
     *,
     snap_ends: bool = True,
+    creases: ArrayLike | None = None,
 ) -> Layout:
     """Build a layout of ``mesh`` from painted curves.
 
@@ -319,6 +333,8 @@ def layout_from_curves(
         Feature curves of each patch (default none).
     snap_ends : bool, keyword-only
         Replace each curve's first and last point by its corners exactly (default True).
+    creases : (nk,) bool, keyword-only, optional
+        Curves that run along sharp creases (:attr:`Layout.creases`; default none).
 
     Returns
     -------
@@ -355,7 +371,16 @@ def layout_from_curves(
                 for f in fs
             )
         )
-    layout = Layout(corners, tuple(out_curves), ends, pc, pr, tuple(feats), mesh_fingerprint(mesh))
+    layout = Layout(
+        corners,
+        tuple(out_curves),
+        ends,
+        pc,
+        pr,
+        tuple(feats),
+        mesh_fingerprint(mesh),
+        None if creases is None else np.asarray(creases, dtype=bool),
+    )
     check_layout(mesh, layout)
     return layout
 

@@ -49,11 +49,13 @@ from scipy.spatial import cKDTree
 from meshfit.errors import InputError, LayoutError, MeshfitError
 from meshfit.layout.layout import Layout, layout_from_curves
 from meshfit.mesh import Mesh
-from meshfit.mesh.topology import boundary_loops, edge_table, face_neighbors
+from meshfit.mesh.topology import boundary_loops, corner_fans, edge_table, face_neighbors
 from meshfit.types import SurfaceCurve, SurfacePoints
 
-__all__ = ["CellReport", "region_layout"]
+__all__ = ["CellReport", "crease_corners", "crease_edges", "region_layout"]
 
+#: default patch count
+DEFAULT_PATCHES = 60
 #: quads per cell on average on a closed surface (a Voronoi cell has about six sides)
 QUADS_PER_CELL = 6
 #: Lloyd steps of the seeds before and after seeds are added
@@ -65,6 +67,20 @@ CONE_SHARE = 0.02
 #: split: within it the cell is a height field over its mean plane, so none of its quads
 #: folds over itself
 NORMAL_CONE = 90.0
+#: default ``crease_angle`` (degrees): an edge whose faces' normals differ by more is sharp
+CREASE_ANGLE = 40.0
+#: shortest chain of sharp edges kept as a crease, share of the bbox diagonal
+CREASE_MIN_LENGTH = 0.05
+#: the creases are used only when all of them together are at least this long, share of
+#: the bbox diagonal: creases that shape the part (a machined or modelled edge runs round
+#: it), not the short sharp ridges a scan leaves, whose quads would be slivers
+CREASE_MIN_TOTAL = 1.0
+#: a crease chain turning by more than this (degrees) would get a layout corner there; None:
+#: turns are no corners (a cell on the outer side of a turn would have a reflex corner
+#: there, and the quads at it fold), only the points where chains meet
+CREASE_TURN: float | None = None
+#: chain edges on either side over which a crease's turn is measured
+CREASE_TURN_REACH = 3
 #: rounds of seed insertion at most (each round adds a seed to every cell that fails)
 MAX_ROUNDS = 40
 #: fewest input faces per patch (more patches are refused: a spring grid needs faces)
@@ -229,6 +245,7 @@ def _cells(mesh: Mesh, n_cells: int, max_cells: int):
     seeds = _lloyd(mesh, graph, seeds, LLOYD_STEPS, vareas)
     added = {"disk": 0, "normal_cone": 0}
     rounds = 0
+    loops = mesh.boundary_loops
     for rounds in range(1, MAX_ROUNDS + 1):
         dist, label = _voronoi(graph, seeds)
         k = seeds.size
@@ -245,21 +262,28 @@ def _cells(mesh: Mesh, n_cells: int, max_cells: int):
                 break
             return seeds, label, added, rounds
         # the vertex of each failing cell farthest from its seed (cells that are no disk
-        # first, when the budget is short)
+        # first, when the budget is short); a cell that is no disk because a boundary loop
+        # (a hole, or a crease's slit) lies inside it takes it on that loop, and a cell that
+        # turns too far on its turned part
         take = bad[np.argsort(~not_disk[bad], kind="stable")][:room]
-        # (a cell that turns too far: its turned vertex farthest from the seed)
         rank = np.where(far | not_disk[np.maximum(label, 0)], dist, -1.0)
+        for loop in loops:
+            c = label[loop[0]]
+            if c >= 0 and not_disk[c] and (label[loop] == c).all():
+                rank[loop] += 2.0 * float(dist[label == c].max()) + 1.0
         order = np.lexsort((-rank, label))
         new = order[np.searchsorted(label[order], take)]
         for c in take:
             added["disk" if not_disk[c] else "normal_cone"] += 1
         seeds = np.unique(np.concatenate([seeds, new]))
         seeds = _lloyd(mesh, graph, seeds, 1, vareas)
-    bad = int(np.flatnonzero(_euler_per_cell(mesh, label, seeds.size) != 1)[0])
+    dist, label = _voronoi(graph, seeds)
+    not_disk = _euler_per_cell(mesh, label, seeds.size) != 1
+    bad = int(np.flatnonzero(not_disk)[0]) if not_disk.any() else 0
     raise LayoutError(
         f"the automatic layout could not make every cell a disk within {max_cells} cells "
-        f"(the cell round vertex {int(seeds[bad])} is not one): ask for more patches "
-        "(--patches) or give a layout file"
+        f"(the cell round vertex {int(seeds[bad])} is not one): give a layout file, or "
+        "a larger --crease-angle where the mesh has many short creases"
     )
 
 
@@ -279,9 +303,12 @@ class _Clip:
     src_bary: NDArray[np.float64]  # (nc, 3)
     xyz: NDArray[np.float64]  # (nc, 3)
     is_junction: NDArray[np.bool_]  # (nc,) three cells meet, or two on the mesh boundary
+    canon: NDArray[np.int64]  # (nc,) the point of the uncut mesh (both sides of a crease)
 
 
-def _clip(mesh: Mesh, label: NDArray[np.int64]) -> _Clip:
+def _clip(mesh: Mesh, label: NDArray[np.int64], parent, orig: Mesh) -> _Clip:
+    """Clip ``mesh`` (the input cut open along its creases; ``parent`` the input vertex of
+    each of its vertices, ``orig`` the input) along ``label``."""
     F = mesh.faces
     nv = mesh.n_vertices
     E = mesh.edges
@@ -357,6 +384,10 @@ def _clip(mesh: Mesh, label: NDArray[np.int64]) -> _Clip:
     junction[face_node[three]] = True
     border_cut = cut_edge & (mesh.edge_face_count == 1)
     junction[edge_node[border_cut]] = True
+    canon = np.empty(n_clip, dtype=np.int64)
+    canon[:nv] = parent
+    canon[edge_node[cut_edge]] = orig.n_vertices + _orig_edges(mesh, parent, orig)[cut_edge]
+    canon[face_node[three]] = orig.n_vertices + orig.edges.shape[0] + np.flatnonzero(three)
     return _Clip(
         tri,
         np.concatenate(labs).astype(np.int64),
@@ -366,7 +397,201 @@ def _clip(mesh: Mesh, label: NDArray[np.int64]) -> _Clip:
         src_bary,
         xyz,
         junction,
+        canon,
     )
+
+
+def _orig_edges(mesh: Mesh, parent, orig: Mesh) -> NDArray[np.int64]:
+    """Index in ``orig.edges`` of every edge of ``mesh`` (``orig`` cut open)."""
+    if mesh is orig:
+        return np.arange(mesh.edges.shape[0], dtype=np.int64)
+    pe = np.sort(parent[mesh.edges], axis=1)
+    keys = pe[:, 0] * np.int64(max(orig.n_vertices, 1)) + pe[:, 1]
+    return np.searchsorted(orig.edge_keys, keys).astype(np.int64)
+
+
+def _crease_nodes(clip: _Clip, mesh: Mesh, label, parent, orig: Mesh, corner_vertices) -> _Clip:
+    """Where one side of a crease has a cut point on an edge and the other does not, the
+    other side gets one too (its sub-triangle on that edge halved), so both sides of every
+    crease have the same points and corners; the copies of ``corner_vertices`` (input
+    vertices) become junctions."""
+    border = np.flatnonzero(mesh.edge_face_count == 1)
+    oe = _orig_edges(mesh, parent, orig)[border]
+    nv_o = orig.n_vertices
+    present = np.zeros(orig.edges.shape[0], dtype=bool)
+    le = label[mesh.edges[border]]
+    has = le[:, 0] != le[:, 1]  # this side has a cut point on the edge
+    present[oe[has]] = True
+    missing = border[~has & present[oe]]
+    tri = [list(t) for t in clip.tri.tolist()]
+    lab = clip.tri_label.tolist()
+    face = clip.tri_face.tolist()
+    bary = list(clip.tri_bary)
+    sf, sb, xyz, junc, canon = [], [], [], [], []
+    n = clip.canon.size
+    oe_all = _orig_edges(mesh, parent, orig)
+    todo = {int(e) for e in missing.tolist()}
+    for _ in range(3):  # a sub-triangle with two such edges is split once per pass
+        if not todo:
+            break
+        where = {}
+        for t, T in enumerate(tri):
+            for k in range(3):
+                where[(T[k], T[(k + 1) % 3])] = (t, k)
+        for e in sorted(todo):
+            u, w = (int(x) for x in mesh.edges[e])
+            hit = where.get((u, w)) or where.get((w, u))
+            if hit is None or hit[0] < 0:
+                continue
+            t, k = hit
+            T, B = tri[t], bary[t]
+            a_, b_, x_ = T[k], T[(k + 1) % 3], T[(k + 2) % 3]
+            ba, bb, bx = B[k], B[(k + 1) % 3], B[(k + 2) % 3]
+            bm = (ba + bb) / 2.0
+            m = n + len(sf)
+            tri[t], bary[t] = [a_, m, x_], np.stack([ba, bm, bx])
+            tri.append([m, b_, x_])
+            bary.append(np.stack([bm, bb, bx]))
+            lab.append(lab[t])
+            face.append(face[t])
+            for kk in range(3):  # the halved triangle is not split again in this pass
+                where[(T[kk], T[(kk + 1) % 3])] = (-1, 0)
+            sf.append(face[t])
+            sb.append(bm)
+            xyz.append(bm @ orig.vertices[orig.faces[face[t]]])
+            junc.append(True)
+            canon.append(nv_o + int(oe_all[e]))
+            todo.discard(e)
+    junction = np.concatenate([clip.is_junction, np.asarray(junc, dtype=bool)])
+    canon_all = np.concatenate([clip.canon, np.asarray(canon, dtype=np.int64)])
+    junction |= np.isin(canon_all, np.asarray(corner_vertices, dtype=np.int64))
+    if not sf:
+        clip.is_junction = junction
+        return clip
+    return _Clip(
+        np.asarray(tri, dtype=np.int64),
+        np.asarray(lab, dtype=np.int64),
+        np.asarray(face, dtype=np.int64),
+        np.asarray(bary),
+        np.concatenate([clip.src_face, np.asarray(sf, dtype=np.int64)]),
+        np.concatenate([clip.src_bary, np.asarray(sb)]),
+        np.concatenate([clip.xyz, np.asarray(xyz)]),
+        junction,
+        canon_all,
+    )
+
+
+# ----------------------------------------------------------------------------- creases
+
+
+def crease_edges(mesh: Mesh, angle: float = CREASE_ANGLE) -> NDArray[np.bool_]:
+    """Edges where the surface folds by more than ``angle`` degrees.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    angle : float
+        Dihedral turn, degrees: the angle between the normals of the edge's two faces.
+
+    Returns
+    -------
+    (ne,) bool
+        Over ``mesh.edges``: sharp interior edges in chains at least `CREASE_MIN_LENGTH` of
+        the bbox diagonal long (shorter runs are scan noise, not features), and only when
+        they add up to `CREASE_MIN_TOTAL` of the diagonal; without their dangling ends: a
+        chain is kept where it closes, meets another or reaches the mesh boundary, so that
+        the creases cut the surface into pieces without slits (a crease fading out inside
+        the surface stays inside a patch, where a slit would leave a patch bordering
+        itself).
+    """
+    ne = mesh.edges.shape[0]
+    fe = mesh.face_edges.reshape(-1)
+    fid = np.repeat(np.arange(mesh.n_faces), 3)
+    order = np.argsort(fe, kind="stable")
+    first = np.searchsorted(fe[order], np.arange(ne))
+    fa = fid[order][first]
+    fb = fid[order][np.minimum(first + 1, fe.size - 1)]
+    n = mesh.face_normals
+    sharp = (mesh.edge_face_count == 2) & (
+        np.einsum("ij,ij->i", n[fa], n[fb]) < np.cos(np.radians(angle))
+    )
+    if not sharp.any():
+        return sharp
+    e = mesh.edges[sharp]
+    nv = mesh.n_vertices
+    g = sparse.coo_matrix((np.ones(e.shape[0]), (e[:, 0], e[:, 1])), shape=(nv, nv))
+    _, comp = csgraph.connected_components(g, directed=False)
+    length = np.bincount(comp[e[:, 0]], weights=mesh.edge_lengths[sharp])
+    ok = length[comp[e[:, 0]]] >= CREASE_MIN_LENGTH * mesh.bbox_diagonal
+    idx = np.flatnonzero(sharp)[ok]
+    anchor = np.zeros(nv, dtype=bool)
+    anchor[mesh.edges[mesh.edge_face_count == 1].reshape(-1)] = True
+    while idx.size:  # prune dangling ends until every end is anchored
+        ee = mesh.edges[idx]
+        deg = np.bincount(ee.reshape(-1), minlength=nv)
+        leaf = (deg == 1) & ~anchor
+        drop = leaf[ee[:, 0]] | leaf[ee[:, 1]]
+        if not drop.any():
+            break
+        idx = idx[~drop]
+    if idx.size:  # what is left of each chain must still be long enough
+        ee = mesh.edges[idx]
+        g = sparse.coo_matrix((np.ones(idx.size), (ee[:, 0], ee[:, 1])), shape=(nv, nv))
+        _, comp = csgraph.connected_components(g, directed=False)
+        length = np.bincount(comp[ee[:, 0]], weights=mesh.edge_lengths[idx])
+        idx = idx[length[comp[ee[:, 0]]] >= CREASE_MIN_LENGTH * mesh.bbox_diagonal]
+    if mesh.edge_lengths[idx].sum() < CREASE_MIN_TOTAL * mesh.bbox_diagonal:
+        idx = idx[:0]
+    out = np.zeros(ne, dtype=bool)
+    out[idx] = True
+    return out
+
+
+def crease_corners(mesh: Mesh, crease: NDArray[np.bool_]) -> NDArray[np.int64]:
+    """Vertices where crease chains meet (three or more), end, or turn by more than
+    `CREASE_TURN` degrees (measured between the chain points `CREASE_TURN_REACH` edges away
+    on either side, so that the zigzag of a crease across the triangles is not a turn)."""
+    e = mesh.edges[crease]
+    nv = mesh.n_vertices
+    deg = np.bincount(e.reshape(-1), minlength=nv)
+    corners = set(np.flatnonzero((deg >= 3) | (deg == 1)).tolist())
+    nbr: dict[int, list[int]] = {}
+    for a, b in e.tolist():
+        nbr.setdefault(a, []).append(b)
+        nbr.setdefault(b, []).append(a)
+    V = mesh.vertices
+    turn = {}
+    for v, (a, b) in ((v, nb) for v, nb in nbr.items() if len(nb) == 2):
+        ends = []
+        for first in (a, b):
+            prev, cur = v, first
+            for _ in range(CREASE_TURN_REACH - 1):
+                nxt = [w for w in nbr.get(cur, []) if w != prev]
+                if len(nbr.get(cur, [])) != 2 or not nxt:
+                    break
+                prev, cur = cur, nxt[0]
+            ends.append(cur)
+        d1, d2 = V[ends[0]] - V[v], V[ends[1]] - V[v]
+        c = d1 @ d2 / max(np.linalg.norm(d1) * np.linalg.norm(d2), 1e-300)
+        turn[v] = 180.0 - np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
+    for v, t in turn.items():
+        # a turn counts once: at the vertex turning most among its chain neighbours
+        if (
+            CREASE_TURN is not None
+            and t > CREASE_TURN
+            and all(t >= turn.get(w, 0.0) for w in nbr[v])
+        ):
+            corners.add(v)
+    return np.asarray(sorted(corners), dtype=np.int64)
+
+
+def _cut_open(mesh: Mesh, crease: NDArray[np.bool_]) -> tuple[Mesh, NDArray[np.int64]]:
+    """``mesh`` with every crease edge made a boundary edge on both sides (faces in the same
+    order), and the input vertex of each vertex."""
+    fan, n_fans = corner_fans(mesh.faces, mesh.n_vertices, mesh._edge_table, crease)
+    parent = np.empty(n_fans, dtype=np.int64)
+    parent[fan] = mesh.faces.reshape(-1)
+    return Mesh(mesh.vertices[parent], fan.reshape(-1, 3), name=mesh.name), parent
 
 
 # ----------------------------------------------------------------------------- cells' loops
@@ -403,14 +628,16 @@ def _arc(xyz: NDArray[np.float64], ids: NDArray[np.int64], closed: bool) -> NDAr
 
 
 def _corners(clip: _Clip, cells: list[_Cell]) -> NDArray[np.bool_]:
-    """The junctions, plus corners added at even arc length on every cell loop with fewer
-    than three."""
-    corner = clip.is_junction.copy()
+    """Corners over the canonical points: the junctions, plus corners added at even arc
+    length on every cell loop with fewer than three (a corner on a crease is one on both
+    of its sides)."""
+    corner = np.zeros(int(clip.canon.max()) + 1, dtype=bool)
+    corner[clip.canon[clip.is_junction]] = True
     for _ in range(3 * len(cells) + 3):
         changed = False
         for cell in cells:
             loop = cell.loop
-            pos = np.flatnonzero(corner[loop])
+            pos = np.flatnonzero(corner[clip.canon[loop]])
             if pos.size >= 3:
                 continue
             arc = _arc(clip.xyz, loop, True)
@@ -430,7 +657,7 @@ def _corners(clip: _Clip, cells: list[_Cell]) -> NDArray[np.bool_]:
                     raise LayoutError("a cell side too short to take another corner")
                 half = arc2[a] + lens[j] / 2.0
                 picks = [int(idx[np.argmin(np.abs(arc2[idx] - half))] % loop.size)]
-            corner[loop[picks]] = True
+            corner[clip.canon[loop[picks]]] = True
             changed = True
         if not changed:
             return corner
@@ -442,47 +669,64 @@ def _corners(clip: _Clip, cells: list[_Cell]) -> NDArray[np.bool_]:
 
 @dataclass
 class _Stretch:
-    ids: NDArray[np.int64]  # clipped vertices, corner to corner
+    ids: NDArray[np.int64]  # clipped vertices, corner to corner (of the first cell seen)
     mid_seg: int  # the mid-point lies on segment ids[mid_seg] -> ids[mid_seg + 1] ...
     mid_t: float  # ... at this fraction
     uses: int
+    on_border: bool  # along the boundary of the cut-open mesh (mesh boundary or crease)
+
+
+def _border_pairs(clip: _Clip) -> set[tuple[int, int]]:
+    """Sub-triangle edges on the boundary of the cut-open mesh, as sorted clipped ids."""
+    T = clip.tri
+    e = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1)
+    uniq, count = np.unique(e, axis=0, return_counts=True)
+    return {(int(a), int(b)) for a, b in uniq[count == 1].tolist()}
 
 
 def _stretches(clip: _Clip, cells: list[_Cell], corner: NDArray[np.bool_]):
-    """Every cell's sides as (stretch, reversed) in loop order, and the stretches."""
+    """The stretches between corners, and every cell's sides as (stretch, reversed, start)
+    in loop order (``start``: the side's first position in ``cell.loop``, which is rolled
+    to start at a corner). Stretches are matched across cells by canonical points."""
     found: dict[tuple[int, int], tuple[int, bool]] = {}
     stretches: list[_Stretch] = []
-    sides: list[list[tuple[int, bool]]] = []
+    sides: list[list[tuple[int, bool, int]]] = []
+    border = _border_pairs(clip)
+    canon = clip.canon
     for cell in cells:
+        pos = np.flatnonzero(corner[canon[cell.loop]])
+        cell.loop = np.roll(cell.loop, -int(pos[0]))
         loop = cell.loop
-        pos = np.flatnonzero(corner[loop])
-        loop = np.roll(loop, -int(pos[0]))
         pos = pos - pos[0]
         mine = []
         for j in range(pos.size):
             a = int(pos[j])
             b = int(pos[j + 1]) if j + 1 < pos.size else loop.size
             ids = np.append(loop[a:b], loop[b % loop.size])
-            key = (int(ids[0]), int(ids[1]))
+            key = (int(canon[ids[0]]), int(canon[ids[1]]))
             if key in found:
                 s, rev = found[key]
                 stretches[s].uses += 1
-                mine.append((s, rev))
+                mine.append((s, rev, a))
                 continue
             arc = _arc(clip.xyz, ids, False)
             if ids.size > 2:
                 # the mid-point at the inner vertex nearest half the length: a point just
                 # beside a vertex of the stretch would put the radius that ends at it
                 # within the cut's snapping distance of the stretch
-                j = 1 + int(np.argmin(np.abs(arc[1:-1] - arc[-1] / 2.0)))
-                seg, t = j - 1, 1.0
+                k = 1 + int(np.argmin(np.abs(arc[1:-1] - arc[-1] / 2.0)))
+                seg, t = k - 1, 1.0
             else:
                 seg, t = 0, 0.5
+            on_border = all(
+                (min(u, w), max(u, w)) in border
+                for u, w in zip(ids[:-1].tolist(), ids[1:].tolist(), strict=True)
+            )
             s = len(stretches)
-            stretches.append(_Stretch(ids, seg, t, 1))
+            stretches.append(_Stretch(ids, seg, t, 1, on_border))
             found[key] = (s, False)
-            found[(int(ids[-1]), int(ids[-2]))] = (s, True)
-            mine.append((s, False))
+            found[(int(canon[ids[-1]]), int(canon[ids[-2]]))] = (s, True)
+            mine.append((s, False, a))
         sides.append(mine)
     return stretches, sides
 
@@ -525,16 +769,28 @@ def _mean_value_weights(P: NDArray[np.float64], T: NDArray[np.int64], n: int) ->
     return W
 
 
-def _disc_map(clip: _Clip, cell: _Cell) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """2-d positions of the cell's vertices (boundary on the unit circle by arc length) and
-    its sub-triangles in local indices."""
+def _disc_map(clip: _Clip, cell: _Cell, starts) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """2-d positions of the cell's vertices and its sub-triangles in local indices.
+
+    The boundary goes onto the unit circle with an equal arc for each of the cell's ``k``
+    sides (``starts``: their first positions in ``cell.loop``, ascending from 0), by arc
+    length within a side: the radii to the sides' mid-points then leave the centre evenly,
+    and the quads meeting there share its angle (by arc length alone, a cell with one long
+    side gives the quads beside it slivers at the centre).
+    """
     verts = cell.verts
     T = np.searchsorted(verts, clip.tri[cell.tris])
     loop = np.searchsorted(verts, cell.loop)
     P = clip.xyz[verts]
     n = verts.size
     arc = _arc(clip.xyz, cell.loop, True)
-    ang = 2.0 * np.pi * arc[:-1] / max(arc[-1], 1e-300)
+    k = len(starts)
+    bounds = np.append(np.asarray(starts, dtype=np.int64), cell.loop.size)
+    ang = np.empty(cell.loop.size)
+    for j in range(k):
+        a, b = int(bounds[j]), int(bounds[j + 1])
+        span = max(arc[b] - arc[a], 1e-300)
+        ang[a:b] = 2.0 * np.pi * (j + (arc[a:b] - arc[a]) / span) / k
     uv = np.zeros((n, 2))
     uv[loop] = np.stack([np.cos(ang), np.sin(ang)], 1)
     inner = np.ones(n, dtype=bool)
@@ -665,20 +921,25 @@ def _crossing(clip: _Clip, cell: _Cell, loc: _Locator, ta: int, tc: int, qa, qc)
 
 
 def _assemble(mesh: Mesh, clip: _Clip, cells: list[_Cell], corner: NDArray[np.bool_]):
-    """Corners, curves, curve ends, patches and the indices of curves on the mesh boundary."""
+    """Corners, curves, curve ends, patches, and per curve whether it lies on the mesh
+    boundary or along a crease (neither is moved by the relaxation) and whether it is a
+    crease."""
     stretches, sides = _stretches(clip, cells, corner)
     corner_ids = np.flatnonzero(corner)
     c_index = np.full(corner.size, -1, dtype=np.int64)
     c_index[corner_ids] = np.arange(corner_ids.size)
-    cf = list(clip.src_face[corner_ids])
-    cb = list(clip.src_bary[corner_ids])
+    rep = np.full(corner.size, -1, dtype=np.int64)  # a clipped vertex of each canonical point
+    rep[clip.canon[::-1]] = np.arange(clip.canon.size)[::-1]
+    cf = list(clip.src_face[rep[corner_ids]])
+    cb = list(clip.src_bary[rep[corner_ids]])
     curves: list[SurfacePoints] = []
     ends: list[tuple[int, int]] = []
-    border: list[bool] = []
+    fixed: list[bool] = []
+    crease: list[bool] = []
     halves: list[tuple[int, int]] = []
     owner: dict[int, int] = {}
     for ci, cs in enumerate(sides):
-        for s, rev in cs:
+        for s, rev, _ in cs:
             if not rev:
                 owner.setdefault(s, ci)
 
@@ -698,17 +959,19 @@ def _assemble(mesh: Mesh, clip: _Clip, cells: list[_Cell], corner: NDArray[np.bo
         # (a mid-point at the vertex ids[mid_seg + 1] replaces it in the second half)
         ff, bb = pts(st.ids[st.mid_seg + 1 + int(st.mid_t == 1.0) :])
         second = ([f, *ff], [b, *bb])
-        a_c, b_c = int(c_index[st.ids[0]]), int(c_index[st.ids[-1]])
+        a_c = int(c_index[clip.canon[st.ids[0]]])
+        b_c = int(c_index[clip.canon[st.ids[-1]]])
         h0 = len(curves)
         for (fs, bs), e in ((first, (a_c, mid_index[-1])), (second, (mid_index[-1], b_c))):
             curves.append(SurfacePoints(np.asarray(fs), np.asarray(bs)))
             ends.append(e)
-            border.append(st.uses == 1)
+            fixed.append(st.on_border)
+            crease.append(st.on_border and st.uses == 2)
         halves.append((h0, h0 + 1))
 
     patches: list[list[tuple[int, bool]]] = []
     for ci, cell in enumerate(cells):
-        uv, T = _disc_map(clip, cell)
+        uv, T = _disc_map(clip, cell, [a for _, _, a in sides[ci]])
         loc = _Locator(uv, T)
         # the centre: the centroid of the sub-triangle holding the disc's centre, inside an
         # input face (a centre on an edge would start the radii on it)
@@ -719,12 +982,15 @@ def _assemble(mesh: Mesh, clip: _Clip, cells: list[_Cell], corner: NDArray[np.bo
         cf.append(int(f0[0]))
         cb.append(b0[0])
         loop_local = np.searchsorted(cell.verts, cell.loop)
-        pos_of = {int(v): i for i, v in enumerate(cell.loop)}
+        n_loop = cell.loop.size
         spokes = []
-        for s, _ in sides[ci]:
+        for s, rev, a in sides[ci]:
             st = stretches[s]
-            u, w = int(st.ids[st.mid_seg]), int(st.ids[st.mid_seg + 1])
-            pu, pw = uv[loop_local[pos_of[u]]], uv[loop_local[pos_of[w]]]
+            last = st.ids.size - 1
+            ju = a + (last - st.mid_seg if rev else st.mid_seg)
+            jw = a + (last - st.mid_seg - 1 if rev else st.mid_seg + 1)
+            pu = uv[loop_local[ju % n_loop]]
+            pw = uv[loop_local[jw % n_loop]]
             end = (1.0 - st.mid_t) * pu + st.mid_t * pw
             f, bary = _radius(mesh, clip, cell, loc, start, end)
             f = f.copy()
@@ -733,22 +999,31 @@ def _assemble(mesh: Mesh, clip: _Clip, cells: list[_Cell], corner: NDArray[np.bo
             spokes.append(len(curves))
             curves.append(SurfacePoints(f, bary))
             ends.append((centre, mid_index[s]))
-            border.append(False)
+            fixed.append(False)
+            crease.append(False)
         k = len(sides[ci])
         for i in range(k):
-            s_i, r_i = sides[ci][i]
-            s_p, r_p = sides[ci][i - 1]
+            s_i, r_i, _ = sides[ci][i]
+            s_p, r_p, _ = sides[ci][i - 1]
             first_half = (halves[s_i][1], True) if r_i else (halves[s_i][0], False)
             second_half = (halves[s_p][0], True) if r_p else (halves[s_p][1], False)
             patches.append([first_half, (spokes[i], True), (spokes[i - 1], False), second_half])
     corners = SurfacePoints(np.asarray(cf, dtype=np.int64), np.asarray(cb, dtype=np.float64))
-    return corners, curves, np.asarray(ends, dtype=np.int64), patches, np.asarray(border)
+    return (
+        corners,
+        curves,
+        np.asarray(ends, dtype=np.int64),
+        patches,
+        np.asarray(fixed, dtype=bool),
+        np.asarray(crease, dtype=bool),
+    )
 
 
 def region_layout(
     mesh: Mesh,
     *,
     patches: int | None = None,
+    crease_angle: float | None = CREASE_ANGLE,
     relax: bool = True,
     relax_iterations: int = 200,
     report: list | None = None,
@@ -763,6 +1038,11 @@ def region_layout(
         About how many patches (default 60): ``patches / 6`` cells on a closed genus-0
         surface, more where the genus, the boundary or the cell tests ask for them. At most
         one patch per `MIN_FACES_PER_PATCH` faces.
+    crease_angle : float or None, keyword-only
+        Chains of edges sharper than this many degrees (:func:`crease_edges`) become patch
+        boundaries, their meeting points, ends and sharp turns corners
+        (:func:`crease_corners`); the layout marks those curves in ``creases``. Default
+        `CREASE_ANGLE` (40); None: no creases.
     relax : bool, keyword-only
         Relax the interior curves as surface snakes with fixed ends (default True).
     relax_iterations : int, keyword-only
@@ -777,7 +1057,7 @@ def region_layout(
     Raises
     ------
     meshfit.errors.InputError
-        ``patches`` below 1.
+        ``patches`` below 1, or more than the mesh has faces for.
     meshfit.errors.LayoutError
         The cells could not all be made disks within the patch budget (a mesh with more
         handles than its faces can hold patches for).
@@ -788,13 +1068,15 @@ def region_layout(
     .. [2] Du, Faber & Gunzburger 1999 (centroidal Voronoi tessellations); Floater 2003
        (mean value coordinates).
     """
+    from meshfit.curves.base import densify_curves
     from meshfit.layout.auto import _relax_all
     from meshfit.layout.extract import check_layout_topology
 
-    want = 60 if patches is None else int(patches)
+    most = mesh.n_faces // MIN_FACES_PER_PATCH
+    # (the default asks a small mesh for no more patches than it has faces for)
+    want = min(DEFAULT_PATCHES, max(most, 1)) if patches is None else int(patches)
     if want < 1:
         raise InputError(f"patches must be >= 1, got {patches}")
-    most = mesh.n_faces // MIN_FACES_PER_PATCH
     if want > most:
         raise InputError(
             f"{want} patches on {mesh.name or 'the mesh'} ({mesh.n_faces} faces): an "
@@ -805,29 +1087,40 @@ def region_layout(
     if mesh.is_closed:
         genus_term = max(0, 2 * int(mesh.genus))
     n_cells = max(mesh.n_components, round(want / QUADS_PER_CELL) + 2 - genus_term)
-    max_cells = max(n_cells, mesh.n_faces // (MIN_FACES_PER_PATCH * QUADS_PER_CELL))
-    seeds, label, added, rounds = _cells(mesh, n_cells, max_cells)
-    clip = _clip(mesh, label)
+    # (a cell gives at least three patches)
+    max_cells = max(2 * n_cells, mesh.n_faces // (MIN_FACES_PER_PATCH * 3))
+    sharp = (
+        crease_edges(mesh, crease_angle)
+        if crease_angle is not None
+        else np.zeros(mesh.edges.shape[0], dtype=bool)
+    )
+    if sharp.any():
+        work, parent = _cut_open(mesh, sharp)
+        corner_vertices = crease_corners(mesh, sharp)
+    else:
+        work, parent = mesh, np.arange(mesh.n_vertices, dtype=np.int64)
+        corner_vertices = np.zeros(0, dtype=np.int64)
+    seeds, label, added, rounds = _cells(work, n_cells, max_cells)
+    clip = _clip(work, label, parent, mesh)
+    if sharp.any():
+        clip = _crease_nodes(clip, work, label, parent, mesh, corner_vertices)
     cells = _cell_loops(clip, seeds.size)
     corner = _corners(clip, cells)
-    corners, curves, ends, quads, border = _assemble(mesh, clip, cells, corner)
+    corners, curves, ends, quads, fixed, crease = _assemble(work, clip, cells, corner)
     if report is not None:
         report.append(CellReport(int(seeds.size), added, int(mesh.n_components), rounds))
-    surface_curves = [SurfaceCurve(c, False, "boundary") for c in curves]
-    from meshfit.curves.base import densify_curves
-
-    surface_curves = densify_curves(mesh, surface_curves)
-    plain = layout_from_curves(mesh, corners, surface_curves, ends, quads)
+    surface_curves = densify_curves(mesh, [SurfaceCurve(c, False, "boundary") for c in curves])
+    plain = layout_from_curves(mesh, corners, surface_curves, ends, quads, creases=crease)
     if not relax:
         check_layout_topology(mesh, plain)
         return plain
-    inner = np.flatnonzero(~border)
+    inner = np.flatnonzero(~fixed)
     moved = _relax_all(mesh, [surface_curves[i] for i in inner], int(relax_iterations))
     relaxed = list(surface_curves)
     for i, c in zip(inner.tolist(), moved, strict=True):
         relaxed[i] = c
     try:
-        out = layout_from_curves(mesh, corners, relaxed, ends, quads)
+        out = layout_from_curves(mesh, corners, relaxed, ends, quads, creases=crease)
         check_layout_topology(mesh, out)
         return out
     except MeshfitError:

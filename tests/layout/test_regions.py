@@ -1,0 +1,153 @@
+"""Automatic layouts of meshes of any topology (:mod:`meshfit.layout.regions`), sharp creases
+on patch boundaries, and the one-call fit of every kind of mesh."""
+
+from __future__ import annotations
+
+from functools import cache
+
+import numpy as np
+import pytest
+
+from meshfit.layout import extract_patches
+from meshfit.layout.auto import auto_layout
+from meshfit.layout.regions import crease_corners, crease_edges, region_layout
+from meshfit.mesh import Mesh
+from meshfit.pipeline import FitOptions, run_fit
+
+from .. import shapes
+from ..conftest import real_mesh
+
+#: the issue's bounds on every fit (fractions of the bbox diagonal; degrees)
+DISPLACED_RMS = 5e-4
+DISPLACED_HAUSDORFF = 5e-3
+SMOOTH_SEAM_DEG = 2.0
+
+
+def _inside_out() -> Mesh:
+    s = shapes.icosphere(3)
+    return Mesh.from_arrays(s.vertices, s.faces[:, ::-1], repair=True, name="inside_out")
+
+
+GENERATED = {
+    "torus": lambda: shapes.tori(1, edge=0.12),
+    "double_torus": lambda: shapes.tori(2, edge=0.12),
+    "genus3_solid": lambda: shapes.box_with_holes(3),
+    "open_cylinder": shapes.cylinder,
+    "disk": shapes.disk,
+    "hemisphere": shapes.hemisphere,
+    "sharp_cube": shapes.cube,
+    "rounded_cube": lambda: shapes.cube(rounded=0.3),
+    "two_spheres": shapes.two_spheres,
+    "dirty_merge": lambda: Mesh.from_arrays(*shapes.dirty_sphere(), repair=True, name="dirty"),
+    "inside_out_sphere": _inside_out,
+}
+
+
+@cache
+def generated(name: str) -> Mesh:
+    return GENERATED[name]()
+
+
+@pytest.mark.parametrize("name", sorted(GENERATED))
+def test_every_kind_of_mesh_is_laid_out(name):
+    mesh = generated(name)
+    layout = auto_layout(mesh)  # checked: every patch a disk bounded by its four sides
+    patches = extract_patches(mesh, layout)
+    assert len(patches) == layout.n_patches >= 4
+    # every face belongs to a patch
+    assert sum(p.mesh.n_faces for p in patches) >= mesh.n_faces
+
+
+@cache
+def _fit(name: str, tmp: str) -> dict:
+    mesh = generated(name)
+    return run_fit(mesh, tmp, options=FitOptions(formats=(), report=False))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(GENERATED))
+def test_every_kind_of_mesh_fits_with_one_call(name, tmp_path_factory):
+    s = _fit(name, str(tmp_path_factory.mktemp(name)))
+    folded = {p["patch"]: p["folded"] for p in s["patches"] if p["folded"]}
+    assert not folded
+    d = s["errors"]["displaced"]
+    assert d["rms"] <= DISPLACED_RMS
+    assert d["hausdorff"] <= DISPLACED_HAUSDORFF
+    assert s["seams"]["spline_normal_jump_inner_max_deg"] <= SMOOTH_SEAM_DEG
+
+
+def test_repairs_are_noted_in_the_summary(tmp_path):
+    s = _fit("dirty_merge", str(tmp_path))
+    assert any("split" in n and "duplicate face" in n for n in s["notes"])
+    s = _fit("inside_out_sphere", str(tmp_path / "b"))
+    assert any("inside out: 1 component" in n for n in s["notes"])
+
+
+def test_sharp_cube_edges_lie_on_crease_curves():
+    cube = generated("sharp_cube")
+    sharp = crease_edges(cube)
+    ends = cube.vertices[cube.edges[sharp]]
+    # the 12 edges of the cube and nothing else: two coordinates at +-1 on every sharp edge
+    on_edge = (np.isclose(np.abs(ends), 1.0).sum(axis=2) >= 2).all(axis=1)
+    assert on_edge.all()
+    assert np.linalg.norm(ends[:, 0] - ends[:, 1], axis=1).sum() == pytest.approx(24.0)
+    corners = cube.vertices[crease_corners(cube, sharp)]
+    assert np.allclose(np.abs(corners), 1.0) and len(corners) == 8
+    layout = auto_layout(cube)
+    crease = np.flatnonzero(layout.creases)
+    xyz = np.concatenate([cube.xyz(layout.curves[c].points) for c in crease])
+    assert (np.isclose(np.abs(xyz), 1.0, atol=1e-9).sum(axis=1) >= 2).all()
+    length = sum(
+        np.linalg.norm(np.diff(cube.xyz(layout.curves[c].points), axis=0), axis=1).sum()
+        for c in crease
+    )
+    assert length == pytest.approx(24.0, rel=1e-9)
+    # the cube's corners are layout corners
+    cxyz = cube.xyz(layout.corners)
+    for c in corners:
+        assert np.linalg.norm(cxyz - c, axis=1).min() < 1e-9
+
+
+def test_smooth_shapes_have_no_creases():
+    assert not crease_edges(generated("rounded_cube")).any()
+    assert not crease_edges(generated("torus")).any()
+    assert not region_layout(generated("torus")).creases.any()
+
+
+def test_both_components_get_patches():
+    mesh = generated("two_spheres")
+    layout = auto_layout(mesh)
+    comp = mesh.face_components
+    owner = {int(comp[p.face_parent[0]]) for p in extract_patches(mesh, layout)}
+    assert owner == {0, 1}
+
+
+def _asymmetric() -> Mesh:
+    t = shapes.tori(1, edge=0.15)
+    v = t.vertices.copy()
+    v[:, 0] += 0.25 * v[:, 1] ** 2  # no symmetry: no tie decides the layout
+    v[:, 2] *= 1.0 + 0.3 * (v[:, 0] > 0)
+    return Mesh(v, t.faces, name="asymmetric_torus")
+
+
+def _rotation(seed: int) -> np.ndarray:
+    q, r = np.linalg.qr(np.random.default_rng(seed).normal(size=(3, 3)))
+    q *= np.sign(np.diag(r))
+    return q if np.linalg.det(q) > 0 else -q
+
+
+@pytest.mark.slow
+def test_rigid_motions_and_scalings_give_the_same_fit(tmp_path):
+    """Defaults do not depend on a lucky orientation: the same patch count and errors
+    within 20% (with a floor of 1e-5 of the diagonal) after a rotation, a translation and
+    a uniform scaling."""
+    base = _asymmetric()
+    ref = run_fit(base, tmp_path / "ref", options=FitOptions(formats=(), report=False))
+    for k, scale in enumerate((1.0, 37.5)):
+        v = base.vertices @ _rotation(k).T * scale + np.array([3.0, -7.0, 11.0]) * scale
+        moved = Mesh(v, base.faces, name="moved")
+        s = run_fit(moved, tmp_path / f"m{k}", options=FitOptions(formats=(), report=False))
+        assert s["patches_total"] == ref["patches_total"]
+        for kind in ("rms", "hausdorff"):
+            a, b = s["errors"]["displaced"][kind], ref["errors"]["displaced"][kind]
+            assert abs(a - b) <= 0.2 * b + 1e-5, (kind, a, b)
