@@ -15,7 +15,6 @@ from meshfit.mesh import Mesh
 from meshfit.pipeline import FitOptions, run_fit
 
 from .. import shapes
-from ..conftest import real_mesh
 
 #: the issue's bounds on every fit (fractions of the bbox diagonal; degrees)
 DISPLACED_RMS = 5e-4
