@@ -506,14 +506,18 @@ def test_cli_fit_mesh_with_a_hole(tmp_path, capsys):
     keep = np.arange(1, d.n_faces)  # one triangle removed: a small hole
     path = save_mesh(Mesh(d.vertices, d.faces[keep]), tmp_path / "holey.ply")
     argv = ["fit", str(path), "--out", str(tmp_path / "out"), "--level", "0", "--cv", "4x4"]
-    argv += ["--formats", "", "--no-report"]
-    assert cli.main(argv) == 2
-    err = capsys.readouterr().err
-    assert "layout file" in err and "--fill-holes" in err
-    assert cli.main([*argv, "--fill-holes", "--json"]) == 0
+    argv += ["--formats", "", "--no-report", "--json"]
+    # an open mesh is laid out as it is: the hole's rim runs along patch boundaries
+    assert cli.main(argv) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["patches_total"] >= 24
+    assert out["mesh"]["faces"] == d.n_faces - 1
+    # --fill-holes stays an option: the hole closed by one triangle again, the sphere route
+    argv[argv.index("--out") + 1] = str(tmp_path / "filled")
+    assert cli.main([*argv, "--fill-holes"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["patches_total"] == 60
-    assert out["mesh"]["faces"] == d.n_faces  # the hole closed by one triangle again
+    assert out["mesh"]["faces"] == d.n_faces
 
 
 def test_asked_patch_count_below_the_automatic_layouts_fewest_is_noted(tmp_path, capsys):

@@ -73,10 +73,13 @@ def test_more_patches_than_the_mesh_has_faces_for_are_refused_at_once():
         auto_layout(mesh, patches=1000)
     with pytest.raises(InputError, match="at most 366"):
         auto_layout(mesh, patches=372)  # 124 base triangles, 372 patches: one pair too many
-    # a mesh too coarse for the fewest patches an automatic layout makes
+    # a mesh too coarse for the fewest patches of the sphere route: asked, it is refused;
+    # by default the region route lays out as many as the faces allow
     small = icosphere(2)  # 320 faces: 20 patches at most
     with pytest.raises(InputError, match="makes at least 24: give a layout file"):
-        auto_layout(small)
+        auto_layout(small, patches=24)
+    layout = auto_layout(small)
+    assert 4 <= layout.n_patches and len(extract_patches(small, layout)) == layout.n_patches
 
 
 def test_fewest_patches():
@@ -94,14 +97,16 @@ def test_patch_count_and_demo_sphere():
     assert len(extract_patches(mesh, layout)) == 120
 
 
-def test_open_and_higher_genus_meshes_need_a_layout_file():
-    with pytest.raises(TopologyError, match="has genus 1: give a layout file"):
-        auto_layout(torus())
-    # on the proxy path too (the genus is found while the proxy is made)
-    with pytest.raises(TopologyError, match="has genus 1: give a layout file"):
-        auto_layout(torus(), proxy_faces=20)
-    with pytest.raises(TopologyError, match="fill"):
-        auto_layout(plane(6))
+def test_open_and_higher_genus_meshes_take_the_region_route():
+    from meshfit.layout.auto import auto_route
+
+    assert auto_route(torus()) == "regions"
+    assert auto_route(plane(6)) == "regions"
+    assert auto_route(icosphere(3)) == "sphere"
+    assert auto_route(icosphere(1)) == "regions"  # too few faces for 24 patches
+    assert auto_route(icosphere(1), patches=24) == "sphere"  # asked: the sphere route says
+    layout = auto_layout(torus())
+    assert len(extract_patches(torus(), layout)) == layout.n_patches
     with pytest.raises(InputError):
         auto_layout(demo_mesh(400), patches=0)
 

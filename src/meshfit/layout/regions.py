@@ -56,6 +56,8 @@ __all__ = ["CellReport", "crease_corners", "crease_edges", "region_layout"]
 
 #: default patch count
 DEFAULT_PATCHES = 60
+#: resolution of the distances the cells are grown by, mean edge lengths
+QUANTUM = 1e-6
 #: quads per cell on average on a closed surface (a Voronoi cell has about six sides)
 QUADS_PER_CELL = 6
 #: Lloyd steps of the seeds before and after seeds are added
@@ -130,6 +132,21 @@ def _voronoi(graph: sparse.csr_matrix, seeds: NDArray[np.int64]):
     return dist, label
 
 
+def _graph(mesh: Mesh) -> sparse.csr_matrix:
+    """The edge graph with lengths in whole units of `QUANTUM` mean edge lengths: path
+    lengths are then sums of integers, exact, so equal paths tie exactly and every choice
+    made from distances is the same after any rotation, translation or scaling of the
+    mesh (rounding in the coordinates would otherwise break ties one way or the other)."""
+    unit = QUANTUM * mesh.mean_edge_length
+    g = mesh.edge_graph.copy()
+    g.data = np.maximum(np.round(g.data / unit), 1.0)
+    return g
+
+
+def _quantized(values: NDArray[np.float64], unit: float) -> NDArray[np.float64]:
+    return np.round(values / unit)
+
+
 def _vertex_areas(mesh: Mesh) -> NDArray[np.float64]:
     return np.bincount(
         mesh.faces.reshape(-1),
@@ -158,7 +175,9 @@ def _initial_seeds(mesh: Mesh, graph, n_cells: int) -> NDArray[np.int64]:
         centre = (mesh.vertices[members] * vareas[members, None]).sum(0) / max(
             vareas[members].sum(), 1e-300
         )
-        first = int(members[np.argmax(((mesh.vertices[members] - centre) ** 2).sum(1))])
+        unit = (QUANTUM * mesh.mean_edge_length) ** 2
+        far = _quantized(((mesh.vertices[members] - centre) ** 2).sum(1), unit)
+        first = int(members[np.argmax(far)])
         d = csgraph.dijkstra(graph, directed=False, indices=first)
         mine = [first]
         for _ in range(int(counts[c]) - 1):
@@ -190,7 +209,10 @@ def _lloyd(mesh: Mesh, graph, seeds: NDArray[np.int64], steps: int, vareas) -> N
             )
             / np.maximum(w, 1e-300)[:, None]
         )
-        d2 = ((mesh.vertices - cen[np.maximum(label, 0)]) ** 2).sum(1)
+        d2 = _quantized(
+            ((mesh.vertices - cen[np.maximum(label, 0)]) ** 2).sum(1),
+            (QUANTUM * mesh.mean_edge_length) ** 2,
+        )
         d2[~ok] = np.inf
         order = np.lexsort((d2, label))
         lab_sorted = label[order]
@@ -239,7 +261,7 @@ def _cone_fails(mesh: Mesh, label: NDArray[np.int64], k: int, vareas):
 
 def _cells(mesh: Mesh, n_cells: int, max_cells: int):
     """Seeds and labels whose cells are disks within the normal cone (or the budget's end)."""
-    graph = mesh.edge_graph
+    graph = _graph(mesh)
     vareas = _vertex_areas(mesh)
     seeds = _initial_seeds(mesh, graph, n_cells)
     seeds = _lloyd(mesh, graph, seeds, LLOYD_STEPS, vareas)
