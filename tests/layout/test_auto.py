@@ -11,7 +11,7 @@ from numpy.testing import assert_array_equal
 
 from meshfit.curves.base import check_sampling, densify_curve
 from meshfit.demo import demo_mesh, demo_sphere_map
-from meshfit.errors import InputError, LayoutError, TopologyError
+from meshfit.errors import InputError, LayoutError
 from meshfit.layout import extract_patches, layout_from_json, layout_to_json
 from meshfit.layout.auto import auto_layout, quad_network
 from meshfit.shrinkwrap import icosahedron
