@@ -11,10 +11,11 @@ import pytest
 from meshfit.layout import extract_patches
 from meshfit.layout.auto import auto_layout
 from meshfit.layout.regions import crease_corners, crease_edges, region_layout
-from meshfit.mesh import Mesh
+from meshfit.mesh import Mesh, load_mesh
 from meshfit.pipeline import FitOptions, run_fit
 
 from .. import shapes
+from ..conftest import mesh_path
 
 #: the issue's bounds on every fit (fractions of the bbox diagonal; degrees)
 DISPLACED_RMS = 5e-4
@@ -98,7 +99,8 @@ def test_every_kind_of_mesh_fits_without_folded_cells(name, tmp_path_factory, re
 
 @cache
 def _real_fit(name: str, tmp: str) -> dict:
-    return run_fit(real_mesh(name), tmp, options=FitOptions(formats=(), report=False))
+    mesh = load_mesh(mesh_path(name), repair=True)  # the command line's default
+    return run_fit(mesh, tmp, options=FitOptions(formats=(), report=False))
 
 
 @pytest.mark.slow
@@ -120,7 +122,7 @@ def test_scans_of_any_topology_fit_with_no_options(name, tmp_path_factory, reque
 def test_bunny_is_laid_out_as_it_is():
     """Open (five holes) with unreferenced vertices, repaired by default: every hole's rim
     runs along patch boundaries, nothing is filled (its fit: benchmarks/layout.py)."""
-    mesh = real_mesh("bunny")
+    mesh = load_mesh(mesh_path("bunny"), repair=True)
     layout = auto_layout(mesh)
     patches = extract_patches(mesh, layout)
     assert len(patches) == layout.n_patches
