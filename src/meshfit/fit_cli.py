@@ -180,7 +180,8 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--layout",
         default="auto",
-        help="layout file (.json), or 'auto' for closed genus-0 meshes (default: %(default)s)",
+        help="layout file (.json), or 'auto': the automatic layout of any mesh "
+        "(default: %(default)s)",
     )
     p.add_argument(
         "--patches",
@@ -315,7 +316,8 @@ def add_commands(sub) -> None:
     p.add_argument(
         "--fill-holes",
         action="store_true",
-        help="close small holes (at most 1000 boundary edges each) before the automatic layout",
+        help="close small holes (at most 1000 boundary edges each) before the layout; "
+        "without it an open mesh is laid out as it is, the holes' rims on patch boundaries",
     )
     p.set_defaults(func=fit)
 
