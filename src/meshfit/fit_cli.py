@@ -90,6 +90,7 @@ def _options(args: argparse.Namespace):
         layout_shape={"auto": None, "on": True, "off": False}[args.shape_layout],
         layout_seed=args.layout_seed,
         crease_angle=None if args.crease_angle == 0 else args.crease_angle,
+        drop_components_below=args.drop_components,
         spring_level=args.level,
         spring_rescue=not args.no_rescue,
         spring_follow_folds=args.follow_folds,
@@ -204,6 +205,14 @@ def _common(p: argparse.ArgumentParser) -> None:
         metavar="N",
         help="rotation of the automatic layout's base mesh (default 0): another one gives "
         "other patches where the notes name slivers, tapered or bulging patches",
+    )
+    p.add_argument(
+        "--drop-components",
+        type=float,
+        default=0.0,
+        metavar="SHARE",
+        help="drop the mesh's components below this share of its area, e.g. 0.01 "
+        "(default: none; the summary names those below 1%% either way)",
     )
     p.add_argument(
         "--crease-angle",

@@ -115,6 +115,9 @@ class FitOptions:
     layout_shape : bool, optional
         ``shape`` of :func:`meshfit.layout.auto.auto_layout`: move the base vertices so that
         the quads are square on the surface (default None: above 60 patches).
+    drop_components_below : float
+        Drop the mesh's components below this share of its area before the layout
+        (default 0: none; the notes name those below 1% either way).
     crease_angle : float, optional
         ``crease_angle`` of :func:`meshfit.layout.auto.auto_layout`: chains of edges
         sharper than this many degrees become patch boundaries, C0 with continuity
@@ -178,6 +181,7 @@ class FitOptions:
     layout_shape: bool | None = None
     layout_seed: int = 0
     crease_angle: float | None = 40.0
+    drop_components_below: float = 0.0
     spring_level: int | None = None
     spring_max_points: int | None = None
     spring_rescue: bool = True
@@ -226,6 +230,12 @@ class FitOptions:
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
             raise InputError(f"layout_seed must be a whole number >= 0, got {seed!r}")
         object.__setattr__(self, "layout_seed", int(seed))
+        if not 0.0 <= float(self.drop_components_below) < 1.0:
+            raise InputError(
+                "drop_components_below must be a share of the area in [0, 1), got "
+                f"{self.drop_components_below!r}"
+            )
+        object.__setattr__(self, "drop_components_below", float(self.drop_components_below))
         if self.crease_angle is not None:
             a = float(self.crease_angle)
             if not 0.0 < a < 180.0:
@@ -761,6 +771,37 @@ def _prefetch_exporters(formats) -> None:
     threading.Thread(target=load, name="meshfit-prefetch", daemon=False).start()
 
 
+#: components below this share of the area are named in the notes
+SMALL_COMPONENT = 0.01
+
+
+def _small_components(mesh: Mesh, drop_below: float, notes: list[str]) -> Mesh:
+    """The mesh, without its components below ``drop_below`` of the area when that is above
+    0; components below `SMALL_COMPONENT` are named in ``notes`` either way."""
+    from meshfit.mesh.components import component_shares, drop_small_components
+
+    if mesh.n_components < 2:
+        return mesh
+    shares = component_shares(mesh)
+    small = np.flatnonzero(shares < max(SMALL_COMPONENT, drop_below))
+    if small.size == 0:
+        return mesh
+    worst = ", ".join(f"{100 * shares[c]:.2g}%" for c in small[np.argsort(shares[small])][:5])
+    if drop_below > 0.0:
+        mesh, _ = drop_small_components(mesh, drop_below)
+        notes.append(
+            f"dropped {plural(small.size, 'component')} below {100 * drop_below:.3g}% of the "
+            f"area ({worst}; FitOptions.drop_components_below, --drop-components)"
+        )
+    else:
+        notes.append(
+            f"{plural(small.size, 'component')} below {100 * SMALL_COMPONENT:.3g}% of the area "
+            f"({worst}), each laid out and fitted on its own: --drop-components SHARE "
+            "(FitOptions.drop_components_below) drops them"
+        )
+    return mesh
+
+
 def _resolve_layout(mesh: Mesh, layout, options: FitOptions):
     """(layout source key, loader) for a Layout, a path, ``"auto"`` or None."""
     from meshfit.layout import Layout, layout_to_json, load_layout
@@ -869,14 +910,15 @@ def run_fit(
         from meshfit.mesh import load_mesh
 
         mesh = load_mesh(mesh, repair=True)
+    if mesh.repairs is not None and mesh.repairs.changed():
+        notes.append(f"the input was {mesh.repairs.summary()}")
+    mesh = _small_components(mesh, options.drop_components_below, notes)
     # the content hash (hashlib releases the GIL) is taken on a thread while a layout is
     # made; a resumed run waits for it first, to look for a finished layout
     hasher = ThreadPoolExecutor(max_workers=1)
     hashed = hasher.submit(mesh_hash, mesh)
     hasher.shutdown(wait=False)
     diag = float(mesh.bbox_diagonal)
-    if mesh.repairs is not None and mesh.repairs.changed():
-        notes.append(f"the input was {mesh.repairs.summary()}")
     st.done("validate", t0, cached=False)
 
     # ---- layout

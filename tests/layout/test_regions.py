@@ -8,6 +8,7 @@ from functools import cache
 import numpy as np
 import pytest
 
+from meshfit.errors import InputError
 from meshfit.layout import extract_patches
 from meshfit.layout.auto import auto_layout
 from meshfit.layout.regions import crease_corners, crease_edges, region_layout
@@ -205,3 +206,22 @@ def test_rigid_motions_and_scalings_give_the_same_fit(tmp_path):
         for kind in ("rms", "hausdorff"):
             a, b = s["errors"]["displaced"][kind], ref["errors"]["displaced"][kind]
             assert abs(a - b) <= 0.2 * b + 1e-5, (kind, a, b)
+
+
+def test_small_components_are_named_and_dropped_on_request(tmp_path):
+    from meshfit.mesh.components import component_shares, drop_small_components
+
+    big, small = shapes.icosphere(3), shapes.icosphere(1, radius=0.05)
+    v = np.vstack([big.vertices, small.vertices + np.array([3.0, 0.0, 0.0])])
+    f = np.vstack([big.faces, small.faces + big.n_vertices])
+    mesh = Mesh(v, f, name="with_debris")
+    assert component_shares(mesh)[1] < 0.01
+    kept, face_map = drop_small_components(mesh, 0.01)
+    assert kept.n_components == 1 and kept.n_faces == big.n_faces
+    assert (face_map[big.n_faces :] == -1).all()
+    opts = FitOptions(formats=(), report=False, patches=24, drop_components_below=0.01)
+    s = run_fit(mesh, tmp_path / "dropped", options=opts)
+    assert any("dropped 1 component below 1%" in n for n in s["notes"])
+    assert s["mesh"]["faces"] == big.n_faces
+    with pytest.raises(InputError, match="drop_components_below"):
+        FitOptions(drop_components_below=1.5)
