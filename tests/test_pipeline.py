@@ -18,7 +18,9 @@ from meshfit.pipeline import FORMATS, STAGES, FitOptions, _load_npz, load_fit, r
 from .conftest import ROOT, real_mesh
 
 LAYOUT = ROOT / "examples" / "layouts" / "spot.json"
-OPTIONS = FitOptions(controls=(6, 6), spring_level=1, formats=FORMATS, report=False, workers=2)
+OPTIONS = FitOptions(
+    controls=(6, 6), spring_level=1, formats=FORMATS, report=False, workers=2, continuity="c0"
+)
 
 
 @pytest.fixture(scope="module")

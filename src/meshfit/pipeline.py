@@ -825,7 +825,7 @@ def _resolve_layout(mesh: Mesh, layout, options: FitOptions):
 
         shape = {None: "", True: ":shaped", False: ":unshaped"}[options.layout_shape]
         seed = f":seed{options.layout_seed}" if options.layout_seed else ""
-        crease = f":crease{options.crease_angle}"
+        crease = "" if options.crease_angle == 40.0 else f":crease{options.crease_angle}"
         return f"auto:{options.patches}{shape}{seed}{crease}:r{AUTO_LAYOUT_REVISION}", make
     if not isinstance(layout, (str, os.PathLike)):
         raise InputError(

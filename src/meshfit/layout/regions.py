@@ -241,6 +241,12 @@ def _euler_per_cell(mesh: Mesh, label: NDArray[np.int64], k: int) -> NDArray[np.
     return (nv - ne + nf).astype(np.int64)
 
 
+def _not_disks(mesh: Mesh, graph, seeds: NDArray[np.int64]) -> int:
+    """How many of the cells of ``seeds`` are no disk."""
+    _, label = _voronoi(graph, seeds)
+    return int((_euler_per_cell(mesh, label, seeds.size) != 1).sum())
+
+
 def _cone_fails(mesh: Mesh, label: NDArray[np.int64], k: int, vareas):
     """Cells with more than `CONE_SHARE` of their area beyond `NORMAL_CONE` of their mean
     normal, and the mask of the vertices beyond it."""
@@ -298,7 +304,11 @@ def _cells(mesh: Mesh, n_cells: int, max_cells: int):
         for c in take:
             added["disk" if not_disk[c] else "normal_cone"] += 1
         seeds = np.unique(np.concatenate([seeds, new]))
-        seeds = _lloyd(mesh, graph, seeds, 1, vareas)
+        # a Lloyd step evens the cells out, but is kept only where it leaves no more cells
+        # that are no disk (moving every seed can undo what the new ones fixed)
+        moved = _lloyd(mesh, graph, seeds, 1, vareas)
+        if _not_disks(mesh, graph, moved) <= _not_disks(mesh, graph, seeds):
+            seeds = moved
     dist, label = _voronoi(graph, seeds)
     not_disk = _euler_per_cell(mesh, label, seeds.size) != 1
     bad = int(np.flatnonzero(not_disk)[0]) if not_disk.any() else 0
