@@ -10,8 +10,10 @@ Method
    A cell must be a disk: its vertex-induced subcomplex has Euler characteristic 1 (a cell
    that wraps round a handle or a hole has a lower one). And it must hold a shape one patch
    can: no more than `CONE_SHARE` of its area may turn more than `NORMAL_CONE` from its
-   mean normal (an ear, a horn, a fold back). A cell that fails either test gets a second
-   seed at its vertex farthest from its seed, and the round repeats within a budget.
+   mean normal (an ear, a horn, a fold back), unless it is too small to split. A cell that
+   fails gets a second seed (on the hole or slit inside it, on its turned part, else at its
+   vertex farthest from its seed), and the round repeats within a budget (`MAX_ROUNDS`
+   rounds, a cell count): at its end every cell is a disk, or the layout is refused.
 3. **Cell boundaries.** The mesh is clipped along the label field: cut points at the
    mid-points of edges whose ends differ and at the centroids of faces with three labels,
    so each cell is a submesh of exact face points of the input, and where the mesh is open
@@ -83,6 +85,9 @@ CREASE_MIN_TOTAL = 1.0
 CREASE_TURN: float | None = None
 #: chain edges on either side over which a crease's turn is measured
 CREASE_TURN_REACH = 3
+#: a cell with fewer vertices is not split for its turn (half of it could not hold a cell's
+#: patches at `MIN_FACES_PER_PATCH` faces, about two faces a vertex)
+CONE_MIN_VERTICES = QUADS_PER_CELL * 16
 #: rounds of seed insertion at most (each round adds a seed to every cell that fails)
 MAX_ROUNDS = 40
 #: fewest input faces per patch (more patches are refused: a spring grid needs faces)
@@ -280,7 +285,10 @@ def _cells(mesh: Mesh, n_cells: int, max_cells: int):
         chi = _euler_per_cell(mesh, label, k)
         not_disk = chi != 1
         cone, far = _cone_fails(mesh, label, k, vareas)
-        cone &= ~not_disk
+        # (a cell too small to give two cells of patches is not split for its turn: a thin
+        # rim turns back within any cell that holds it)
+        size = np.bincount(label[label >= 0], minlength=k)
+        cone &= ~not_disk & (size >= CONE_MIN_VERTICES)
         bad = np.flatnonzero(not_disk | cone)
         if bad.size == 0:
             return seeds, label, added, rounds
@@ -311,7 +319,9 @@ def _cells(mesh: Mesh, n_cells: int, max_cells: int):
             seeds = moved
     dist, label = _voronoi(graph, seeds)
     not_disk = _euler_per_cell(mesh, label, seeds.size) != 1
-    bad = int(np.flatnonzero(not_disk)[0]) if not_disk.any() else 0
+    if not not_disk.any():  # disks, some still turning too far: the best within the budget
+        return seeds, label, added, rounds
+    bad = int(np.flatnonzero(not_disk)[0])
     raise LayoutError(
         f"the automatic layout could not make every cell a disk within {max_cells} cells "
         f"(the cell round vertex {int(seeds[bad])} is not one): give a layout file, or "
