@@ -34,6 +34,10 @@ re-used.
 6. A layout with a sliver patch (:data:`meshfit.layout.patch.THIN`: a spring grid across
    it folds) is made again from the next rotations of the base mesh, and the one with the
    fewest slivers is kept.
+7. Where a quad of the base mesh would hold a protrusion whole (`quad_depths`), or the
+   curves cross with every rotation tried, the mesh is laid out by the region route
+   (:mod:`meshfit.layout.regions`) instead: each attempt here is one trace and one check,
+   and the region route's rounds are bounded, so no mesh meets a search without an end.
 """
 
 from __future__ import annotations
@@ -87,8 +91,9 @@ FINE_RELAX_ITERATIONS = 50
 #: earlier revisions made 60; 4: base vertices moved onto protrusions, traced arcs sampled
 #: densely where the sphere map squeezes the surface; 5: the degrees of a base mesh with
 #: split edges balanced by flips; 6: another rotation of the base mesh tried where a patch
-#: is a sliver; 7: meshes of any other topology laid out by :mod:`meshfit.layout.regions`)
-AUTO_LAYOUT_REVISION = 7
+#: is a sliver; 7: meshes of any other topology laid out by :mod:`meshfit.layout.regions`;
+#: 8: a mesh with a protrusion a quad would hold, or whose curves cross, goes there too)
+AUTO_LAYOUT_REVISION = 8
 #: ``shape=None`` of `auto_layout` shapes base meshes of more than this many triangles. The
 #: bisections that take the relaxed icosahedron beyond 20 triangles leave cells of equal area
 #: that are slivers where the sphere map stretches (spring meshes of the 96-patch layouts, with
@@ -110,12 +115,9 @@ TRACE_GAP_EDGES = 3.0
 TRACE_ROUNDS = 40
 TRACE_MIN_STEP = 1e-12
 #: a quad of the base network deeper than this (`quad_depths`: graph distance from its
-#: boundary over the square root of its area; a flat square 0.5) holds a protrusion, and a
-#: base vertex is moved onto its tip (quads of the 60-patch layouts of igea, nefertiti, spot
-#: and the demo, base rotations 0-2: at most 0.60; bunny's ears 0.70-1.09)
+#: boundary over the square root of its area; a flat square 0.5) holds a protrusion, and the
+#: mesh goes to the region route
 PROTRUSION_DEPTH = 0.65
-#: base vertices moved onto protrusions at most
-PROTRUSION_MOVES = 6
 #: degree-balancing flips of a base mesh at most, per triangle (`balance_degrees`)
 BALANCE_FLIPS_PER_FACE = 4
 #: a base triangle's image is split n x n ways to find its area centre
@@ -405,12 +407,10 @@ def auto_layout(
         genus-0 surface, is laid out by :func:`meshfit.layout.regions.region_layout`, which
         puts the creases on patch boundaries (default 40; None: creases are not looked for).
     protrusions : bool, keyword-only
-        Move base vertices onto the tips of protrusions that a quad would hold whole (an
-        ear, a tail), so that its curves run along the protrusion (default True; see
-        :func:`quad_depths` and ``PROTRUSION_DEPTH``). A patch holding a protrusion is
-        anchored round its foot, and its spring mesh misses the tip: bunny's fit with 60
-        patches, up to 1.2% of the bbox diagonal off the displaced surface at an ear
-        without, 0.46% with.
+        Where a quad of the base mesh would hold a protrusion whole (an ear, a tail: deeper
+        than ``PROTRUSION_DEPTH``, :func:`quad_depths`), lay the mesh out by the region
+        route instead, whose cells split where the surface turns (default True). A patch
+        holding a protrusion is anchored round its foot and its spring mesh misses the tip.
 
     Returns
     -------
@@ -435,8 +435,6 @@ def auto_layout(
        area-equalised base mesh).
     .. [2] Krishnamurthy 2000, sec. 1.3 (four-sided patch layouts).
     """
-    from meshfit.layout.extract import check_layout_topology
-    from meshfit.shrinkwrap import sphere_map
 
     if patches is not None and int(patches) < 1:
         raise InputError(f"patches must be >= 1, got {patches}")
@@ -444,15 +442,55 @@ def auto_layout(
         raise InputError(f"proxy_faces must be >= 20, got {proxy_faces}")
     proxy = sphere is None and proxy_faces is not None and mesh.n_faces > PROXY_RATIO * proxy_faces
     if sphere is None and auto_route(mesh, patches=patches, crease_angle=crease_angle) != "sphere":
-        from meshfit.layout.regions import region_layout
-
-        return region_layout(
+        regions = dict(patches=patches, crease_angle=crease_angle, relax=relax)
+        return _region_route(mesh, regions, relax_iterations)
+    try:
+        return _sphere_route(
             mesh,
             patches=patches,
-            crease_angle=crease_angle,
+            sphere=sphere,
+            seed=seed,
             relax=relax,
             relax_iterations=relax_iterations,
+            sphere_max_aspect=sphere_max_aspect,
+            proxy_faces=proxy_faces,
+            shape=shape,
+            protrusions=protrusions,
+            proxy=proxy,
         )
+    except (_HoldsProtrusion, LayoutError):
+        # a protrusion that a quad would hold whole, or curves that cross with every
+        # rotation tried: the region route's cells follow the shape instead
+        if sphere is not None:
+            raise
+        regions = dict(patches=patches, crease_angle=crease_angle, relax=relax)
+        return _region_route(mesh, regions, relax_iterations)
+
+
+def _region_route(mesh: Mesh, options: dict, relax_iterations: int) -> Layout:
+    from meshfit.layout.regions import region_layout
+
+    return region_layout(mesh, **options, relax_iterations=relax_iterations)
+
+
+def _sphere_route(
+    mesh: Mesh,
+    *,
+    patches,
+    sphere,
+    seed: int,
+    relax: bool,
+    relax_iterations: int,
+    sphere_max_aspect,
+    proxy_faces,
+    shape,
+    protrusions: bool,
+    proxy: bool,
+) -> Layout:
+    """The sphere-map route of `auto_layout` (its arguments checked there)."""
+    from meshfit.layout.extract import check_layout_topology
+    from meshfit.shrinkwrap import sphere_map
+
     if not mesh.is_closed:
         raise _topology_error(mesh)
     want = DEFAULT_PATCHES if patches is None else int(patches)
@@ -654,9 +692,9 @@ def _network(
     relaxed: _RelaxMemo | None = None,
 ):
     """Corners, traced curves, curve ends and quads of the base mesh of ``smap`` (its
-    vertices moved by :func:`meshfit.layout.shaping.shape_base` with ``shape``, and onto
-    protrusions by `_onto_protrusions` with ``protrusions``, which checks the curves relaxed
-    with ``relax_iterations`` too, through ``relaxed``)."""
+    vertices moved by :func:`meshfit.layout.shaping.shape_base` with ``shape``); with
+    ``protrusions``, `_HoldsProtrusion` where a quad is deeper than `PROTRUSION_DEPTH`."""
+    del relax_iterations, relaxed
     from meshfit.layout.shaping import shape_base
     from meshfit.shrinkwrap import base_mesh
     from meshfit.shrinkwrap.base import STARTS
@@ -668,10 +706,16 @@ def _network(
         BF = balance_degrees(S, BF)
     if shape:
         S = shape_base(smap, S, BF, seed=seed).sphere
-    network = _traced(mesh, smap, S, BF)
     if protrusions:
-        network = _onto_protrusions(mesh, smap, S, BF, network, relax_iterations, relaxed)
-    return network
+        depth, _ = quad_depths(mesh, smap.sphere, S, BF)
+        if depth.max(initial=0.0) > PROTRUSION_DEPTH:
+            raise _HoldsProtrusion(float(depth.max()))
+    return _traced(mesh, smap, S, BF)
+
+
+class _HoldsProtrusion(Exception):
+    """A quad of the base mesh would hold a protrusion whole: the sphere route's patches
+    cannot follow it, the region route's cells can."""
 
 
 def _traced(mesh: Mesh, smap, S: NDArray[np.float64], BF: NDArray[np.int64]):
@@ -765,75 +809,6 @@ def quad_depths(
         k = int(np.argmax(d))
         depth[q], tip[q] = d[k] / np.sqrt(area), idx[k]
     return depth, tip
-
-
-def _onto_protrusions(
-    mesh: Mesh,
-    smap,
-    S: NDArray,
-    BF: NDArray,
-    network,
-    relax_iterations: int = 0,
-    relaxed: _RelaxMemo | None = None,
-):
-    """The traced network with base vertices moved onto the tips of protrusions.
-
-    A quad deeper than `PROTRUSION_DEPTH` (:func:`quad_depths`) holds a protrusion whose
-    spring mesh would be anchored round its foot and miss its tip (bunny's ears: 1.2% of the
-    bbox diagonal off the displaced surface). Its base vertex, else the nearer of its base
-    triangle's other two, moves onto the sphere image of the quad's deepest vertex, and the
-    curves from it then run along the protrusion. A move is kept when no base triangle turns
-    over and the traced network, or its curves relaxed with ``relax_iterations`` (what
-    `auto_layout` tries first), still cuts the mesh into disks; the deepest quad left is
-    treated next, up to `PROTRUSION_MOVES` moves."""
-    moved: set[int] = set()
-    tried: set[int] = set()
-    for _ in range(PROTRUSION_MOVES):
-        depth, tip = quad_depths(mesh, smap.sphere, S, BF)
-        order = [q for q in np.argsort(-depth) if depth[q] > PROTRUSION_DEPTH and q not in tried]
-        if not order:
-            break
-        q = int(order[0])
-        tried.add(q)
-        target = _unit(smap.sphere[tip[q]])
-        f = q // PATCHES_PER_TRIANGLE
-        first = int(BF[f, q % PATCHES_PER_TRIANGLE])
-        others = sorted((int(b) for b in BF[f] if b != first), key=lambda b: -(S[b] @ target))
-        for b in [first, *others]:
-            if b in moved:
-                continue
-            T = S.copy()
-            T[b] = target
-            if not _upright(T, BF):
-                continue
-            trial = _traced(mesh, smap, T, BF)
-            if not _cuts_disks(mesh, trial, relax_iterations, relaxed):
-                continue
-            S, network = T, trial
-            moved.add(b)
-            break
-    return network
-
-
-def _cuts_disks(
-    mesh: Mesh, network, relax_iterations: int, relaxed: _RelaxMemo | None = None
-) -> bool:
-    """Whether the traced ``network`` (corners, curves, ends, quads), or its curves relaxed
-    with ``relax_iterations`` (when above 0, through ``relaxed``), cuts ``mesh`` into
-    disks."""
-    from meshfit.layout.extract import check_layout_topology
-
-    corners, curves, ends, quads = network
-
-    def cuts(c: list[SurfaceCurve]) -> bool:
-        try:
-            check_layout_topology(mesh, layout_from_curves(mesh, corners, c, ends, quads))
-        except MeshfitError:
-            return False
-        return True
-
-    relax = relaxed or _relax_all
-    return cuts(curves) or (relax_iterations > 0 and cuts(relax(mesh, curves, relax_iterations)))
 
 
 def balance_degrees(

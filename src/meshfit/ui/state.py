@@ -841,27 +841,11 @@ class Session:
         self.set_layout(load_layout(path, self._need_mesh(), check_topology=False))
 
     def auto_layout(self) -> None:
-        """A starting layout for a closed genus-0 mesh (replaces the painted curves)."""
-        mesh = self._need_mesh()
-        if not mesh.is_closed or mesh.genus != 0 or mesh.n_components != 1:
-            raise InputError(
-                "automatic layout needs a closed genus-0 mesh of one piece; "
-                f"{mesh.name or 'this mesh'} has genus {mesh.genus}, "
-                f"{len(mesh.boundary_loops)} boundary loop(s), {mesh.n_components} piece(s)"
-            )
-        layout = None
-        try:
-            from meshfit.layout import auto as _auto  # built alongside; used when present
-        except ImportError:
-            _auto = None
-        fn = getattr(_auto, "auto_layout", None) if _auto is not None else None
-        if fn is not None:
-            layout = fn(mesh)
-        else:
-            from meshfit.layout.cube import cube_layout
+        """A starting layout for the mesh, of any topology (replaces the painted curves;
+        :func:`meshfit.layout.auto.auto_layout`)."""
+        from meshfit.layout.auto import auto_layout
 
-            layout = cube_layout(mesh, n=1)
-        self.set_layout(layout)
+        self.set_layout(auto_layout(self._need_mesh()))
 
     # ------------------------------------------------------------------------ previews
     def patches(self):
