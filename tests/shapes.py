@@ -198,3 +198,27 @@ def dirty_sphere() -> tuple[np.ndarray, np.ndarray]:
     v = np.vstack([v, (v[e0] + v[e1]) / 2.0 * 1.3])
     fin = [[e1, e0, tip]]
     return v, np.vstack([f, f[5:8], fin])
+
+
+def spiky(arms: int = 8, *, edge: float = 0.05, length: float = 1.6, seed: int = 0) -> Mesh:
+    """Closed genus-0 body with ``arms`` long protrusions (capsules from the centre, blended
+    by a smooth minimum): a statue's limbs, ears and tails in one shape."""
+    import manifold3d as m3
+
+    rng = np.random.default_rng(seed)
+    dirs = rng.normal(size=(arms, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    radii = 0.12 + 0.08 * rng.random(arms)
+
+    def sdf(x: float, y: float, z: float) -> float:
+        p = np.array([x, y, z])
+        d = np.linalg.norm(p) - 0.6
+        for a, r in zip(dirs, radii, strict=True):
+            t = np.clip(p @ a, 0.0, length)
+            q = np.linalg.norm(p - t * a) - r
+            h = max(0.15 - abs(d - q), 0.0) / 0.15
+            d = min(d, q) - h * h * 0.15 / 4.0
+        return -float(d)
+
+    b = length + 0.4
+    return _from_manifold(m3.Manifold.level_set(sdf, [-b, -b, -b, b, b, b], edge), "spiky")

@@ -85,9 +85,10 @@ CREASE_MIN_TOTAL = 1.0
 CREASE_TURN: float | None = None
 #: chain edges on either side over which a crease's turn is measured
 CREASE_TURN_REACH = 3
-#: a cell with fewer vertices is not split for its turn (half of it could not hold a cell's
-#: patches at `MIN_FACES_PER_PATCH` faces, about two faces a vertex)
-CONE_MIN_VERTICES = QUADS_PER_CELL * 16
+#: a cell with fewer vertices is not split for its turn: each half would hold fewer than
+#: the fewest patches of a cell (three) at `MIN_FACES_PER_PATCH` faces (about two faces a
+#: vertex)
+CONE_MIN_VERTICES = 3 * 16
 #: rounds of seed insertion at most (each round adds a seed to every cell that fails)
 MAX_ROUNDS = 40
 #: fewest input faces per patch (more patches are refused: a spring grid needs faces)
