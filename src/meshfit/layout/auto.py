@@ -455,7 +455,8 @@ def auto_layout(
             sphere_max_aspect=sphere_max_aspect,
             proxy_faces=proxy_faces,
             shape=shape,
-            protrusions=protrusions,
+            # (with the caller's sphere map there is no other route to hand the mesh to)
+            protrusions=protrusions and sphere is None,
             proxy=proxy,
         )
     except (_HoldsProtrusion, LayoutError):
