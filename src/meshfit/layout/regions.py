@@ -48,6 +48,7 @@ from scipy.sparse import csgraph
 from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
+from meshfit._kernels.locate2d import walk_locate
 from meshfit.errors import InputError, LayoutError, MeshfitError
 from meshfit.layout.layout import Layout, layout_from_curves
 from meshfit.mesh import Mesh
@@ -93,6 +94,8 @@ CONE_MIN_VERTICES = 3 * 16
 MAX_ROUNDS = 40
 #: fewest input faces per patch (more patches are refused: a spring grid needs faces)
 MIN_FACES_PER_PATCH = 16
+#: barycentric slack of a point found inside a sub-triangle by the walk
+WALK_EPS = 1e-12
 #: a traced radius has consecutive samples at most this many mean edge lengths apart ...
 TRACE_GAP_EDGES = 1.0
 #: ... within this many rounds of halving
@@ -858,7 +861,9 @@ class _Locator:
     def __init__(self, uv: NDArray[np.float64], T: NDArray[np.int64]) -> None:
         self.uv, self.T = uv, T
         self.tree = cKDTree(uv[T].mean(axis=1))
-        self.neighbors = face_neighbors(T, edge_table(T, uv.shape[0]))
+        self.neighbors = np.ascontiguousarray(face_neighbors(T, edge_table(T, uv.shape[0])))
+        self.uv = np.ascontiguousarray(uv, dtype=np.float64)
+        self.T = np.ascontiguousarray(T, dtype=np.int64)
 
     def bary(self, q: NDArray[np.float64], tris: NDArray[np.int64]):
         a, b, c = (self.uv[self.T[tris, k]] for k in range(3))
@@ -870,6 +875,23 @@ class _Locator:
         return np.stack([1.0 - l1 - l2, l1, l2], 1)
 
     def locate(self, q: NDArray[np.float64]) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+        """Sub-triangle and barycentrics of each point: a walk from triangle to triangle
+        (the points come along a path), the nearest triangles by their centroids where the
+        walk does not settle."""
+        q = np.ascontiguousarray(q, dtype=np.float64)
+        if q.shape[0] == 0:
+            return np.zeros(0, dtype=np.int64), np.zeros((0, 3))
+        start = int(self.tree.query(q[0])[1])
+        out_t, out_b = walk_locate(self.uv, self.T, self.neighbors, q, start, WALK_EPS)
+        lost = np.flatnonzero(out_t < 0)
+        if lost.size:
+            t, b = self._nearest(q[lost])
+            out_t[lost], out_b[lost] = t, b
+        out_b = np.clip(out_b, 0.0, None)
+        out_b /= out_b.sum(axis=1, keepdims=True)
+        return out_t, out_b
+
+    def _nearest(self, q: NDArray[np.float64]) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
         n = q.shape[0]
         out_t = np.full(n, -1, dtype=np.int64)
         out_b = np.zeros((n, 3))
@@ -892,8 +914,6 @@ class _Locator:
                 out_b[sel] = b[better]
             if kq == nt:
                 break
-        out_b = np.clip(out_b, 0.0, None)
-        out_b /= out_b.sum(axis=1, keepdims=True)
         return out_t, out_b
 
 
