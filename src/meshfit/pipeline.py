@@ -802,8 +802,9 @@ def _small_components(mesh: Mesh, drop_below: float, notes: list[str]) -> Mesh:
     return mesh
 
 
-def _resolve_layout(mesh: Mesh, layout, options: FitOptions):
-    """(layout source key, loader) for a Layout, a path, ``"auto"`` or None."""
+def _resolve_layout(mesh: Mesh, layout, options: FitOptions, layout_report: list | None = None):
+    """(layout source key, loader) for a Layout, a path, ``"auto"`` or None; the automatic
+    layout appends what it did to ``layout_report``."""
     from meshfit.layout import Layout, layout_to_json, load_layout
 
     if isinstance(layout, Layout):
@@ -821,6 +822,7 @@ def _resolve_layout(mesh: Mesh, layout, options: FitOptions):
                 shape=options.layout_shape,
                 seed=options.layout_seed,
                 crease_angle=options.crease_angle,
+                report=layout_report,
             )
 
         shape = {None: "", True: ":shaped", False: ":unshaped"}[options.layout_shape]
@@ -923,7 +925,8 @@ def run_fit(
 
     # ---- layout
     t0 = st.start("layout")
-    source, make_layout = _resolve_layout(mesh, layout, options)
+    layout_report: list = []
+    source, make_layout = _resolve_layout(mesh, layout, options, layout_report)
     cached = None
     if resume:
         mhash = hashed.result()
@@ -1251,7 +1254,11 @@ def run_fit(
             "sha256": mhash,
         },
         "options": json.loads(json.dumps(asdict(options))),  # tuples as JSON lists
-        "layout": {"source": source if not source.startswith("auto") else "auto"},
+        "layout": {
+            "source": source if not source.startswith("auto") else "auto",
+            # the automatic layout's route and cells (empty where the layout was cached)
+            **(layout_report[0] if layout_report else {}),
+        },
         "patches_total": n_patches,
         "control_classes": control_classes,
         "stages": st.info,

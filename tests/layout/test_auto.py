@@ -118,9 +118,9 @@ def _record_region_route(monkeypatch) -> list:
     calls: list = []
     plain = auto._region_route
 
-    def recorded(mesh, options, relax_iterations):
+    def recorded(mesh, options, relax_iterations, info):
         calls.append(mesh.name)
-        return plain(mesh, options, relax_iterations)
+        return plain(mesh, options, relax_iterations, info)
 
     monkeypatch.setattr(auto, "_region_route", recorded)
     return calls

@@ -95,6 +95,9 @@ def test_every_kind_of_mesh_fits_within_the_bounds(name, tmp_path_factory):
     assert d["rms"] <= DISPLACED_RMS
     assert d["hausdorff"] <= DISPLACED_HAUSDORFF
     assert s["seams"]["spline_normal_jump_inner_max_deg"] <= SMOOTH_SEAM_DEG
+    # the summary says which route laid it out
+    assert s["layout"]["route"] in ("sphere", "regions", "sphere -> regions")
+    assert (s["layout"]["route"] == "sphere") == ("cells" not in s["layout"])
 
 
 @pytest.mark.slow

@@ -354,8 +354,11 @@ def auto_layout(
     shape: bool | None = None,
     protrusions: bool = True,
     crease_angle: float | None = 40.0,
+    report: list | None = None,
 ) -> Layout:
-    """A four-sided layout of a closed genus-0 mesh: three quads per base-mesh triangle.
+    """A four-sided layout of any mesh: for one closed genus-0 surface without creases,
+    three quads per triangle of the shrink-wrap base mesh; for every other mesh, and where
+    that route cannot hold the shape, :func:`meshfit.layout.regions.region_layout`.
 
     Parameters
     ----------
@@ -401,6 +404,10 @@ def auto_layout(
         are traced. None (default): when the base mesh has more than ``SHAPE_ABOVE_FACES``
         (20) triangles, i.e. from ``patches=62`` on (22 triangles), where the area-equalised
         base mesh gives slivers (see ``SHAPE_ABOVE_FACES``).
+    report : list, keyword-only, optional
+        Gets a dict appended: ``route`` (``"sphere"``, ``"regions"``, or ``"sphere ->
+        regions"`` where the sphere route handed the mesh on) and, from the region route,
+        ``cells`` and ``seeds_added`` (:class:`meshfit.layout.regions.CellReport`).
     crease_angle : float or None, keyword-only
         A mesh with chains of edges sharper than this many degrees
         (:func:`meshfit.layout.regions.crease_edges`), like a mesh that is not one closed
@@ -441,9 +448,14 @@ def auto_layout(
     if proxy_faces is not None and int(proxy_faces) < 20:
         raise InputError(f"proxy_faces must be >= 20, got {proxy_faces}")
     proxy = sphere is None and proxy_faces is not None and mesh.n_faces > PROXY_RATIO * proxy_faces
+    info: dict = {}
+    if report is not None:
+        report.append(info)
     if sphere is None and auto_route(mesh, patches=patches, crease_angle=crease_angle) != "sphere":
+        info["route"] = "regions"
         regions = dict(patches=patches, crease_angle=crease_angle, relax=relax)
-        return _region_route(mesh, regions, relax_iterations)
+        return _region_route(mesh, regions, relax_iterations, info)
+    info["route"] = "sphere"
     try:
         return _sphere_route(
             mesh,
@@ -464,14 +476,18 @@ def auto_layout(
         # rotation tried: the region route's cells follow the shape instead
         if sphere is not None:
             raise
+        info["route"] = "sphere -> regions"
         regions = dict(patches=patches, crease_angle=crease_angle, relax=relax)
-        return _region_route(mesh, regions, relax_iterations)
+        return _region_route(mesh, regions, relax_iterations, info)
 
 
-def _region_route(mesh: Mesh, options: dict, relax_iterations: int) -> Layout:
+def _region_route(mesh: Mesh, options: dict, relax_iterations: int, info: dict) -> Layout:
     from meshfit.layout.regions import region_layout
 
-    return region_layout(mesh, **options, relax_iterations=relax_iterations)
+    cells: list = []
+    out = region_layout(mesh, **options, relax_iterations=relax_iterations, report=cells)
+    info.update(cells=cells[0].cells, seeds_added=dict(cells[0].seeds_added))
+    return out
 
 
 def _sphere_route(
