@@ -944,10 +944,18 @@ def run_fit(
         staged = save_layout(lay, st.path("layout", k_layout, ".json"), mesh=mesh)
         write_bytes(out / "layout.json", staged.read_bytes())
     n_patches = int(lay.n_patches)
-    if source.startswith("auto") and options.patches is not None and n_patches != options.patches:
-        from meshfit.layout.auto import MIN_PATCHES, auto_route
+    route = None  # the automatic layout's route, where it was made (not cached)
+    if source.startswith("auto"):
+        from meshfit.layout.auto import auto_route
 
-        route = auto_route(mesh, patches=options.patches, crease_angle=options.crease_angle)
+        route = (
+            layout_report[0]["route"]
+            if layout_report
+            else auto_route(mesh, patches=options.patches, crease_angle=options.crease_angle)
+        )
+    if source.startswith("auto") and options.patches is not None and n_patches != options.patches:
+        from meshfit.layout.auto import MIN_PATCHES
+
         why = (
             f"it makes three per base triangle, an even number of triangles, at least "
             f"{MIN_PATCHES} patches"
@@ -1235,14 +1243,7 @@ def run_fit(
                 "crease_sides": int(lay.creases[lay.patch_curves[p]].sum()),
             }
         )
-    sphere_route = False
-    if source.startswith("auto"):
-        from meshfit.layout.auto import auto_route
-
-        sphere_route = (
-            auto_route(mesh, patches=options.patches, crease_angle=options.crease_angle) == "sphere"
-        )
-    notes.extend(_quality_notes(patch_rows, options.layout_seed if sphere_route else None))
+    notes.extend(_quality_notes(patch_rows, options.layout_seed if route == "sphere" else None))
     summary: dict[str, Any] = {
         "meshfit_fit": PIPELINE_FORMAT,
         "version": __version__,

@@ -429,12 +429,11 @@ def auto_layout(
         ``patches`` below 1, or more patches than the mesh has faces for (fewer than
         `MIN_FACES_PER_PATCH` = 16 faces a patch).
     meshfit.errors.TopologyError
-        An open mesh, a mesh with holes or of higher genus: a layout file is needed (or
-        ``fill_holes`` first where the holes are small).
+        With the caller's ``sphere``: a mesh that is not one closed genus-0 surface.
     meshfit.errors.LayoutError
-        The traced curves cross with every one of the ``SEED_TRIES`` rotations tried (where
-        the sphere map squeezes many base corners together, e.g. nefertiti with 200
-        patches): fewer patches or a layout file are needed.
+        With the caller's ``sphere``: the traced curves cross with every one of the
+        ``SEED_TRIES`` rotations tried. Without it such a mesh goes to the region route,
+        which raises only where its cells cannot all be made disks within its budget.
 
     References
     ----------
@@ -451,9 +450,9 @@ def auto_layout(
     info: dict = {}
     if report is not None:
         report.append(info)
+    regions = dict(patches=patches, crease_angle=crease_angle, relax=relax)
     if sphere is None and auto_route(mesh, patches=patches, crease_angle=crease_angle) != "sphere":
         info["route"] = "regions"
-        regions = dict(patches=patches, crease_angle=crease_angle, relax=relax)
         return _region_route(mesh, regions, relax_iterations, info)
     info["route"] = "sphere"
     try:
@@ -477,7 +476,6 @@ def auto_layout(
         if sphere is not None:
             raise
         info["route"] = "sphere -> regions"
-        regions = dict(patches=patches, crease_angle=crease_angle, relax=relax)
         return _region_route(mesh, regions, relax_iterations, info)
 
 

@@ -80,12 +80,6 @@ CREASE_MIN_LENGTH = 0.05
 #: the bbox diagonal: creases that shape the part (a machined or modelled edge runs round
 #: it), not the short sharp ridges a scan leaves, whose quads would be slivers
 CREASE_MIN_TOTAL = 1.0
-#: a crease chain turning by more than this (degrees) would get a layout corner there; None:
-#: turns are no corners (a cell on the outer side of a turn would have a reflex corner
-#: there, and the quads at it fold), only the points where chains meet
-CREASE_TURN: float | None = None
-#: chain edges on either side over which a crease's turn is measured
-CREASE_TURN_REACH = 3
 #: a cell with fewer vertices is not split for its turn: each half would hold fewer than
 #: the fewest patches of a cell (three) at `MIN_FACES_PER_PATCH` faces (about two faces a
 #: vertex)
@@ -462,7 +456,8 @@ def _crease_nodes(clip: _Clip, mesh: Mesh, label, parent, orig: Mesh, corner_ver
     crease have the same points and corners; the copies of ``corner_vertices`` (input
     vertices) become junctions."""
     border = np.flatnonzero(mesh.edge_face_count == 1)
-    oe = _orig_edges(mesh, parent, orig)[border]
+    oe_all = _orig_edges(mesh, parent, orig)
+    oe = oe_all[border]
     nv_o = orig.n_vertices
     present = np.zeros(orig.edges.shape[0], dtype=bool)
     le = label[mesh.edges[border]]
@@ -475,7 +470,6 @@ def _crease_nodes(clip: _Clip, mesh: Mesh, label, parent, orig: Mesh, corner_ver
     bary = list(clip.tri_bary)
     sf, sb, xyz, junc, canon = [], [], [], [], []
     n = clip.canon.size
-    oe_all = _orig_edges(mesh, parent, orig)
     todo = {int(e) for e in missing.tolist()}
     for _ in range(3):  # a sub-triangle with two such edges is split once per pass
         if not todo:
@@ -594,41 +588,23 @@ def crease_edges(mesh: Mesh, angle: float = CREASE_ANGLE) -> NDArray[np.bool_]:
 
 
 def crease_corners(mesh: Mesh, crease: NDArray[np.bool_]) -> NDArray[np.int64]:
-    """Vertices where crease chains meet (three or more), end, or turn by more than
-    `CREASE_TURN` degrees (measured between the chain points `CREASE_TURN_REACH` edges away
-    on either side, so that the zigzag of a crease across the triangles is not a turn)."""
-    e = mesh.edges[crease]
-    nv = mesh.n_vertices
-    deg = np.bincount(e.reshape(-1), minlength=nv)
-    corners = set(np.flatnonzero((deg >= 3) | (deg == 1)).tolist())
-    nbr: dict[int, list[int]] = {}
-    for a, b in e.tolist():
-        nbr.setdefault(a, []).append(b)
-        nbr.setdefault(b, []).append(a)
-    V = mesh.vertices
-    turn = {}
-    for v, (a, b) in ((v, nb) for v, nb in nbr.items() if len(nb) == 2):
-        ends = []
-        for first in (a, b):
-            prev, cur = v, first
-            for _ in range(CREASE_TURN_REACH - 1):
-                nxt = [w for w in nbr.get(cur, []) if w != prev]
-                if len(nbr.get(cur, [])) != 2 or not nxt:
-                    break
-                prev, cur = cur, nxt[0]
-            ends.append(cur)
-        d1, d2 = V[ends[0]] - V[v], V[ends[1]] - V[v]
-        c = d1 @ d2 / max(np.linalg.norm(d1) * np.linalg.norm(d2), 1e-300)
-        turn[v] = 180.0 - np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
-    for v, t in turn.items():
-        # a turn counts once: at the vertex turning most among its chain neighbours
-        if (
-            CREASE_TURN is not None
-            and t > CREASE_TURN
-            and all(t >= turn.get(w, 0.0) for w in nbr[v])
-        ):
-            corners.add(v)
-    return np.asarray(sorted(corners), dtype=np.int64)
+    """Vertices where crease chains meet (three or more chains) or end (on the mesh
+    boundary: dangling ends are pruned by :func:`crease_edges`).
+
+    Parameters
+    ----------
+    mesh : Mesh
+    crease : (ne,) bool
+        Over ``mesh.edges``, from :func:`crease_edges`.
+
+    Returns
+    -------
+    (k,) int64
+        Ascending vertex indices. A chain's turns are no corners: a cell on the outer side
+        of a turn would have a reflex corner there, and the quads at it fold.
+    """
+    deg = np.bincount(mesh.edges[crease].reshape(-1), minlength=mesh.n_vertices)
+    return np.flatnonzero((deg >= 3) | (deg == 1)).astype(np.int64)
 
 
 def _cut_open(mesh: Mesh, crease: NDArray[np.bool_]) -> tuple[Mesh, NDArray[np.int64]]:
@@ -1103,8 +1079,8 @@ def region_layout(
         one patch per `MIN_FACES_PER_PATCH` faces.
     crease_angle : float or None, keyword-only
         Chains of edges sharper than this many degrees (:func:`crease_edges`) become patch
-        boundaries, their meeting points, ends and sharp turns corners
-        (:func:`crease_corners`); the layout marks those curves in ``creases``. Default
+        boundaries, the points where they meet corners (:func:`crease_corners`);
+        the layout marks those curves in ``creases``. Default
         `CREASE_ANGLE` (40); None: no creases.
     relax : bool, keyword-only
         Relax the interior curves as surface snakes with fixed ends (default True).
