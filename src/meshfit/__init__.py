@@ -19,13 +19,41 @@ from meshfit.types import SurfaceCurve, SurfacePoints
 
 __version__ = "0.1.0"
 
+#: the front door's names, imported on first use (``import meshfit`` stays quick for the CLI)
+_LAZY = {
+    "fit": "meshfit.pipeline",
+    "load_fit": "meshfit.pipeline",
+    "FitOptions": "meshfit.pipeline",
+    "FitResult": "meshfit.pipeline",
+    "PatchFit": "meshfit.pipeline",
+    "wrap": "meshfit.shrinkwrap.front",
+    "WrapOptions": "meshfit.shrinkwrap.front",
+    "WrapResult": "meshfit.shrinkwrap",
+}
+
 __all__ = [
+    "FitOptions",
+    "FitResult",
     "Mesh",
+    "PatchFit",
     "SurfaceCurve",
     "SurfacePoints",
+    "WrapOptions",
+    "WrapResult",
     "__version__",
     "errors",
+    "fit",
+    "load_fit",
     "load_mesh",
     "save_mesh",
     "tol",
+    "wrap",
 ]
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'meshfit' has no attribute {name!r}")

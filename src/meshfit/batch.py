@@ -1,7 +1,7 @@
 """Batch fits over many meshes on dask.distributed.
 
 One task per mesh (and, for large meshes, one task per patch for the spring meshes), each
-running :func:`meshfit.pipeline.run_fit` into ``<out>/<mesh stem>/``
+running :func:`meshfit.fit` into ``<out>/<mesh stem>/``
 with ``resume=True``. A LocalCluster on 127.0.0.1 is started by default; any scheduler address
 reaches a real cluster. Robustness:
 
@@ -86,7 +86,7 @@ def fit_one(
     ...}``; never raises for bad input.
     """
     from meshfit.mesh import load_mesh
-    from meshfit.pipeline import FitOptions, run_fit
+    from meshfit.pipeline import FitOptions, fit
 
     t0 = time.perf_counter()
     folder = Path(out)
@@ -104,14 +104,9 @@ def fit_one(
                 patch_map = _dask_patch_map
             except ValueError:  # not on a worker: threads
                 patch_map = None
-        summary = run_fit(
-            mesh,
-            folder,
-            layout=layout or "auto",
-            options=opts,
-            resume=True,
-            patch_map=patch_map,
-        )
+        summary = fit(
+            mesh, layout or "auto", options=opts, out=folder, resume=True, patch_map=patch_map
+        ).summary
     except MeshfitError as exc:
         return {"status": "failed", "error": f"{type(exc).__name__}: {exc}".splitlines()[0]}
     except Exception as exc:  # a crash in one mesh must not stop the batch

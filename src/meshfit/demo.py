@@ -139,7 +139,7 @@ def run_demo(
 
     Generates :func:`demo_mesh`, lays out about ``patches`` four-sided patches automatically
     (:func:`meshfit.layout.auto.auto_layout` over the demo's exact radial sphere map), and
-    runs :func:`meshfit.pipeline.run_fit`: spring meshes, B-spline fit, displacement maps,
+    runs :func:`meshfit.fit`: spring meshes, B-spline fit, displacement maps,
     stitching, exports and ``report.html``. Writes ``demo_scan.ply``, ``info.json`` and the
     fit outputs into ``out``.
 
@@ -169,7 +169,7 @@ def run_demo(
     from meshfit.layout.auto import auto_layout
     from meshfit.mesh import save_mesh
     from meshfit.mesh.measures import mesh_statistics
-    from meshfit.pipeline import FitOptions, run_fit
+    from meshfit.pipeline import FitOptions, fit
 
     console = Console(quiet=quiet, stderr=True)
     out = Path(out)
@@ -196,7 +196,7 @@ def run_demo(
             controls=(12, 12), continuity="g1", formats=("usd", "obj", "exr", "png")
         )
     with stage_progress(quiet=quiet) as prog:
-        summary = run_fit(mesh, out, layout=layout, options=options, progress=prog)
+        summary = fit(mesh, layout, options=options, out=out, progress=prog).summary
     summary["statistics"] = stats
     summary["generate_seconds"] = round(generate, 3)
     summary["layout_seconds"] = round(t_layout, 3)

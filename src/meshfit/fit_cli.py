@@ -121,7 +121,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     """Fit B-spline patches with displacement maps to one mesh."""
     from meshfit.cli import EXIT_OK, print_json, print_table
     from meshfit.mesh import load_mesh
-    from meshfit.pipeline import run_fit
+    from meshfit.pipeline import fit
 
     options = _options(args)
     mesh = load_mesh(args.mesh, repair=args.repair)
@@ -131,9 +131,10 @@ def cmd_fit(args: argparse.Namespace) -> int:
         mesh = fill_holes(mesh)
     out = Path(args.out) if args.out else Path(Path(args.mesh).stem + "-fit")
     with stage_progress(quiet=args.json) as prog:
-        summary = run_fit(
-            mesh, out, layout=args.layout, options=options, resume=args.resume, progress=prog
+        result = fit(
+            mesh, args.layout or "auto", options=options, out=out, resume=args.resume, progress=prog
         )
+    summary = result.summary
     if args.json:
         print_json(summary)
     else:

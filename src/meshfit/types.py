@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import StrEnum
 from typing import Literal
 
 import numpy as np
@@ -10,7 +11,41 @@ from numpy.typing import ArrayLike, NDArray
 
 from meshfit.errors import InputError
 
-__all__ = ["SurfaceCurve", "SurfacePoints"]
+__all__ = ["CONTINUITIES", "Side", "SurfaceCurve", "SurfacePoints"]
+
+#: continuity across a shared boundary: positions only, or positions and tangent planes
+CONTINUITIES = ("C0", "G1")
+
+
+class Side(StrEnum):
+    """A side of a patch's parameter square, named by the parameter held fixed on it.
+
+    ``U0`` is ``u = 0`` (row ``A[0, :]`` of a grid or control net), ``U1`` is ``u = 1``
+    (``A[-1, :]``), ``V0`` is ``v = 0`` (``A[:, 0]``), ``V1`` is ``v = 1`` (``A[:, -1]``).
+    The members are strings (``Side.U0 == "u0"``), so files and JSON keep the plain names.
+    A layout names a patch's sides by their order around it (side ``s`` runs from corner
+    ``s`` to corner ``s + 1``); :meth:`around` converts.
+    """
+
+    U0 = "u0"
+    U1 = "u1"
+    V0 = "v0"
+    V1 = "v1"
+
+    @classmethod
+    def around(cls, s: int) -> Side:
+        """The side that is side ``s`` (0..3) in a layout's order around the patch: the
+        grid's corners ``(0, 0), (-1, 0), (-1, -1), (0, -1)`` are layout corners 0..3, so
+        sides 0..3 are ``v0, u1, v1, u0`` (sides 2 and 3 run against their parameter)."""
+        return _AROUND[s]
+
+    @property
+    def direction(self) -> int:
+        """Index of the parameter running along this side: 1 (v) on u0/u1, 0 (u) on v0/v1."""
+        return 1 if self.value[0] == "u" else 0
+
+
+_AROUND = (Side.V0, Side.U1, Side.V1, Side.U0)
 
 
 def _readonly(a: NDArray) -> NDArray:

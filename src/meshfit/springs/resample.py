@@ -728,7 +728,7 @@ def resample_patch(
         with the arc-length force alone, one sweep per level (five on level 0), and keep it
         when it misses by at most ``RESCUE_GAIN`` (half) as much and folds no more cells
         (with ``init`` and ``midpoints`` "map"; default False: the relaxation of the
-        thesis; :func:`meshfit.pipeline.run_fit` turns it on). A pleat or a bulge squeezed
+        thesis; :func:`meshfit.fit` turns it on). A pleat or a bulge squeezed
         into a sliver of the square gets almost no grid points, and the full relaxation
         pulls grid lines away from it: on nefertiti's automatic layout a pleat at the ear
         (patch 24) is missed by 1.46% of the bbox diagonal, by 0.33% once rescued; on

@@ -633,7 +633,7 @@ class App:
             self.say(f"exported {len(out)} files to {self.gui_export.value}")
 
     def _progress(self, stage: str, done: int, total: int) -> None:
-        """Fit progress from :func:`meshfit.pipeline.run_fit` to the progress bar."""
+        """Fit progress from :func:`meshfit.fit` to the progress bar."""
         frac = done / total if total else 1.0
         self.gui_progress.value = float(100.0 * min(max(frac, 0.0), 1.0))
         self.gui_message.content = f"fitting: {stage} {done}/{total}"

@@ -937,14 +937,14 @@ class Session:
         progress: Callable[[str, int, int], None] | None = None,
     ) -> list[Path]:
         """Fit the painted layout and write everything ``meshfit fit`` writes into ``folder``
-        (:func:`meshfit.pipeline.run_fit` with this layout); returns the files written."""
-        from meshfit.pipeline import FitOptions, run_fit
+        (:func:`meshfit.fit` with this layout); returns the files written."""
+        from meshfit.pipeline import FitOptions, fit
 
         folder = Path(folder)
         before = set(folder.rglob("*")) if folder.is_dir() else set()
         kw = {} if formats is None else {"formats": tuple(formats)}
         opts = FitOptions(controls=(int(controls[0]), int(controls[1])), **kw)
-        run_fit(self._need_mesh(), folder, layout=self.layout(), options=opts, progress=progress)
+        fit(self._need_mesh(), self.layout(), options=opts, out=folder, progress=progress)
         return sorted(p for p in folder.rglob("*") if p.is_file() and p not in before)
 
     # ------------------------------------------------------------------------ session file

@@ -1,0 +1,125 @@
+"""Distances between a fit and its input, as fractions of the input's bbox diagonal.
+
+Two-sided: every reconstruction vertex to the input triangles and every input vertex to the
+reconstruction's triangles (a grid soup), so a part of the input the fit misses counts as
+much as a part the fit invents.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from meshfit import tol
+from meshfit._kernels.geometry import label_corner_max
+from meshfit.mesh import Mesh
+from meshfit.mesh.locate import grid_tree, triangle_distances
+from meshfit.springs import grid_triangles
+
+
+def surface_distance(
+    mesh: Mesh, V: NDArray[np.float64], F: NDArray[np.int64], tree, known=None
+) -> tuple[NDArray, NDArray]:
+    """Two-sided distances: reconstruction vertices to the input, input vertices to the
+    reconstruction (a triangle soup ``V, F`` and its tree). ``known`` (per vertex of ``V``,
+    optional): an upper bound of each one's distance to the input; where it is below
+    ``tol.KNOWN_DISTANCE`` of the diagonal it is the distance (no search)."""
+    todo = np.arange(V.shape[0])
+    to_input = np.zeros(V.shape[0])
+    if known is not None:
+        near = known <= tol.KNOWN_DISTANCE * mesh.bbox_diagonal
+        to_input[near] = known[near]
+        todo = np.flatnonzero(~near)
+    if todo.size:
+        to_input[todo], _ = triangle_distances(
+            V[todo], mesh.vertices, mesh.faces, tree=mesh.triangle_tree
+        )
+    from_input, _ = triangle_distances(mesh.vertices, V, F, tree=tree)
+    return to_input, from_input
+
+
+def error_figures(
+    mesh: Mesh, V, F, tree, known=None
+) -> tuple[dict[str, float], NDArray[np.float64], NDArray[np.float64]]:
+    """Error figures over the bbox diagonal, each reconstruction vertex's distance to the
+    input and each input vertex's distance to the reconstruction (``known``: see
+    `surface_distance`)."""
+    a, b = surface_distance(mesh, V, F, tree, known)
+    diag = mesh.bbox_diagonal
+    both = np.concatenate([a, b])
+    return (
+        {
+            "rms": float(np.sqrt(np.mean(both**2)) / diag),
+            "hausdorff": float(both.max() / diag),
+            "mean": float(both.mean() / diag),
+            "to_input_max": float(a.max() / diag),
+            "from_input_max": float(b.max() / diag),
+        },
+        a,
+        b,
+    )
+
+
+def texel_grids(surfaces: list, shapes: list[tuple[int, ...]]) -> list[NDArray[np.float64]]:
+    """Each spline at its map's texels (``shapes[p]`` starts with the map's rows and
+    columns), as the displaced grids are laid out."""
+    return [
+        s.evaluate_grid(np.linspace(0.0, 1.0, sh[0]), np.linspace(0.0, 1.0, sh[1]))
+        for s, sh in zip(surfaces, shapes, strict=True)
+    ]
+
+
+def spline_errors(mesh: Mesh, grids: list[NDArray[np.float64]]):
+    """Error figures of the spline grids (`texel_grids`) against the input, and each grid
+    vertex's distance to the input."""
+    V, F = soup(grids)
+    fig, to_input, _ = error_figures(mesh, V, F, grid_tree(V, F, [g.shape[:2] for g in grids]))
+    return fig, to_input
+
+
+def early_spline(mesh: Mesh, surfaces: list, shapes: list[tuple[int, ...]]):
+    """The spline grids at the maps' texels (``shapes``) and `spline_errors` of them."""
+    grids = texel_grids(surfaces, shapes)
+    return (grids, *spline_errors(mesh, grids))
+
+
+def spring_bounds(
+    displaced: list[NDArray[np.float64]], grids: list[NDArray[np.float64]]
+) -> NDArray[np.float64]:
+    """Upper bounds of the displaced grids' vertices' distances to the input (stacked as
+    `soup` stacks them): a map with its spring grid's shape puts each texel where it
+    reproduces that grid's point, which lies on the input (inf for other shapes)."""
+    out = []
+    for D, G in zip(displaced, grids, strict=True):
+        if D.shape == G.shape:
+            out.append(np.linalg.norm(D - G, axis=2).reshape(-1))
+        else:
+            out.append(np.full(D.shape[0] * D.shape[1], np.inf))
+    return np.concatenate(out) if out else np.zeros(0)
+
+
+def per_patch_max(
+    mesh: Mesh, face_patch: NDArray[np.int64] | None, value: NDArray, n: int
+) -> list[float]:
+    """Largest ``value`` (one per input vertex) over each patch's input vertices (a vertex on
+    a patch boundary counts for every patch of its faces); None without the face labels."""
+    if face_patch is None or len(face_patch) != mesh.n_faces:
+        return [None] * n
+    worst = label_corner_max(
+        np.ascontiguousarray(mesh.faces, dtype=np.int64),
+        np.ascontiguousarray(face_patch, dtype=np.int64),
+        np.ascontiguousarray(value, dtype=np.float64),
+        int(n),
+    )
+    return np.maximum(worst, 0.0).tolist()
+
+
+def soup(arrays: list[NDArray[np.float64]]) -> tuple[NDArray, NDArray]:
+    """Grids ``(nu, nv, 3)`` as one triangle soup: stacked vertices and faces."""
+    Vs, Fs, base = [], [], 0
+    for X in arrays:
+        nu, nv = X.shape[:2]
+        Vs.append(X.reshape(-1, 3))
+        Fs.append(grid_triangles(nu, nv) + base)
+        base += nu * nv
+    return np.vstack(Vs), np.vstack(Fs)

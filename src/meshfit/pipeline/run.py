@@ -1,0 +1,209 @@
+"""The front door of the fit: :func:`fit`, in memory or into a folder."""
+
+from __future__ import annotations
+
+import importlib
+import os
+import sys
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+from meshfit import __version__
+from meshfit._threads import n_workers
+from meshfit.mesh import Mesh
+from meshfit.pipeline.notes import quality_notes
+from meshfit.pipeline.options import FitOptions
+from meshfit.pipeline.outputs import edited_maps, write_manifest
+from meshfit.pipeline.result import FIT_FILES, FitResult, PatchFit
+from meshfit.pipeline.runner import Context, Progress, Runner
+from meshfit.pipeline.stages import STAGES, Report, Validate, fit_stages
+from meshfit.pipeline.store import PIPELINE_FORMAT
+
+__all__ = ["fit"]
+
+#: modules the exporters of a format import (loaded on a side thread while the fit runs:
+#: the USD ones take a noticeable part of a second)
+_EXPORT_MODULES = {
+    "usd": ("pxr.Gf", "pxr.Sdf", "pxr.Usd", "pxr.UsdGeom", "pxr.Vt"),
+    "3dm": ("rhino3dm",),
+}
+
+
+def _prefetch_exporters(formats) -> None:
+    """Import the modules of the exporters in ``formats`` on a thread of their own (an
+    import error is left for the exports to report).
+
+    Not a daemon thread: a fit that fails early must not exit while the thread is inside an
+    extension's import (USD's), which aborts the process instead of reporting the error;
+    the interpreter waits for the import to finish instead."""
+    names = [m for f in formats for m in _EXPORT_MODULES.get(f, ())]
+    if not names or all(n in sys.modules for n in names):
+        return
+
+    def load() -> None:
+        for name in names:
+            try:
+                importlib.import_module(name)
+            except ImportError:
+                return
+
+    threading.Thread(target=load, name="meshfit-prefetch", daemon=False).start()
+
+
+def fit(
+    mesh: Mesh | str | os.PathLike,
+    layout: Any = "auto",
+    *,
+    options: FitOptions | None = None,
+    progress: Progress | None = None,
+    out: str | os.PathLike | None = None,
+    resume: bool = False,
+    patch_map: Callable | None = None,
+) -> FitResult:
+    """Fit B-spline patches with displacement maps to a mesh.
+
+    Parameters
+    ----------
+    mesh : Mesh or path
+        The input; a path is loaded with :func:`meshfit.load_mesh` (harmless defects
+        repaired, with a note).
+    layout : Layout, path or ``"auto"``
+        The patch layout: an object, a layout file, or the automatic layout (default), which
+        takes any topology.
+    options : FitOptions, keyword-only, optional
+        Default ``FitOptions()``.
+    progress : callable(stage, done, total), keyword-only, optional
+        Called as each stage advances.
+    out : path, keyword-only, optional
+        Output folder: the fit is saved there (:meth:`FitResult.save`), the options' formats
+        exported and the report written, and every stage's result is kept in
+        ``out/stages`` for ``resume``. Default None: in memory only.
+    resume : bool, keyword-only
+        With ``out``: re-use the stage files whose content key matches (default False).
+    patch_map : callable(fn, items) -> list, keyword-only, optional
+        Runs the per-patch spring-mesh tasks elsewhere (Dask, :mod:`meshfit.batch`): called
+        with :func:`meshfit.pipeline.spring_task` and one picklable item per patch.
+
+    Returns
+    -------
+    FitResult
+
+    Raises
+    ------
+    meshfit.errors.MeshfitError
+        Bad input (mesh, layout, options).
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 1.3 (the fitting pipeline), ch. 5 (spring meshes), ch. 6
+       (B-spline fitting), ch. 7 (displacement maps), sec. 8.1 (continuity).
+    """
+    options = options or FitOptions()
+    folder = None if out is None else Path(out)
+    if folder is not None:
+        _prefetch_exporters(options.formats)
+        folder.mkdir(parents=True, exist_ok=True)
+    t_all = time.perf_counter()
+    ctx = Context(options, n_workers(options.workers), progress)
+    ctx["input"] = mesh
+    runner = Runner(None if folder is None else folder / "stages", resume)
+    runner.run([Validate()], ctx)
+    runner.run(fit_stages(layout, patch_map, folder), ctx)
+    ctx.info = {k: ctx.info[k] for k in STAGES if k in ctx.info}  # the stage order
+    summary = _summary(ctx)
+    if folder is not None and options.report:
+        ctx["summary"] = summary
+        runner.run([Report(folder)], ctx)
+        summary["outputs"]["report"] = ["report.html"]
+    summary["stages"] = ctx.info
+    summary["seconds_total"] = round(time.perf_counter() - t_all, 4)
+    summary["work_done"] = [s for s, i in ctx.info.items() if not i["cached"] and s != "validate"]
+    result = _result(ctx, summary)
+    if folder is not None:
+        result.save(folder)
+        if options.report:
+            from meshfit.report import write_html
+
+            write_html(folder, summary)  # its timing table includes the report stage
+        images = ctx["report"]["images"] if options.report else []
+        _manifest(folder, summary, images)
+    return result
+
+
+def _summary(ctx: Context) -> dict[str, Any]:
+    mesh, diag = ctx["mesh"], ctx["diag"]
+    lay, maps, errors = ctx["layout"], ctx["maps"], ctx["errors"]
+    n = int(lay.n_patches)
+    per_patch = errors.get("displaced_from_input_max_per_patch", [None] * n)
+    rows = []
+    for p in range(n):
+        rows.append(
+            {
+                "patch": p,
+                **ctx["spring_info"][p],
+                **ctx["fit_info"][p],
+                "map_shape": list(maps[p].shape),
+                "input_distance_max": per_patch[p],
+                "displacement_max": float(abs(maps[p].values).max() / diag),
+                "crease_sides": int(lay.creases[lay.patch_curves[p]].sum()),
+            }
+        )
+    auto_seed = ctx.options.layout_seed if ctx["layout_route"] == "sphere" else None
+    ctx.notes.extend(quality_notes(rows, auto_seed))
+    return {
+        "meshfit_fit": PIPELINE_FORMAT,
+        "version": __version__,
+        "mesh": {
+            "name": mesh.name,
+            "vertices": int(mesh.n_vertices),
+            "faces": int(mesh.n_faces),
+            "bbox_diagonal": diag,
+            "sha256": ctx["mesh_hash"],
+        },
+        "options": asdict(ctx.options),
+        "layout": {"source": ctx["layout_source"], **ctx["layout_report"]},
+        "patches_total": n,
+        "control_classes": ctx["control_classes"],
+        "stages": ctx.info,
+        "patches": rows,
+        "errors": errors,
+        "seams": ctx["seams"],
+        "notes": ctx.notes,
+        "outputs": dict(ctx["outputs"]) if "outputs" in ctx else {},
+    }
+
+
+def _result(ctx: Context, summary: dict[str, Any]) -> FitResult:
+    import json
+
+    from meshfit.pipeline.store import json_default
+
+    # the summary as plain JSON data (tuples as lists), as a saved one reads back
+    summary = json.loads(json.dumps(summary, default=json_default))
+    patches = [
+        PatchFit(p, g, s, d, row)
+        for p, (g, s, d, row) in enumerate(
+            zip(ctx["grids"], ctx["surfaces"], ctx["maps"], summary["patches"], strict=True)
+        )
+    ]
+    return FitResult(
+        patches,
+        ctx["layout"],
+        ctx["network"],
+        summary,
+        ctx.options,
+        mesh=ctx["mesh"],
+        face_patch=ctx["face_patch"],
+        spline_distance=ctx["spline_distance"],
+    )
+
+
+def _manifest(folder: Path, summary: dict[str, Any], images: list[str]) -> None:
+    """The manifest of a finished run: the fit's files, the exports, the report and its
+    images (maps the user edited keep their old entries)."""
+    files = [*FIT_FILES, *(f for fs in summary["outputs"].values() for f in fs), *images]
+    write_manifest(folder, sorted(set(files)), keep=edited_maps(folder))

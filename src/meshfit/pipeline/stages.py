@@ -1,0 +1,683 @@
+"""The stages of the fit, in order: validate, layout, cut, springs, fit, displacement, stitch,
+exports, errors (and the report, after the summary).
+
+Each stage reads named values from the :class:`~meshfit.pipeline.runner.Context` and writes
+its own; the continuity logic lives in :mod:`meshfit.stitch`, the error figures in
+:mod:`meshfit.pipeline.measure`, the files in :mod:`meshfit.pipeline.outputs`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from meshfit.errors import InputError, LayoutError
+from meshfit.mesh import Mesh
+from meshfit.mesh.locate import grid_tree
+from meshfit.pipeline import measure
+from meshfit.pipeline.notes import small_components
+from meshfit.pipeline.runner import Context, Stage
+from meshfit.pipeline.springs import patch_payload, spring_patch, spring_task
+from meshfit.pipeline.store import (
+    as_bytes,
+    from_bytes,
+    load_npz,
+    mesh_hash,
+    save_npz,
+    sha_file,
+    untimed,
+    write_json,
+)
+
+#: pipeline stages in order (keys of the summary's ``stages``)
+STAGES = (
+    "validate",
+    "layout",
+    "cut",
+    "springs",
+    "fit",
+    "displacement",
+    "stitch",
+    "exports",
+    "errors",
+    "report",
+)
+
+
+class Validate(Stage):
+    """The input as a validated :class:`Mesh` (a path is loaded and repaired), its small
+    components noted or dropped, its content hash taken on a thread."""
+
+    name = "validate"
+    suffix = None
+
+    def key(self, ctx: Context) -> str:
+        return ""
+
+    def run(self, ctx: Context) -> None:
+        mesh = ctx["input"]
+        if not isinstance(mesh, Mesh):
+            if not isinstance(mesh, (str, os.PathLike)):
+                raise InputError(
+                    f"mesh must be a Mesh or a mesh file's path, got {type(mesh).__name__}"
+                )
+            from meshfit.mesh import load_mesh
+
+            mesh = load_mesh(mesh, repair=True)
+        if mesh.repairs is not None and mesh.repairs.changed():
+            ctx.notes.append(f"the input was {mesh.repairs.summary()}")
+        mesh = small_components(mesh, ctx.options.drop_components_below, ctx.notes)
+        ctx["mesh"] = mesh
+        ctx["diag"] = float(mesh.bbox_diagonal)
+        pool = ThreadPoolExecutor(max_workers=1)  # hashlib releases the GIL
+        ctx["mesh_hash"] = pool.submit(mesh_hash, mesh)
+        pool.shutdown(wait=False)
+
+
+class Layout(Stage):
+    """The patch layout: a Layout object, a layout file, or the automatic layout."""
+
+    name = "layout"
+    suffix = ".json"
+
+    def __init__(self, layout: Any) -> None:
+        self.layout = "auto" if layout is None else layout
+        self.source = ""
+        self.report: list = []
+
+    def _resolve(self, ctx: Context):
+        from meshfit.layout import Layout as LayoutType
+        from meshfit.layout import layout_to_json, load_layout
+
+        mesh = ctx["mesh"]
+        if isinstance(self.layout, LayoutType):
+            text = layout_to_json(self.layout)
+            return hashlib.sha256(text.encode()).hexdigest(), lambda: self.layout
+        if isinstance(self.layout, str) and self.layout == "auto":
+            from meshfit.layout.auto import AUTO_LAYOUT_REVISION, auto_layout
+
+            o = ctx.options.layout
+
+            def make():
+                return auto_layout(
+                    mesh,
+                    patches=o.patches,
+                    shape=o.shape,
+                    seed=o.seed,
+                    crease_angle=o.crease_angle,
+                    report=self.report,
+                )
+
+            return f"auto:r{AUTO_LAYOUT_REVISION}", make
+        if not isinstance(self.layout, (str, os.PathLike)):
+            raise InputError(
+                f"layout must be a Layout, a layout file's path or 'auto', got "
+                f"{type(self.layout).__name__}"
+            )
+        path = Path(self.layout)
+        if not path.is_file():
+            raise LayoutError(f"{path}: no such layout file")
+        digest = hashlib.sha256(path.read_bytes()).hexdigest()
+        return digest, lambda: load_layout(path, mesh)
+
+    def group(self, ctx: Context) -> Any:
+        return ctx.options.layout if self.source.startswith("auto") else None
+
+    def extra(self, ctx: Context) -> Any:
+        self.source, self.make = self._resolve(ctx)
+        return [ctx["mesh_hash"], self.source]
+
+    def key(self, ctx: Context) -> str:
+        self.extra(ctx)  # the source decides the group
+        return super().key(ctx)
+
+    def run(self, ctx: Context) -> None:
+        ctx["layout"] = self.make()
+
+    def save(self, ctx: Context, path: Path) -> None:
+        from meshfit.layout import save_layout
+
+        save_layout(ctx["layout"], path, mesh=ctx["mesh"])
+
+    def load(self, ctx: Context, path: Path) -> bool:
+        from meshfit.layout import load_layout
+
+        ctx["layout"] = load_layout(path, ctx["mesh"], check_topology=False)
+        return True
+
+    def facts(self, ctx: Context) -> dict[str, Any]:
+        lay = ctx["layout"]
+        ctx["layout_source"] = "auto" if self.source.startswith("auto") else self.source
+        ctx["layout_report"] = self.report[0] if self.report else {}
+        self._count_note(ctx, int(lay.n_patches))
+        return {"patches": int(lay.n_patches)}
+
+    def _count_note(self, ctx: Context, n: int) -> None:
+        o = ctx.options.layout
+        route = None
+        if self.source.startswith("auto"):
+            from meshfit.layout.auto import auto_route
+
+            route = (
+                self.report[0]["route"]
+                if self.report
+                else auto_route(ctx["mesh"], patches=o.patches, crease_angle=o.crease_angle)
+            )
+        ctx["layout_route"] = route
+        if route is None or o.patches is None or n == o.patches:
+            return
+        from meshfit.layout.auto import MIN_PATCHES
+
+        why = (
+            f"it makes three per base triangle, an even number of triangles, at least "
+            f"{MIN_PATCHES} patches"
+            if route == "sphere"
+            else "it makes one per side of every cell, and more cells where a cell is not a "
+            "disk or turns too far for one patch (meshfit.layout.regions)"
+        )
+        ctx.notes.append(f"the automatic layout has {n} patches for the {o.patches} asked: {why}")
+
+
+class Cut(Stage):
+    """The patch submeshes, made only when a later stage needs them (a resumed run whose
+    spring meshes are saved never cuts); the file keeps each input face's patch."""
+
+    name = "cut"
+    after = ("layout",)
+
+    def run(self, ctx: Context) -> None:
+        ctx.lazy("patches", lambda: self._cut(ctx))
+        ctx.lazy("face_patch", lambda: self._face_patch(ctx))
+
+    def _cut(self, ctx: Context) -> list:
+        from meshfit.layout import extract_patches
+
+        t = time.perf_counter()
+        mesh = ctx["mesh"]
+        ps = extract_patches(mesh, ctx["layout"], workers=ctx.workers)
+        face_patch = np.full(mesh.n_faces, -1, dtype=np.int64)
+        for p in ps:
+            face_patch[p.face_parent] = p.index
+        ctx["face_patch"] = face_patch
+        path = ctx.path(self.name, self.suffix)
+        if path is not None:
+            save_npz(
+                path,
+                {
+                    "face_patch": face_patch,
+                    "n_faces": np.array([p.mesh.n_faces for p in ps], dtype=np.int64),
+                    "n_vertices": np.array([p.mesh.n_vertices for p in ps], dtype=np.int64),
+                },
+            )
+        ctx.info[self.name] = {"seconds": round(time.perf_counter() - t, 4), "cached": False}
+        ctx.tick(self.name, 1, 1)
+        return ps
+
+    def _face_patch(self, ctx: Context):
+        path = ctx.path(self.name, self.suffix)
+        if path is not None and path.is_file():
+            return load_npz(path)["face_patch"]
+        ctx.get("patches")
+        return ctx["face_patch"]
+
+    def save(self, ctx: Context, path: Path) -> None:
+        pass  # written by the cut itself, when it runs
+
+    def load(self, ctx: Context, path: Path) -> bool:
+        self.run(ctx)
+        return True
+
+
+class Springs(Stage):
+    """A spring mesh per patch, on threads or through ``patch_map`` (Dask tasks)."""
+
+    name = "springs"
+    after = ("cut",)
+
+    def __init__(self, patch_map=None) -> None:
+        self.patch_map = patch_map
+
+    def group(self, ctx: Context) -> Any:
+        return ctx.options.springs
+
+    def run(self, ctx: Context) -> None:
+        ps = ctx["patches"]
+        o = ctx.options.springs
+        kw = {
+            "level": o.level,
+            "max_points": o.max_points,
+            "rescue": bool(o.rescue),
+            "follow_folds": bool(o.follow_folds),
+        }
+        if self.patch_map is not None:
+            res = self.patch_map(spring_task, [(patch_payload(p), kw) for p in ps])
+        else:
+            res = ctx.map(
+                lambda p: spring_patch(p, **kw), ps, "springs", [p.mesh.n_faces for p in ps]
+            )
+        ctx["grids"] = [g for g, _ in res]
+        ctx["spring_info"] = [i for _, i in res]
+
+    def save(self, ctx: Context, path: Path) -> None:
+        arrays = {f"grid_{p}": g for p, g in enumerate(ctx["grids"])}
+        arrays["info"] = as_bytes(untimed(ctx["spring_info"]))
+        save_npz(path, arrays)
+
+    def load(self, ctx: Context, path: Path) -> bool:
+        z = load_npz(path)
+        n = ctx["layout"].n_patches
+        ctx["grids"] = [z[f"grid_{p}"] for p in range(n)]
+        ctx["spring_info"] = from_bytes(z["info"])
+        return True
+
+    def facts(self, ctx: Context) -> dict[str, Any]:
+        return {"patch_tasks": self.patch_map is not None}
+
+
+def _controls(ctx: Context) -> None:
+    """Control counts per patch, equal along shared curves; the classes and their notes."""
+    from meshfit.stitch import control_classes
+
+    o = ctx.options.spline
+    net = ctx["network"]
+    shapes = [g.shape[:2] for g in ctx["grids"]]
+    n = len(shapes)
+    plain = control_classes(net, default=[o.controls] * n, grid_shapes=shapes)
+    n_cls = len(plain.counts)
+    for c, _ in o.class_controls:
+        if c >= n_cls:
+            raise InputError(
+                f"class_controls: class {c} does not exist (the layout's patches have "
+                f"{n_cls} equal-count classes, 0..{n_cls - 1}; see summary['control_classes'])"
+            )
+    chosen = dict(o.class_controls)
+    cc = control_classes(net, default=[o.controls] * n, counts=chosen, grid_shapes=shapes)
+    cap = np.full(n_cls, np.iinfo(np.int64).max)
+    asked = np.zeros(n_cls, dtype=np.int64)  # the count the class asks for unconstrained
+    members: list[list] = [[] for _ in range(n_cls)]
+    for p in range(n):
+        for d in (0, 1):
+            c = int(cc.labels[p, d])
+            members[c].append([p, "uv"[d]])
+            cap[c] = min(cap[c], shapes[p][d])
+            asked[c] = max(asked[c], o.controls[d])
+    notes = []
+    capped = [c for c in range(n_cls) if cap[c] < asked[c] and c not in chosen]
+    if capped:
+        both = " x ".join(str(int(x)) for x in o.controls)
+        used = sorted({int(cap[c]) for c in capped})
+        span = f"{used[0]}" if len(used) == 1 else f"{used[0]} to {used[-1]}"
+        notes.append(
+            f"controls: {both} asked, {span} used in {len(capped)} of {n_cls} control classes "
+            "(at most the smallest spring grid of the class; see control_classes)"
+        )
+    for c, m in o.class_controls:
+        if m > cap[c]:
+            notes.append(
+                f"control class {c}: {m} controls asked, {int(cap[c])} used (the smallest "
+                "spring grid of the class)"
+            )
+    ctx.notes.extend(notes)
+    ctx["controls"] = cc.controls
+    ctx["control_classes"] = [
+        {"class": c, "controls": int(cc.counts[c]), "max": int(cap[c]), "members": members[c]}
+        for c in range(n_cls)
+    ]
+
+
+class Fit(Stage):
+    """A cubic B-spline per patch, least-squares fitted to its spring grid with the shared
+    boundaries pinned (C0), then G1 across the smooth boundaries (:mod:`meshfit.stitch`)."""
+
+    name = "fit"
+    after = ("springs",)
+
+    def group(self, ctx: Context) -> Any:
+        return ctx.options.spline
+
+    def _network(self, ctx: Context) -> None:
+        from meshfit.stitch.layout import layout_network
+
+        lay = ctx["layout"]
+        cont = ctx.options.spline.continuity
+        creases = lay.creases if cont == "auto" else None
+        ctx["network"] = layout_network(lay, "C0" if cont == "C0" else "G1", creases)
+        _controls(ctx)
+
+    def run(self, ctx: Context) -> None:
+        from meshfit.bspline import fit_bspline, fit_errors
+        from meshfit.stitch import stitch_surfaces
+        from meshfit.stitch.layout import boundary_pins
+
+        self._network(ctx)
+        grids, counts, diag = ctx["grids"], ctx["controls"], ctx["diag"]
+        lay = ctx["layout"]
+        pins = boundary_pins(lay, ctx["mesh"].xyz(lay.corners), grids, counts)
+        normal_errors = ctx.options.spline.normal_errors
+
+        def fit(p: int):
+            t = time.perf_counter()
+            s = fit_bspline(grids[p], controls=counts[p], pin_boundary=pins[p])
+            if normal_errors:
+                e = fit_errors(s, grids[p]).as_dict()
+            else:  # parametric error only (eq. 6.1): the closest-point search is costly
+                nu, nv = grids[p].shape[:2]
+                S = s.evaluate_grid(np.linspace(0.0, 1.0, nu), np.linspace(0.0, 1.0, nv))
+                par = np.linalg.norm(grids[p] - S, axis=2)
+                e = {
+                    "parametric_rms": float(np.sqrt(np.mean(par**2))),
+                    "parametric_max": float(par.max()),
+                }
+            return s, {
+                "controls": list(counts[p]),
+                **{f"fit_{k}": v / diag for k, v in e.items()},
+                "seconds": round(time.perf_counter() - t, 4),
+            }
+
+        res = ctx.map(fit, list(range(len(grids))), "fit")
+        surfaces = [s for s, _ in res]
+        if any(b.continuity == "G1" for b in ctx["network"].boundaries):
+            surfaces = stitch_surfaces(surfaces, ctx["network"])
+        ctx["surfaces"] = surfaces
+        ctx["fit_info"] = [i for _, i in res]
+
+    def save(self, ctx: Context, path: Path) -> None:
+        arrays = {f"ctrl_{p}": s.control_points for p, s in enumerate(ctx["surfaces"])}
+        arrays["info"] = as_bytes(untimed(ctx["fit_info"]))
+        save_npz(path, arrays)
+
+    def load(self, ctx: Context, path: Path) -> bool:
+        from meshfit.bspline import BSplineSurface
+
+        self._network(ctx)
+        z = load_npz(path)
+        n = ctx["layout"].n_patches
+        ctx["surfaces"] = [BSplineSurface(z[f"ctrl_{p}"]) for p in range(n)]
+        ctx["fit_info"] = from_bytes(z["info"])
+        return True
+
+
+class Displacement(Stage):
+    """A displacement map per patch: its spring grid over its spline."""
+
+    name = "displacement"
+    after = ("fit",)
+
+    def extra(self, ctx: Context) -> Any:
+        return ctx.options.maps.kind
+
+    def run(self, ctx: Context) -> None:
+        from meshfit.displacement import displacement_map
+
+        self._early(ctx)
+        surfaces, grids, kind = ctx["surfaces"], ctx["grids"], ctx.options.maps.kind
+        ctx["maps"] = ctx.map(
+            lambda p: displacement_map(surfaces[p], grids[p], kind=kind),
+            list(range(len(grids))),
+            "displacement",
+        )
+
+    def _early(self, ctx: Context) -> None:
+        """With maps at their spring grids' shapes the spline-only surface is known now:
+        its errors are measured on a thread while the maps are made and stitched."""
+        if ctx.options.maps.shapes != "native" or ctx.saved.get("errors", False):
+            return
+        shapes = [g.shape[:2] for g in ctx["grids"]]
+        pool = ThreadPoolExecutor(max_workers=1)
+        ctx["early_spline"] = (
+            shapes,
+            pool.submit(measure.early_spline, ctx["mesh"], ctx["surfaces"], shapes),
+        )
+        pool.shutdown(wait=False)
+
+    def save(self, ctx: Context, path: Path) -> None:
+        save_npz(path, {f"map_{p}": d.values for p, d in enumerate(ctx["maps"])})
+
+    def load(self, ctx: Context, path: Path) -> bool:
+        ctx["maps"] = _load_maps(path, ctx["layout"].n_patches, ctx.options.maps.kind)
+        return True
+
+
+def _load_maps(path: Path, n: int, kind: str) -> list:
+    from meshfit.displacement import DisplacementMap
+
+    z = load_npz(path)
+    return [DisplacementMap(z[f"map_{p}"], kind) for p in range(n)]
+
+
+def displaced_grids(surfaces, maps) -> list:
+    """Each spline plus its map at the map's texels."""
+    from meshfit.displacement import reconstruct
+
+    return [reconstruct(s, d) for s, d in zip(surfaces, maps, strict=True)]
+
+
+def close_seams(layout, surfaces, maps, match: bool, notes: list[str]) -> list:
+    """Crack-free displacement seams (:func:`meshfit.stitch.stitch_displacements`); with
+    ``match`` the maps first take equal texel counts along shared curves, so the seams are
+    closed at every output resolution."""
+    from meshfit.stitch import match_map_shapes, stitch_displacements
+    from meshfit.stitch.layout import layout_network
+
+    if maps and maps[0].kind != "vector":
+        return maps
+    net = layout_network(layout, "C0")
+    if match:
+        maps = match_map_shapes(surfaces, maps, net)
+    return stitch_displacements(surfaces, maps, net)
+
+
+class Stitch(Stage):
+    """The displacement seams closed and every seam measured."""
+
+    name = "stitch"
+    after = ("displacement",)
+
+    def extra(self, ctx: Context) -> Any:
+        return ctx.options.maps.shapes
+
+    def run(self, ctx: Context) -> None:
+        from meshfit.stitch.layout import seam_metrics
+
+        match = ctx.options.maps.shapes == "matched"
+        maps = close_seams(ctx["layout"], ctx["surfaces"], ctx["maps"], match, ctx.notes)
+        ctx["maps"] = maps
+        self._derived(ctx)
+        seams = seam_metrics(ctx["layout"], ctx["surfaces"], ctx["displaced"], ctx["diag"])
+        seams["continuity"] = ctx.options.spline.continuity
+        ctx["seams"] = seams
+
+    def _derived(self, ctx: Context) -> None:
+        ctx.lazy("displaced", lambda: displaced_grids(ctx["surfaces"], ctx["maps"]))
+        ctx.lazy("spline_grids", lambda: _spline_grids(ctx))
+
+    def save(self, ctx: Context, path: Path) -> None:
+        arrays = {f"map_{p}": d.values for p, d in enumerate(ctx["maps"])}
+        arrays["seams"] = as_bytes(ctx["seams"])
+        save_npz(path, arrays)
+
+    def load(self, ctx: Context, path: Path) -> bool:
+        ctx["maps"] = _load_maps(path, ctx["layout"].n_patches, ctx.options.maps.kind)
+        ctx["seams"] = from_bytes(load_npz(path)["seams"])
+        self._derived(ctx)
+        return True
+
+
+def _early_result(ctx: Context):
+    """The early spline-only errors, where they were started and the maps kept its shapes."""
+    if "early_spline" not in ctx:
+        return None
+    shapes, future = ctx["early_spline"]
+    if shapes != [d.shape[:2] for d in ctx["maps"]]:
+        return None
+    return future.result()
+
+
+def _spline_grids(ctx: Context) -> list:
+    done = _early_result(ctx)
+    if done is not None:
+        return done[0]
+    return measure.texel_grids(ctx["surfaces"], [d.shape for d in ctx["maps"]])
+
+
+class Errors(Stage):
+    """Two-sided distances of the spline-only and the displaced surfaces to the input."""
+
+    name = "errors"
+    after = ("stitch",)
+    suffix = ".json"
+
+    def extra(self, ctx: Context) -> Any:
+        return ctx["mesh_hash"]
+
+    def run(self, ctx: Context) -> None:
+        mesh, diag = ctx["mesh"], ctx["diag"]
+        displaced = ctx["displaced"]
+        # the displaced surface's tree is built (serial work) while the spline-only
+        # surface's searches may still run
+        Vd, Fd = measure.soup(displaced)
+        tree = grid_tree(Vd, Fd, [g.shape[:2] for g in displaced])
+        done = _early_result(ctx)
+        spline_fig, spline_to_input = (
+            done[1:] if done is not None else measure.spline_errors(mesh, ctx["spline_grids"])
+        )
+        disp_fig, _, from_input = measure.error_figures(
+            mesh, Vd, Fd, tree, measure.spring_bounds(displaced, ctx["grids"])
+        )
+        n = len(displaced)
+        ctx["errors"] = {
+            "spline_only": spline_fig,
+            "displaced": disp_fig,
+            "units": "fraction of the input's bbox diagonal",
+            # per patch: its input vertices' largest distance to the displaced surface
+            "displaced_from_input_max_per_patch": [
+                None if v is None else v / diag
+                for v in measure.per_patch_max(mesh, ctx["face_patch"], from_input, n)
+            ],
+        }
+        ctx["spline_distance"] = spline_to_input
+
+    def save(self, ctx: Context, path: Path) -> None:
+        save_npz(path.with_suffix(".npz"), {"spline_to_input": ctx["spline_distance"]})
+        write_json(path, ctx["errors"])
+
+    def load(self, ctx: Context, path: Path) -> bool:
+        ctx["errors"] = json.loads(path.read_text())
+        dist = path.with_suffix(".npz")
+        ctx["spline_distance"] = load_npz(dist)["spline_to_input"] if dist.is_file() else None
+        return True
+
+
+class Exports(Stage):
+    """The chosen formats written to the output folder, beside the error searches; the
+    record keeps every file's hash, so a resumed run re-writes only what changed."""
+
+    name = "exports"
+    after = ("stitch",)
+    suffix = ".json"
+    background = True
+
+    def __init__(self, out: Path) -> None:
+        self.out = out
+
+    def extra(self, ctx: Context) -> Any:
+        return list(ctx.options.outputs.formats)
+
+    def run(self, ctx: Context) -> None:
+        from meshfit.pipeline.outputs import write_exports
+
+        ctx["outputs"] = write_exports(
+            self.out,
+            ctx["surfaces"],
+            ctx["maps"],
+            ctx.options.outputs.formats,
+            progress=lambda d, n: ctx.tick(self.name, d, n),
+            notes=ctx.notes,
+        )
+
+    def save(self, ctx: Context, path: Path) -> None:
+        files = [f for fs in ctx["outputs"].values() for f in fs]
+        record = {"outputs": ctx["outputs"], "sha256": {f: sha_file(self.out / f) for f in files}}
+        write_json(path, record)
+
+    def load(self, ctx: Context, path: Path) -> bool:
+        record = json.loads(path.read_text())
+        for f, h in record["sha256"].items():
+            if not (self.out / f).is_file() or sha_file(self.out / f) != h:
+                return False
+        ctx["outputs"] = record["outputs"]
+        return True
+
+
+class Report(Stage):
+    """``report.html`` and its renders (the renders are kept on a resumed run)."""
+
+    name = "report"
+    after = ("stitch", "layout")
+    suffix = ".json"
+
+    def __init__(self, out: Path) -> None:
+        self.out = out
+        self.images_ok = False
+
+    def extra(self, ctx: Context) -> Any:
+        return ctx.options.outputs.image_size
+
+    def load(self, ctx: Context, path: Path) -> bool:
+        rec = json.loads(path.read_text())
+        self.images_ok = all((self.out / f).is_file() for f in rec["images"])
+        if self.images_ok:
+            self.run(ctx)
+        return self.images_ok
+
+    def run(self, ctx: Context) -> None:
+        from meshfit.report import write_report
+
+        ctx["report"] = write_report(
+            self.out,
+            mesh=ctx["mesh"],
+            layout=ctx["layout"],
+            face_patch=ctx["face_patch"],
+            grids=ctx["grids"],
+            surfaces=ctx["surfaces"],
+            displaced=lambda: ctx["displaced"],
+            spline=lambda: ctx["spline_grids"],
+            dmaps=ctx["maps"],
+            summary=ctx["summary"],
+            image_size=ctx.options.outputs.image_size,
+            render_images=not self.images_ok,
+            spline_distance=ctx["spline_distance"],
+        )
+
+    def save(self, ctx: Context, path: Path) -> None:
+        write_json(path, {"images": ctx["report"]["images"]})
+
+
+def fit_stages(layout: Any, patch_map=None, out: Path | None = None) -> list[Stage]:
+    """The stages after validation, in order; with ``out`` the exports run too."""
+    stages: list[Stage] = [
+        Layout(layout),
+        Cut(),
+        Springs(patch_map),
+        Fit(),
+        Displacement(),
+        Stitch(),
+    ]
+    if out is not None:
+        stages.append(Exports(out))
+    stages.append(Errors())
+    return stages
+
+
+def patch_count(ctx: Context) -> int:
+    return int(ctx["layout"].n_patches)
+
+
+__all__ = ["STAGES", "fit_stages", "patch_count"]
