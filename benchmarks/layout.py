@@ -6,7 +6,7 @@ and a closed genus-0 body with eight long arms (``shapes.spiky``),
 with no options (the fit's defaults, the meshes loaded with the default repair):
 
 - ours: :func:`meshfit.layout.auto.auto_layout` (which route it took, the layout's time),
-  then the whole fit (:func:`meshfit.pipeline.run_fit`, no exports, no report): its time,
+  then the whole fit (:func:`meshfit.fit` in memory, no exports, no report): its time,
   patch count, displaced RMS and Hausdorff distance (fractions of the bbox diagonal), folded
   spring cells, the largest normal jump across smooth seams away from corners, and crease
   curves;
@@ -42,7 +42,7 @@ from meshfit.layout import layout_from_curves
 from meshfit.layout.auto import auto_layout, auto_route
 from meshfit.layout.extract import check_layout_topology
 from meshfit.mesh import Mesh, load_mesh
-from meshfit.pipeline import FitOptions, run_fit
+from meshfit.pipeline import FitOptions, fit
 from meshfit.surface.paths import vertex_points
 
 sys.path.insert(0, str(ROOT))
@@ -60,7 +60,7 @@ def _generated(genus: int) -> Mesh:
 
 def _fit_figures(mesh: Mesh, layout, out: Path) -> dict:
     t = time.perf_counter()
-    s = run_fit(mesh, out, layout=layout, options=OPTIONS)
+    s = fit(mesh, layout, options=OPTIONS).summary
     d = s["errors"]["displaced"]
     return {
         "fit_seconds": round(time.perf_counter() - t, 2),

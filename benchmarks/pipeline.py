@@ -1,4 +1,4 @@
-"""Benchmark: the whole fit (meshfit.pipeline.run_fit) on igea and on igea refined once.
+"""Benchmark: the whole fit (meshfit.fit into a folder) on igea and on igea refined once.
 
 Usage: ``python benchmarks/pipeline.py [--patches 100] [--sizes small,large] [--repeats 3]``
 
@@ -25,6 +25,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 from _common import mesh_path, write_result
@@ -60,7 +61,8 @@ def run_one(size: str, patches: int) -> dict:
     from meshfit.mesh import Mesh, load_mesh
 
     tune_malloc()  # as the meshfit command does
-    from meshfit.pipeline import FitOptions, run_fit
+    import meshfit.pipeline as pipeline
+    from meshfit.pipeline import FitOptions
 
     mesh = load_mesh(mesh_path("igea"))
     if size == "large":
@@ -69,7 +71,10 @@ def run_one(size: str, patches: int) -> dict:
     opts = FitOptions(patches=patches, formats=("usd", "exr"), controls=(16, 16))
     with tempfile.TemporaryDirectory() as out:
         t0 = time.perf_counter()
-        s = run_fit(mesh, out, layout="auto", options=opts)
+        if hasattr(pipeline, "run_fit"):  # a commit before meshfit.fit (--against)
+            s = pipeline.run_fit(mesh, out, layout="auto", options=opts)
+        else:
+            s = pipeline.fit(mesh, "auto", options=opts, out=out).summary
         total = time.perf_counter() - t0
     peak_kib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     return {
@@ -100,15 +105,83 @@ def _median_run(runs: list[dict]) -> dict:
     return out
 
 
+def _run(size: str, patches: int, src: str | None = None) -> dict:
+    """One fit in a fresh process, with ``src`` (a checkout's ``src`` folder) first on the
+    path when given."""
+    env = dict(os.environ)
+    if src is not None:
+        env["PYTHONPATH"] = src
+    run = subprocess.run(
+        [sys.executable, __file__, "--one", size, "--patches", str(patches)],
+        capture_output=True,
+        text=True,
+        check=True,
+        env=env,
+    )
+    return json.loads(run.stdout.strip().splitlines()[-1])
+
+
+def compare(args) -> None:
+    """This checkout against ``args.against``, alternating runs (after one warm-up run each,
+    which compiles the kernels), medians per size; writes ``pipeline_against.json``."""
+    root = Path(__file__).resolve().parents[1]
+    with tempfile.TemporaryDirectory() as tmp:
+        old = Path(tmp) / "old"
+        subprocess.run(
+            ["git", "-C", str(root), "worktree", "add", "-f", "--detach", str(old), args.against],
+            check=True,
+            capture_output=True,
+        )
+        try:
+            out = {"benchmark": "pipeline_against", "against": args.against, "runs": args.repeats}
+            for size in args.sizes.split(","):
+                new_runs, old_runs = [], []
+                _run(size, args.patches)
+                _run(size, args.patches, str(old / "src"))
+                for _ in range(max(1, args.repeats)):
+                    new_runs.append(_run(size, args.patches))
+                    old_runs.append(_run(size, args.patches, str(old / "src")))
+                new, prev = _median_run(new_runs), _median_run(old_runs)
+                out[size] = {
+                    "new_seconds_total": new["seconds_total"],
+                    "old_seconds_total": prev["seconds_total"],
+                    "new_runs": new["seconds_total_runs"],
+                    "old_runs": prev["seconds_total_runs"],
+                    "new_over_old": round(new["seconds_total"] / prev["seconds_total"], 3),
+                    "new_peak_memory_mib": new["peak_memory_mib"],
+                    "old_peak_memory_mib": prev["peak_memory_mib"],
+                    "same_errors": new["displaced_rms"] == prev["displaced_rms"]
+                    and new["displaced_hausdorff"] == prev["displaced_hausdorff"],
+                }
+                print(size, json.dumps(out[size]))
+        finally:
+            subprocess.run(
+                ["git", "-C", str(root), "worktree", "remove", "--force", str(old)],
+                check=False,
+                capture_output=True,
+            )
+    write_result("pipeline_against", out)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--patches", type=int, default=100)
     ap.add_argument("--sizes", default="small,large")
     ap.add_argument("--repeats", type=int, default=1)
     ap.add_argument("--one", default=None, help=argparse.SUPPRESS)
+    ap.add_argument(
+        "--against",
+        default=None,
+        metavar="COMMIT",
+        help="also run COMMIT's meshfit (a git worktree), alternating with this one, and "
+        "print the ratio of the median totals",
+    )
     args = ap.parse_args()
     if args.one:
         print(json.dumps(run_one(args.one, args.patches)))
+        return
+    if args.against:
+        compare(args)
         return
     results = {}
     for size in args.sizes.split(","):

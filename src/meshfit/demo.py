@@ -193,7 +193,7 @@ def run_demo(
     console.print(f"[bold]layout[/] {layout.n_patches} patches in {t_layout:.1f} s")
     if options is None:
         options = FitOptions(
-            controls=(12, 12), continuity="g1", formats=("usd", "obj", "exr", "png")
+            controls=(12, 12), continuity="G1", formats=("usd", "obj", "exr", "png")
         )
     with stage_progress(quiet=quiet) as prog:
         summary = fit(mesh, layout, options=options, out=out, progress=prog).summary

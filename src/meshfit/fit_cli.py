@@ -150,6 +150,43 @@ def cmd_fit(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_rebuild(args: argparse.Namespace) -> int:
+    """Rebuild a fit from its maps after they were edited as images."""
+    from meshfit.cli import EXIT_OK, print_json, print_table
+    from meshfit.mesh import load_mesh
+    from meshfit.pipeline import load_fit
+    from meshfit.pipeline.outputs import accept_edits, edited_maps
+
+    folder = Path(args.folder)
+    edited = sorted(edited_maps(folder))
+    mesh = load_mesh(args.mesh, repair=True) if args.mesh else None
+    result = load_fit(folder, mesh=mesh).rebuild()
+    out = Path(args.out) if args.out else folder
+    formats = _formats(args.formats) if args.formats else None
+    result.save(out)
+    files = result.export(out, formats)
+    if out == folder:
+        accept_edits(folder)  # the edits are in the fit now
+    if args.json:
+        print_json(result.summary)
+        return EXIT_OK
+    e = result.summary["errors"]
+    rows = {
+        "fit": str(folder),
+        "edited maps": ", ".join(edited) or "none",
+        "displaced_gap": result.summary["seams"]["displaced_gap_max"],
+        "files written": sum(len(v) for v in files.values()),
+    }
+    if e.get("displaced"):
+        rows["displaced_rms"] = e["displaced"]["rms"]
+        rows["displaced_hausdorff"] = e["displaced"]["hausdorff"]
+    print_table("rebuild (errors as fractions of the bbox diagonal)", rows)
+    for note in result.summary["notes"][-2:]:
+        if "rebuil" in note or "edited" in note:
+            print(f"note: {note}")
+    return EXIT_OK
+
+
 def cmd_batch(args: argparse.Namespace) -> int:
     """Fit every mesh matching a glob on a Dask cluster."""
     from meshfit.batch import run_batch
@@ -228,7 +265,8 @@ def _common(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--continuity",
-        choices=("auto", "c0", "g1"),
+        type=lambda s: s if s == "auto" else s.upper(),
+        choices=("auto", "C0", "G1"),
         default="auto",
         help="across patches: auto is G1 except across sharp creases, which stay C0 "
         "(default: auto)",
@@ -284,7 +322,7 @@ def _fit_grids(grid_func, args: argparse.Namespace) -> int:
         grids=args.mesh,
         controls=[mu, mv],
         class_controls=parse_class_controls(getattr(args, "class_cv", None)),
-        continuity="C0" if args.continuity == "c0" else "G1",
+        continuity="C0" if args.continuity == "C0" else "G1",
         out=args.out,
         formats=",".join(f for f in _formats(args.formats) if f != "png") if args.out else "",
         json=args.json,
@@ -330,6 +368,23 @@ def add_commands(sub) -> None:
         "without it an open mesh is laid out as it is, the holes' rims on patch boundaries",
     )
     p.set_defaults(func=fit)
+
+    p = sub.add_parser(
+        "rebuild",
+        help="rebuild a fit from its displacement maps after editing them as images",
+    )
+    p.add_argument("folder", help="a fit folder (written by meshfit fit)")
+    p.add_argument(
+        "--formats",
+        default=None,
+        help="outputs to write, among usd,3dm,iges,step,obj,glb,exr,png (default: the fit's)",
+    )
+    p.add_argument("--mesh", default=None, help="the fit's input mesh, to measure the errors again")
+    p.add_argument(
+        "--out", default=None, help="write the rebuilt fit here (default: in the fit folder)"
+    )
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.set_defaults(func=cmd_rebuild)
 
     p = sub.add_parser("batch", help="fit every mesh matching a glob on a Dask cluster")
     p.add_argument("glob", help="mesh files, e.g. 'scans/*.ply' (quote it)")

@@ -19,6 +19,7 @@ from meshfit.pipeline.store import PIPELINE_FORMAT, sha_file, write_json
 
 __all__ = [
     "MANIFEST",
+    "accept_edits",
     "edited_maps",
     "file_kind",
     "patch_names",
@@ -188,6 +189,9 @@ def write_exports(
     return outputs
 
 
-def manifest_keep(folder: Path) -> dict[str, Any]:
-    """Manifest entries of the edited maps, to carry into the next manifest."""
-    return edited_maps(folder)
+def accept_edits(folder: Path) -> None:
+    """Record the edited maps' current hashes in the manifest (after a rebuild applied them,
+    they are no longer edits)."""
+    folder = Path(folder)
+    files = [f for f in read_manifest(folder) if (folder / f).is_file()]
+    write_manifest(folder, files)

@@ -142,7 +142,6 @@ class FitResult:
             "meshfit_fit": PIPELINE_FORMAT,
             "options": asdict(self.options),
             "kinds": [p.displacement.kind for p in self.patches],
-            "patch_errors": [p.errors for p in self.patches],
             "network": _network_json(self.network),
         }
         write_json(out / "fit.json", meta)
@@ -283,13 +282,14 @@ def load_fit(
     opts = meta["options"]
     options = FitOptions(**{k: tuple(v) if isinstance(v, list) else v for k, v in opts.items()})
     kinds = meta["kinds"]
+    summary = json.loads((out / "summary.json").read_text())
     patches = [
         PatchFit(
             p,
             z[f"spring_{p}"],
             BSplineSurface(z[f"ctrl_{p}"]),
             DisplacementMap(z[f"map_{p}"], kinds[p]),
-            meta["patch_errors"][p],
+            summary["patches"][p],
         )
         for p in range(len(kinds))
     ]
@@ -298,7 +298,6 @@ def load_fit(
             patches[p] = replace(
                 patches[p], displacement=_map_from_file(path, patches[p].displacement)
             )
-    summary = json.loads((out / "summary.json").read_text())
     return FitResult(
         patches,
         layout,

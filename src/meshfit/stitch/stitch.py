@@ -872,21 +872,23 @@ def _interp_rows(t_from: NDArray, rows: NDArray, t_to: NDArray) -> NDArray:
     return np.stack([np.interp(t_to, t_from, rows[:, c]) for c in range(3)], axis=1)
 
 
-def _seam_rows(t_c, x_c, t_f, x_f, x_f_at_c):
+def _seam_rows(t_c, x_c, t_f, x_f):
     """World points of a coarse and a fine displaced boundary row that form one polyline.
 
-    The seam polyline ``Q`` has a vertex at every coarse texel: the mean of the two patches'
-    displaced boundaries there (the fine one read between its texels). The coarse row
-    becomes ``Q``; the fine texel nearest each coarse texel in parameter takes that vertex,
-    and the fine texels between two such take points on the straight segment between them,
-    spaced as their parameters. Returns ``(x_c_new, x_f_new)``.
+    The seam polyline ``Q`` has a vertex at every coarse texel: the mean of the coarse
+    texel's displaced point and that of the fine texel nearest it in parameter. The coarse
+    row becomes ``Q``; those fine texels take its vertices, and the fine texels between two
+    such take points on the straight segment between them, spaced as their parameters.
+    Rows that already form one polyline this way are returned as they are, so stitching
+    stitched maps changes nothing (a rebuild after editing one map moves no other seam).
+    Returns ``(x_c_new, x_f_new)``.
     """
-    q = 0.5 * (x_c + x_f_at_c)
     n_f = len(t_f)
     hit = np.rint(t_c * (n_f - 1)).astype(np.int64)
     hit[0], hit[-1] = 0, n_f - 1
     if (np.diff(hit) <= 0).any():  # more coarse than fine texels: not a coarse row
         raise AssertionError("seam rows out of order")
+    q = 0.5 * (x_c + x_f[hit])
     out = np.empty_like(x_f)
     for i in range(len(t_c) - 1):
         j0, j1 = hit[i], hit[i + 1]
@@ -985,7 +987,7 @@ def stitch_displacements(
           (:func:`meshfit.displacement.reconstruct` filters model-space vectors);
         - different counts (nested or not): the seam is defined once, as the polyline whose
           vertices are, at the coarser row's texels, the mean of the two patches' displaced
-          boundaries (the finer one read between its texels): the coarser row reproduces
+          boundaries (the finer one at its texel nearest in parameter): the coarser row reproduces
           those vertices; in the finer row the texel nearest each vertex in parameter
           reproduces it and the texels between lie on the straight segment between two
           vertices, spaced as their parameters (vector maps may move a point along the
@@ -1033,7 +1035,7 @@ def stitch_displacements(
             tc, sc, wc, tf, sf, wf = (
                 (ta, sa, wa, tb, sb, wb) if a_coarse else (tb, sb, wb, ta, sa, wa)
             )
-            xc, xf = _seam_rows(tc, sc + wc, tf, sf + wf, sc + _interp_rows(tf, wf, tc))
+            xc, xf = _seam_rows(tc, sc + wc, tf, sf + wf)
             new_c, new_f = xc - sc, xf - sf
             new_a, new_b = (new_c, new_f) if a_coarse else (new_f, new_c)
         _set_row(vals[b.a], b.side_a, new_a, fa)
