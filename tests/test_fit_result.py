@@ -71,7 +71,7 @@ def test_in_memory_fit_gives_the_command_lines_figures(spot):
 
 
 def test_save_then_load_is_bit_for_bit(spot, tmp_path):
-    mesh, memory, _ = spot
+    _, memory, _ = spot
     memory.save(tmp_path)
     back = load_fit(tmp_path)
     for a, b in zip(_arrays(memory), _arrays(back), strict=True):
@@ -163,7 +163,7 @@ def test_an_edited_map_moves_the_surface_there_and_nowhere_else(spot, tmp_path):
 
 
 def test_rebuild_with_the_mesh_measures_the_errors_again(spot, tmp_path):
-    folder, before, _, _, diag = _painted_fit(spot, tmp_path, height=0.05)
+    folder, before, _, _, _ = _painted_fit(spot, tmp_path, height=0.05)
     mesh, _, _ = spot
     after = load_fit(folder, mesh=mesh).rebuild()
     e0, e1 = before.summary["errors"]["displaced"], after.summary["errors"]["displaced"]

@@ -10,8 +10,8 @@ import pytest
 from numpy.testing import assert_allclose
 
 from meshfit.pipeline import FitOptions
-from tests.fitting import run_fit
 from meshfit.report import REPORT_IMAGES
+from tests.fitting import run_fit
 
 from .conftest import ROOT, real_mesh
 

@@ -93,7 +93,7 @@ def fit_one(
     try:
         folder.mkdir(parents=True, exist_ok=True)
         _remove_leftovers(folder)
-        opts = FitOptions(**{k: tuple(v) if isinstance(v, list) else v for k, v in options.items()})
+        opts = FitOptions.from_json(options)
         mesh = load_mesh(path, repair=True)
         patch_map = None
         if patch_tasks_above is not None and mesh.n_faces >= patch_tasks_above:

@@ -65,7 +65,7 @@ _FITS: dict[str, dict] = {}
 def _fit(name: str, tmp: str) -> dict:
     """The one-call fit of a generated shape, made once for all the tests that read it."""
     if name not in _FITS:
-        _FITS[name] = fit(generated(name), options=FitOptions(formats=(), report=False))
+        _FITS[name] = fit(generated(name), options=FitOptions(formats=(), report=False)).summary
     return _FITS[name]
 
 
@@ -117,7 +117,7 @@ def test_every_kind_of_mesh_fits_without_folded_cells(name, tmp_path_factory, re
 @cache
 def _real_fit(name: str, tmp: str) -> dict:  # (one test reads each)
     mesh = load_mesh(mesh_path(name), repair=True)  # the command line's default
-    return fit(mesh, options=FitOptions(formats=(), report=False))
+    return fit(mesh, options=FitOptions(formats=(), report=False)).summary
 
 
 @pytest.mark.slow
@@ -216,11 +216,11 @@ def test_rigid_motions_and_scalings_give_the_same_fit(tmp_path):
     within 20% (with a floor of 1e-5 of the diagonal) after a rotation, a translation and
     a uniform scaling."""
     base = _asymmetric()
-    ref = fit(base, options=FitOptions(formats=(), report=False))
+    ref = fit(base, options=FitOptions(formats=(), report=False)).summary
     for k, scale in enumerate((1.0, 37.5)):
         v = base.vertices @ _rotation(k).T * scale + np.array([3.0, -7.0, 11.0]) * scale
         moved = Mesh(v, base.faces, name="moved")
-        s = fit(moved, options=FitOptions(formats=(), report=False))
+        s = fit(moved, options=FitOptions(formats=(), report=False)).summary
         assert s["patches_total"] == ref["patches_total"]
         for kind in ("rms", "hausdorff"):
             a, b = s["errors"]["displaced"][kind], ref["errors"]["displaced"][kind]
@@ -239,7 +239,7 @@ def test_small_components_are_named_and_dropped_on_request(tmp_path):
     assert kept.n_components == 1 and kept.n_faces == big.n_faces
     assert (face_map[big.n_faces :] == -1).all()
     opts = FitOptions(formats=(), report=False, patches=24, drop_components_below=0.01)
-    s = fit(mesh, options=opts)
+    s = fit(mesh, options=opts).summary
     assert any("dropped 1 component below 1%" in n for n in s["notes"])
     assert s["mesh"]["faces"] == big.n_faces
     with pytest.raises(InputError, match="drop_components_below"):

@@ -100,7 +100,7 @@ def spring_bounds(
 
 def per_patch_max(
     mesh: Mesh, face_patch: NDArray[np.int64] | None, value: NDArray, n: int
-) -> list[float]:
+) -> list[float | None]:
     """Largest ``value`` (one per input vertex) over each patch's input vertices (a vertex on
     a patch boundary counts for every patch of its faces); None without the face labels."""
     if face_patch is None or len(face_patch) != mesh.n_faces:

@@ -182,6 +182,13 @@ class FitOptions:
         if int(self.image_size) < 16:
             raise InputError(f"image_size must be >= 16 pixels, got {self.image_size}")
 
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> FitOptions:
+        """Options from their JSON form (``asdict`` as a summary or ``fit.json`` holds them:
+        lists for tuples), validated as on construction."""
+        kw: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
+        return cls(**kw)
+
     @property
     def layout(self) -> LayoutOptions:
         """The automatic layout's group."""

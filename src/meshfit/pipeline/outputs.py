@@ -94,7 +94,7 @@ def write_manifest(folder: Path, files: Sequence[str], keep: dict | None = None)
     folder = Path(folder)
     entries = {f: {"kind": file_kind(f), "sha256": sha_file(folder / f)} for f in files}
     entries.update(keep or {})
-    data = {"meshfit_manifest": MANIFEST_FORMAT, "pipeline": PIPELINE_FORMAT}
+    data: dict[str, Any] = {"meshfit_manifest": MANIFEST_FORMAT, "pipeline": PIPELINE_FORMAT}
     data["files"] = dict(sorted(entries.items()))
     return write_json(folder / MANIFEST, data)
 

@@ -202,7 +202,7 @@ def _network_from_json(d: dict[str, Any]) -> Network:
         SharedBoundary(int(a), Side(sa), int(b), Side(sb), bool(r), str(c))
         for a, sa, b, sb, r, c in d["boundaries"]
     )
-    corners = tuple(tuple(tuple(int(x) for x in s) for s in c) for c in d["corners"])
+    corners = tuple(tuple((int(k), int(i), int(j)) for k, i, j in c) for c in d["corners"])
     return Network(int(d["n_patches"]), bounds, corners)
 
 
@@ -279,8 +279,7 @@ def load_fit(
         )
     z = load_npz(out / "fit.npz")
     layout = layout_from_json((out / "layout.json").read_text(), source=str(out / "layout.json"))
-    opts = meta["options"]
-    options = FitOptions(**{k: tuple(v) if isinstance(v, list) else v for k, v in opts.items()})
+    options = FitOptions.from_json(meta["options"])
     kinds = meta["kinds"]
     summary = json.loads((out / "summary.json").read_text())
     patches = [

@@ -157,7 +157,7 @@ class Runner:
     def _one(self, stage: Stage, ctx: Context, key: str) -> None:
         t0 = time.perf_counter()
         path = self.path(stage, key)
-        cached = self.saved(stage, key) and stage.load(ctx, path)
+        cached = path is not None and self.saved(stage, key) and stage.load(ctx, path)
         if not cached:
             stage.run(ctx)
             if path is not None:

@@ -206,7 +206,7 @@ class Cut(Stage):
         for p in ps:
             face_patch[p.face_parent] = p.index
         ctx["face_patch"] = face_patch
-        path = ctx.path(self.name, self.suffix)
+        path = ctx.path(self.name, ".npz")
         if path is not None:
             save_npz(
                 path,
@@ -221,7 +221,7 @@ class Cut(Stage):
         return ps
 
     def _face_patch(self, ctx: Context):
-        path = ctx.path(self.name, self.suffix)
+        path = ctx.path(self.name, ".npz")
         if path is not None and path.is_file():
             return load_npz(path)["face_patch"]
         ctx.get("patches")
