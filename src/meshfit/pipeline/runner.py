@@ -82,7 +82,8 @@ class Context:
 class Stage:
     """One step of the fit.
 
-    Subclasses set ``name``, ``after`` (the stages whose keys feed this one's) and
+    Subclasses set ``name``, ``inputs`` and ``outputs`` (context values read and made;
+    the runner checks both), ``after`` (the stages whose keys feed this one's) and
     ``suffix`` (of the cache file), and implement :meth:`run` (compute the outputs into the
     context), :meth:`save` and :meth:`load` (the cache file; :meth:`load` returns False when
     the file cannot stand for a run, e.g. files it vouches for are gone), and optionally
@@ -90,6 +91,9 @@ class Stage:
     """
 
     name = ""
+    #: context values the stage reads, and those it leaves for the later stages
+    inputs: tuple[str, ...] = ()
+    outputs: tuple[str, ...] = ()
     after: tuple[str, ...] = ()
     suffix: str | None = ".npz"
     background = False
@@ -156,12 +160,18 @@ class Runner:
 
     def _one(self, stage: Stage, ctx: Context, key: str) -> None:
         t0 = time.perf_counter()
+        missing = [n for n in stage.inputs if n not in ctx]
+        if missing:
+            raise RuntimeError(f"stage {stage.name} runs before its inputs {missing} exist")
         path = self.path(stage, key)
         cached = path is not None and self.saved(stage, key) and stage.load(ctx, path)
         if not cached:
             stage.run(ctx)
             if path is not None:
                 stage.save(ctx, path)
+        missing = [n for n in stage.outputs if n not in ctx]
+        if missing:
+            raise RuntimeError(f"stage {stage.name} left its outputs {missing} unmade")
         ctx.info[stage.name] = {
             "seconds": round(time.perf_counter() - t0, 4),
             "cached": cached,

@@ -56,6 +56,8 @@ class Validate(Stage):
     components noted or dropped, its content hash taken on a thread."""
 
     name = "validate"
+    inputs = ("input",)
+    outputs = ("mesh", "diag", "mesh_hash")
     suffix = None
 
     def key(self, ctx: Context) -> str:
@@ -85,6 +87,8 @@ class Layout(Stage):
     """The patch layout: a Layout object, a layout file, or the automatic layout."""
 
     name = "layout"
+    inputs = ("mesh", "mesh_hash")
+    outputs = ("layout",)
     suffix = ".json"
 
     def __init__(self, layout: Any) -> None:
@@ -190,6 +194,8 @@ class Cut(Stage):
     spring meshes are saved never cuts); the file keeps each input face's patch."""
 
     name = "cut"
+    inputs = ("mesh", "layout")
+    outputs = ("patches", "face_patch")
     after = ("layout",)
 
     def run(self, ctx: Context) -> None:
@@ -239,6 +245,8 @@ class Springs(Stage):
     """A spring mesh per patch, on threads or through ``patch_map`` (Dask tasks)."""
 
     name = "springs"
+    inputs = ("patches",)
+    outputs = ("grids", "spring_info")
     after = ("cut",)
 
     def __init__(self, patch_map=None) -> None:
@@ -337,6 +345,8 @@ class Fit(Stage):
     boundaries pinned (C0), then G1 across the smooth boundaries (:mod:`meshfit.stitch`)."""
 
     name = "fit"
+    inputs = ("layout", "grids", "mesh")
+    outputs = ("network", "controls", "control_classes", "surfaces", "fit_info")
     after = ("springs",)
 
     def group(self, ctx: Context) -> Any:
@@ -408,6 +418,8 @@ class Displacement(Stage):
     """A displacement map per patch: its spring grid over its spline."""
 
     name = "displacement"
+    inputs = ("surfaces", "grids")
+    outputs = ("maps",)
     after = ("fit",)
 
     def extra(self, ctx: Context) -> Any:
@@ -478,6 +490,8 @@ class Stitch(Stage):
     """The displacement seams closed and every seam measured."""
 
     name = "stitch"
+    inputs = ("layout", "surfaces", "maps")
+    outputs = ("maps", "seams", "displaced", "spline_grids")
     after = ("displacement",)
 
     def extra(self, ctx: Context) -> Any:
@@ -531,6 +545,8 @@ class Errors(Stage):
     """Two-sided distances of the spline-only and the displaced surfaces to the input."""
 
     name = "errors"
+    inputs = ("mesh", "displaced", "spline_grids", "grids", "face_patch")
+    outputs = ("errors", "spline_distance")
     after = ("stitch",)
     suffix = ".json"
 
@@ -580,6 +596,8 @@ class Exports(Stage):
     record keeps every file's hash, so a resumed run re-writes only what changed."""
 
     name = "exports"
+    inputs = ("surfaces", "maps")
+    outputs = ("outputs",)
     after = ("stitch",)
     suffix = ".json"
     background = True
@@ -620,6 +638,8 @@ class Report(Stage):
     """``report.html`` and its renders (the renders are kept on a resumed run)."""
 
     name = "report"
+    inputs = ("mesh", "layout", "surfaces", "maps", "summary")
+    outputs = ("report",)
     after = ("stitch", "layout")
     suffix = ".json"
 
