@@ -12,6 +12,7 @@ from scipy.spatial import cKDTree
 from meshfit import tol
 from meshfit._unionfind import DisjointSets
 from meshfit.errors import InputError
+from meshfit.types import Side
 
 __all__ = [
     "SIDES",
@@ -25,9 +26,9 @@ __all__ = [
     "texel_shapes",
 ]
 
-#: sides of a grid or control net, each listed in increasing parameter order:
-#: "u0" = A[0, :], "u1" = A[-1, :], "v0" = A[:, 0], "v1" = A[:, -1]
-SIDES = ("u0", "u1", "v0", "v1")
+#: sides of a grid or control net (:class:`meshfit.types.Side`), each listed in increasing
+#: parameter order: "u0" = A[0, :], "u1" = A[-1, :], "v0" = A[:, 0], "v1" = A[:, -1]
+SIDES = tuple(Side)
 
 
 def side_row(a: NDArray, side: str, depth: int = 0) -> NDArray:
