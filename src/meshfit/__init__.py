@@ -8,8 +8,8 @@ shrink wrapping; Kobbelt et al. 1999).
 import os
 
 # numba's parallel kernels run on OpenMP threads, which by default spin between parallel
-# regions; on a busy machine that makes each launch of a parallel kernel cost ~20 ms instead
-# of ~10 us (measured on 2 cores under load). Sleeping threads wake in microseconds. Set
+# regions; on a busy machine spinning threads compete with the work and each launch of a
+# parallel kernel costs orders of magnitude more. Sleeping threads wake in microseconds. Set
 # before any kernel runs; a value the user chose is kept.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 

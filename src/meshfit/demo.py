@@ -57,8 +57,7 @@ def _radius(d: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 #: largest default input :func:`demo_mesh` generates (the convex hull of ``faces / 2`` points
-#: takes about 35 s at this size on 2 cores; 50 million faces ran for minutes without an end
-#: in sight)
+#: grows to tens of seconds at this size on a small machine; ten times more is impractical)
 DEMO_MAX_FACES = 5_000_000
 
 

@@ -41,8 +41,8 @@ def content_key(*parts: Any) -> str:
 def save_npz(path: Path, arrays: dict[str, NDArray]) -> Path:
     """A deterministic ``.npz`` (fixed zip timestamps), written atomically.
 
-    The arrays are stored, not deflated: deflating them took about 2 s of a million-face
-    fit.
+    The arrays are stored, not deflated: deflating costs seconds on a large fit and the
+    stage files are a cache, not a deliverable.
     """
 
     def write(tmp: str) -> None:
