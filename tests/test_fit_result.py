@@ -226,3 +226,21 @@ def test_wrap_front_door():
     assert len(res.meshes) == 2
     with pytest.raises(InputError, match="sphere_method"):
         meshfit.WrapOptions(sphere_method="magic")
+
+
+def test_spline_smoothing_moves_detail_into_the_maps(spot):
+    """Thesis sec. 7.5: with the option the splines hold less of the scan's fine detail and
+    the maps more; the displaced surface (spline + vector map) is the same surface."""
+    mesh, plain, _ = spot
+    smooth = meshfit.fit(mesh, LAYOUT, options=dataclasses.replace(OPTIONS, spline_smoothing=0.5))
+    e0, e1 = plain.summary["errors"], smooth.summary["errors"]
+    assert e1["spline_only"]["rms"] > e0["spline_only"]["rms"]
+    assert e1["displaced"]["rms"] == pytest.approx(e0["displaced"]["rms"], rel=1e-6)
+    assert e1["displaced"]["hausdorff"] == pytest.approx(e0["displaced"]["hausdorff"], rel=1e-6)
+    energy = [sum(float((m.values**2).sum()) for m in r.maps) for r in (plain, smooth)]
+    assert energy[1] > energy[0]
+    seams = smooth.summary["seams"]
+    assert seams["spline_gap_max"] <= tol.STITCH_GAP  # pinned boundaries filtered alike
+    assert seams["displaced_gap_max"] <= tol.STITCH_GAP
+    with pytest.raises(InputError, match="spline_smoothing"):
+        FitOptions(spline_smoothing=-1.0)

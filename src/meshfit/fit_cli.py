@@ -85,6 +85,7 @@ def _options(args: argparse.Namespace):
         controls=parse_controls(args.cv),
         class_controls=parse_class_controls(getattr(args, "class_cv", None)),
         continuity=args.continuity,
+        spline_smoothing=args.spline_smoothing,
         formats=_formats(args.formats),
         patches=args.patches,
         layout_shape={"auto": None, "on": True, "off": False}[args.shape_layout],
@@ -270,6 +271,14 @@ def _common(p: argparse.ArgumentParser) -> None:
         default="auto",
         help="across patches: auto is G1 except across sharp creases, which stay C0 "
         "(default: auto)",
+    )
+    p.add_argument(
+        "--spline-smoothing",
+        type=float,
+        default=0.0,
+        metavar="KNOTS",
+        help="keep detail narrower than about this many knot spacings out of the splines, "
+        "in the maps (0.5 suits maps you edit; default 0: the spline alone fits closest)",
     )
     p.add_argument(
         "--formats",

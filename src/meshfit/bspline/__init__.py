@@ -12,6 +12,7 @@ from meshfit.bspline.fit import (
     fit_bspline,
     fit_errors,
     grid_parameters,
+    lowpass_matrix,
 )
 from meshfit.bspline.surface import BSplineSurface
 
@@ -26,4 +27,5 @@ __all__ = [
     "fit_bspline",
     "fit_errors",
     "grid_parameters",
+    "lowpass_matrix",
 ]

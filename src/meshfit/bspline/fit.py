@@ -81,8 +81,10 @@ def _periodic_gaussian(sigma: float, period: int) -> NDArray[np.float64]:
 
 
 @lru_cache(maxsize=64)
-def _lowpass(n: int, m: int, smoothing: float) -> NDArray[np.float64]:
-    """Low-pass ``L (n, n)`` of one grid direction of n samples for m controls.
+def lowpass_matrix(n: int, m: int, smoothing: float) -> NDArray[np.float64]:
+    """Low-pass ``L (n, n)`` of one grid direction of n samples for m controls (the filter
+    of :func:`fit_bspline`'s ``smoothing``; boundary curves fitted on their own take it too,
+    so that patches and their pinned boundaries keep the same detail out).
 
     ``L = C + W (I - C)``: ``C`` is the least-squares projection onto cubic polynomials
     (a single clamped span), ``W`` a Gaussian of ``smoothing`` knot spacings, i.e.
@@ -206,7 +208,9 @@ def fit_bspline(
     fv, Nv, Bv, Mv, Pv = _solver(nv, mv)
     X = np.ascontiguousarray(X)
     if smoothing > 0.0:
-        X = _k.dense_sandwich(_lowpass(nu, mu, smoothing), X, _lowpass(nv, mv, smoothing))
+        X = _k.dense_sandwich(
+            lowpass_matrix(nu, mu, smoothing), X, lowpass_matrix(nv, mv, smoothing)
+        )
     if not pin_boundary:
         if Pu is None and Pv is None:
             G = _k.gram_sandwich(fu, Nu, fv, Nv, X, mu, mv)  # B_u^T X B_v

@@ -48,6 +48,12 @@ class FitOptions:
         share one count) are listed in ``summary["control_classes"]`` with their members and
         the largest count their spring grids allow; a count above that is capped (with a
         note). Stored as sorted ``(class, count)`` pairs.
+    spline_smoothing : float
+        Keep detail narrower than about this many knot spacings out of the splines, so that
+        the maps hold it (``smoothing`` of :func:`meshfit.bspline.fit_bspline`; thesis sec.
+        7.5; default 0: the plain least-squares fit, whose spline alone is closest to the
+        input). With vector maps the displaced surface is the same either way; 0.5 suits
+        maps that are edited or transferred.
     continuity : {"auto", "C0", "G1"}
         Continuity across shared boundaries (default ``"auto"``: G1 except across the
         layout's crease curves, which stay C0). Lower case is accepted.
@@ -111,6 +117,7 @@ class FitOptions:
     controls: tuple[int, int] = (16, 16)
     class_controls: Any = ()
     continuity: str = "auto"
+    spline_smoothing: float = 0.0
     formats: tuple[str, ...] = ("usd", "obj", "glb", "exr", "png")
     patches: int | None = None
     layout_shape: bool | None = None
@@ -179,6 +186,10 @@ class FitOptions:
             if not 0.0 < a < 180.0:
                 raise InputError(f"crease_angle must be between 0 and 180 degrees, got {a}")
             object.__setattr__(self, "crease_angle", a)
+        sm = self.spline_smoothing
+        if isinstance(sm, bool) or not isinstance(sm, (int, float)) or not 0.0 <= sm < np.inf:
+            raise InputError(f"spline_smoothing must be >= 0 knot spacings, got {sm!r}")
+        object.__setattr__(self, "spline_smoothing", float(sm))
         if int(self.image_size) < 16:
             raise InputError(f"image_size must be >= 16 pixels, got {self.image_size}")
 
@@ -208,7 +219,11 @@ class FitOptions:
     def spline(self) -> SplineOptions:
         """The fitting stage's group."""
         return SplineOptions(
-            self.controls, self.class_controls, self.continuity, self.normal_errors
+            self.controls,
+            self.class_controls,
+            self.continuity,
+            self.normal_errors,
+            self.spline_smoothing,
         )
 
     @property
@@ -250,6 +265,7 @@ class SplineOptions:
     class_controls: tuple[tuple[int, int], ...]
     continuity: str
     normal_errors: bool
+    smoothing: float
 
 
 @dataclass(frozen=True)

@@ -369,12 +369,15 @@ class Fit(Stage):
         self._network(ctx)
         grids, counts, diag = ctx["grids"], ctx["controls"], ctx["diag"]
         lay = ctx["layout"]
-        pins = boundary_pins(lay, ctx["mesh"].xyz(lay.corners), grids, counts)
-        normal_errors = ctx.options.spline.normal_errors
+        o = ctx.options.spline
+        pins = boundary_pins(lay, ctx["mesh"].xyz(lay.corners), grids, counts, o.smoothing)
+        normal_errors = o.normal_errors
 
         def fit(p: int):
             t = time.perf_counter()
-            s = fit_bspline(grids[p], controls=counts[p], pin_boundary=pins[p])
+            s = fit_bspline(
+                grids[p], controls=counts[p], pin_boundary=pins[p], smoothing=o.smoothing
+            )
             if normal_errors:
                 e = fit_errors(s, grids[p]).as_dict()
             else:  # parametric error only (eq. 6.1): the closest-point search is costly

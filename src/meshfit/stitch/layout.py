@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from meshfit._kernels.geometry import polyline_gap
-from meshfit.bspline import BSplineSurface, basis_matrix, clamped_knots
+from meshfit.bspline import BSplineSurface, basis_matrix, clamped_knots, lowpass_matrix
 from meshfit.stitch.network import Network, SharedBoundary, side_row
 from meshfit.types import Side
 
@@ -99,6 +99,7 @@ def boundary_pins(
     corner_xyz: NDArray[np.float64],
     grids: Sequence[NDArray[np.float64]],
     controls: Sequence[tuple[int, int]],
+    smoothing: float = 0.0,
 ) -> list[dict[str, NDArray[np.float64]]]:
     """Pinned boundary control rows of every patch (``pin_boundary`` of
     :func:`meshfit.bspline.fit_bspline`).
@@ -107,7 +108,10 @@ def boundary_pins(
     first patch using it, its ends pinned to the layout corners ``corner_xyz``; each patch
     on the curve pins its boundary row to that curve's control points, so shared boundaries
     are identical. ``controls`` must agree along shared curves
-    (:func:`meshfit.stitch.control_classes`).
+    (:func:`meshfit.stitch.control_classes`). With ``smoothing`` (knot spacings, as
+    :func:`meshfit.bspline.fit_bspline` takes it) each side is low-passed as the patches'
+    grids are before its curve is fitted, so detail along a boundary stays out of the spline
+    there too.
 
     References
     ----------
@@ -124,6 +128,8 @@ def boundary_pins(
             if bool(layout.patch_reversed[p, s]):
                 row = row[::-1]
             m = controls[p][s % 2]
+            if smoothing > 0.0:  # the filter keeps both end samples
+                row = lowpass_matrix(len(row), m, float(smoothing)) @ row
             a, b = corner_xyz[int(ends[c, 0])], corner_xyz[int(ends[c, 1])]
             curve_ctrl[c] = _fit_curve(row, m, a, b)
     pins = []
