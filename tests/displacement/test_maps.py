@@ -62,7 +62,7 @@ def test_components_are_frame_dot_products(rng):
     D = X - s.evaluate(U, V)
     assert_allclose(d.values[..., 0], (D * T).sum(-1), atol=1e-15)
     assert_allclose(d.values[..., 2], (D * N).sum(-1), atol=1e-15)
-    n = displacement_map(s, X, kind="normal")
+    n = displacement_map(s, X, kind="scalar", scalar="component")
     m = displacement_map(s, X, kind="magnitude")
     assert_allclose(n.values[..., 0], d.values[..., 2])
     assert_allclose(m.values[..., 0], np.linalg.norm(D, axis=-1), atol=1e-15)
@@ -72,23 +72,24 @@ def test_scalar_maps_with_base(rng):
     X, s = _analytic(rng)
     d = displacement_map(s, X)
     m = displacement_map(s, X, kind="magnitude")
-    n = displacement_map(s, X, kind="normal")
+    n = displacement_map(s, X, kind="scalar", scalar="component")
     assert_allclose(reconstruct(s, m, base=d), X, atol=1e-14)
     assert_allclose(reconstruct(s, n, base=d), X, atol=1e-14)
     with pytest.raises(InputError, match="base"):
         reconstruct(s, m)
-    # normal map alone: displacement along N only
+    # scalar map alone: displacement along N only
     S = s.evaluate_grid(grid_parameters(33), grid_parameters(29))
     U, V = np.meshgrid(grid_parameters(33), grid_parameters(29), indexing="ij")
     assert_allclose(reconstruct(s, n), S + n.values * s.normals(U, V), atol=1e-14)
 
 
-def test_doubling_normal_map_doubles_normal_component(rng):
-    """The thesis' image game: editing the grey (normal) map moves only the normal part."""
+def test_doubling_normal_component_map_doubles_normal_component(rng):
+    """The thesis' image game: editing the grey (normal component) map moves only the normal
+    part of the vector map it is applied to."""
     X, s = _analytic(rng)
     d = displacement_map(s, X)
-    n = displacement_map(s, X, kind="normal")
-    twice = DisplacementMap(2 * n.values, "normal")
+    n = displacement_map(s, X, kind="scalar", scalar="component")
+    twice = DisplacementMap(2 * n.values, "scalar")
     got = displacement_map(s, reconstruct(s, twice, base=d))
     assert_allclose(got.values[..., :2], d.values[..., :2], atol=1e-13)
     assert_allclose(got.values[..., 2], 2 * d.values[..., 2], atol=1e-13)
@@ -110,8 +111,11 @@ def test_resampling_with_the_surface_filters_model_space_vectors(fitted):
     # frame components filtered as channels are a different (frame-dependent) surface
     plain = resample_map(d, (h + 8, w + 5))
     assert np.abs(reconstruct(s, plain) - reconstruct(s, d, shape=(h + 8, w + 5))).max() > 1e-9
-    with pytest.raises(InputError, match="vector map"):
-        resample_map(displacement_map(s, X, kind="normal"), (h, w), surface=s)
+    # a scalar map is resampled as values, with or without the surface
+    n = displacement_map(s, X, kind="scalar")
+    np.testing.assert_array_equal(
+        resample_map(n, (h + 8, w + 5), surface=s).values, resample_map(n, (h + 8, w + 5)).values
+    )
     with pytest.raises(InputError, match="2 x 2"):
         resample_map(d, (1, w), surface=s)
 
@@ -154,21 +158,21 @@ def test_exr_round_trip_to_float32(fitted, tmp_path):
         X
     )
     assert (err <= bound).all()
-    n = displacement_map(s, X, kind="normal")
+    n = displacement_map(s, X, kind="scalar")
     n.to_exr(tmp_path / "n.exr")
     np.testing.assert_array_equal(read_exr(tmp_path / "n.exr").image, n.image)
 
 
 def test_png_round_trip_within_half_a_step(fitted, tmp_path):
     X, s = fitted
-    for kind in ("normal", "magnitude", "vector"):
+    for kind in ("scalar", "magnitude", "vector"):
         m = displacement_map(s, X, kind=kind)
         m.to_png(tmp_path / f"{kind}.png")
         r = read_png(tmp_path / f"{kind}.png")
         step = (m.values.max() - m.values.min()) / 65535
         assert r.kind == kind
         assert np.abs(r.values - m.values).max() <= 0.5 * step * (1 + 1e-9)
-    info = png.Reader(bytes=(tmp_path / "normal.png").read_bytes()).read()[3]
+    info = png.Reader(bytes=(tmp_path / "scalar.png").read_bytes()).read()[3]
     assert info["bitdepth"] == 16 and info["greyscale"]
 
 
@@ -202,7 +206,7 @@ def test_edited_images_rebuild_geometry(fitted, tmp_path):
     keep[5:15, 10:20] = False
     assert (np.linalg.norm(got - X, axis=-1)[keep] <= 1e-6 * np.abs(d.values).max()).all()
     # 4. a grey map re-saved by an editor as 8-bit RGB without metadata
-    n = displacement_map(s, X, kind="normal")
+    n = displacement_map(s, X, kind="scalar", scalar="component")
     lo, hi = float(n.values.min()), float(n.values.max())
     q8 = np.rint((n.values[..., 0] - lo) / (hi - lo) * 255).astype(np.uint8)
     rgb = np.repeat(q8[..., None], 3, axis=2)
@@ -212,7 +216,7 @@ def test_edited_images_rebuild_geometry(fitted, tmp_path):
         )
     with pytest.raises(ImageFileError, match="metadata"):
         read_png(tmp_path / "edit.png")
-    r = read_png(tmp_path / "edit.png", kind="normal", value_range=(lo, hi))
+    r = read_png(tmp_path / "edit.png", kind="scalar", value_range=(lo, hi))
     assert np.abs(r.values - n.values).max() <= 0.5 * (hi - lo) / 255 * (1 + 1e-9)
     got = reconstruct(s, r, base=d)
     assert (np.linalg.norm(got - X, axis=-1) <= 0.5 * (hi - lo) / 255 * (1 + 1e-9)).all()
@@ -245,7 +249,7 @@ def test_bad_maps_and_files(tmp_path, rng):
     with pytest.raises(InputError, match="kind"):
         DisplacementMap(np.zeros((4, 4, 3)), "height")
     with pytest.raises(InputError, match="shape"):
-        DisplacementMap(np.zeros((4, 4, 3)), "normal")
+        DisplacementMap(np.zeros((4, 4, 3)), "scalar")
     with pytest.raises(InputError, match=r"texel \[1, 2\]"):
         v = np.zeros((4, 4, 3))
         v[1, 2, 0] = np.nan
@@ -259,5 +263,7 @@ def test_bad_maps_and_files(tmp_path, rng):
     with pytest.raises(ImageFileError, match="PNG"):
         read_png(tmp_path / "junk.png")
     X, s = _analytic(rng)
-    with pytest.raises(InputError, match="bump"):
-        reconstruct(s, bump_map(s, X))
+    with pytest.raises(InputError, match="scalar must be"):
+        displacement_map(s, X, kind="scalar", scalar="closest")
+    with pytest.raises(InputError, match="needs a bump map"):
+        bump_normals(s, displacement_map(s, X))

@@ -50,3 +50,12 @@ def cube_sphere(n: int = 33, resolutions: dict[int, int] | None = None) -> list[
             d = p / np.linalg.norm(p, axis=-1, keepdims=True)
             grids.append(d * _radius(d)[..., None])
     return grids
+
+
+def roof(n: int = 61) -> np.ndarray:
+    """A bumpy roof over [0, 2] x [0, 2], normals up, with a crease (ridge) along x = 1
+    (grid row ``(n - 1) / 2``): ``(n, n, 3)``."""
+    x = np.linspace(0, 2, n)
+    U, V = np.meshgrid(x, x, indexing="ij")
+    Z = 0.5 - 0.35 * np.abs(U - 1.0) + 0.1 * np.sin(1.3 * V) + 0.01 * np.sin(9 * U + 7 * V)
+    return np.stack([U, V, Z], axis=-1)

@@ -179,9 +179,9 @@ def test_displacement_seams_become_crack_free(flipped):
     assert_allclose(side_row(ra, b.side_a), row_b, atol=tol.STITCH_GAP * diag)
     with pytest.raises(InputError, match="tessellation"):
         displacement_seam_gaps(surfaces, fixed, net, tessellation="other")
-    with pytest.raises(InputError, match="vector"):
+    with pytest.raises(InputError, match="vector map it scales"):
         stitch_displacements(
-            surfaces, [displacement_map(surfaces[0], grids[0], kind="normal")] * 6, net
+            surfaces, [displacement_map(surfaces[0], grids[0], kind="magnitude")] * 6, net
         )
 
 
@@ -224,9 +224,9 @@ def test_matched_maps_close_seams_at_any_resolution():
     unmatched = stitch_displacements(surfaces, maps, net)
     cont0 = displacement_seam_gaps(surfaces, unmatched, net, tessellation="continuous")
     assert cont0.max() > 1e-6 * diag  # the 33 / 17 seams without matching
-    normal = displacement_map(surfaces[0], grids[0], kind="normal")
-    with pytest.raises(InputError, match="vector"):
-        match_map_shapes(surfaces, [normal] * 6, net)
+    scalar = displacement_map(surfaces[0], grids[0], kind="scalar")
+    with pytest.raises(InputError, match="one kind"):
+        match_map_shapes(surfaces, [scalar, *maps[1:]], net)
     with pytest.raises(InputError, match="5 maps"):
         match_map_shapes(surfaces, maps[:5], net)
 

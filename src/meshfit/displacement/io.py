@@ -1,12 +1,15 @@
 """Map images: OpenEXR float32 and 16-bit PNG with the value range in the text metadata.
 
-EXR files hold the float32 values (``RGB`` for 3-channel maps, ``Y`` for scalar maps) and
-string header attributes ``meshfit_map`` (format version), ``meshfit_kind`` and
-``meshfit_frame``. PNG files hold values quantised to 16 bits over ``[min, max]``: pixel
-``q`` stands for ``min + q / 65535 (max - min)``; a ``tEXt`` chunk with keyword ``meshfit``
-holds JSON ``{"meshfit_map": 1, "kind", "min", "max", "frame"}``. An image edited elsewhere
-that lost its metadata is read back by passing ``kind`` (and for PNG ``value_range``).
-Files are written to a temporary name and renamed.
+Every kind is written and read back: vector and bump maps as three channels, scalar and
+magnitude maps as one (a grey image). EXR files hold the float32 values (``RGB`` for
+3-channel maps, ``Y`` for 1-channel maps) and string header attributes ``meshfit_map``
+(format version), ``meshfit_kind`` and ``meshfit_frame``. PNG files hold values quantised to
+16 bits over ``[min, max]``: pixel ``q`` stands for ``min + q / 65535 (max - min)``; a
+``tEXt`` chunk with keyword ``meshfit`` holds JSON ``{"meshfit_map": 2, "kind", "min",
+"max", "frame"}``. Format 1 files name scalar maps ``"normal"``; they are read as scalar
+maps. An image edited elsewhere that lost its metadata is read back by passing ``kind``
+(and for PNG ``value_range``); a one-channel kind saved by an editor as RGB is read as the
+mean of its channels. Files are written to a temporary name and renamed.
 """
 
 from __future__ import annotations
@@ -21,13 +24,13 @@ import OpenEXR
 import png
 
 from meshfit._atomic import atomic_write
-from meshfit.displacement.maps import FRAME, KINDS, DisplacementMap
+from meshfit.displacement.maps import FRAME, KINDS, DisplacementMap, canonical_kind
 from meshfit.errors import ImageFileError, InputError
 
 __all__ = ["read_exr", "read_png", "write_exr", "write_png"]
 
-#: version of the metadata written to map images
-MAP_FORMAT = 1
+#: version of the metadata written to map images (1: scalar maps were named "normal")
+MAP_FORMAT = 2
 _COMPRESSION = {
     "none": OpenEXR.NO_COMPRESSION,
     "zip": OpenEXR.ZIP_COMPRESSION,
@@ -71,7 +74,8 @@ def write_exr(dmap: DisplacementMap, path: str | os.PathLike, *, compression: st
 def read_exr(path: str | os.PathLike, *, kind: str | None = None) -> DisplacementMap:
     """Read a map from an OpenEXR image (``RGB`` or ``Y`` channels, any pixel type).
 
-    ``kind`` overrides (or replaces missing) ``meshfit_kind`` metadata.
+    ``kind`` overrides (or replaces missing) ``meshfit_kind`` metadata; ``"normal"`` (format
+    1) is read as ``"scalar"``.
     """
     path = Path(path)
     if not path.is_file():
@@ -82,24 +86,36 @@ def read_exr(path: str | os.PathLike, *, kind: str | None = None) -> Displacemen
             ch = {k: np.asarray(v.pixels) for k, v in f.channels().items()}
     except Exception as exc:  # the binding raises plain RuntimeError on bad files
         raise ImageFileError(f"{path}: not a readable OpenEXR file ({exc})") from None
-    kind = kind or header.get("meshfit_kind")
-    if kind is None:
-        raise ImageFileError(f"{path}: no meshfit_kind in the header; pass kind=")
-    if kind not in KINDS:
-        raise ImageFileError(f"{path}: unknown map kind {kind!r}")
-    if "RGB" in ch:
-        vals = ch["RGB"]
-    elif "Y" in ch:
+    missing = "no meshfit_kind in the header; pass kind="
+    kind = _kind(path, kind or header.get("meshfit_kind"), missing)
+    if "Y" in ch and KINDS[kind] == 1:
         vals = ch["Y"][:, :, None]
+    elif "RGB" in ch:
+        vals = ch["RGB"]
     elif {"R", "G", "B"} <= set(ch):
         vals = np.stack([ch["R"], ch["G"], ch["B"]], axis=-1)
+    elif "Y" in ch:
+        vals = ch["Y"][:, :, None]
     else:
         raise ImageFileError(f"{path}: expected RGB or Y channels, found {sorted(ch)}")
+    if KINDS[kind] == 1 and vals.shape[2] == 3:  # a grey map saved by an editor as RGB
+        vals = vals.astype(np.float64).mean(axis=2, keepdims=True)
     if vals.shape[2] != KINDS[kind]:
         raise ImageFileError(
             f"{path}: a {kind} map needs {KINDS[kind]} channels, not {vals.shape[2]}"
         )
     return DisplacementMap(vals.astype(np.float64), kind)
+
+
+def _kind(path: Path, kind: str | None, missing: str) -> str:
+    """The kind a file's metadata (or the caller) names, as one of ``KINDS``; ``missing``:
+    what to say when there is none."""
+    if kind is None:
+        raise ImageFileError(f"{path}: {missing}")
+    try:
+        return canonical_kind(kind)
+    except InputError:
+        raise ImageFileError(f"{path}: unknown map kind {kind!r}") from None
 
 
 def write_png(
@@ -152,7 +168,8 @@ def read_png(
 ) -> DisplacementMap:
     """Read a map from a PNG (grey or RGB, 8 or 16 bits, e.g. after editing).
 
-    ``kind`` and ``value_range`` override (or replace missing) ``meshfit`` text metadata.
+    ``kind`` and ``value_range`` override (or replace missing) ``meshfit`` text metadata;
+    ``"normal"`` (format 1) is read as ``"scalar"``.
     """
     path = Path(path)
     if not path.is_file():
@@ -172,11 +189,7 @@ def read_png(
         q = q.reshape(h, w, c)[:, :, : c - 1]
         c -= 1
     q = q.reshape(h, w, c)
-    kind = kind or meta.get("kind")
-    if kind is None:
-        raise ImageFileError(f"{path}: no meshfit metadata; pass kind= and value_range=")
-    if kind not in KINDS:
-        raise ImageFileError(f"{path}: unknown map kind {kind!r}")
+    kind = _kind(path, kind or meta.get("kind"), "no meshfit metadata; pass kind= and value_range=")
     if value_range is None:
         if "min" not in meta or "max" not in meta:
             raise ImageFileError(f"{path}: no value range in the metadata; pass value_range=")

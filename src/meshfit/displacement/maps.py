@@ -1,5 +1,16 @@
 """Vector, scalar and bump maps of a grid over its fitted spline, and their reconstruction.
 
+Kinds
+-----
+* ``vector``: the displacement ``d = X - S`` of each grid point from the spline at the same
+  parameters, three components (sec. 7.2); rebuilds the grid exactly.
+* ``scalar``: one value per texel, a displacement along the spline's unit normal, the grey
+  image a user paints (sec. 7.3, fig. 7.4); see :func:`displacement_map` for how it is
+  measured. ``"normal"``, the kind's former name, is read as ``scalar`` (maps, files).
+* ``bump``: the grid's unit normals, three components (sec. 7.4): shading only, the
+  geometry is the spline's.
+* ``magnitude``: ``|d|``, which scales a vector map along its own directions (sec. 7.3).
+
 Frame
 -----
 Every map is stored in the orthonormal local frame of the spline at the same (u, v):
@@ -17,7 +28,10 @@ Sampling
 --------
 ``values[i, j]`` belongs to parameter ``(u, v) = (i / (h - 1), j / (w - 1))``: image rows
 follow u, columns follow v, and the corner texels sit on the patch corners (the grid of the
-spring mesh itself). Reconstruction at any resolution filters bilinearly between texels.
+spring mesh itself). Reconstruction at any resolution filters bilinearly between texels:
+vector and bump maps as model-space vectors (each texel's components in its own frame), a
+scalar map as the value, applied along the spline's normal at the output point (sec. 7.1,
+``S + s N``, as renderers read a scalar displacement map).
 
 Precision
 ---------
@@ -35,6 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from meshfit import tol
 from meshfit._kernels import bspline as _k
 from meshfit.bspline import BSplineSurface, grid_parameters
 from meshfit.bspline.fit import _as_grid
@@ -42,21 +57,48 @@ from meshfit.errors import InputError
 
 __all__ = [
     "KINDS",
+    "KIND_ALIASES",
+    "RAY_CELLS",
+    "SCALAR_METHODS",
     "DisplacementMap",
     "bump_map",
     "bump_normals",
+    "canonical_kind",
     "displacement_map",
     "grid_normals",
     "reconstruct",
     "resample_map",
     "sample_bilinear",
+    "shading_normals",
     "vector_values",
 ]
 
 #: map kinds and their channel count
-KINDS = {"vector": 3, "normal": 1, "magnitude": 1, "bump": 3}
+KINDS = {"vector": 3, "scalar": 1, "magnitude": 1, "bump": 3}
+#: former kind names, read as the kind they name now (maps made and files written with them)
+KIND_ALIASES = {"normal": "scalar"}
+#: how :func:`displacement_map` measures a scalar map: ``ray`` (signed distance along the
+#: normal to the grid's triangles) or ``component`` (the normal component ``d . N``)
+SCALAR_METHODS = ("ray", "component")
+#: a scalar map's ray is met with the grid's triangles in the cells within this many cells
+#: of the texel's own grid point (a hit farther away is another part of a folded grid)
+RAY_CELLS = 2
 #: the frame of every map, channel by channel (stored in file metadata)
 FRAME = "T=dS/du normalised, B=N x T, N=unit normal (S_u x S_v)"
+
+
+def canonical_kind(kind: str) -> str:
+    """The kind a name stands for: one of :data:`KINDS` (``"normal"`` is ``"scalar"``).
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        Not a kind or a former kind name.
+    """
+    k = KIND_ALIASES.get(kind, kind) if isinstance(kind, str) else kind
+    if k not in KINDS:
+        raise InputError(f"kind must be one of {tuple(KINDS)}, got {kind!r}")
+    return k
 
 
 @dataclass(frozen=True, eq=False)
@@ -67,10 +109,12 @@ class DisplacementMap:
     ----------
     values : (h, w, c) float64
         Map values; c = 3 for ``vector`` (components along T, B, N, model units) and ``bump``
-        (unit normal in T, B, N), c = 1 for ``normal`` (component along N, model units) and
-        ``magnitude`` (length of the vector displacement, model units). ``values[i, j]`` is at
-        ``(u, v) = (i / (h - 1), j / (w - 1))``; h, w >= 2.
-    kind : {"vector", "normal", "magnitude", "bump"}
+        (unit normal in T, B, N), c = 1 for ``scalar`` (displacement along N, model units)
+        and ``magnitude`` (length of the vector displacement, model units). ``values[i, j]``
+        is at ``(u, v) = (i / (h - 1), j / (w - 1))``; h, w >= 2.
+    kind : {"vector", "scalar", "magnitude", "bump"}
+        ``"normal"`` is accepted as the former name of ``"scalar"`` and stored as
+        ``"scalar"``.
 
     References
     ----------
@@ -81,23 +125,23 @@ class DisplacementMap:
     kind: str = "vector"
 
     def __post_init__(self) -> None:
-        if self.kind not in KINDS:
-            raise InputError(f"kind must be one of {tuple(KINDS)}, got {self.kind!r}")
+        kind = canonical_kind(self.kind)
+        object.__setattr__(self, "kind", kind)
         try:
             a = np.array(self.values, dtype=np.float64)
         except (TypeError, ValueError):
             raise InputError("values must be a numeric (h, w, c) array") from None
         if a.ndim == 2:
             a = a[:, :, None]
-        c = KINDS[self.kind]
+        c = KINDS[kind]
         if a.ndim != 3 or a.shape[2] != c or a.shape[0] < 2 or a.shape[1] < 2:
             raise InputError(
-                f"a {self.kind} map needs values of shape (h, w, {c}) with h, w >= 2, "
+                f"a {kind} map needs values of shape (h, w, {c}) with h, w >= 2, "
                 f"got {np.shape(self.values)}"
             )
         if not np.isfinite(a).all():
             i, j = np.argwhere(~np.isfinite(a).all(axis=2))[0]
-            raise InputError(f"{self.kind} map value at texel [{i}, {j}] is not finite")
+            raise InputError(f"{kind} map value at texel [{i}, {j}] is not finite")
         a.flags.writeable = False
         object.__setattr__(self, "values", a)
 
@@ -158,10 +202,49 @@ def _grid_frames(surface: BSplineSurface, h: int, w: int):
     return S, T, B, N
 
 
+def _ray_distances(X: NDArray, S: NDArray, N: NDArray, cells: int = RAY_CELLS) -> NDArray:
+    """Signed distance ``t`` along each line ``S[i, j] + t N[i, j]`` to the triangles of the
+    grid ``X`` (two per cell, split along the (i, j)-(i+1, j+1) diagonal) in the cells
+    within ``cells`` of grid point ``(i, j)``: the hit nearest ``S`` (smallest ``|t|``),
+    NaN where the line meets none of them. ``X, S, N (h, w, 3)`` -> ``(h, w)``."""
+    h, w = X.shape[:2]
+    best = np.full((h, w), np.nan)
+    ii, jj = np.meshgrid(np.arange(h), np.arange(w), indexing="ij")
+    eps = tol.BARY_EPS
+    for di in range(-cells, cells):
+        for dj in range(-cells, cells):
+            ci, cj = ii + di, jj + dj
+            ok = (ci >= 0) & (ci < h - 1) & (cj >= 0) & (cj < w - 1)
+            if not ok.any():
+                continue
+            ci, cj = np.clip(ci, 0, h - 2), np.clip(cj, 0, w - 2)
+            p00, p11 = X[ci, cj], X[ci + 1, cj + 1]
+            for a, b, c in ((p00, X[ci + 1, cj], p11), (p00, p11, X[ci, cj + 1])):
+                # Moeller-Trumbore on the whole line (t of either sign)
+                e1, e2 = b - a, c - a
+                pv = np.cross(N, e2)
+                det = (e1 * pv).sum(-1)
+                good = ok & (det != 0)
+                inv = 1.0 / np.where(good, det, 1.0)
+                sv = S - a
+                beta = (sv * pv).sum(-1) * inv
+                qv = np.cross(sv, e1)
+                gamma = (N * qv).sum(-1) * inv
+                t = (e2 * qv).sum(-1) * inv
+                inside = good & (beta >= -eps) & (gamma >= -eps) & (beta + gamma <= 1 + eps)
+                nearer = inside & ~(np.abs(t) >= np.abs(best))  # NaN best: any hit is nearer
+                best = np.where(nearer, t, best)
+    return best
+
+
 def displacement_map(
-    surface: BSplineSurface, grid_xyz: ArrayLike, *, kind: str = "vector"
+    surface: BSplineSurface,
+    grid_xyz: ArrayLike,
+    *,
+    kind: str = "vector",
+    scalar: str = "ray",
 ) -> DisplacementMap:
-    """Displacement of grid points from the spline at the same parameters, in the local frame.
+    """A map of the grid over its spline, in the spline's local frame.
 
     Parameters
     ----------
@@ -169,29 +252,48 @@ def displacement_map(
         The spline fitted to the grid.
     grid_xyz : (nu, nv, 3) float64
         Grid points (the spring mesh), at ``(u_i, v_j) = (i / (nu - 1), j / (nv - 1))``.
-    kind : {"vector", "normal", "magnitude"}
-        ``vector``: ``d = X - S`` as (d.T, d.B, d.N) (sec. 7.2); ``normal``: d.N;
-        ``magnitude``: |d| (sec. 7.3). Default ``vector``.
+    kind : {"vector", "scalar", "bump", "magnitude"}
+        ``vector``: ``d = X - S`` as (d.T, d.B, d.N) (sec. 7.2), exact. ``scalar``: a
+        displacement along the spline's normal N (sec. 7.3), see ``scalar``. ``bump``:
+        :func:`bump_map` with the grid's own normals (sec. 7.4). ``magnitude``: |d|
+        (sec. 7.3). ``"normal"`` is read as ``"scalar"``. Default ``vector``.
+    scalar : {"ray", "component"}
+        How a scalar map is measured. ``ray`` (default): the signed distance from the spline
+        point along N to the grid's triangles (the hit nearest the spline within
+        :data:`RAY_CELLS` cells of the texel), so ``S + s N`` lies on the grid's surface;
+        where the line meets none of them (mostly along the patch border), ``d . N``. It
+        rebuilds the grid's surface closer than ``component``, which drops the tangential
+        part of ``d`` (the thesis' perpendicular projection, sec. 7.2, fig. 7.1, made local).
+        ``component``: ``d . N`` everywhere, the normal component of the vector map: edits of
+        it apply to a vector map through ``reconstruct(..., base=)`` (fig. 7.4).
 
     Returns
     -------
     DisplacementMap
-        ``(nu, nv, c)``, model units. See the module notes for the frame and precision.
+        ``(nu, nv, c)``: model units, unit normals for ``bump``. See the module notes for
+        the frame and precision.
 
     References
     ----------
-    .. [1] Krishnamurthy 2000, sec. 7.2, eq. 7.1; sec. 7.3.
+    .. [1] Krishnamurthy 2000, sec. 7.1 (scalar and vector maps), sec. 7.2, eq. 7.1; sec. 7.3;
+       sec. 7.4.
     """
-    if kind not in ("vector", "normal", "magnitude"):
-        raise InputError(f"kind must be 'vector', 'normal' or 'magnitude', got {kind!r}")
+    kind = canonical_kind(kind)
+    if scalar not in SCALAR_METHODS:
+        raise InputError(f"scalar must be one of {SCALAR_METHODS}, got {scalar!r}")
+    if kind == "bump":
+        return bump_map(surface, grid_xyz)
     X = _as_grid(grid_xyz)
     S, T, B, N = _grid_frames(surface, *X.shape[:2])
-    d = X - S
-    comp = _components(d, T, B, N)
+    comp = _components(X - S, T, B, N)
     if kind == "vector":
         return DisplacementMap(comp, "vector")
-    if kind == "normal":
-        return DisplacementMap(comp[:, :, 2:], "normal")
+    if kind == "scalar":
+        s = comp[:, :, 2]
+        if scalar == "ray":
+            t = _ray_distances(X, S, N)
+            s = np.where(np.isnan(t), s, t)
+        return DisplacementMap(s[:, :, None], "scalar")
     return DisplacementMap(np.linalg.norm(comp, axis=-1)[:, :, None], "magnitude")
 
 
@@ -215,6 +317,9 @@ def bump_map(
     surface: BSplineSurface, grid_xyz: ArrayLike, *, normals: ArrayLike | None = None
 ) -> DisplacementMap:
     """Normals of the grid in the spline's local frame: a ``bump`` map.
+
+    A bump map changes shading, not geometry: :func:`reconstruct` of it is the spline, and
+    :func:`bump_normals` gives its shading normals at any resolution.
 
     Parameters
     ----------
@@ -242,10 +347,13 @@ def bump_map(
         n = _as_grid(normals)
         if n.shape != X.shape:
             raise InputError(f"normals must have the grid's shape {X.shape}, got {n.shape}")
-        n = n / np.linalg.norm(n, axis=-1, keepdims=True)
+        ln = np.linalg.norm(n, axis=-1, keepdims=True)
+        if (ln == 0).any():
+            i, j = np.argwhere(ln[..., 0] == 0)[0]
+            raise InputError(f"normal [{i}, {j}] is zero")
+        n = n / ln
     _, T, B, N = _grid_frames(surface, *X.shape[:2])
-    comp = np.stack([(n * T).sum(-1), (n * B).sum(-1), (n * N).sum(-1)], axis=-1)
-    return DisplacementMap(comp, "bump")
+    return DisplacementMap(_components(n, T, B, N), "bump")
 
 
 def _bilinear_weights(n_out: int, n_in: int) -> NDArray[np.float64]:
@@ -277,15 +385,24 @@ def sample_bilinear(values: ArrayLike, u: ArrayLike, v: ArrayLike) -> NDArray[np
     )
 
 
+def _filtered(values: NDArray, shape: tuple[int, int]) -> NDArray:
+    """The ``(h, w, c)`` image filtered bilinearly to ``shape`` as plain channels."""
+    if tuple(shape) == values.shape[:2]:
+        return np.array(values, dtype=np.float64)
+    Wu = _bilinear_weights(shape[0], values.shape[0])
+    Wv = _bilinear_weights(shape[1], values.shape[1])
+    return _k.dense_sandwich(Wu, np.ascontiguousarray(values), Wv)
+
+
 def _world_filtered(surface: BSplineSurface, comp: NDArray, shape: tuple[int, int]) -> NDArray:
     """Model-space vectors of frame components ``comp``, bilinearly filtered to ``shape``."""
     _, T, B, N = _grid_frames(surface, *comp.shape[:2])
     world = comp[..., :1] * T + comp[..., 1:2] * B + comp[..., 2:] * N
-    if tuple(shape) == comp.shape[:2]:
-        return world
-    Wu = _bilinear_weights(shape[0], comp.shape[0])
-    Wv = _bilinear_weights(shape[1], comp.shape[1])
-    return _k.dense_sandwich(Wu, np.ascontiguousarray(world), Wv)
+    return _filtered(world, shape)
+
+
+def _unit(n: NDArray) -> NDArray:
+    return n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), np.finfo(float).tiny)
 
 
 def resample_map(
@@ -293,39 +410,40 @@ def resample_map(
 ) -> DisplacementMap:
     """The map bilinearly resampled to ``shape = (h', w')`` (the thesis' image scaling).
 
-    Without ``surface`` the frame components are filtered as image channels. With the
-    ``surface`` of a ``vector`` map, the model-space vectors are filtered and expressed in
-    the frames at the new texels, as :func:`reconstruct` reads a map at any resolution: the
-    resampled map's reconstruction at its own resolution is the old map's reconstruction
-    at ``shape``.
+    Without ``surface`` the frame components are filtered as image channels (bump normals
+    renormalised). With the map's ``surface``, each kind is resampled as
+    :func:`reconstruct` (vector), :func:`bump_normals` (bump) read it at any resolution:
+    the model-space vectors are filtered and expressed in the frames at the new texels, so
+    the resampled map read at its own resolution is the old map read at ``shape``. Scalar
+    and magnitude maps are filtered as values either way (for a scalar map that is exact
+    in the same sense: its value is applied along the normal at the output point).
     """
     h2, w2 = (int(s) for s in shape)
     if h2 < 2 or w2 < 2:
         raise InputError(f"a map needs at least 2 x 2 texels, got {shape}")
-    if surface is not None:
-        if dmap.kind != "vector":
-            raise InputError(f"resampling with a surface needs a vector map, got {dmap.kind}")
+    if surface is not None and dmap.kind in ("vector", "bump"):
         world = _world_filtered(surface, dmap.values, (h2, w2))
+        if dmap.kind == "bump":
+            world = _unit(world)
         _, T, B, N = _grid_frames(surface, h2, w2)
-        return DisplacementMap(_components(world, T, B, N), "vector")
-    Wu = _bilinear_weights(h2, dmap.shape[0])
-    Wv = _bilinear_weights(w2, dmap.shape[1])
-    vals = _k.dense_sandwich(Wu, np.ascontiguousarray(dmap.values), Wv)
+        return DisplacementMap(_components(world, T, B, N), dmap.kind)
+    vals = _filtered(dmap.values, (h2, w2))
     if dmap.kind == "bump":
-        vals /= np.linalg.norm(vals, axis=-1, keepdims=True)
+        vals = _unit(vals)
     return DisplacementMap(vals, dmap.kind)
 
 
 def vector_values(dmap: DisplacementMap, base: DisplacementMap | None = None) -> NDArray:
     """Frame components ``(h, w, 3) float64`` of the vector displacement a map stands for.
 
-    ``vector`` maps are returned as they are. A ``normal`` map replaces the normal component
-    of ``base`` (a vector map of the same resolution) or, without ``base``, displaces along
-    N only. A ``magnitude`` map scales ``base``'s vectors to the given lengths along their
-    own directions (sec. 7.3); it needs ``base``; where ``base`` is zero it displaces along N.
+    ``vector`` maps are returned as they are; a ``bump`` map stands for none (zeros). A
+    ``scalar`` map replaces the normal component of ``base`` (a vector map of the same
+    resolution) or, without ``base``, displaces along N only. A ``magnitude`` map scales
+    ``base``'s vectors to the given lengths along their own directions (sec. 7.3); it needs
+    ``base``; where ``base`` is zero it displaces along N.
     """
     if dmap.kind == "bump":
-        raise InputError("a bump map changes normals, not positions: use bump_normals")
+        return np.zeros((*dmap.shape, 3))
     if dmap.kind == "vector":
         return dmap.values
     if base is not None:
@@ -334,7 +452,7 @@ def vector_values(dmap: DisplacementMap, base: DisplacementMap | None = None) ->
         if base.shape != dmap.shape:
             base = resample_map(base, dmap.shape)
     s = dmap.values[:, :, 0]
-    if dmap.kind == "normal":
+    if dmap.kind == "scalar":
         out = np.zeros((*dmap.shape, 3)) if base is None else base.values.copy()
         out[:, :, 2] = s
         return out
@@ -347,6 +465,13 @@ def vector_values(dmap: DisplacementMap, base: DisplacementMap | None = None) ->
     out[nz] = b[nz] * (s[nz] / ln[nz])[:, None]
     out[~nz, 2] = s[~nz]
     return out
+
+
+def _out_shape(dmap: DisplacementMap, shape) -> tuple[int, int]:
+    h2, w2 = dmap.shape if shape is None else (int(shape[0]), int(shape[1]))
+    if h2 < 2 or w2 < 2:
+        raise InputError(f"output shape must be at least 2 x 2, got {(h2, w2)}")
+    return h2, w2
 
 
 def reconstruct(
@@ -362,34 +487,44 @@ def reconstruct(
     ----------
     surface : BSplineSurface
     dmap : DisplacementMap
-        ``vector``, ``normal`` or ``magnitude`` map (see :func:`vector_values` for ``base``).
+        Any kind. A ``bump`` map displaces nothing: the result is the spline (its shading
+        normals are :func:`bump_normals`).
     shape : (int, int), optional
         Output grid ``(h', w')``, points at ``(i / (h' - 1), j / (w' - 1))``; default the
         map's resolution.
     base : DisplacementMap, optional
-        Vector map giving directions to a scalar map.
+        Vector map giving the tangential part to a scalar map or the directions to a
+        magnitude map (see :func:`vector_values`).
 
     Returns
     -------
     (h', w', 3) float64
-        Displaced points, model units. At the map's own resolution and from a map made by
-        :func:`displacement_map` this is the original grid to float64 round-off.
+        Displaced points, model units. At the map's own resolution and from a vector map
+        made by :func:`displacement_map` this is the original grid to float64 round-off.
 
     Notes
     -----
-    Each texel's components are turned into a model-space vector with the frame at the
-    texel's own (u, v); the vectors are filtered bilinearly and added to the spline at the
-    output parameters. Filtering vectors rather than frame components keeps two patches
-    whose boundary texels carry the same vectors crack-free at every resolution (sec. 8.2).
+    Vector (and scalar or magnitude with ``base``): each texel's components are turned into
+    a model-space vector with the frame at the texel's own (u, v); the vectors are filtered
+    bilinearly and added to the spline at the output parameters. Filtering vectors rather
+    than frame components keeps two patches whose boundary texels carry the same vectors
+    crack-free at every resolution (sec. 8.2). Scalar without ``base``: the value is
+    filtered bilinearly and applied along the unit normal at the output point,
+    ``S + s N`` (sec. 7.1), as a renderer applies a scalar displacement map; two patches
+    with equal normals and equal values along a shared boundary meet at every resolution.
 
     References
     ----------
-    .. [1] Krishnamurthy 2000, sec. 7.1 (S_disp = S + D), sec. 7.2 (bilinear reconstruction).
+    .. [1] Krishnamurthy 2000, sec. 7.1 (S_disp = S + D, S + s N), sec. 7.2 (bilinear
+       reconstruction), sec. 7.4 (bump maps change shading only).
     """
+    h2, w2 = _out_shape(dmap, shape)
+    if dmap.kind == "bump":
+        return surface.evaluate_grid(grid_parameters(h2), grid_parameters(w2))
+    if dmap.kind == "scalar" and base is None:
+        S, _, _, N = _grid_frames(surface, h2, w2)
+        return S + _filtered(dmap.values, (h2, w2)) * N
     comp = vector_values(dmap, base)
-    h2, w2 = dmap.shape if shape is None else (int(shape[0]), int(shape[1]))
-    if h2 < 2 or w2 < 2:
-        raise InputError(f"output shape must be at least 2 x 2, got {(h2, w2)}")
     world = _world_filtered(surface, comp, (h2, w2))
     return surface.evaluate_grid(grid_parameters(h2), grid_parameters(w2)) + world
 
@@ -397,11 +532,47 @@ def reconstruct(
 def bump_normals(
     surface: BSplineSurface, dmap: DisplacementMap, *, shape: tuple[int, int] | None = None
 ) -> NDArray[np.float64]:
-    """World-space unit normals of a bump map on a grid of ``shape``: ``(h', w', 3) float64``."""
+    """Shading normals of a bump map on a grid of any resolution: ``(h', w', 3) float64``.
+
+    Each texel's normal is taken to model space with the frame at its own (u, v); the
+    model-space normals are filtered bilinearly to ``shape`` (default the map's) and
+    normalised. As with :func:`reconstruct`, two patches whose boundary texels carry the
+    same normals shade alike along their shared boundary at every resolution.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 7.4; Blinn, "Simulation of wrinkled surfaces", 1978.
+    """
     if dmap.kind != "bump":
         raise InputError(f"bump_normals needs a bump map, got a {dmap.kind} map")
-    m = dmap if shape is None or tuple(shape) == dmap.shape else resample_map(dmap, shape)
-    _, T, B, N = _grid_frames(surface, *m.shape)
-    c = m.values
-    n = c[..., :1] * T + c[..., 1:2] * B + c[..., 2:] * N
-    return n / np.linalg.norm(n, axis=-1, keepdims=True)
+    return _unit(_world_filtered(surface, dmap.values, _out_shape(dmap, shape)))
+
+
+def shading_normals(
+    surface: BSplineSurface,
+    dmap: DisplacementMap | None = None,
+    *,
+    shape: tuple[int, int] | None = None,
+    base: DisplacementMap | None = None,
+) -> NDArray[np.float64]:
+    """Unit normals to shade a patch with, on a grid of any resolution: ``(h', w', 3)``.
+
+    ``bump`` map: :func:`bump_normals`. Vector, scalar or magnitude map: the normals of the
+    displaced grid (:func:`grid_normals` of :func:`reconstruct` at ``shape``, with ``base``
+    as there). No map: the spline's own normals. ``shape`` defaults to the map's resolution
+    (without a map it is required).
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 7.4 (bump maps), sec. 7.1 (displaced surfaces).
+    """
+    if dmap is None:
+        if shape is None:
+            raise InputError("shading_normals needs a shape when there is no map")
+        h2, w2 = (int(shape[0]), int(shape[1]))
+        if h2 < 2 or w2 < 2:
+            raise InputError(f"output shape must be at least 2 x 2, got {(h2, w2)}")
+        return _grid_frames(surface, h2, w2)[3]
+    if dmap.kind == "bump":
+        return bump_normals(surface, dmap, shape=shape)
+    return grid_normals(reconstruct(surface, dmap, shape=shape, base=base))

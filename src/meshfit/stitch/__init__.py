@@ -4,8 +4,9 @@
 makes control counts consistent (equal-count classes, user counts per class);
 :func:`stitch_surfaces` enforces C0 or G1 per boundary and G1 at corners of any valence;
 :func:`match_map_shapes` gives displacement maps equal texel counts along shared boundaries
-and :func:`stitch_displacements` closes their seams; :func:`seam_report` and
-:func:`displacement_seam_gaps` measure gaps and normal jumps before and after.
+and :func:`stitch_displacements` closes the seams of vector, scalar and bump maps;
+:func:`seam_report`, :func:`displacement_seam_gaps` and :func:`bump_seam_angles` measure gaps
+and normal jumps before and after.
 """
 
 from meshfit.stitch.network import (
@@ -20,7 +21,9 @@ from meshfit.stitch.network import (
     texel_shapes,
 )
 from meshfit.stitch.stitch import (
+    MAP_KINDS,
     SeamReport,
+    bump_seam_angles,
     displacement_seam_gaps,
     match_map_shapes,
     seam_report,
@@ -29,11 +32,13 @@ from meshfit.stitch.stitch import (
 )
 
 __all__ = [
+    "MAP_KINDS",
     "SIDES",
     "ControlClasses",
     "Network",
     "SeamReport",
     "SharedBoundary",
+    "bump_seam_angles",
     "control_classes",
     "direction_classes",
     "displacement_seam_gaps",

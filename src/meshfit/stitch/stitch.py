@@ -18,7 +18,9 @@ from meshfit.errors import InputError
 from meshfit.stitch.network import Network, SharedBoundary, side_row, texel_shapes
 
 __all__ = [
+    "MAP_KINDS",
     "SeamReport",
+    "bump_seam_angles",
     "displacement_seam_gaps",
     "match_map_shapes",
     "seam_report",
@@ -850,15 +852,19 @@ def seam_report(
 
 
 def _row_world(surface: BSplineSurface, dmap: DisplacementMap, side: str):
-    """Parameters, world-space displacement vectors, frames and spline points of a map's
-    boundary row (in the side's increasing parameter order)."""
+    """Parameters, world-space vectors, frames and spline points of a map's boundary row (in
+    the side's increasing parameter order). The vectors: a vector map's displacements, a
+    scalar map's ``s N``, a bump map's normals."""
     h, w = dmap.shape
     n = w if side[0] == "u" else h
     t = np.linspace(0.0, 1.0, n)
     u, v = _side_params(side, t)
     S, T, B, N = surface.points_and_frames(u, v)
     comp = side_row(dmap.values, side)
-    world = comp[:, :1] * T + comp[:, 1:2] * B + comp[:, 2:] * N
+    if dmap.kind == "scalar":
+        world = comp[:, :1] * N
+    else:
+        world = comp[:, :1] * T + comp[:, 1:2] * B + comp[:, 2:] * N
     return t, world, (T, B, N), S
 
 
@@ -869,7 +875,7 @@ def _set_row(values: NDArray, side: str, world: NDArray, frames) -> None:
 
 
 def _interp_rows(t_from: NDArray, rows: NDArray, t_to: NDArray) -> NDArray:
-    return np.stack([np.interp(t_to, t_from, rows[:, c]) for c in range(3)], axis=1)
+    return np.stack([np.interp(t_to, t_from, rows[:, c]) for c in range(rows.shape[1])], axis=1)
 
 
 def _seam_rows(t_c, x_c, t_f, x_f):
@@ -897,15 +903,25 @@ def _seam_rows(t_c, x_c, t_f, x_f):
     return q, out
 
 
+#: map kinds whose seams :func:`stitch_displacements` closes
+MAP_KINDS = ("vector", "scalar", "bump")
+
+
 def _check_maps(surfaces, maps, network: Network):
-    """The surfaces (checked by `_check`) and one vector map per surface, as lists."""
+    """The surfaces (checked by `_check`) and one map per surface, all of one kind among
+    ``MAP_KINDS``, as lists."""
     surfaces = _check(surfaces, network)
     maps = list(maps)
     if len(maps) != len(surfaces):
         raise InputError(f"{len(maps)} maps for {len(surfaces)} surfaces")
     for k, m in enumerate(maps):
-        if not isinstance(m, DisplacementMap) or m.kind != "vector":
-            raise InputError(f"maps[{k}] must be a vector displacement map")
+        if not isinstance(m, DisplacementMap) or m.kind not in MAP_KINDS:
+            what = m.kind if isinstance(m, DisplacementMap) else type(m).__name__
+            hint = " (stitch the vector map it scales)" if what == "magnitude" else ""
+            raise InputError(f"maps[{k}] must be a vector, scalar or bump map, not {what}{hint}")
+    kinds = sorted({m.kind for m in maps})
+    if len(kinds) > 1:
+        raise InputError(f"the maps of a network must be of one kind, got {', '.join(kinds)}")
     return surfaces, maps
 
 
@@ -914,15 +930,17 @@ def match_map_shapes(
     maps: Sequence[DisplacementMap],
     network: Network,
 ) -> list[DisplacementMap]:
-    """Vector maps resampled to equal texel counts along every shared boundary.
+    """Maps resampled to equal texel counts along every shared boundary.
 
     Each map takes the resolution :func:`meshfit.stitch.texel_shapes` gives (the largest
     count of each equal-count class, so no map is made coarser). A map whose resolution
-    changes is resampled as :func:`meshfit.displacement.reconstruct` reads it at any
-    resolution (:func:`meshfit.displacement.resample_map` with the surface): model-space
-    vectors filtered bilinearly, then expressed in the frames at the new texels. The
-    displaced surface of a resampled map at its new resolution is therefore the old map's
-    reconstruction at that resolution.
+    changes is resampled as :func:`meshfit.displacement.reconstruct` and
+    :func:`meshfit.displacement.bump_normals` read it at any resolution
+    (:func:`meshfit.displacement.resample_map` with the surface): vector and bump maps as
+    model-space vectors filtered bilinearly, then expressed in the frames at the new
+    texels; scalar maps as values (applied along the normal at the output point). The
+    resampled map read at its new resolution is therefore the old map read at that
+    resolution.
 
     Run it before :func:`stitch_displacements` to close the seams at every output
     resolution, not only with each patch tessellated at its map's own resolution.
@@ -932,19 +950,20 @@ def match_map_shapes(
     surfaces : sequence of BSplineSurface
         The (stitched) surfaces, control counts consistent across ``network``.
     maps : sequence of DisplacementMap
-        One ``vector`` map ``(h, w, 3)`` per patch, any resolutions.
+        One map per patch, all ``vector``, all ``scalar`` or all ``bump``, any resolutions.
     network : Network
 
     Returns
     -------
     list of DisplacementMap
-        ``vector`` maps at :func:`meshfit.stitch.texel_shapes`; a map already at its shape is
-        returned as it is.
+        Maps at :func:`meshfit.stitch.texel_shapes`; a map already at its shape is returned
+        as it is.
 
     Raises
     ------
     meshfit.errors.InputError
-        Not one vector map per surface, or inconsistent control counts.
+        Not one map per surface, maps of another or of mixed kinds, or inconsistent control
+        counts.
 
     References
     ----------
@@ -965,45 +984,110 @@ def stitch_displacements(
     surfaces: Sequence[BSplineSurface],
     maps: Sequence[DisplacementMap],
     network: Network,
+    *,
+    blend: int = 1,
+    gap: float | None = None,
 ) -> list[DisplacementMap]:
-    """Make displaced patches crack-free across shared boundaries (thesis sec. 8.2).
+    """Close the seams of displacement or bump maps across shared boundaries (sec. 8.2).
 
     Parameters
     ----------
     surfaces : sequence of BSplineSurface
         The stitched surfaces (C0 at least: shared boundary curves identical).
     maps : sequence of DisplacementMap
-        One ``vector`` map per patch, any resolutions.
+        One map per patch, all ``vector``, all ``scalar`` or all ``bump``, any resolutions.
     network : Network
+        Shared boundaries and corners; a bump map reads their continuity (a scalar map
+        reads the surfaces' normals instead, see Notes).
+    blend : int, keyword-only
+        Scalar maps: the texels, counted from the seam row, over which a seam's change of
+        value fades into the map (2: the seam row, then half the change on the next row);
+        at most half the texels across a map. Default 1, the seam row only: wider blends
+        move the rebuilt surface farther from the grids, and are for a softer look.
+    gap : float, keyword-only, optional
+        Scalar maps: the largest distance, model units, left between the two displaced
+        points of a seam (see Notes). Default half of ``tol.STITCH_GAP`` times the bbox
+        diagonal of the surfaces' control points: closed up to round-off. A larger ``gap``
+        keeps more detail where the two patches' normals differ slightly.
 
     Returns
     -------
     list of DisplacementMap
-        Same resolutions; only boundary texels change. At every network corner the corner
-        texels take the mean of their model-space vectors. Along a shared boundary:
-
-        - equal texel counts: both rows take the mean model-space vector; the displaced
-          boundaries are then one curve at every output resolution
-          (:func:`meshfit.displacement.reconstruct` filters model-space vectors);
-        - different counts (nested or not): the seam is defined once, as the polyline whose
-          vertices are, at the coarser row's texels, the mean of the two patches' displaced
-          boundaries (the finer one at its texel nearest in parameter): the coarser row reproduces
-          those vertices; in the finer row the texel nearest each vertex in parameter
-          reproduces it and the texels between lie on the straight segment between two
-          vertices, spaced as their parameters (vector maps may move a point along the
-          seam).
+        Same kinds and resolutions. Vector and bump maps change on boundary texels only,
+        scalar maps within ``blend`` texels of a seam.
 
     Notes
     -----
-    Crack-free here means: each patch tessellated at its own map's resolution (the grid of
-    ``reconstruct`` without ``shape``, the displaced mesh the pipeline exports), every
-    displaced boundary vertex of one patch lies on the other's displaced boundary polyline,
-    so the two polylines are one (``displacement_seam_gaps(..., tessellation="texels")``
-    is 0 up to round-off). The seam then carries the coarser row's resolution. With
-    different counts the seams are not closed at other output resolutions (the spline
-    between texels is not straight); with equal counts they are at every resolution.
+    **Vector maps.** At every network corner the corner texels take the mean of their
+    model-space vectors. Along a shared boundary:
+
+    - equal texel counts: both rows take the mean model-space vector; the displaced
+      boundaries are then one curve at every output resolution
+      (:func:`meshfit.displacement.reconstruct` filters model-space vectors);
+    - different counts (nested or not): the seam is defined once, as the polyline whose
+      vertices are, at the coarser row's texels, the mean of the two patches' displaced
+      boundaries (the finer one at its texel nearest in parameter): the coarser row
+      reproduces those vertices; in the finer row the texel nearest each vertex in parameter
+      reproduces it and the texels between lie on the straight segment between two
+      vertices, spaced as their parameters (vector maps may move a point along the seam).
+
+    **Scalar maps** displace along each patch's own normal, so two boundary points
+    ``S + s_a N_a`` and ``S + s_b N_b`` meet only where ``s_a = s_b`` and, unless both are
+    0, ``N_a = N_b``. Each seam texel takes the mean ``s`` of the two patches' values,
+    clipped so that ``|s| |N_a - N_b| <= gap`` on the texel intervals either side of it;
+    each corner texel takes the mean over all patches at the corner, clipped likewise (its
+    own normals, and the intervals of every seam there). That is the value nearest the mean
+    whose displaced seam stays within ``gap``, at the texels and, with equal counts, at
+    every resolution in between. Where the splines are G1 the normals are equal and the
+    mean stands: the displaced seams are identical. Across a C0 boundary (a crease), and
+    within a corner's first knot span where a G1 stitch leaves the normals slightly apart
+    (corners of valence other than 4), the value shrinks to about 0: the displaced seam is
+    then the shared spline boundary, the only curve both patches reach along their own
+    normals. The choice is made per texel from the surfaces' normals, so it holds whatever
+    continuity ``network`` declares. The normals are compared at 32 points per interval,
+    and an interval where their difference or a patch's partials change fast between two
+    of them (a patch folding over) counts as one of opposite normals; a fold narrower than
+    that can still open the seam between texels, never at them.
+
+    With different counts along a boundary the coarser row takes the (clipped) mean, with
+    the finer row interpolated at its texels, and the finer row the coarser row's values
+    interpolated. With nested counts (``n_f - 1`` a multiple of ``n_c - 1``) the seam is
+    then closed as :func:`meshfit.displacement.reconstruct` reads the maps at any common
+    resolution, but tessellated at the two maps' own resolutions the finer row's vertices
+    lie on the displaced curve, not on the coarser row's straight segments; other counts
+    leave gaps of the size of the detail between texels. Give scalar maps equal counts
+    along shared boundaries (:func:`match_map_shapes`) first.
+
+    **Bump maps** carry shading normals. Across G1 boundaries the two rows take their
+    normalised mean model-space normal (corner texels: the mean over the patches at the
+    corner joined by G1 boundaries there), so shading has no seam at any resolution
+    (:func:`meshfit.displacement.bump_normals` filters model-space normals). Across C0
+    boundaries the normals are left as they are: the surface is meant to break there, and
+    averaging would round the crease's shading. Unequal counts: as for scalar maps.
+
+    Crack-free, for vector maps, means: each patch tessellated at its own map's resolution
+    (the grid of ``reconstruct`` without ``shape``, the displaced mesh the pipeline exports),
+    every displaced boundary vertex of one patch lies on the other's displaced boundary
+    polyline, so the two polylines are one (``displacement_seam_gaps(...,
+    tessellation="texels")`` is 0 up to round-off). With different counts the seams are
+    not closed at other output resolutions (the spline between texels is not straight);
+    with equal counts they are at every resolution, for every kind.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 8.2 (averaging the boundary rows of adjacent maps),
+       sec. 7.1 (scalar maps displace along the normal), sec. 7.4 (bump maps).
     """
     surfaces, maps = _check_maps(surfaces, maps, network)
+    if int(blend) != blend or blend < 1:
+        raise InputError(f"blend must be a whole number of texels >= 1, got {blend!r}")
+    kind = maps[0].kind if maps else "vector"
+    if kind == "scalar":
+        if gap is not None and not (np.isfinite(gap) and gap >= 0):
+            raise InputError(f"gap must be a length >= 0, got {gap!r}")
+        return _stitch_scalar(surfaces, maps, network, int(blend), gap)
+    if kind == "bump":
+        return _stitch_bump(surfaces, maps, network)
     vals = [m.values.copy() for m in maps]
     # corners: mean model-space vector of the corner texels
     for slots in network.corners:
@@ -1045,6 +1129,228 @@ def stitch_displacements(
     return [DisplacementMap(v, "vector") for v in vals]
 
 
+#: the sides of a patch meeting at each of its corners ``(i_end, j_end)``, and the end of
+#: each side's row (in increasing parameter order) that is the corner
+_SIDES_AT_CORNER = {
+    (0, 0): (("u0", 0), ("v0", 0)),
+    (0, -1): (("u0", -1), ("v1", 0)),
+    (-1, 0): (("u1", 0), ("v0", -1)),
+    (-1, -1): (("u1", -1), ("v1", -1)),
+}
+
+
+def _diagonal(surfaces: Sequence[BSplineSurface]) -> float:
+    """Bounding-box diagonal of the surfaces' control points, model units."""
+    P = np.concatenate([s.control_points.reshape(-1, 3) for s in surfaces])
+    return float(np.linalg.norm(np.ptp(P, axis=0)))
+
+
+def _side_normals(surface: BSplineSurface, side: str, t: NDArray) -> NDArray:
+    u, v = _side_params(side, t)
+    return surface.normals(u, v)
+
+
+#: samples per texel interval at which a scalar seam's normal difference is measured
+_SEAM_SAMPLES = 32
+#: an interval where, between two samples, the normal difference ``|N_a - N_b|`` or either
+#: patch's ``|S_u x S_v| / (|S_u| |S_v|)`` changes by more than this (a patch folding over
+#: near a corner, its normal turning within a fraction of a texel) is taken at the largest
+#: difference, 2
+_SEAM_STEP = 0.1
+
+
+def _side_normals_and_sines(surface: BSplineSurface, side: str, t: NDArray):
+    """Unit normals ``(n, 3)`` along a side and the sines ``(n,)`` of the angle between the
+    partials there."""
+    u, v = _side_params(side, t)
+    _, su, sv = surface.evaluate(u, v, derivatives=1)
+    n = np.cross(su, sv)
+    ln = np.linalg.norm(n, axis=1)
+    sine = ln / np.maximum(np.linalg.norm(su, axis=1) * np.linalg.norm(sv, axis=1), 1e-300)
+    n /= np.maximum(ln, 1e-300)[:, None]
+    bad = sine <= tol.BSPLINE_DEGENERATE  # a collapsed point: the surface's own rule
+    if bad.any():
+        n[bad] = surface.normals(u[bad], v[bad])
+    return n, sine
+
+
+def _seam_limits(at_a, at_b, t: NDArray, eps: float) -> NDArray:
+    """Largest ``|s|`` per texel of a scalar seam row at parameters ``t (n,)``: ``eps`` over
+    the largest ``|N_a - N_b|`` on the texel intervals either side of it (``_SEAM_SAMPLES``
+    per interval; 2 where it or a patch's partials change fast, ``_SEAM_STEP``), so that
+    the interpolated value along either normal stays within ``eps`` of the other on the
+    seam. ``at_a, at_b``: normals and sines (`_side_normals_and_sines`) at parameters."""
+    f = np.linspace(0.0, 1.0, _SEAM_SAMPLES)
+    tt = (t[:-1, None] + f[None, :] * np.diff(t)[:, None]).ravel()
+    (na, sin_a), (nb, sin_b) = at_a(tt), at_b(tt)
+    shape = (len(t) - 1, _SEAM_SAMPLES)
+    dn = np.linalg.norm(na - nb, axis=1).reshape(shape)
+    fast = np.zeros(shape[0], dtype=bool)
+    for x in (dn, sin_a.reshape(shape), sin_b.reshape(shape)):
+        fast |= np.abs(np.diff(x, axis=1)).max(axis=1) > _SEAM_STEP
+    dn = np.where(fast, 2.0, dn.max(axis=1))
+    worst = np.maximum(np.r_[dn, 0.0], np.r_[0.0, dn])
+    return eps / np.maximum(worst, np.finfo(float).tiny)
+
+
+def _end_slot(k: int, side: str, end: int) -> tuple[int, int, int]:
+    """The corner slot ``(k, i_end, j_end)`` at end ``end`` (0 or -1) of side ``side``'s row."""
+    ((i, j),) = [ij for ij, sides in _SIDES_AT_CORNER.items() if (side, end) in sides]
+    return k, i, j
+
+
+class _ScalarSeam:
+    """One shared boundary of scalar maps, rows in a's parameter order: texel parameters
+    ``t`` and limits ``lim`` of both rows (the finer row's limits those of the coarser
+    interpolated, as its values will be)."""
+
+    def __init__(self, surfaces, shapes, b: SharedBoundary, eps: float):
+        self.b = b
+        normals_at, self.t = [], []
+        for k, side, rev in ((b.a, b.side_a, False), (b.b, b.side_b, b.reversed)):
+            self.t.append(np.linspace(0.0, 1.0, shapes[k][1 if side[0] == "u" else 0]))
+
+            def at(t, k=k, side=side, rev=rev):  # at a's parameters t
+                return _side_normals_and_sines(surfaces[k], side, 1.0 - t if rev else t)
+
+            normals_at.append(at)
+        self.coarse = 0 if len(self.t[0]) <= len(self.t[1]) else 1
+        lim = _seam_limits(*normals_at, self.t[self.coarse], eps)
+        self.lim = [np.interp(t, self.t[self.coarse], lim) for t in self.t]
+
+    def own(self, x: int, row: NDArray) -> NDArray:
+        """Row ``row`` of patch a (``x = 0``) or b (1) in its side's order, to a's order and
+        back (the same flip)."""
+        return row[::-1] if x == 1 and self.b.reversed else row
+
+    def values(self, vals, corner: dict) -> tuple[NDArray, NDArray]:
+        """New rows of both patches, each in its own side's order: the coarser row the
+        clipped mean with the corner values at its ends, the finer row it interpolated."""
+        b, c = self.b, self.coarse
+        rows = [
+            self.own(0, side_row(vals[b.a], b.side_a)),
+            self.own(1, side_row(vals[b.b], b.side_b)),
+        ]
+        tc, tf = self.t[c], self.t[1 - c]
+        mean = 0.5 * (rows[c] + np.interp(tc, tf, rows[1 - c]))
+        new_c = np.clip(mean, -self.lim[c], self.lim[c])
+        k, side = (b.a, b.side_a) if c == 0 else (b.b, b.side_b)
+        for end in (0, -1):  # corner values, in a's order
+            slot = _end_slot(k, side, end if not (c == 1 and b.reversed) else -1 - end)
+            if slot in corner:
+                new_c[end] = corner[slot]
+        new_f = new_c if len(tf) == len(tc) else np.interp(tf, tc, new_c)
+        new = [new_c, new_f] if c == 0 else [new_f, new_c]
+        return self.own(0, new[0]), self.own(1, new[1])
+
+
+def _stitch_scalar(surfaces, maps, network: Network, blend: int, gap) -> list[DisplacementMap]:
+    """`stitch_displacements` for scalar maps (see its Notes)."""
+    eps = 0.5 * tol.STITCH_GAP * _diagonal(surfaces) if gap is None else float(gap)
+    vals = [np.array(m.values[:, :, 0]) for m in maps]
+    shapes = [m.shape for m in maps]
+    seams = [_ScalarSeam(surfaces, shapes, b, eps) for b in network.boundaries]
+    limits = {}  # (patch, side) -> limits in the side's order
+    for sm in seams:
+        limits[(sm.b.a, sm.b.side_a)] = sm.own(0, sm.lim[0])
+        limits[(sm.b.b, sm.b.side_b)] = sm.own(1, sm.lim[1])
+    corner: dict[tuple[int, int, int], float] = {}
+    for slots in network.corners:
+        if len(slots) < 2:
+            continue
+        n = np.array(
+            [surfaces[k].normals(float(i == -1), float(j == -1)) for k, i, j in slots]
+        ).reshape(-1, 3)
+        dn = float(np.linalg.norm(n[:, None] - n[None], axis=-1).max())
+        lim = min(
+            [eps / max(dn, np.finfo(float).tiny)]
+            + [
+                float(limits[(k, side)][e])
+                for k, i, j in slots
+                for side, e in _SIDES_AT_CORNER[(i, j)]
+                if (k, side) in limits
+            ]
+        )
+        c = float(np.clip(np.mean([vals[k][i, j] for k, i, j in slots]), -lim, lim))
+        corner.update(dict.fromkeys(slots, c))
+    targets = {}
+    for sm in seams:
+        new_a, new_b = sm.values(vals, corner)
+        targets[(sm.b.a, sm.b.side_a)], targets[(sm.b.b, sm.b.side_b)] = new_a, new_b
+    for (k, i, j), c in corner.items():  # corner texels on no shared side
+        if not any((k, side) in targets for side, _ in _SIDES_AT_CORNER[(i, j)]):
+            vals[k][i, j] = c
+    for (k, side), target in sorted(targets.items()):
+        across = vals[k].shape[0 if side[0] == "u" else 1]
+        depth = max(1, min(blend, (across - 1) // 2))
+        change = target - side_row(vals[k], side)
+        side_row(vals[k], side)[...] = target  # exactly: both patches' rows are one
+        for d in range(1, depth):
+            side_row(vals[k], side, d)[...] += change * (1.0 - d / depth)
+    return [DisplacementMap(v, "scalar") for v in vals]
+
+
+def _unit_rows(x: NDArray) -> NDArray:
+    ln = np.linalg.norm(x, axis=-1, keepdims=True)
+    return x / np.maximum(ln, np.finfo(float).tiny)
+
+
+def _stitch_bump(surfaces, maps, network: Network) -> list[DisplacementMap]:
+    """`stitch_displacements` for bump maps (see its Notes)."""
+    vals = [m.values.copy() for m in maps]
+    g1_ends: set[tuple[tuple[int, int, int], tuple[int, int, int]]] = set()
+    for b in network.boundaries:
+        if b.continuity != "G1":
+            continue
+        for end in (0, -1):  # the corner slots of a and b at each end of the boundary
+            e_b = end if not b.reversed else -1 - end
+            g1_ends.add((_end_slot(b.a, b.side_a, end), _end_slot(b.b, b.side_b, e_b)))
+    for slots in network.corners:
+        if len(slots) < 2:
+            continue
+        sets = DisjointSets(len(slots))
+        index = {sl: x for x, sl in enumerate(slots)}
+        for p, q in g1_ends:
+            if p in index and q in index:
+                sets.union(index[p], index[q])
+        groups: dict[int, list] = {}
+        for sl in slots:
+            groups.setdefault(sets.find(index[sl]), []).append(sl)
+        for group in groups.values():
+            if len(group) < 2:
+                continue
+            frames, world = [], []
+            for k, i, j in group:
+                T, B, N = surfaces[k].frames(float(i == -1), float(j == -1))
+                c = vals[k][i, j]
+                frames.append((T, B, N))
+                world.append(c[0] * T + c[1] * B + c[2] * N)
+            mean = _unit_rows(np.sum(world, axis=0))
+            for (k, i, j), (T, B, N) in zip(group, frames, strict=True):
+                vals[k][i, j] = [mean @ T, mean @ B, mean @ N]
+    for b in network.boundaries:
+        if b.continuity != "G1":
+            continue
+        cur = [DisplacementMap(vals[b.a], "bump"), DisplacementMap(vals[b.b], "bump")]
+        ta, wa, fa, _ = _row_world(surfaces[b.a], cur[0], b.side_a)
+        tb, wb, fb, _ = _row_world(surfaces[b.b], cur[1], b.side_b)
+        if b.reversed:
+            wb, fb = wb[::-1], tuple(f[::-1] for f in fb)
+        if len(ta) == len(tb):
+            new_a = new_b = _unit_rows(wa + wb)
+        else:
+            a_coarse = len(ta) < len(tb)
+            tc, wc, tf, wf = (ta, wa, tb, wb) if a_coarse else (tb, wb, ta, wa)
+            new_c = _unit_rows(wc + _unit_rows(_interp_rows(tf, wf, tc)))
+            new_f = _unit_rows(_interp_rows(tc, new_c, tf))
+            new_a, new_b = (new_c, new_f) if a_coarse else (new_f, new_c)
+        _set_row(vals[b.a], b.side_a, new_a, fa)
+        if b.reversed:
+            new_b, fb = new_b[::-1], tuple(f[::-1] for f in fb)
+        _set_row(vals[b.b], b.side_b, new_b, fb)
+    return [DisplacementMap(v, "bump") for v in vals]
+
+
 def _polyline_gap(a: NDArray, b: NDArray) -> float:
     """Largest distance from the points ``a`` to the polyline through the points ``b``."""
     from meshfit._kernels.geometry import polyline_gap
@@ -1062,35 +1368,87 @@ def displacement_seam_gaps(
 ) -> NDArray[np.float64]:
     """Largest gap between displaced boundaries per shared boundary, model units.
 
+    Maps of every kind that :func:`stitch_displacements` closes: vector, scalar (displaced
+    along the normal) and bump (no displacement: the gap is the splines').
+
     ``tessellation="texels"`` (default): each patch tessellated at its map's own resolution
     (:func:`meshfit.displacement.reconstruct` without ``shape``, the displaced mesh the
     pipeline exports); the gap is the largest distance from a displaced boundary vertex of
     either patch to the other patch's displaced boundary polyline. 0 means the two
     polylines are one: no crack, T-junctions only on straight segments.
 
-    ``tessellation="continuous"``: the displaced boundary at boundary parameter t is the
-    spline point plus the linear interpolation of the boundary texels' model-space vectors
-    (what ``reconstruct`` gives along a boundary at any resolution); the gap is the largest
-    distance between the two patches' points at equal t over ``samples`` parameters. 0
-    means crack-free at every output resolution.
+    ``tessellation="continuous"``: the displaced boundary at boundary parameter t as
+    ``reconstruct`` gives it at any resolution (vector maps: the spline point plus the
+    linear interpolation of the boundary texels' model-space vectors; scalar maps: the
+    interpolated value along the normal at t); the gap is the largest distance between the
+    two patches' points at equal t over ``samples`` parameters. 0 means crack-free at every
+    output resolution.
     """
     if tessellation not in ("texels", "continuous"):
         raise InputError(f"tessellation must be 'texels' or 'continuous', got {tessellation!r}")
+    surfaces, maps = _check_maps(surfaces, maps, network)
     t = np.linspace(0.0, 1.0, samples)
     out = []
     for b in network.boundaries:
         pts = []
         for k, side, rev in ((b.a, b.side_a, False), (b.b, b.side_b, b.reversed)):
-            tr, wr, _, sr = _row_world(surfaces[k], maps[k], side)
+            m = maps[k]
+            tr, wr, _, sr = _row_world(surfaces[k], m, side)
+            if m.kind == "bump":
+                wr = np.zeros_like(wr)
             if tessellation == "texels":
                 row = sr + wr
                 pts.append(row[::-1] if rev else row)
                 continue
             tt = t[::-1] if rev else t
             u, v = _side_params(side, tt)
-            pts.append(surfaces[k].evaluate(u, v) + _interp_rows(tr, wr, tt))
+            if m.kind == "scalar":
+                S, _, _, N = surfaces[k].points_and_frames(u, v)
+                s = np.interp(tt, tr, side_row(m.values, side)[:, 0])
+                pts.append(S + s[:, None] * N)
+            else:
+                pts.append(surfaces[k].evaluate(u, v) + _interp_rows(tr, wr, tt))
         if tessellation == "texels":
             out.append(max(_polyline_gap(pts[0], pts[1]), _polyline_gap(pts[1], pts[0])))
         else:
             out.append(float(np.linalg.norm(pts[0] - pts[1], axis=1).max()))
+    return np.array(out)
+
+
+def bump_seam_angles(
+    surfaces: Sequence[BSplineSurface],
+    maps: Sequence[DisplacementMap],
+    network: Network,
+    *,
+    samples: int = 401,
+) -> NDArray[np.float64]:
+    """Largest angle between the two patches' shading normals per shared boundary, degrees.
+
+    At ``samples`` boundary parameters t, each patch's shading normal on the boundary as
+    :func:`meshfit.displacement.bump_normals` gives it at any resolution (the boundary
+    texels' model-space normals interpolated linearly, normalised). 0 means the shading
+    has no seam there; across a C0 boundary :func:`stitch_displacements` keeps the
+    crease's own jump.
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        Maps that are not one bump map per surface.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 7.4 (bump maps), sec. 8.2 (seams).
+    """
+    surfaces, maps = _check_maps(surfaces, maps, network)
+    if maps and maps[0].kind != "bump":
+        raise InputError(f"bump_seam_angles needs bump maps, got {maps[0].kind} maps")
+    t = np.linspace(0.0, 1.0, samples)
+    out = []
+    for b in network.boundaries:
+        n = []
+        for k, side, rev in ((b.a, b.side_a, False), (b.b, b.side_b, b.reversed)):
+            tr, wr, _, _ = _row_world(surfaces[k], maps[k], side)
+            n.append(_unit_rows(_interp_rows(tr, wr, t[::-1] if rev else t)))
+        cos = np.clip((n[0] * n[1]).sum(axis=1), -1.0, 1.0)
+        out.append(float(np.degrees(np.arccos(cos)).max()))
     return np.array(out)
