@@ -2,10 +2,7 @@
 
 from __future__ import annotations
 
-import importlib
 import os
-import sys
-import threading
 import time
 from collections.abc import Callable
 from dataclasses import asdict
@@ -24,35 +21,6 @@ from meshfit.pipeline.stages import STAGES, Report, Validate, fit_stages
 from meshfit.pipeline.store import PIPELINE_FORMAT
 
 __all__ = ["fit"]
-
-#: modules the exporters of a format import (loaded on a side thread while the fit runs:
-#: the USD ones take a noticeable part of a second)
-_EXPORT_MODULES = {
-    "usd": ("pxr.Gf", "pxr.Sdf", "pxr.Usd", "pxr.UsdGeom", "pxr.Vt"),
-    "3dm": ("rhino3dm",),
-}
-
-
-def _prefetch_exporters(formats) -> None:
-    """Import the modules of the exporters in ``formats`` on a thread of their own (an
-    import error is left for the exports to report).
-
-    Not a daemon thread: a fit that fails early must not exit while the thread is inside an
-    extension's import (USD's), which aborts the process instead of reporting the error;
-    the interpreter waits for the import to finish instead."""
-    names = [m for f in formats for m in _EXPORT_MODULES.get(f, ())]
-    if not names or all(n in sys.modules for n in names):
-        return
-
-    def load() -> None:
-        for name in names:
-            try:
-                importlib.import_module(name)
-            except ImportError:
-                return
-
-    threading.Thread(target=load, name="meshfit-prefetch", daemon=False).start()
-
 
 def fit(
     mesh: Mesh | str | os.PathLike,
@@ -105,7 +73,6 @@ def fit(
     options = options or FitOptions()
     folder = None if out is None else Path(out)
     if folder is not None:
-        _prefetch_exporters(options.formats)
         folder.mkdir(parents=True, exist_ok=True)
     t_all = time.perf_counter()
     ctx = Context(options, n_workers(options.workers), progress)

@@ -124,6 +124,10 @@ class Stage:
     def load(self, ctx: Context, path: Path) -> bool:
         raise NotImplementedError
 
+    def prepare(self, ctx: Context) -> None:
+        """Work done on the calling thread before a background stage starts (imports of
+        extension modules: loading one beside a numba kernel load can deadlock)."""
+
     def facts(self, ctx: Context) -> dict[str, Any]:
         """Extra entries of the stage's row in ``summary["stages"]``."""
         return {}
@@ -198,6 +202,7 @@ class Runner:
             for stage in stages:
                 key = ctx.keys[stage.name]
                 if stage.background:
+                    stage.prepare(ctx)
                     pending.append(pool.submit(self._one, stage, ctx, key))
                 else:
                     self._one(stage, ctx, key)

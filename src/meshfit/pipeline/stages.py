@@ -611,6 +611,20 @@ class Exports(Stage):
     def extra(self, ctx: Context) -> Any:
         return list(ctx.options.outputs.formats)
 
+    def prepare(self, ctx: Context) -> None:
+        import importlib
+
+        import meshfit.export  # noqa: F401 (the writers, before the thread starts)
+
+        modules = {
+            "usd": ("pxr.Usd", "pxr.UsdGeom", "pxr.Sdf", "pxr.Gf", "pxr.Vt"),
+            "3dm": ("rhino3dm",),
+            "step": ("OCP.Geom", "OCP.gp", "OCP.TColgp", "OCP.TColStd"),
+        }
+        for fmt in ctx.options.outputs.formats:
+            for name in modules.get(fmt, ()):
+                importlib.import_module(name)
+
     def run(self, ctx: Context) -> None:
         from meshfit.pipeline.outputs import write_exports
 
