@@ -244,3 +244,29 @@ def test_spline_smoothing_moves_detail_into_the_maps(spot):
     assert seams["displaced_gap_max"] <= tol.STITCH_GAP
     with pytest.raises(InputError, match="spline_smoothing"):
         FitOptions(spline_smoothing=-1.0)
+
+
+@pytest.mark.parametrize("kind", ["scalar", "bump"])
+def test_every_map_kind_fits_saves_and_rebuilds(spot, tmp_path, kind):
+    mesh, vector, _ = spot
+    opts = dataclasses.replace(OPTIONS, map_kind=kind, formats=("exr", "obj", "usd"))
+    res = meshfit.fit(mesh, LAYOUT, options=opts, out=tmp_path)
+    assert {m.kind for m in res.maps} == {kind}
+    e, ev = res.summary["errors"], vector.summary["errors"]
+    if kind == "bump":  # shading only: the surface is the spline
+        assert e["displaced"]["rms"] == pytest.approx(e["spline_only"]["rms"], rel=1e-9)
+        assert (tmp_path / "spline.obj").is_file() and not (tmp_path / "displaced.obj").exists()
+    else:  # a distance along the normal: between the spline alone and the vector map
+        assert ev["displaced"]["rms"] < e["displaced"]["rms"] < e["spline_only"]["rms"]
+        assert res.summary["seams"]["displaced_gap_max"] <= tol.STITCH_GAP
+    assert (tmp_path / "maps" / f"patch_000.{kind}.exr").is_file()
+    back = load_fit(tmp_path)
+    assert [m.kind for m in back.maps] == [kind] * 24
+    for a, b in zip(back.maps, res.maps, strict=True):
+        assert a.values.tobytes() == b.values.tobytes()
+    again = back.rebuild()  # nothing edited: the same maps, seams closed as before
+    for a, b in zip(again.maps, res.maps, strict=True):
+        assert np.abs(a.values - b.values).max() <= 1e-12
+    with pytest.raises(InputError, match="map_kind"):
+        FitOptions(map_kind="height")
+    assert FitOptions(map_kind="normal").map_kind == "scalar"  # the older name

@@ -96,6 +96,7 @@ def _options(args: argparse.Namespace):
         spring_rescue=not args.no_rescue,
         spring_follow_folds=args.follow_folds,
         map_shapes=args.map_shapes,
+        map_kind=args.maps,
         workers=args.workers,
         report=not args.no_report,
     )
@@ -302,6 +303,14 @@ def _common(p: argparse.ArgumentParser) -> None:
         help="spring vectors across a fold of the surface follow the grid line, so the "
         "spring meshes cross the curled rims of ears and horns (see meshfit springs; with "
         "the rescue on, the displaced error does not fall: the rescued grids fit closer)",
+    )
+    p.add_argument(
+        "--maps",
+        choices=("vector", "scalar", "bump"),
+        default="vector",
+        help="what the maps hold: the exact displacement in the spline's frame (vector), a "
+        "distance along the spline's normal, what you paint (scalar), or shading normals "
+        "for renderers (bump; the surface is the spline) (default: %(default)s)",
     )
     p.add_argument(
         "--map-shapes",

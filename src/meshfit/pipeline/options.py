@@ -19,6 +19,7 @@ from meshfit.errors import InputError
 
 __all__ = [
     "FORMATS",
+    "MAP_KINDS",
     "FitOptions",
     "LayoutOptions",
     "MapOptions",
@@ -28,6 +29,8 @@ __all__ = [
     "stage_key",
 ]
 
+#: kinds of map a fit makes (``FitOptions.map_kind``)
+MAP_KINDS = ("vector", "scalar", "bump")
 #: output formats of ``FitOptions.formats``
 FORMATS = ("usd", "3dm", "iges", "step", "obj", "glb", "exr", "png")
 
@@ -92,8 +95,12 @@ class FitOptions:
         fold of the surface follow the grid line, so the grids cross curled rims (default
         False: with the rescue on, the grids it improves are those the rescue already
         handles, and the displaced error does not drop).
-    map_kind : {"vector", "normal"}
-        Displacement map kind (default ``"vector"``: exact reconstruction of the grid).
+    map_kind : {"vector", "scalar", "bump"}
+        What the maps hold (default ``"vector"``: the exact displacement of the spring grid,
+        in the spline's frame). ``"scalar"``: a distance along the spline's normal (what a
+        user paints, thesis fig. 7.4; the spline's normal at each seam makes the seams meet
+        only where both sides agree, so values on crease seams go to 0). ``"bump"``: shading
+        normals for renderers; the geometry is the spline. ``"normal"`` is read as scalar.
     map_shapes : {"native", "matched"}
         Resolution of the vector maps. ``"native"`` (default): each map at its spring
         grid's resolution; the displaced mesh is the spring mesh, and the seams are
@@ -161,8 +168,12 @@ class FitOptions:
                     "STEP output needs OpenCASCADE: pip install 'meshfit[cad]' (cadquery-ocp)"
                 )
         object.__setattr__(self, "formats", fm)
-        if self.map_kind not in ("vector", "normal"):
-            raise InputError(f"map_kind must be 'vector' or 'normal', got {self.map_kind!r}")
+        kind = {"normal": "scalar"}.get(self.map_kind, self.map_kind)
+        if kind not in MAP_KINDS:
+            raise InputError(
+                f"map_kind must be one of {', '.join(MAP_KINDS)}, got {self.map_kind!r}"
+            )
+        object.__setattr__(self, "map_kind", kind)
         if self.map_shapes not in ("matched", "native"):
             raise InputError(f"map_shapes must be 'native' or 'matched', got {self.map_shapes!r}")
         if self.workers is not None:

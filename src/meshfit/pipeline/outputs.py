@@ -9,6 +9,7 @@ keeps it and says so; ``meshfit rebuild`` applies it).
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -117,7 +118,11 @@ def _write_format(out: Path, fmt: str, names, surfaces, maps) -> list[str]:
     from meshfit import export
     from meshfit.displacement import write_exr, write_png
 
+    geometry = maps[0].kind != "bump"  # a bump map shades; it does not move the surface
     if fmt == "usd":
+        if not geometry:
+            export.export_usd(out / "patches.usda", surfaces, names=names)
+            return ["patches.usda"]
         export.export_usd(out / "patches.usda", surfaces, displacements=maps, names=names)
         return ["patches.usda"] + [
             f"patches.{n}.{d.kind}.exr" for n, d in zip(names, maps, strict=True)
@@ -136,16 +141,17 @@ def _write_format(out: Path, fmt: str, names, surfaces, maps) -> list[str]:
     if fmt == "obj":
         # the spline on the displaced surface's vertex grid (a finer tessellation would make
         # the file many times larger)
-        export.export_objs(
-            {out / "displaced.obj": maps, out / "spline.obj": None},
-            surfaces,
-            names=names,
-            shape=[d.shape[:2] for d in maps],
-        )
-        return ["displaced.obj", "spline.obj"]
+        objs: dict[str | os.PathLike, Any] = {out / "spline.obj": None}
+        if geometry:
+            objs = {out / "displaced.obj": maps, **objs}
+        export.export_objs(objs, surfaces, names=names, shape=[d.shape[:2] for d in maps])
+        return [Path(p).name for p in objs]
     if fmt == "glb":
-        export.export_gltf(out / "displaced.glb", surfaces, displacements=maps, names=names)
-        return ["displaced.glb"]
+        name = "displaced.glb" if geometry else "spline.glb"
+        export.export_gltf(
+            out / name, surfaces, displacements=maps if geometry else None, names=names
+        )
+        return [name]
     (out / "maps").mkdir(exist_ok=True)
     files = []
     for n, d in zip(names, maps, strict=True):

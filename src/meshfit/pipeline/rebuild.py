@@ -24,7 +24,7 @@ def rebuild(result: FitResult, mesh: Mesh | None) -> FitResult:
 
     notes: list[str] = []
     match = result.options.map_shapes == "matched"
-    maps = close_seams(result.layout, result.surfaces, result.maps, match, notes)
+    maps = close_seams(result.network, result.surfaces, result.maps, match)
     displaced = displaced_grids(result.surfaces, maps)
     summary = copy.deepcopy(result.summary)
     diag = float(summary["mesh"]["bbox_diagonal"])

@@ -22,6 +22,7 @@ from meshfit.pipeline.store import PIPELINE_FORMAT
 
 __all__ = ["fit"]
 
+
 def fit(
     mesh: Mesh | str | os.PathLike,
     layout: Any = "auto",

@@ -474,26 +474,24 @@ def displaced_grids(surfaces, maps) -> list:
     return [reconstruct(s, d) for s, d in zip(surfaces, maps, strict=True)]
 
 
-def close_seams(layout, surfaces, maps, match: bool, notes: list[str]) -> list:
-    """Crack-free displacement seams (:func:`meshfit.stitch.stitch_displacements`); with
-    ``match`` the maps first take equal texel counts along shared curves, so the seams are
-    closed at every output resolution."""
+def close_seams(network, surfaces, maps, match: bool) -> list:
+    """Crack-free displacement seams over the fit's network
+    (:func:`meshfit.stitch.stitch_displacements`). With ``match`` the maps first take equal
+    texel counts along shared curves, so the seams are closed at every output resolution;
+    scalar and bump maps always do (their seams close only where both rows have the same
+    texels)."""
     from meshfit.stitch import match_map_shapes, stitch_displacements
-    from meshfit.stitch.layout import layout_network
 
-    if maps and maps[0].kind != "vector":
-        return maps
-    net = layout_network(layout, "C0")
-    if match:
-        maps = match_map_shapes(surfaces, maps, net)
-    return stitch_displacements(surfaces, maps, net)
+    if match or (maps and maps[0].kind != "vector"):
+        maps = match_map_shapes(surfaces, maps, network)
+    return stitch_displacements(surfaces, maps, network)
 
 
 class Stitch(Stage):
     """The displacement seams closed and every seam measured."""
 
     name = "stitch"
-    inputs = ("layout", "surfaces", "maps")
+    inputs = ("layout", "network", "surfaces", "maps")
     outputs = ("maps", "seams", "displaced", "spline_grids")
     after = ("displacement",)
 
@@ -504,7 +502,7 @@ class Stitch(Stage):
         from meshfit.stitch.layout import seam_metrics
 
         match = ctx.options.maps.shapes == "matched"
-        maps = close_seams(ctx["layout"], ctx["surfaces"], ctx["maps"], match, ctx.notes)
+        maps = close_seams(ctx["network"], ctx["surfaces"], ctx["maps"], match)
         ctx["maps"] = maps
         self._derived(ctx)
         seams = seam_metrics(ctx["layout"], ctx["surfaces"], ctx["displaced"], ctx["diag"])
