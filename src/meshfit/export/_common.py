@@ -56,7 +56,7 @@ def as_displacements(displacements, n: int) -> list[DisplacementMap | None]:
         if d is not None and (not isinstance(d, DisplacementMap) or d.kind == "bump"):
             what = d.kind if isinstance(d, DisplacementMap) else type(d).__name__
             raise InputError(
-                f"displacements[{k}] must be a vector, normal or magnitude map or None, "
+                f"displacements[{k}] must be a vector, scalar or magnitude map or None, "
                 f"not a {what}"
             )
     return out
@@ -90,7 +90,7 @@ def tessellate(
     ----------
     surface : BSplineSurface
     displacement : DisplacementMap, optional
-        Vector (or normal-component) map; the spline alone when None.
+        Vector, scalar or magnitude map; the spline alone when None.
     shape : (int, int), optional
         Vertex grid ``(h, w)``; default the map's resolution, else ``(8 mu, 8 mv)``.
 
