@@ -224,7 +224,7 @@ def layout_grids(
     meshfit.springs), or of a layout file (``examples/layouts``) at the springs' default
     level when ``layout_file`` is given; ([], reason) when a stage fails."""
     from meshfit.layout import cube_layout, extract_patches, load_layout
-    from meshfit.springs import resample_patch
+    from meshfit.springs import SpringOptions, resample_patch
 
     info = {}
     try:
@@ -235,7 +235,8 @@ def layout_grids(
         info["layout_and_cut_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         kw = {} if level is None else {"level": level}
-        grids = [resample_patch(p, metrics=False, fidelity=False, **kw).final.xyz for p in patches]
+        opts = SpringOptions(metrics=False, fidelity=False, **kw)
+        grids = [resample_patch(p, opts).final.xyz for p in patches]
         info["springs_s"] = time.perf_counter() - t0
     except Exception as exc:  # report, do not hide: the figure says why it is missing
         return [], {"error": f"{type(exc).__name__}: {exc}"}

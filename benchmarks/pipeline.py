@@ -61,6 +61,14 @@ def run_one(size: str, patches: int) -> dict:
     from meshfit.mesh import Mesh, load_mesh
 
     tune_malloc()  # as the meshfit command does
+    # USD's modules are loaded before the clock starts, on the main thread, for both sides of
+    # --against: a commit that loads them on a side thread can deadlock beside numba
+    import pxr.Gf
+    import pxr.Sdf
+    import pxr.Usd
+    import pxr.UsdGeom
+    import pxr.Vt  # noqa: F401
+
     import meshfit.pipeline as pipeline
     from meshfit.pipeline import FitOptions
 

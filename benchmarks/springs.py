@@ -52,6 +52,7 @@ from meshfit.layout import extract_patches, load_layout
 from meshfit.mesh import load_mesh
 from meshfit.springs import (
     QUALITY_BOUNDS,
+    SpringOptions,
     grid_metrics,
     resample_patch,
     resample_patches,
@@ -197,7 +198,10 @@ def _layout_on_threads(patches, grids: list, repeats: int) -> dict:
                 fresh = [_fresh(p) for p in patches]
                 times[key].append(
                     median_time(
-                        lambda f=fresh, n=n: resample_patches(f, workers=n, metrics=False), 1
+                        lambda f=fresh, n=n: resample_patches(
+                            f, SpringOptions(metrics=False), workers=n
+                        ),
+                        1,
                     )[0]
                 )
             times["peer_one"].append(median_time(lambda: peer(1), 1)[0])
@@ -232,11 +236,11 @@ def run_layout(name: str, repeats: int) -> dict:
     patches = extract_patches(mesh, layout)
     diag = mesh.bbox_diagonal
     rows = []
-    resample_patch(_fresh(patches[0]), metrics=False)  # compile the kernels
+    resample_patch(_fresh(patches[0]), SpringOptions(metrics=False))  # compile the kernels
     for patch in patches:
         # the grid to compare (and a mesh object whose planar map the cached runs reuse)
         cold = _fresh(patch)
-        res = resample_patch(cold, metrics=False)
+        res = resample_patch(cold, SpringOptions(metrics=False))
         nu, nv = res.final.shape
         harmonic_grid(patch, nu, nv)
         # alternate the two so that both see the same machine load (the machine is shared)
@@ -246,7 +250,12 @@ def run_layout(name: str, repeats: int) -> dict:
             fresh = _fresh(patch)  # (building the patch mesh is the cut stage's work)
             got = []
             ours.append(
-                median_time(lambda p=fresh, g=got: g.append(resample_patch(p, metrics=False)), 1)[0]
+                median_time(
+                    lambda p=fresh, g=got: g.append(
+                        resample_patch(p, SpringOptions(metrics=False))
+                    ),
+                    1,
+                )[0]
             )
             stages["ours"].append(got[0].seconds)
             st: dict = {}
@@ -256,7 +265,9 @@ def run_layout(name: str, repeats: int) -> dict:
             stages["peer"].append(st)
             fresh = _fresh(patch)  # the planar map alone (in "init"), as the run above built it
             stages["map"].append(median_time(lambda p=fresh: _map_alone(p), 1)[0])
-            cached.append(median_time(lambda p=cold: resample_patch(p, metrics=False), 1)[0])
+            cached.append(
+                median_time(lambda p=cold: resample_patch(p, SpringOptions(metrics=False)), 1)[0]
+            )
         t_ours, t_peer = statistics.median(ours), statistics.median(peer)
         xyz, nrm = harmonic_grid(patch, nu, nv)
         ours = spring_metrics(patch.mesh, res.final, scale=diag, places=True)
@@ -264,13 +275,15 @@ def run_layout(name: str, repeats: int) -> dict:
         # the same patch with follow_folds (untimed): grid lines across curled rims
         folds = spring_metrics(
             patch.mesh,
-            resample_patch(_fresh(patch), follow_folds=True, metrics=False).final,
+            resample_patch(_fresh(patch), SpringOptions(follow_folds=True, metrics=False)).final,
             scale=diag,
         )
         # the same patch refined to the fidelity bound (untimed): `tolerance` resamples it
         # finer while the final grid misses by more (up to 16 points per patch vertex); the
         # peer's map resampled on that finer grid for comparison
-        tol = resample_patch(_fresh(patch), tolerance=FIDELITY_BOUND, scale=diag, metrics=False)
+        tol = resample_patch(
+            _fresh(patch), SpringOptions(tolerance=FIDELITY_BOUND, scale=diag, metrics=False)
+        )
         tu, tv = tol.final.shape
         reach = {
             "finer": tol.finer,

@@ -49,7 +49,7 @@ from meshfit.bspline import fit_bspline
 from meshfit.curves import paint_curve, relax_snake, resample_curve
 from meshfit.layout.cube import cube_layout
 from meshfit.mesh import load_mesh
-from meshfit.springs import resample_patch
+from meshfit.springs import SpringOptions, resample_patch
 from meshfit.springs.planar import clear_map_cache
 from meshfit.springs.preview import PREVIEW_MIN_VERTICES
 from meshfit.surface import greedy_path
@@ -169,7 +169,7 @@ def bench_patch(mesh, session: Session, repeats: int) -> tuple[dict, dict]:
 
     def exact_level0():
         clear_map_cache()
-        return resample_patch(patches[p], level=0, metrics=False).final
+        return resample_patch(patches[p], SpringOptions(level=0, metrics=False)).final
 
     exact = exact_level0()
     t_exact, _ = median_time(exact_level0, repeats)

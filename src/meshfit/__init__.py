@@ -27,7 +27,7 @@ _LAZY = {
     "FitResult": "meshfit.pipeline",
     "PatchFit": "meshfit.pipeline",
     "wrap": "meshfit.shrinkwrap.front",
-    "WrapOptions": "meshfit.shrinkwrap.front",
+    "WrapOptions": "meshfit.shrinkwrap",
     "WrapResult": "meshfit.shrinkwrap",
 }
 

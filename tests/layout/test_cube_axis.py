@@ -139,10 +139,10 @@ def test_spring_meshes_of_the_nefertiti_axis_layout():
     # the bust's patches resample without the balloon patch's uneven spacing (worst arc CV
     # of the centroid layout: 1.58 on its patch 4); what stays uneven are the ears and the
     # back of the crown (measured worst 0.49, 5 patches over 0.15, no folded cell)
-    from meshfit.springs import resample_patches
+    from meshfit.springs import SpringOptions, resample_patches
 
     mesh, layout = nefertiti_axis_layout()
-    results = resample_patches(extract_patches(mesh, layout), fidelity=False)
+    results = resample_patches(extract_patches(mesh, layout), SpringOptions(fidelity=False))
     assert sum(m["folded"] for r in results for m in r.metrics) == 0
     assert max(m["arc_cv_max"] for r in results for m in r.metrics) < 0.6
     assert max(m["aspect_median"] for r in results for m in r.metrics) <= 1.5

@@ -10,7 +10,7 @@ from meshfit.layout.auto import auto_layout
 from meshfit.layout.shaping import quad_cost, shape_base
 from meshfit.mesh import Mesh
 from meshfit.shrinkwrap import base_mesh, sphere_map
-from meshfit.springs import resample_patch
+from meshfit.springs import SpringOptions, resample_patch
 from meshfit.types import SurfacePoints
 
 from ..conftest import real_mesh
@@ -111,7 +111,7 @@ def test_shaped_layouts_of_many_patches_have_no_slivers_and_fold_far_less(monkey
         patches = extract_patches(mesh, auto_layout(mesh, patches=96, shape=shape))
         folded = 0
         for p in patches:
-            res = resample_patch(p, fidelity=False, rescue=True)
+            res = resample_patch(p, SpringOptions(fidelity=False, rescue=True))
             folded += res.metrics[-1]["folded"]
         out[shape] = (min(p.bulge for p in patches), folded)
     (thin_before, folds_before), (thin, folds) = out[False], out[None]

@@ -16,7 +16,7 @@ from meshfit.layout import (
     load_layout,
     smooth_layout,
 )
-from meshfit.springs import resample_patch
+from meshfit.springs import SpringOptions, resample_patch
 
 from ..conftest import mesh_path, real_mesh
 from .test_layout import LAYOUTS
@@ -65,7 +65,7 @@ def test_smoothed_sides_even_the_spring_meshes():
 
     def median_cv(lay) -> float:
         worst = [
-            max(m["arc_cv_max"] for m in resample_patch(p, fidelity=False).metrics)
+            max(m["arc_cv_max"] for m in resample_patch(p, SpringOptions(fidelity=False)).metrics)
             for p in extract_patches(mesh, lay)
         ]
         return float(np.median(worst))

@@ -8,6 +8,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from meshfit import errors, tol
 from meshfit.mesh import Mesh
 from meshfit.shrinkwrap import (
+    WrapOptions,
     base_mesh,
     fill_holes,
     icosahedron,
@@ -141,9 +142,8 @@ def test_levels_have_subdivision_connectivity_and_lie_on_the_input(name):
 
 
 def test_surface_phase_runs_and_keeps_the_map_bijective():
-    res = shrink_wrap(
-        real_mesh("spot"), levels=3, smap=smap("spot"), min_switch_level=1, switch_tightness=10.0
-    )
+    opts = WrapOptions(min_switch_level=1, switch_tightness=10.0)
+    res = shrink_wrap(real_mesh("spot"), opts, levels=3, smap=smap("spot"))
     assert res.switch_level == 2
     assert [lv.phase for lv in res.levels] == ["base", "parameter", "surface", "surface"]
     for lv in res.levels:
@@ -246,10 +246,10 @@ def test_wrap_refuses_levels_past_the_face_limit(monkeypatch):
         shrink_wrap(sphere, levels=12)
     # checked again with the base's own face count once it is made
     monkeypatch.setattr(w, "WRAP_MAX_FACES", 20 * 4**2)
-    res = shrink_wrap(sphere, levels=2, base_faces=20)
+    res = shrink_wrap(sphere, WrapOptions(base_faces=20), levels=2)
     assert len(res.levels[2].faces) == 320
     with pytest.raises(errors.InputError, match=r"2 levels over 40 base faces make 640 faces"):
-        shrink_wrap(sphere, levels=2, base_faces=40, base_options={"min_faces": 40})
+        shrink_wrap(sphere, WrapOptions(base_faces=40), levels=2, base_options={"min_faces": 40})
 
 
 def test_wrap_of_a_sphere_is_regular_and_close():
@@ -293,7 +293,7 @@ def test_a_stretched_sphere_map_lets_the_wrap_reach_the_ear_tips():
     mesh = fill_holes(real_mesh("bunny"))
     got = {}
     for k in (0, 4):
-        res = shrink_wrap(mesh, levels=4, sphere_stretch=k)
+        res = shrink_wrap(mesh, WrapOptions(sphere_stretch=k), levels=4)
         top = res.levels[-1]
         m = level_metrics(mesh, top)
         far = top.vertices[:, 1].max()  # the highest wrap vertex: the ear tips reach 0.1873

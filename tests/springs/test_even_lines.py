@@ -14,7 +14,7 @@ from meshfit import tol
 from meshfit.errors import InputError
 from meshfit.layout import extract_patches, load_layout
 from meshfit.mesh import Mesh
-from meshfit.springs import FREE, resample_patch, spring_metrics
+from meshfit.springs import FREE, SpringOptions, resample_patch, spring_metrics
 from meshfit.springs.planar import square_map
 from meshfit.springs.relax import LINE_SAMPLES, even_lines_in_map
 from meshfit.springs.resample import _folds, _miss, _sides
@@ -41,7 +41,7 @@ def test_a_flat_even_grid_stays_put():
     # on a flat patch the map is affine (mean-value coordinates reproduce linear functions)
     # and the relaxed grid is evenly spaced: evening moves no point
     patch = param_patch(plane_map(), 24, 24, jitter=0.0)
-    spring = resample_patch(patch, level=1, metrics=False).final
+    spring = resample_patch(patch, SpringOptions(level=1, metrics=False)).final
     state = spring_state(patch, spring)
     assert even_lines_in_map(state, square_map(patch.mesh, _sides(patch)))
     after = patch.mesh.xyz(SurfacePoints(state.face, state.bary)).reshape(spring.xyz.shape)
@@ -53,7 +53,7 @@ def test_points_move_onto_a_bump_the_grid_steps_over():
     # paths in the map, the lines space their points evenly over it: the arc-length CV
     # and the largest distance to the patch drop, no cell folds, the sides stay
     patch = param_patch(_bump, 80, 40, jitter=0.2)
-    spring = resample_patch(patch, metrics=False).final
+    spring = resample_patch(patch, SpringOptions(metrics=False)).final
     state = spring_state(patch, spring)
     assert even_lines_in_map(state, square_map(patch.mesh, _sides(patch)))
     evened = _spring(state, spring)
@@ -74,7 +74,7 @@ def test_points_move_onto_a_bump_the_grid_steps_over():
 
 def test_nothing_to_even_without_a_map_or_with_feature_curves_and_bad_counts_raise():
     patch = param_patch(plane_map(), 12, 12, jitter=0.0)
-    spring = resample_patch(patch, level=0, metrics=False).final
+    spring = resample_patch(patch, SpringOptions(level=0, metrics=False)).final
     state = spring_state(patch, spring)
     face, bary = state.face.copy(), state.bary.copy()
     assert not even_lines_in_map(state, None)
@@ -102,8 +102,8 @@ def test_the_rescue_evens_a_grid_no_remake_can_rescue():
     # much, so the rescue evens the grid's last level along its lines: it misses by less
     # than a spacing, folds nothing, and its coarser levels are those of the relaxation
     mesh, patch = _bulge_patch()
-    plain = resample_patch(patch, metrics=False, fairness_fallback=False)
-    res = resample_patch(patch, metrics=False, rescue=True)
+    plain = resample_patch(patch, SpringOptions(metrics=False, fairness_fallback=False))
+    res = resample_patch(patch, SpringOptions(metrics=False, rescue=True))
     assert res.rescued and res.evened and res.finer == 0 and res.fairness == 0.5
     assert _miss(patch.mesh, plain.final)[0] > 8.0
     assert _miss(patch.mesh, res.final)[0] < 1.0
@@ -126,7 +126,7 @@ def test_the_rescue_of_a_bulge_survives_rounding_noise(seed):
     noise = np.random.default_rng(seed).normal(size=patch.mesh.vertices.shape)
     moved = Mesh(patch.mesh.vertices + 1e-13 * mesh.bbox_diagonal * noise, patch.mesh.faces)
     patch = replace(patch, mesh=moved)
-    res = resample_patch(patch, metrics=False, rescue=True)
+    res = resample_patch(patch, SpringOptions(metrics=False, rescue=True))
     assert res.rescued and res.evened and _folds(moved, res) == 0
     assert _miss(moved, res.final)[0] < 1.0
     got = spring_metrics(moved, res.final, scale=mesh.bbox_diagonal)["fidelity_max"]

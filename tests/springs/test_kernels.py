@@ -8,7 +8,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 from meshfit import tol
 from meshfit._kernels import springs as K
-from meshfit.springs import FREE, resample_patch
+from meshfit.springs import FREE, SpringOptions, resample_patch
 from meshfit.types import SurfacePoints
 
 from ..conftest import real_mesh
@@ -38,7 +38,7 @@ def patches():
 def test_relax_sweeps_matches_oracle(patches, name, tangent, guard, lazy, fold, rng):
     patch = patches[name]
     mesh = patch.mesh
-    sm = resample_patch(patch, level=1, max_iter=1, metrics=False).final
+    sm = resample_patch(patch, SpringOptions(level=1, max_iter=1, metrics=False)).final
     nu, nv = sm.shape
     movable = (sm.kind == FREE).ravel()
     face = sm.points.face.copy()
@@ -144,7 +144,7 @@ def test_folded_cells_kernel_matches_the_metric(patches, rng):
 
     patch = patches["spot"]
     mesh = patch.mesh
-    sm = resample_patch(patch, level=2, metrics=False).final
+    sm = resample_patch(patch, SpringOptions(level=2, metrics=False)).final
     face = sm.points.face.copy()
     bary = sm.points.bary.copy()
     # scramble some interior points to make folds
@@ -165,7 +165,7 @@ def test_window_trials_matches_oracle(patches, rng):
     # places: every trial's fold count and shortest chord as the oracle finds them
     patch = patches["spot"]
     mesh = patch.mesh
-    sm = resample_patch(patch, level=2, metrics=False).final
+    sm = resample_patch(patch, SpringOptions(level=2, metrics=False)).final
     nu, nv = sm.shape
     win = np.arange(nu * nv).reshape(nu, nv)[2:9, :2].ravel()
     face, bary = sm.points.face[win].copy(), sm.points.bary[win].copy()
@@ -202,7 +202,7 @@ def test_locate_uv_matches_oracle(patches, rng):
 def _folded_grid(patch, rng, k=4, shift=2):
     """A level-1 spring mesh of the patch with ``k`` interior points moved ``shift`` cells
     over (folded cells around them)."""
-    sm = resample_patch(patch, level=1, metrics=False).final
+    sm = resample_patch(patch, SpringOptions(level=1, metrics=False)).final
     nu, nv = sm.shape
     face = sm.points.face.copy()
     bary = sm.points.bary.copy()
@@ -282,7 +282,7 @@ def _plane_state():
     from .patches import plane_map, spring_state
 
     patch = param_patch(plane_map(), 24, 24, jitter=0.0)
-    return spring_state(patch, resample_patch(patch, level=1, metrics=False).final)
+    return spring_state(patch, resample_patch(patch, SpringOptions(level=1, metrics=False)).final)
 
 
 def test_side_points_slide_back_between_their_neighbours():

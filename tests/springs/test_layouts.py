@@ -14,7 +14,7 @@ from numpy.testing import assert_allclose
 
 from meshfit import tol
 from meshfit.layout import extract_patches, load_layout
-from meshfit.springs import FREE, QUALITY_BOUNDS, resample_patch, spring_metrics
+from meshfit.springs import FREE, QUALITY_BOUNDS, SpringOptions, resample_patch, spring_metrics
 
 from ..conftest import ROOT, real_mesh
 from .test_resample import curve_distance
@@ -34,7 +34,7 @@ def layout_springs(name: str):
     )
     out = []
     for patch in patches:
-        res = resample_patch(patch, fidelity=False)
+        res = resample_patch(patch, SpringOptions(fidelity=False))
         final = spring_metrics(patch.mesh, res.final, scale=mesh.bbox_diagonal)
         out.append((patch, res, final))
     return out
@@ -160,7 +160,9 @@ def test_arc_length_polish_evens_the_igea_layout():
     polished = {p.index: (p, res) for p, res, _ in layout_springs("igea")}
     for k in (4, 5, 9):
         patch, res = polished[k]
-        plain = resample_patch(patch, fidelity=False, polish=0, fairness_fallback=False)
+        plain = resample_patch(
+            patch, SpringOptions(fidelity=False, polish=0, fairness_fallback=False)
+        )
         assert max(m["arc_cv_max"] for m in plain.metrics) > 0.15, k
         assert max(m["arc_cv_max"] for m in res.metrics) <= 0.15, k
         assert sum(m["folded"] for m in res.metrics) == 0
@@ -174,7 +176,7 @@ def test_fairness_fallback_mends_spots_tapered_patches():
     layout = layout_springs("spot")
     for k in (0, 2, 4, 5):
         patch, res, _ = layout[k]
-        plain = resample_patch(patch, fidelity=False, fairness_fallback=False)
+        plain = resample_patch(patch, SpringOptions(fidelity=False, fairness_fallback=False))
         assert plain.fairness == 0.5
         assert (
             max(m["arc_cv_max"] for m in plain.metrics) > QUALITY_BOUNDS["arc_cv_max"]
@@ -188,7 +190,7 @@ def test_fairness_fallback_mends_spots_tapered_patches():
             assert f.min() >= 0 and f.max() < patch.mesh.n_faces and (b >= -tol.BARY_EPS).all()
     # the rebalanced intervals of patch 5 have fewer rows along its long direction
     patch, res, _ = layout[5]
-    plain = resample_patch(patch, fidelity=False, fairness_fallback=False)
+    plain = resample_patch(patch, SpringOptions(fidelity=False, fairness_fallback=False))
     assert res.levels[0].shape != plain.levels[0].shape
 
 
@@ -211,7 +213,7 @@ def test_final_polish_evens_only_the_uneven_lines(monkeypatch):
         with monkeypatch.context() as m:
             m.setattr(R, "FINAL_POLISH", 0)
             m.setattr(R, "_relax_again", lambda first: False)
-            plain = resample_patch(patch, fidelity=False)
+            plain = resample_patch(patch, SpringOptions(fidelity=False))
         assert plain.metrics[-1]["arc_cv_max"] > 0.15, k
         assert res.metrics[-1]["arc_cv_max"] <= 0.15, k
         assert res.metrics[-1]["folded"] == plain.metrics[-1]["folded"] == 0
@@ -226,11 +228,11 @@ def test_final_polish_evens_only_the_uneven_lines(monkeypatch):
             assert_allclose(a.xyz, b.xyz, rtol=0, atol=0)
     # (without the fallback, which relaxes patch 45's last level again with arc length alone)
     patch = layout[45][0]
-    res = resample_patch(patch, fidelity=False, fairness_fallback=False)
+    res = resample_patch(patch, SpringOptions(fidelity=False, fairness_fallback=False))
     assert res.metrics[-1]["arc_cv_max"] > R.POLISH_CV_GOAL
     with monkeypatch.context() as m:
         m.setattr(R, "FINAL_POLISH", 0)
-        plain = resample_patch(patch, fidelity=False, fairness_fallback=False)
+        plain = resample_patch(patch, SpringOptions(fidelity=False, fairness_fallback=False))
     assert_allclose(res.final.xyz, plain.final.xyz, rtol=0, atol=0)
 
 
@@ -248,7 +250,7 @@ def test_a_last_level_over_a_bound_is_relaxed_again_with_arc_length_alone(monkey
         diag = real_mesh(LAYOUT_MESH.get(name, name)).bbox_diagonal
         with monkeypatch.context() as m:
             m.setattr(R, "_relax_again", lambda first: False)
-            once = resample_patch(patch, fidelity=False)
+            once = resample_patch(patch, SpringOptions(fidelity=False))
         assert res.final_arc and not once.final_arc
         assert res.fairness == once.fairness and res.remade == once.remade
         for a, b in zip(res.levels[:-1], once.levels[:-1], strict=True):
@@ -267,7 +269,7 @@ def test_polish_is_dropped_where_it_stretches_the_cells():
     # spot's near-triangular patch 1: evenly spaced lines stretch its cells, so the default
     # keeps the unpolished levels
     patch, res, _ = layout_springs("spot")[1]
-    plain = resample_patch(patch, fidelity=False, polish=0)
+    plain = resample_patch(patch, SpringOptions(fidelity=False, polish=0))
     assert_allclose(res.final.xyz, plain.final.xyz, rtol=0, atol=0)
 
 
@@ -280,7 +282,7 @@ def test_rescue_reaches_the_patches_the_grid_misses():
     diag = real_mesh("spot").bbox_diagonal
     changed = []
     for patch, plain, plain_final in layout_springs("spot"):
-        res = resample_patch(patch, fidelity=False, rescue=True)
+        res = resample_patch(patch, SpringOptions(fidelity=False, rescue=True))
         assert "rescue" in res.seconds
         if not (res.rescued or res.finer):
             assert_allclose(res.final.xyz, plain.final.xyz, rtol=0, atol=0)
@@ -306,7 +308,7 @@ def test_rescue_reaches_the_patches_the_grid_misses():
     assert changed == [(1, True, 0), (3, True, 0), (6, False, 1), (7, False, 1)]
     # a grid that samples its patch is left alone
     patch = layout_springs("igea")[0][0]
-    res = resample_patch(patch, fidelity=False, rescue=True)
+    res = resample_patch(patch, SpringOptions(fidelity=False, rescue=True))
     assert not res.rescued and res.finer == 0
 
 
@@ -315,10 +317,12 @@ def test_finer_rescue_keeps_to_the_level_and_point_cap():
     # the finer grid would exceed is given
     patch, plain, _ = layout_springs("spot")[6]
     k, shape = plain.final.level, plain.final.shape
-    assert resample_patch(patch, fidelity=False, rescue=True).finer == 1
-    res = resample_patch(patch, fidelity=False, rescue=True, level=k)
+    assert resample_patch(patch, SpringOptions(fidelity=False, rescue=True)).finer == 1
+    res = resample_patch(patch, SpringOptions(fidelity=False, rescue=True, level=k))
     assert res.finer == 0 and res.final.shape == shape
-    res = resample_patch(patch, fidelity=False, rescue=True, max_points=shape[0] * shape[1])
+    res = resample_patch(
+        patch, SpringOptions(fidelity=False, rescue=True, max_points=shape[0] * shape[1])
+    )
     assert res.finer == 0 and res.final.shape == shape
 
 
@@ -334,13 +338,13 @@ def test_side_slides_taper_and_avoid_slivers(monkeypatch):
     patch, res, _ = layout[7]
     with monkeypatch.context() as m:
         m.setattr(RL, "SLIDE_TAPER", 0)
-        alone = resample_patch(patch, fidelity=False)
+        alone = resample_patch(patch, SpringOptions(fidelity=False))
         # (the untangling in charts, which comes after the slides, unfolds the cell but
         # leaves the spacing jump)
         assert sum(x["folded"] for x in alone.metrics) == 0
         assert max(x["arc_cv_max"] for x in alone.metrics) > 0.15
         m.setattr(RS, "untangle_in_charts", lambda state: 0)
-        alone = resample_patch(patch, fidelity=False)
+        alone = resample_patch(patch, SpringOptions(fidelity=False))
     assert sum(x["folded"] for x in alone.metrics) > 0
     assert max(x["arc_cv_max"] for x in alone.metrics) > 0.15
     assert sum(x["folded"] for x in res.metrics) == 0
@@ -360,7 +364,7 @@ def test_pinched_side_points_of_nefertiti_26_slide_apart(monkeypatch):
     patch, res, _ = layout_springs("nefertiti")[26]
     with monkeypatch.context() as m:
         m.setattr(RL, "PINCH_RATIO", 0.0)
-        plain = resample_patch(patch, fidelity=False)
+        plain = resample_patch(patch, SpringOptions(fidelity=False))
     assert max(x["arc_cv_max"] for x in plain.metrics) > 0.15
     assert max(x["arc_cv_max"] for x in res.metrics) <= 0.15
     assert sum(x["folded"] for x in res.metrics) == 0
@@ -414,7 +418,7 @@ def test_following_folds_carries_the_grid_over_ears_and_horns(name, index):
     0.40 -> 0.25)."""
     mesh = real_mesh(LAYOUT_MESH.get(name, name))
     patch, _, plain = layout_springs(name)[index]
-    res = resample_patch(patch, follow_folds=True, metrics=False)
+    res = resample_patch(patch, SpringOptions(follow_folds=True, metrics=False))
     got = spring_metrics(patch.mesh, res.final, scale=mesh.bbox_diagonal)
     assert got["fidelity_max"] < 0.5 * plain["fidelity_max"]
     assert got["arc_cv_max"] < 0.8 * plain["arc_cv_max"]
@@ -425,7 +429,7 @@ def test_following_folds_changes_nothing_without_a_fold():
     """A patch whose grid crosses no fold of the surface (igea's smooth cheek, patch 0) gets
     the same grid, bit for bit."""
     patch, res, _ = layout_springs("igea")[0]
-    again = resample_patch(patch, follow_folds=True, metrics=False)
+    again = resample_patch(patch, SpringOptions(follow_folds=True, metrics=False))
     assert len(again.levels) == len(res.levels)
     for a, b in zip(again.levels, res.levels, strict=True):
         assert np.array_equal(a.points.face, b.points.face)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from meshfit.cli import main
-from meshfit.springs import SpringMesh, resample_patch, spring_metrics, worst_places
+from meshfit.springs import SpringMesh, SpringOptions, resample_patch, spring_metrics, worst_places
 
 from ..conftest import ROOT, mesh_path, real_mesh
 from .patches import param_patch, plane_map
@@ -17,7 +17,7 @@ from .patches import param_patch, plane_map
 @pytest.fixture(scope="module")
 def plane():
     patch = param_patch(plane_map())
-    return patch, resample_patch(patch, metrics=False).final
+    return patch, resample_patch(patch, SpringOptions(metrics=False)).final
 
 
 def _moved(patch, spring: SpringMesh, X: np.ndarray) -> SpringMesh:

@@ -8,7 +8,7 @@ from numpy.testing import assert_allclose
 
 from meshfit import tol
 from meshfit.errors import InputError
-from meshfit.springs import resample_patch
+from meshfit.springs import SpringOptions, resample_patch
 from meshfit.springs.planar import clear_map_cache, square_map
 from meshfit.springs.resample import _sides
 
@@ -113,8 +113,10 @@ def test_locate_inverts_the_map():
 
 def test_plane_grid_is_the_same_from_either_start():
     plane = param_patch(plane_map(2.0, 1.0), 40, 20)
-    a = resample_patch(plane, level=2, fidelity=False)
-    b = resample_patch(plane, level=2, init="dijkstra", midpoints="findmid", fidelity=False)
+    a = resample_patch(plane, SpringOptions(level=2, fidelity=False))
+    b = resample_patch(
+        plane, SpringOptions(level=2, init="dijkstra", midpoints="findmid", fidelity=False)
+    )
     nv = a.final.shape[1]
     assert a.final.shape == b.final.shape
     assert_allclose(a.final.xyz, b.final.xyz, atol=1e-2 / (nv - 1))
@@ -124,9 +126,9 @@ def test_plane_grid_is_the_same_from_either_start():
 def test_start_options_are_checked():
     plane = param_patch(plane_map(2.0, 1.0), 8, 4)
     with pytest.raises(InputError, match="init"):
-        resample_patch(plane, init="tutte")
+        resample_patch(plane, SpringOptions(init="tutte"))
     with pytest.raises(InputError, match="midpoints"):
-        resample_patch(plane, midpoints="graph")
+        resample_patch(plane, SpringOptions(midpoints="graph"))
 
 
 def test_chord_positions_even_out_the_chords_of_a_bent_side():
@@ -153,8 +155,8 @@ def test_chord_positions_even_out_the_chords_of_a_bent_side():
 def test_side_spacing_option():
     plane = param_patch(plane_map(2.0, 1.0), 8, 4)
     with pytest.raises(InputError, match="side_spacing"):
-        resample_patch(plane, side_spacing="even")
-    a = resample_patch(plane, level=1, side_spacing="arc", fidelity=False)
+        resample_patch(plane, SpringOptions(side_spacing="even"))
+    a = resample_patch(plane, SpringOptions(level=1, side_spacing="arc", fidelity=False))
     assert a.metrics[-1]["folded"] == 0
 
 

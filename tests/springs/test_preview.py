@@ -11,7 +11,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from meshfit import tol
 from meshfit.layout import extract_patches, load_layout
 from meshfit.layout.cube import cube_layout
-from meshfit.springs import resample_patch
+from meshfit.springs import SpringOptions, resample_patch
 from meshfit.springs.preview import (
     PREVIEW_MAX_OFFSET,
     PREVIEW_MEDIAN_OFFSET,
@@ -66,7 +66,7 @@ def test_coarse_level0_lies_on_the_patch_near_the_exact_level0(which):
     patch = _patch(which)
     mesh = patch.mesh
     got = coarse_level0(patch)
-    want = resample_patch(patch, level=0, metrics=False).final
+    want = resample_patch(patch, SpringOptions(level=0, metrics=False)).final
     assert got is not None
     assert got.shape == want.shape and got.level == want.level == 0
     assert_array_equal(got.kind, want.kind)
@@ -94,7 +94,7 @@ def test_coarse_level0_without_aggregation_is_the_exact_level0():
     # the coarse copy is then the patch itself: the same map and the same relaxation
     patch = _patch("nefertiti-32")
     got = coarse_level0(patch, rounds=0)
-    want = resample_patch(patch, level=0, metrics=False).final
+    want = resample_patch(patch, SpringOptions(level=0, metrics=False)).final
     assert_allclose(got.xyz, want.xyz, atol=tol.TEST_ATOL * patch.mesh.bbox_diagonal)
 
 
@@ -107,12 +107,12 @@ def test_session_previews_level0_of_a_large_patch_on_a_coarse_copy():
     assert_allclose(grid0.xyz, coarse_level0(s.patches()[p]).xyz, atol=0.0)
     # finer levels use the exact map as before
     grid1 = s.spring_preview(p, level=1)
-    exact1 = resample_patch(s.patches()[p], level=1, metrics=False).final
+    exact1 = resample_patch(s.patches()[p], SpringOptions(level=1, metrics=False)).final
     assert_allclose(grid1.xyz, exact1.xyz, atol=0.0)
     # a patch under the threshold previews its exact level 0
     s = Session(real_mesh("nefertiti"))
     s.load_layout(ROOT / "examples" / "layouts" / "nefertiti.json")
     small = int(np.argmin([q.mesh.n_vertices for q in s.patches()]))
     assert s.patches()[small].mesh.n_vertices <= PREVIEW_MIN_VERTICES
-    exact0 = resample_patch(s.patches()[small], level=0, metrics=False).final
+    exact0 = resample_patch(s.patches()[small], SpringOptions(level=0, metrics=False)).final
     assert_allclose(s.spring_preview(small, level=0).xyz, exact0.xyz, atol=0.0)

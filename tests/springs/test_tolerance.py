@@ -7,7 +7,7 @@ import pytest
 
 from meshfit.errors import InputError
 from meshfit.layout import extract_patches, load_layout
-from meshfit.springs import resample_patch, spring_metrics
+from meshfit.springs import SpringOptions, resample_patch, spring_metrics
 
 from ..conftest import ROOT, real_mesh
 from .patches import cylinder_map, param_patch
@@ -19,9 +19,9 @@ def _fidelity(patch, res, scale=None) -> float:
 
 def test_a_tolerance_the_final_level_misses_refines_the_grid_until_it_is_met():
     patch = param_patch(cylinder_map(1.0, 1.5, np.pi / 2), 48, 24)
-    plain = resample_patch(patch, fidelity=False)
+    plain = resample_patch(patch, SpringOptions(fidelity=False))
     d0 = _fidelity(patch, plain)
-    res = resample_patch(patch, tolerance=0.5 * d0, fidelity=False)
+    res = resample_patch(patch, SpringOptions(tolerance=0.5 * d0, fidelity=False))
     assert res.finer >= 1
     assert len(res.levels) == len(plain.levels) + res.finer
     assert res.distance <= 0.5 * d0
@@ -32,7 +32,7 @@ def test_a_tolerance_the_final_level_misses_refines_the_grid_until_it_is_met():
         assert np.array_equal(a.points.bary, b.points.bary)
     assert "tolerance" in res.seconds and res.seconds["total"] >= res.seconds["tolerance"]
     # with every level's metrics asked for, the run's own fidelity figure is used: the same
-    measured = resample_patch(patch, tolerance=0.5 * d0)
+    measured = resample_patch(patch, SpringOptions(tolerance=0.5 * d0))
     assert measured.finer == res.finer
     assert measured.distance == pytest.approx(res.distance, rel=1e-12)
     assert measured.distance == measured.metrics[-1]["fidelity_max"]
@@ -40,9 +40,9 @@ def test_a_tolerance_the_final_level_misses_refines_the_grid_until_it_is_met():
 
 def test_a_tolerance_the_final_level_meets_keeps_it():
     patch = param_patch(cylinder_map(1.0, 1.5, np.pi / 2), 48, 24)
-    plain = resample_patch(patch, fidelity=False)
+    plain = resample_patch(patch, SpringOptions(fidelity=False))
     d0 = _fidelity(patch, plain)
-    res = resample_patch(patch, tolerance=2.0 * d0, fidelity=False)
+    res = resample_patch(patch, SpringOptions(tolerance=2.0 * d0, fidelity=False))
     assert res.finer == 0 and res.distance == pytest.approx(d0, rel=1e-12)
     assert np.array_equal(res.final.points.bary, plain.final.points.bary)
     assert plain.distance is None
@@ -50,9 +50,9 @@ def test_a_tolerance_the_final_level_meets_keeps_it():
 
 def test_max_points_caps_the_refinement():
     patch = param_patch(cylinder_map(1.0, 1.5, np.pi / 2), 48, 24)
-    plain = resample_patch(patch, fidelity=False)
+    plain = resample_patch(patch, SpringOptions(fidelity=False))
     nu, nv = plain.final.shape
-    res = resample_patch(patch, tolerance=1e-9, max_points=nu * nv, fidelity=False)
+    res = resample_patch(patch, SpringOptions(tolerance=1e-9, max_points=nu * nv, fidelity=False))
     assert res.finer == 0 and res.final.shape == (nu, nv) and res.distance > 1e-9
 
 
@@ -62,9 +62,9 @@ def test_an_igea_patch_reaches_the_issue_fidelity_bound_one_level_finer():
     mesh = real_mesh("igea")
     patch = extract_patches(mesh, load_layout(ROOT / "examples" / "layouts" / "igea.json", mesh))[2]
     diag = mesh.bbox_diagonal
-    plain = resample_patch(patch, metrics=False)
+    plain = resample_patch(patch, SpringOptions(metrics=False))
     assert _fidelity(patch, plain, diag) > 5e-4
-    res = resample_patch(patch, tolerance=5e-4, scale=diag, metrics=False)
+    res = resample_patch(patch, SpringOptions(tolerance=5e-4, scale=diag, metrics=False))
     assert res.finer >= 1 and res.distance <= 5e-4
     assert res.distance == pytest.approx(_fidelity(patch, res, diag), rel=1e-12)
     assert spring_metrics(patch.mesh, res.final, fidelity=False)["folded"] == 0
@@ -86,4 +86,4 @@ def test_an_igea_patch_reaches_the_issue_fidelity_bound_one_level_finer():
 def test_bad_tolerances_are_rejected(options, match):
     patch = param_patch(cylinder_map(), 12, 8)
     with pytest.raises(InputError, match=match):
-        resample_patch(patch, **options)
+        resample_patch(patch, SpringOptions(**options))

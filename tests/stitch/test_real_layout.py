@@ -26,11 +26,14 @@ pytestmark = pytest.mark.slow
 @pytest.fixture(scope="module")
 def igea_layout():
     from meshfit.layout import cube_layout, extract_patches
-    from meshfit.springs import resample_patch
+    from meshfit.springs import SpringOptions, resample_patch
 
     mesh = real_mesh("igea")
     patches = extract_patches(mesh, cube_layout(mesh, n=2))
-    grids = [resample_patch(p, level=2, metrics=False, fidelity=False).final.xyz for p in patches]
+    grids = [
+        resample_patch(p, SpringOptions(level=2, metrics=False, fidelity=False)).final.xyz
+        for p in patches
+    ]
     net = network_from_grids(grids)
     cc = control_classes(net, default=8, grid_shapes=[g.shape[:2] for g in grids])
     surfaces = [fit_bspline(g, controls=c) for g, c in zip(grids, cc.controls, strict=True)]
@@ -186,12 +189,12 @@ def test_scalar_and_bump_seams_of_real_spring_grids(igea_layout, kind):
 def _test_layout(name: str, m: int = 8):
     """Spring meshes of examples/layouts/<name>.json, their network and fits with m x m controls."""
     from meshfit.layout import extract_patches, load_layout
-    from meshfit.springs import resample_patch
+    from meshfit.springs import SpringOptions, resample_patch
 
     mesh = real_mesh(name)
     layout = load_layout(ROOT / "examples" / "layouts" / f"{name}.json", mesh)
     grids = [
-        resample_patch(p, fidelity=False, metrics=False).final.xyz
+        resample_patch(p, SpringOptions(fidelity=False, metrics=False)).final.xyz
         for p in extract_patches(mesh, layout)
     ]
     net = network_from_grids(grids)

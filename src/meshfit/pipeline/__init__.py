@@ -29,13 +29,13 @@ from meshfit.pipeline.options import (
     MapOptions,
     OutputOptions,
     SplineOptions,
-    SpringOptions,
 )
 from meshfit.pipeline.result import FitResult, PatchFit, load_fit
 from meshfit.pipeline.run import fit
 from meshfit.pipeline.springs import patch_payload, spring_patch, spring_task
 from meshfit.pipeline.stages import STAGES
 from meshfit.pipeline.store import mesh_hash
+from meshfit.springs import SpringOptions
 
 __all__ = [
     "FORMATS",

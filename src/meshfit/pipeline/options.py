@@ -1,9 +1,10 @@
 """Options of the fit: one frozen dataclass for the user, a small view per stage.
 
 :class:`FitOptions` holds every choice with its default (the command line and the web app
-fill it); each stage reads only its own group (:class:`LayoutOptions`, :class:`SpringOptions`,
-:class:`SplineOptions`, :class:`MapOptions`, :class:`OutputOptions`), and a stage's cache key
-holds exactly that group, so changing an output option never recomputes a spring mesh.
+fill it); each stage reads only its own group (:class:`LayoutOptions`,
+:class:`meshfit.springs.SpringOptions`, :class:`SplineOptions`, :class:`MapOptions`,
+:class:`OutputOptions`), and a stage's cache key holds exactly that group, so changing an
+output option never recomputes a spring mesh.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import numpy as np
 
 from meshfit._threads import n_workers
 from meshfit.errors import InputError
+from meshfit.springs import SpringOptions
 
 __all__ = [
     "FORMATS",
@@ -218,12 +220,13 @@ class FitOptions:
 
     @property
     def springs(self) -> SpringOptions:
-        """The spring-mesh stage's group."""
+        """The spring-mesh stage's options (:class:`meshfit.springs.SpringOptions`)."""
         return SpringOptions(
-            self.spring_level,
-            self.spring_max_points,
-            self.spring_rescue,
-            self.spring_follow_folds,
+            level=self.spring_level,
+            max_points=self.spring_max_points,
+            rescue=bool(self.spring_rescue),
+            follow_folds=bool(self.spring_follow_folds),
+            metrics=False,
         )
 
     @property
@@ -256,16 +259,6 @@ class LayoutOptions:
     shape: bool | None
     seed: int
     crease_angle: float | None
-
-
-@dataclass(frozen=True)
-class SpringOptions:
-    """Keywords of :func:`meshfit.springs.resample_patch` the fit sets."""
-
-    level: int | None
-    max_points: int | None
-    rescue: bool
-    follow_folds: bool
 
 
 @dataclass(frozen=True)

@@ -3,33 +3,33 @@
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from meshfit.mesh import Mesh
+from meshfit.springs import SpringOptions
 
 __all__ = ["patch_payload", "spring_patch", "spring_task"]
 
 
-def spring_patch(patch, *, level=None, max_points=None, rescue=True, follow_folds=False):
+def spring_patch(patch, options: SpringOptions | None = None):
     """Spring mesh of one patch: ``(xyz (nu, nv, 3) float64, metrics dict)``: the final
     level's :func:`meshfit.springs.spring_metrics` (without fidelity) and every level's
-    folded cells (the same test, by the fold kernel alone)."""
+    folded cells (the same test, by the fold kernel alone). ``options`` default: the fit's
+    (``FitOptions().springs``)."""
     from meshfit._kernels.springs import folded_cells
     from meshfit.layout.patch import shape_figures
     from meshfit.springs import resample_patch, spring_metrics
 
     t = time.perf_counter()
-    res = resample_patch(
-        patch,
-        level=level,
-        max_points=max_points,
-        rescue=rescue,
-        follow_folds=follow_folds,
-        metrics=False,
-    )
+    if options is None:
+        from meshfit.pipeline.options import FitOptions
+
+        options = FitOptions().springs
+    res = resample_patch(patch, replace(options, metrics=False))
     m = patch.mesh
     fin = spring_metrics(m, res.final, fidelity=False)
     folds = [
@@ -73,11 +73,11 @@ def patch_payload(patch) -> dict[str, Any]:
 
 
 def spring_task(item) -> tuple[NDArray[np.float64], dict]:
-    """Remote body of one spring-mesh task: ``item = (patch_payload(p), options)``."""
+    """Remote body of one spring-mesh task: ``item = (patch_payload(p), SpringOptions)``."""
     from meshfit.layout import Patch
     from meshfit.types import SurfaceCurve, SurfacePoints
 
-    d, kw = item
+    d, options = item
     patch = Patch(
         d["index"],
         Mesh(d["vertices"], d["faces"]),
@@ -88,4 +88,4 @@ def spring_task(item) -> tuple[NDArray[np.float64], dict]:
         tuple(SurfaceCurve(SurfacePoints(f, b), kind="feature") for f, b in d["features"]),
         tuple(d["feature_sides"]),
     )
-    return spring_patch(patch, **kw)
+    return spring_patch(patch, options)

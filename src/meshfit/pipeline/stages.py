@@ -258,18 +258,10 @@ class Springs(Stage):
     def run(self, ctx: Context) -> None:
         ps = ctx["patches"]
         o = ctx.options.springs
-        kw = {
-            "level": o.level,
-            "max_points": o.max_points,
-            "rescue": bool(o.rescue),
-            "follow_folds": bool(o.follow_folds),
-        }
         if self.patch_map is not None:
-            res = self.patch_map(spring_task, [(patch_payload(p), kw) for p in ps])
+            res = self.patch_map(spring_task, [(patch_payload(p), o) for p in ps])
         else:
-            res = ctx.map(
-                lambda p: spring_patch(p, **kw), ps, "springs", [p.mesh.n_faces for p in ps]
-            )
+            res = ctx.map(lambda p: spring_patch(p, o), ps, "springs", [p.mesh.n_faces for p in ps])
         ctx["grids"] = [g for g, _ in res]
         ctx["spring_info"] = [i for _, i in res]
 

@@ -24,7 +24,14 @@ from meshfit.shrinkwrap.stream import (
     write_stream,
 )
 from meshfit.shrinkwrap.subdivision import subdivide_step
-from meshfit.shrinkwrap.wrap import WrapLevel, WrapResult, level_metrics, shrink_wrap, wrap_report
+from meshfit.shrinkwrap.wrap import (
+    WrapLevel,
+    WrapOptions,
+    WrapResult,
+    level_metrics,
+    shrink_wrap,
+    wrap_report,
+)
 
 __all__ = [
     "BaseMesh",
@@ -32,6 +39,7 @@ __all__ = [
     "SphereMap",
     "Stream",
     "WrapLevel",
+    "WrapOptions",
     "WrapResult",
     "base_mesh",
     "check_genus0",

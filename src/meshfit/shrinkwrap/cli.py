@@ -57,7 +57,7 @@ def _write_json(path: Path, data: dict) -> None:
 
 
 def _wrap(args: argparse.Namespace):
-    from meshfit.shrinkwrap import shrink_wrap
+    from meshfit.shrinkwrap import WrapOptions, shrink_wrap
 
     if args.levels < 0:
         raise errors.InputError(f"--levels must be >= 0, got {args.levels}")
@@ -76,19 +76,18 @@ def _wrap(args: argparse.Namespace):
             "--sphere-stretch reweights the tutte map: not with --sphere-method voxel"
         )
     mesh = _load(args.mesh, args.fill_holes)
-    opts = {
-        "levels": args.levels,
-        "base_faces": args.base_faces,
-        "sphere_method": args.sphere_method,
-        "sphere_max_aspect": args.sphere_max_aspect,
-        "sphere_stretch": args.sphere_stretch,
-    }
+    opts = WrapOptions(
+        base_faces=args.base_faces,
+        sphere_method=args.sphere_method,
+        sphere_max_aspect=args.sphere_max_aspect,
+        sphere_stretch=args.sphere_stretch,
+    )
     bar, cb = _progress(args.json)
     if bar is not None:
         with bar:
-            res = shrink_wrap(mesh, progress=cb, **opts)
+            res = shrink_wrap(mesh, opts, levels=args.levels, progress=cb)
     else:
-        res = shrink_wrap(mesh, **opts)
+        res = shrink_wrap(mesh, opts, levels=args.levels)
     return mesh, res
 
 

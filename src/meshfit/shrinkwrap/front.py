@@ -1,47 +1,15 @@
-"""The front door of shrink wrapping: :func:`wrap` with its options as one frozen dataclass."""
+"""The front door of shrink wrapping: :func:`wrap` (a path or a mesh in, options in one
+frozen dataclass, :class:`WrapOptions`)."""
 
 from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
 
-from meshfit.errors import InputError
 from meshfit.mesh import Mesh
-from meshfit.shrinkwrap.wrap import WrapResult, shrink_wrap
+from meshfit.shrinkwrap.wrap import WrapOptions, WrapResult, shrink_wrap
 
 __all__ = ["WrapOptions", "wrap"]
-
-
-@dataclass(frozen=True)
-class WrapOptions:
-    """Options of :func:`wrap`; each is the keyword of :func:`meshfit.shrinkwrap.shrink_wrap`
-    with the same name, whose docstring gives its meaning and default."""
-
-    base_faces: int = 100
-    sphere_method: str = "tutte"
-    sphere_max_aspect: float | None = None
-    sphere_stretch: int = 0
-    parameter_iterations: int = 6
-    surface_iterations: int = 4
-    alpha: float = 0.5
-    count_weight: float = 3.0
-    min_cell_faces: float = 2.0
-    switch_tightness: float = 0.1
-    switch_min_angle_deg: float = 10.0
-    min_switch_level: int = 2
-    clean_min_angle_deg: float = 10.0
-    clean_rounds: int = 20
-
-    def __post_init__(self) -> None:
-        if self.sphere_method not in ("tutte", "voxel"):
-            raise InputError(
-                f"sphere_method must be 'tutte' or 'voxel', got {self.sphere_method!r}"
-            )
-        if int(self.base_faces) < 4:
-            raise InputError(f"base_faces must be at least 4, got {self.base_faces}")
-        if not 0.0 < float(self.alpha) <= 1.0:
-            raise InputError(f"alpha must be in (0, 1], got {self.alpha}")
 
 
 def wrap(
@@ -75,5 +43,4 @@ def wrap(
         from meshfit.mesh import load_mesh
 
         mesh = load_mesh(mesh, repair=True)
-    opts = asdict(options or WrapOptions())
-    return shrink_wrap(mesh, levels=levels, progress=progress, **opts)
+    return shrink_wrap(mesh, options, levels=levels, progress=progress)

@@ -282,9 +282,8 @@ def _fix_thin(smap, s, loc, faces, min_angle, rounds):
 
 
 #: most faces of a wrap's finest level: every level has four times the faces of the last,
-#: and the levels are kept (peak memory about 800 bytes a finest face: spot at 8 levels,
-#: 1.7 million faces, 1.35 GB in 78 s; at 12 levels over 26 base faces, 436 million, it ran
-#: for 5 minutes without an end in sight)
+#: and the levels are kept (peak memory of the order of a kilobyte a finest face, so this
+#: bound keeps a wrap within a few gigabytes)
 WRAP_MAX_FACES = 8_000_000
 
 
@@ -302,27 +301,81 @@ def _check_level_faces(base_faces: int, levels: int, fewest: bool = False) -> No
         )
 
 
+@dataclass(frozen=True)
+class WrapOptions:
+    """Options of :func:`shrink_wrap` and :func:`meshfit.wrap` (all have defaults).
+
+    Attributes
+    ----------
+    base_faces : int
+        Face budget of the base mesh (default 100).
+    sphere_method : {"tutte", "voxel"}
+        Construction of the sphere map when ``smap`` is omitted (see :func:`sphere_map`).
+    sphere_max_aspect : float, optional
+        Aspect-ratio bound of the spherical triangles when ``smap`` is omitted
+        (``sphere_map(max_aspect=...)``; default ``None``: no bound).
+    sphere_stretch : int
+        Rounds of stretch-minimizing reweighting of the sphere map when ``smap`` is omitted
+        (``sphere_map(stretch_iterations=...)``; default 0). The default map squeezes
+        protrusions, and the wrap then misses their tips; the reweighted map gives them
+        their share of the sphere, at the price of less even triangles (smaller angles,
+        more triangles facing against the input), and on shapes without protrusions it
+        can do worse. Not the default for that reason.
+    parameter_iterations, surface_iterations : int
+        Relaxation steps per level in each phase (defaults 6 and 4).
+    alpha : float
+        Damping factor of eq. 1, in (0, 1] (default 0.5).
+    count_weight : float
+        Each input triangle weighs its area plus this times the mean triangle area in the
+        density estimate (default 3; 0: surface area only, as in the paper).
+    min_cell_faces : float
+        Area densities while the input has at least this many triangles per cell of the
+        level (default 2), edge-length densities afterwards.
+    switch_tightness : float
+        Tightness threshold of the switching rule (default 0.1).
+    switch_min_angle_deg : float
+        Also switch when the parameter phase leaves a triangle with a smaller angle, degrees
+        (default 10): the surface metric then has to take over.
+    min_switch_level : int
+        No switch before this level (default 2).
+    clean_min_angle_deg, clean_rounds : float, int
+        After the surface phase of each level, the corners of triangles with an angle below
+        ``clean_min_angle_deg`` (default 10) take up to ``clean_rounds`` (default 20; 0: off)
+        uniform umbrella steps in their tangent planes, projected back onto the input and
+        flip-guarded; the configuration with the largest minimum angle is kept (slivers are
+        lifted without moving the surface).
+    """
+
+    base_faces: int = 100
+    sphere_method: str = "tutte"
+    sphere_max_aspect: float | None = None
+    sphere_stretch: int = 0
+    parameter_iterations: int = 6
+    surface_iterations: int = 4
+    alpha: float = 0.5
+    count_weight: float = 3.0
+    min_cell_faces: float = 2.0
+    switch_tightness: float = 0.1
+    switch_min_angle_deg: float = 10.0
+    min_switch_level: int = 2
+    clean_min_angle_deg: float = 10.0
+    clean_rounds: int = 20
+
+    def __post_init__(self) -> None:
+        if self.sphere_method not in ("tutte", "voxel"):
+            raise errors.InputError(
+                f"sphere_method must be 'tutte' or 'voxel', got {self.sphere_method!r}"
+            )
+
+
 def shrink_wrap(
     mesh: Mesh,
+    options: WrapOptions | None = None,
     *,
     levels: int = 5,
-    base_faces: int = 100,
     smap: SphereMap | None = None,
     base: BaseMesh | None = None,
-    sphere_method: str = "tutte",
-    sphere_max_aspect: float | None = None,
-    sphere_stretch: int = 0,
     base_options: dict | None = None,
-    parameter_iterations: int = 6,
-    surface_iterations: int = 4,
-    alpha: float = 0.5,
-    count_weight: float = 3.0,
-    min_cell_faces: float = 2.0,
-    switch_tightness: float = 0.1,
-    switch_min_angle_deg: float = 10.0,
-    min_switch_level: int = 2,
-    clean_min_angle_deg: float = 10.0,
-    clean_rounds: int = 20,
     progress: Callable[[str, float], None] | None = None,
 ) -> WrapResult:
     """Remesh a closed genus-0 mesh with subdivision connectivity by shrink wrapping.
@@ -345,8 +398,7 @@ def shrink_wrap(
     areas) the mean surface edge length at each neighbour, as in eq. 1. The count term makes
     the wrap follow the input's own sampling: scans and decimated models are finely
     triangulated at their creases, where a wrap with uniform surface density cuts corners
-    (nefertiti, level 5: RMS 0.076 % of the diagonal with area alone and the paper's switch
-    to edge lengths at the first empty cell, 0.048 % with the default weights). A vertex
+    (``benchmarks/wrap.py`` measures both). A vertex
     whose cells are all empty gets a tiny density (``tol.SHRINKWRAP_DENSITY_FLOOR``).
 
     Switching rule: after the parameter phase of level ``i >= min_switch_level``, if the 95th
@@ -362,51 +414,15 @@ def shrink_wrap(
     ----------
     mesh : Mesh
         Closed, connected genus-0 surface.
+    options : WrapOptions, optional
+        Default ``WrapOptions()``.
     levels : int
         Number of refinement levels ``m`` (default 5). InputError when the finest level
         would have more than `WRAP_MAX_FACES` faces.
-    base_faces : int
-        Face budget of the base mesh (default 100).
     smap, base : optional
         A sphere map / base mesh computed before (recomputed when omitted).
-    sphere_method : {"tutte", "voxel"}
-        Construction of the sphere map when ``smap`` is omitted (see :func:`sphere_map`).
-    sphere_max_aspect : float, optional
-        Aspect-ratio bound of the spherical triangles when ``smap`` is omitted
-        (``sphere_map(max_aspect=...)``; default ``None``: no bound).
-    sphere_stretch : int
-        Rounds of stretch-minimizing reweighting of the sphere map when ``smap`` is omitted
-        (``sphere_map(stretch_iterations=...)``; default 0). The default map squeezes
-        protrusions, and the wrap then misses their tips: bunny's wrap at level 5 misses
-        its ear tips by 5.3% of the bbox diagonal (RMS 0.45%); with 4 rounds by 1.4% (RMS
-        0.064%), spot's 0.85% -> 0.47%. Its triangles are less even: bunny's smallest angle
-        5.3 -> 0.2 degrees (1st percentile 15 -> 6.5), 27 triangles facing against the
-        input (3 without). Nefertiti's wrap is worse with it (1.23% against 0.75%).
     base_options : dict, optional
         Extra keyword arguments of :func:`base_mesh` (e.g. ``start_subdivisions=1``).
-    parameter_iterations, surface_iterations : int
-        Relaxation steps per level in each phase (defaults 6 and 4).
-    alpha : float
-        Damping factor of eq. 1, in (0, 1] (default 0.5).
-    count_weight : float
-        Each input triangle weighs its area plus this times the mean triangle area in the
-        density estimate (default 3; 0: surface area only, as in the paper).
-    min_cell_faces : float
-        Area densities while the input has at least this many triangles per cell of the
-        level (default 2), edge-length densities afterwards.
-    switch_tightness : float
-        Tightness threshold of the switching rule (default 0.1).
-    switch_min_angle_deg : float
-        Also switch when the parameter phase leaves a triangle with a smaller angle, degrees
-        (default 10): the surface metric then has to take over.
-    min_switch_level : int
-        No switch before this level (default 2).
-    clean_min_angle_deg, clean_rounds : float, int
-        After the surface phase of each level, the corners of triangles with an angle below
-        ``clean_min_angle_deg`` (default 10) take up to ``clean_rounds`` (default 20; 0: off)
-        uniform umbrella steps in their tangent planes, projected back onto the input and
-        flip-guarded; the configuration with the largest minimum angle is kept (spot,
-        level 5: minimum angle 0.5 -> 5.2 degrees, RMS unchanged).
     progress : callable(stage, fraction), optional
 
     Returns
@@ -417,6 +433,21 @@ def shrink_wrap(
     ----------
     .. [1] Kobbelt, Vorsatz, Labsik & Seidel 1999, sec. 4 (eq. 1), sec. 7.
     """
+    o = options if options is not None else WrapOptions()
+    base_faces = o.base_faces
+    sphere_method = o.sphere_method
+    sphere_max_aspect = o.sphere_max_aspect
+    sphere_stretch = o.sphere_stretch
+    parameter_iterations = o.parameter_iterations
+    surface_iterations = o.surface_iterations
+    alpha = o.alpha
+    count_weight = o.count_weight
+    min_cell_faces = o.min_cell_faces
+    switch_tightness = o.switch_tightness
+    switch_min_angle_deg = o.switch_min_angle_deg
+    min_switch_level = o.min_switch_level
+    clean_min_angle_deg = o.clean_min_angle_deg
+    clean_rounds = o.clean_rounds
     if levels < 0:
         raise errors.InputError(f"levels must be >= 0, got {levels}")
     _check_level_faces(min(n for _, n in STARTS.values()), levels, fewest=True)

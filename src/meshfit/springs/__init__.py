@@ -14,7 +14,7 @@ from meshfit.springs.metrics import (
     spring_metrics,
     worst_places,
 )
-from meshfit.springs.resample import SpringResult, resample_patch, resample_patches
+from meshfit.springs.resample import SpringOptions, SpringResult, resample_patch, resample_patches
 
 __all__ = [
     "ANCHOR",
@@ -23,6 +23,7 @@ __all__ = [
     "FREE",
     "QUALITY_BOUNDS",
     "SpringMesh",
+    "SpringOptions",
     "SpringResult",
     "grid_metrics",
     "grid_triangles",

@@ -70,7 +70,7 @@ def cmd_springs(args: argparse.Namespace) -> int:
     from meshfit.layout import extract_patches, load_layout
     from meshfit.layout.patch import shape_figures
     from meshfit.mesh import load_mesh
-    from meshfit.springs import resample_patch, spring_metrics
+    from meshfit.springs import SpringOptions, resample_patch, spring_metrics
     from meshfit.springs.metrics import out_of_bounds
 
     t0 = time.perf_counter()
@@ -86,12 +86,14 @@ def cmd_springs(args: argparse.Namespace) -> int:
         t = time.perf_counter()
         res = resample_patch(
             patch,
-            level=args.level,
-            rescue=args.rescue,
-            tolerance=args.tolerance,
-            follow_folds=args.follow_folds,
-            scale=mesh.bbox_diagonal,
-            metrics=False,
+            SpringOptions(
+                level=args.level,
+                rescue=args.rescue,
+                tolerance=args.tolerance,
+                follow_folds=args.follow_folds,
+                scale=mesh.bbox_diagonal,
+                metrics=False,
+            ),
         )
         seconds = time.perf_counter() - t
         met = spring_metrics(patch.mesh, res.final, scale=mesh.bbox_diagonal, places=True)

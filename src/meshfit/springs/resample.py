@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import inspect
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
@@ -51,13 +50,11 @@ FINAL_POLISH = 3
 POLISH_LINE_CV = 0.1
 POLISH_REACH = 2
 #: ... and is kept only if it brings every line's coefficient of variation within this (on
-#: a patch whose spacing the sweeps cannot even out, e.g. a pleat, they only cost fairness:
-#: nefertiti's test patch 45 goes from 0.51 to 0.48, and its stitched corners with 8 x 8
-#: controls from 1.4 to 3.5 degrees)
+#: a patch whose spacing the sweeps cannot even out, e.g. a pleat, they would only cost
+#: fairness, and the stitched corners of such a patch meet less well)
 POLISH_CV_GOAL = 0.15
-#: ... which a level with a line above this does not reach (the sweeps are not tried:
-#: nefertiti's test patches 4 and 45, at 1.58 and 0.51, spent most of that layout's
-#: final sweeps for nothing)
+#: ... which a level with a line above this does not reach (the sweeps are not tried: on
+#: such patches they spend time for nothing)
 POLISH_CV_HOPELESS = 0.3
 #: ``rescue`` of :func:`resample_patch`: a final spring mesh that misses a vertex of its patch
 #: by more than this many mean grid spacings is made again from the area-balanced map ...
@@ -69,19 +66,16 @@ RESCUE_GAIN = 0.5
 #: to this many levels finer (four times the points each), each finer grid kept when it misses
 #: by at most ``RESCUE_GAIN`` as much (as a distance) with no larger share of folded cells: a
 #: horn or an ear inside one patch needs more grid lines than the patch has vertices across
-#: it (spot's automatic layout, patches 31 and 34: 2.2 and 1.6 spacings missed, 0.78 and 0.77
-#: two levels finer) ...
+#: it ...
 RESCUE_LEVELS = 2
 #: ... while the grid has at most this many points per vertex of its patch ...
 RESCUE_DENSITY = 16.0
-#: ... and at most this many points (time and memory: igea's test patch 4, 10,410 vertices,
-#: takes 0.95 s one level finer, 257 x 289 points, against 0.1 s)
+#: ... and at most this many points (each finer level costs about four times the time and
+#: memory of the last)
 RESCUE_MAX_POINTS = 250_000
 #: rows-then-columns passes of the rescue's evening of the final level
-#: (`even_lines_in_map`): after one pass nefertiti's test patch 4 is rescued in 8 of 10 runs
-#: on its mesh moved by 1e-13 of the bbox diagonal (the other two keep a folded cell next to
-#: the base, the remake is dropped and the grid misses by 1.8%); after two, in 10 of 10,
-#: missed by 0.22% (0.29% after one; 0.30% after three)
+#: (`even_lines_in_map`): one pass can leave a folded cell that a round-off perturbation of
+#: the mesh decides, so the result is not stable; two passes are (a third changes little)
 EVEN_ROUNDS = 2
 
 
@@ -314,7 +308,7 @@ REPAIR_PASSES = 3
 
 #: most points of a grid at a level asked for (``level`` without ``max_points``): 2,000 x
 #: 2,000; each level has four times the points of the last, and a level well past the
-#: vertex count exhausts the memory (spot's test patches at level 9: 19 to 25 million points)
+#: vertex count exhausts the memory (tens of millions of points a few levels past it)
 LEVEL_MAX_POINTS = 4_000_000
 
 
@@ -548,34 +542,201 @@ def _polish(
     return ok, (after if ok else before)[0]
 
 
+@dataclass(frozen=True)
+class SpringOptions:
+    """Options of :func:`resample_patch` (all have defaults; frozen, so one value can be
+    shared by every patch and sent to other processes).
+
+    Attributes
+    ----------
+    level : int, optional
+        Final level to reach; default from the vertex-count rule. A level whose grid would
+        have more than `LEVEL_MAX_POINTS` points raises InputError (unless ``max_points``
+        is given).
+    max_points : int, optional
+        Upper bound on the final grid's point count: the final level is lowered to meet it.
+    sections_u, sections_v : sequence of int, optional
+        Level-0 intervals of each section between u (v) feature curves, one more entry than
+        there are u (v) feature curves; default in proportion to the sections' lengths.
+    init_intervals : int
+        Level-0 intervals along the shorter direction (default 8: on coarser grids the
+        Euclidean springs pull iso-curves tight across bumps and hollows, which finer levels
+        cannot undo).
+    fairness : float
+        Final weight of the fairness force, in [0, 1]; the arc-length force gets
+        ``1 - fairness`` (default 0.5).
+    max_iter : int
+        Relaxation sweeps allowed per level (default 10: new points start near their places;
+        level 0 gets five times as many, over-relaxed).
+    ramp : int
+        Sweeps of level 0 over which the fairness weight grows from 0 (default 8); later
+        levels start from points already in place and use the final weights.
+    omega : float
+        Over-relaxation factor of the Gauss-Seidel sweeps, in (0, 2) (default 1; level 0
+        uses 1.7 times it).
+    n_fair : int
+        Local fairness moves after each FindMidPoint guess (default 2).
+    forces : {"tangent", "euclidean"}
+        Spring vectors between neighbours: turned into the moving point's tangent plane
+        keeping their length (default; a first-order stand-in for the geodesic forces of
+        sec. 5.5.3, which keeps grid lines from being pulled across bulges), or Euclidean
+        (sec. 5.5).
+    init : {"map", "dijkstra"}
+        Level-0 points: the planar map's images of the regular parameter grid (default; a
+        patch with feature curves in both directions falls back to "dijkstra", whose anchors
+        are the curves' intersections), or the crossings of Dijkstra iso-curves (sec. 5.4),
+        relaxed with the arc-length force first.
+    midpoints : {"map", "findmid"}
+        New points of a subdivision: the planar map's image of the mean parameter of their
+        neighbours (default), or FindMidPoint (sec. 5.6).
+    side_spacing : {"chord", "arc"}
+        Static resampling of the sides: equal chords within each section while the grid
+        spacing is at least `meshfit.springs.state.CHORD_MIN_EDGES` side edges, equal arc
+        lengths on finer levels (default "chord": where a side bends, equal arc lengths give
+        uneven boundary iso-curves and sheared cells next to the side; on finer levels equal
+        chords would follow the zigzag of the side's edges and cut its corners), or equal
+        arc lengths on every level ("arc", sec. 5.6).
+    guard : bool
+        Halve (up to three times) or drop a relaxation move that would fold more triangles
+        of the moving point's four cells than before (default True).
+    follow_folds : bool
+        A spring vector from a point to a neighbour across a fold of the surface (their
+        faces' normals more than 90 degrees apart, the other neighbour on the grid line not
+        across) points along the grid line, away from that other neighbour, keeping its
+        length, instead of the chord turned into the point's tangent plane (default False).
+        Across a curled rim (an ear, a horn, a pleat) the turned chord can point anywhere,
+        often back along the line, and the grid lines stop at the rim: the grid then misses
+        what lies beyond it; following the line lets the grid cross the rim. Patches whose
+        grids cross no such fold are unchanged. Not the default: elsewhere it can stretch
+        cells or loosen the arc-length spacing slightly, and with ``rescue`` on (as the
+        fit has it) the patches it helps are mostly those the rescue already handles.
+    fairness_fallback : bool
+        When level 0 breaks one of the arc-length, aspect-ratio or fold bounds of
+        :data:`meshfit.springs.QUALITY_BOUNDS`, make it again with the arc-length force alone
+        (fairness 0), then (without ``sections_u`` / ``sections_v``) with the intervals of the
+        longer direction scaled so the cells are square on average, with ``fairness`` and
+        with 0, until one breaks no bound. The remake breaking the fewest bounds is compared
+        with the first level 0 once more on level 1 (bounds broken there first, then on
+        level 0) and replaces it if it does better; the kept one is resampled to the final
+        level (default True; ``fairness`` and ``remade`` of the result tell what was used).
+        A patch that misses part of its surface (``rescue``) is rescued from the grid made
+        without remakes. On tapered patches the fairness force bunches the grid lines toward
+        the narrow side, which the arc-length-only remakes avoid; levels 0 and 1 are small,
+        so the tries cost little. A final level above 0 that still breaks a bound is
+        relaxed once more from its subdivided points with the arc-length force alone, and
+        that relaxation is kept when it breaks fewer bounds or, as many, leaves a lower
+        largest arc-length coefficient of variation (``final_arc`` of the result): where
+        the grid steps over a pleat or a bulge the fairness force holds the grid lines
+        apart across it. It costs a second relaxation of those final levels.
+    untangle_rounds : int
+        After each subdivision and each level's relaxation, rounds of fairness-only sweeps
+        around folded cells (default 3; 0 turns it off).
+    polish : int
+        Sweeps of the arc-length force alone (guarded) after the relaxation of level 0
+        (``polish`` times `COARSE_SWEEPS`) and of level 1 (``2 * polish``) when they are not
+        the final level, and of the final level above 0 when a grid line's spacing has a
+        coefficient of variation above ``POLISH_CV_GOAL`` (0.15) and none above
+        ``POLISH_CV_HOPELESS`` (0.3) (``FINAL_POLISH * polish``, moving only the grid lines
+        whose coefficient exceeds ``POLISH_LINE_CV`` (0.1) and the points within
+        ``POLISH_REACH`` (2) lines of them);
+        each stops once the moves fall below `meshfit.tol.SPRING_POLISHED` (default
+        ``POLISH_SWEEPS`` = 10; 0: none). The final sweeps are kept only if they bring
+        every line within ``POLISH_CV_GOAL`` (0.15). The fairness force's equilibrium
+        spaces grid lines unevenly on curved patches; the coarse sweeps even the spacing out
+        before subdivision, the final ones where the new points of the last subdivision
+        left it uneven. A polished level is kept only where no more of its cells fold and
+        its median cell aspect ratio stays within ``POLISH_ASPECT`` (1.4) or does not grow:
+        on bulging and near-triangular patches the even spacing stretches the cells. Thanks
+        to the early stop, the polish costs little where the spacing is already even.
+    repair : bool
+        After each subdivision and each level's relaxation, re-place the free points around
+        folded cells harmonically in the planar map (`meshfit.springs.relax.unfold_in_map`,
+        when there is a map), then move the free corners of cells still folded to fold-free
+        places nearby (`meshfit.springs.relax.repair_folds`), then slide the side points of
+        cells still folded along their sides and move the free corners again
+        (`meshfit.springs.relax.slide_side_points`), and slide apart side points that
+        nearly coincide with a neighbour where a side steps back
+        (`meshfit.springs.relax.unpinch_side_points`; default True).
+    rescue : bool
+        Where a vertex of the patch lies more than ``RESCUE_SPACINGS`` (1) mean grid
+        spacings from the final spring mesh, make the spring mesh again from the
+        area-balanced map (:func:`meshfit.springs.planar.square_map` with ``balanced``)
+        with the arc-length force alone, one sweep per level (five on level 0), and keep it
+        when it misses by at most ``RESCUE_GAIN`` (half) as much and folds no more cells
+        (with ``init`` and ``midpoints`` "map"; default False: the relaxation of the
+        thesis; :func:`meshfit.fit` turns it on). A pleat or a bulge squeezed
+        into a sliver of the square gets almost no grid points, and the full relaxation
+        pulls grid lines away from it. The price: a rescued grid is less fair, and stitched
+        fits with few controls meet less well at its corners. Without ``level``, a kept
+        grid that still misses by more than ``RESCUE_SPACINGS`` is made the same way up to
+        ``RESCUE_LEVELS`` (2) levels finer (at most ``RESCUE_DENSITY`` (16) points per
+        patch vertex and ``RESCUE_MAX_POINTS`` in all); a finer grid is kept when it misses
+        by at most ``RESCUE_GAIN`` as much, as a distance, with no larger share of folded
+        cells (``finer`` of the result): a horn or an ear inside one patch needs more grid
+        lines than the patch has vertices across it. Where neither a remake nor a finer
+        grid is kept, the relaxed grid's final level has its grid lines evened out along
+        their paths in the planar map (:func:`meshfit.springs.relax.even_lines_in_map`,
+        ``EVEN_ROUNDS`` (2) passes, folds repaired), kept by the same rule (``evened`` of
+        the result; the coarser levels and the fairness stay): a bulge that the map
+        squeezes into a corner of the square folds the remakes' cells and is missed as
+        much by finer grids.
+    tolerance : float, optional
+        Largest two-sided distance wanted between the final grid's triangulation and the
+        patch, as a fraction of ``scale`` (the ``fidelity_max`` of
+        :func:`meshfit.springs.grid_metrics`): while the final level misses it, the patch
+        is resampled one level finer, up to ``TOLERANCE_LEVELS`` (3) levels beyond the
+        vertex-count rule, ``RESCUE_DENSITY`` (16) points per patch vertex,
+        ``RESCUE_MAX_POINTS`` and ``max_points`` (``finer`` and ``distance`` of the result
+        tell how far it went); a finer grid with a larger share of folded cells is not
+        kept, and ends the refinement. Each finer try relaxes every level again (the
+        coarser levels come out the same). Not with ``level`` or ``rescue``. At the
+        vertex-count level a grid of a scan misses by about as much as the scan's detail
+        between two grid points; a tolerance below that takes a level or two more.
+    metrics, fidelity : bool
+        Compute :func:`meshfit.springs.grid_metrics` of every level (with the fidelity
+        distances).
+    scale : float, optional
+        Length the fidelity distances are divided by (e.g. the whole model's bounding-box
+        diagonal); default the patch mesh's.
+    """
+
+    level: int | None = None
+    max_points: int | None = None
+    sections_u: tuple[int, ...] | None = None
+    sections_v: tuple[int, ...] | None = None
+    init_intervals: int = 8
+    fairness: float = 0.5
+    max_iter: int = 10
+    ramp: int = 8
+    omega: float = 1.0
+    n_fair: int = 2
+    untangle_rounds: int = 3
+    repair: bool = True
+    polish: int = POLISH_SWEEPS
+    forces: str = "tangent"
+    init: str = "map"
+    midpoints: str = "map"
+    side_spacing: str = "chord"
+    guard: bool = True
+    follow_folds: bool = False
+    fairness_fallback: bool = True
+    rescue: bool = False
+    tolerance: float | None = None
+    metrics: bool = True
+    fidelity: bool = True
+    scale: float | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("sections_u", "sections_v"):
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, tuple(int(x) for x in value))
+
+
 def resample_patch(
     patch,
+    options: SpringOptions | None = None,
     *,
-    level: int | None = None,
-    max_points: int | None = None,
-    sections_u: Sequence[int] | None = None,
-    sections_v: Sequence[int] | None = None,
-    init_intervals: int = 8,
-    fairness: float = 0.5,
-    max_iter: int = 10,
-    ramp: int = 8,
-    omega: float = 1.0,
-    n_fair: int = 2,
-    untangle_rounds: int = 3,
-    repair: bool = True,
-    polish: int = POLISH_SWEEPS,
-    forces: str = "tangent",
-    init: str = "map",
-    midpoints: str = "map",
-    side_spacing: str = "chord",
-    guard: bool = True,
-    follow_folds: bool = False,
-    fairness_fallback: bool = True,
-    rescue: bool = False,
-    tolerance: float | None = None,
-    metrics: bool = True,
-    fidelity: bool = True,
-    scale: float | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> SpringResult:
     """Resample a four-sided patch into a spring mesh, coarse to fine.
@@ -595,187 +756,9 @@ def resample_patch(
     ----------
     patch : meshfit.layout.Patch
         A four-sided disk patch; its feature curves become iso-curves of the spring mesh.
-    level : int, keyword-only, optional
-        Final level to reach; default from the vertex-count rule. A level whose grid would
-        have more than `LEVEL_MAX_POINTS` points raises InputError (unless ``max_points``
-        is given).
-    max_points : int, keyword-only, optional
-        Upper bound on the final grid's point count: the final level is lowered to meet it.
-    sections_u, sections_v : sequence of int, keyword-only, optional
-        Level-0 intervals of each section between u (v) feature curves, one more entry than
-        there are u (v) feature curves; default in proportion to the sections' lengths.
-    init_intervals : int, keyword-only
-        Level-0 intervals along the shorter direction (default 8: on coarser grids the
-        Euclidean springs pull iso-curves tight across bumps and hollows, which finer levels
-        cannot undo).
-    fairness : float, keyword-only
-        Final weight of the fairness force, in [0, 1]; the arc-length force gets
-        ``1 - fairness`` (default 0.5).
-    max_iter : int, keyword-only
-        Relaxation sweeps allowed per level (default 10: new points start near their places;
-        level 0 gets five times as many, over-relaxed).
-    ramp : int, keyword-only
-        Sweeps of level 0 over which the fairness weight grows from 0 (default 8); later
-        levels start from points already in place and use the final weights.
-    omega : float, keyword-only
-        Over-relaxation factor of the Gauss-Seidel sweeps, in (0, 2) (default 1; level 0
-        uses 1.7 times it).
-    n_fair : int, keyword-only
-        Local fairness moves after each FindMidPoint guess (default 2).
-    forces : {"tangent", "euclidean"}, keyword-only
-        Spring vectors between neighbours: turned into the moving point's tangent plane
-        keeping their length (default; a first-order stand-in for the geodesic forces of
-        sec. 5.5.3, which keeps grid lines from being pulled across bulges: on the
-        nefertiti layout it cuts the worst fidelity from 24% to 4%), or Euclidean (sec. 5.5).
-    init : {"map", "dijkstra"}, keyword-only
-        Level-0 points: the planar map's images of the regular parameter grid (default; a
-        patch with feature curves in both directions falls back to "dijkstra", whose anchors
-        are the curves' intersections), or the crossings of Dijkstra iso-curves (sec. 5.4),
-        relaxed with the arc-length force first.
-    midpoints : {"map", "findmid"}, keyword-only
-        New points of a subdivision: the planar map's image of the mean parameter of their
-        neighbours (default), or FindMidPoint (sec. 5.6).
-    side_spacing : {"chord", "arc"}, keyword-only
-        Static resampling of the sides: equal chords within each section while the grid
-        spacing is at least `meshfit.springs.state.CHORD_MIN_EDGES` side edges, equal arc
-        lengths on finer levels (default "chord": where a side bends, equal arc lengths give
-        uneven boundary iso-curves and sheared cells next to the side; on finer levels equal
-        chords would follow the zigzag of the side's edges and cut its corners), or equal
-        arc lengths on every level ("arc", sec. 5.6).
-    guard : bool, keyword-only
-        Halve (up to three times) or drop a relaxation move that would fold more triangles
-        of the moving point's four cells than before (default True).
-    follow_folds : bool, keyword-only
-        A spring vector from a point to a neighbour across a fold of the surface (their
-        faces' normals more than 90 degrees apart, the other neighbour on the grid line not
-        across) points along the grid line, away from that other neighbour, keeping its
-        length, instead of the chord turned into the point's tangent plane (default False).
-        Across a curled rim (an ear, a horn, a pleat) the turned chord can point anywhere,
-        often back along the line, and the grid lines stop at the rim: the grid then misses
-        what lies beyond it. On the test layouts it cuts the worst two-sided distance to the
-        patch from 1.48% to 0.62% of the bbox diagonal (nefertiti_bust's ear, patch 42),
-        1.80% to 1.18% (nefertiti's patch 4), 1.13% to 0.25% (nefertiti's ear, patch 45),
-        3.54% to 1.23% and 2.58% to 1.21% (spot's patches 1 and 3, a horn and an ear each),
-        and their largest arc-length coefficients of variation from 0.34 to 0.26, 1.55 to
-        1.14, 0.50 to 0.24, 0.49 to 0.37 and 0.40 to 0.25. Patches whose grids cross no
-        such fold are unchanged (18 of spot's 24); on others the coefficient can rise
-        within the bound (spot's patch 10: 0.065 -> 0.136). Not the default: three patches
-        then pass a quality bound they met
-        (nefertiti's patch 4, median cell aspect ratio 1.47 -> 1.54; its patch 36, arc
-        length 0.149 -> 0.154; spot's patch 4, median aspect ratio 1.50 -> 1.51), and the
-        rescue of nefertiti's patch 4 no longer needs its evening pass.
-    fairness_fallback : bool, keyword-only
-        When level 0 breaks one of the arc-length, aspect-ratio or fold bounds of
-        :data:`meshfit.springs.QUALITY_BOUNDS`, make it again with the arc-length force alone
-        (fairness 0), then (without ``sections_u`` / ``sections_v``) with the intervals of the
-        longer direction scaled so the cells are square on average, with ``fairness`` and
-        with 0, until one breaks no bound. The remake breaking the fewest bounds is compared
-        with the first level 0 once more on level 1 (bounds broken there first, then on
-        level 0) and replaces it if it does better; the kept one is resampled to the final
-        level (default True; ``fairness`` and ``remade`` of the result tell what was used).
-        A patch that misses part of its surface (``rescue``) is rescued from the grid made
-        without remakes. On tapered patches the fairness force bunches the grid lines toward
-        the narrow side: on spot's test layout the patches over an arc-length CV of 0.15 go
-        from 4 to 2 of 24 and those over a median aspect ratio of 1.5 from 4 to 2; no patch
-        of the igea and nefertiti test layouts changes. Levels 0 and 1 are small: the tries
-        cost little. A final level above 0 that still breaks a bound is relaxed once more
-        from its subdivided points with the arc-length force alone, and that relaxation is
-        kept when it breaks fewer bounds or, as many, leaves a lower largest arc-length
-        coefficient of variation (``final_arc`` of the result). Where the grid steps over a
-        pleat or a bulge the fairness force holds the grid lines apart across it: on the
-        test layouts this keeps the last level of 6 of 150 patches, brings nefertiti's
-        patch 36 within the arc-length bound (0.29 -> 0.15) and cuts the largest distance
-        to the patch on spot's patches 1 and 3 (5.6% -> 3.5% and 5.5% -> 2.6% of the bbox
-        diagonal) and nefertiti's patch 4 (2.9% -> 1.8%); no patch breaks a bound it met.
-        It costs a second relaxation of those final levels.
-    untangle_rounds : int, keyword-only
-        After each subdivision and each level's relaxation, rounds of fairness-only sweeps
-        around folded cells (default 3; 0 turns it off).
-    polish : int, keyword-only
-        Sweeps of the arc-length force alone (guarded) after the relaxation of level 0
-        (``polish`` times `COARSE_SWEEPS`) and of level 1 (``2 * polish``) when they are not
-        the final level, and of the final level above 0 when a grid line's spacing has a
-        coefficient of variation above ``POLISH_CV_GOAL`` (0.15) and none above
-        ``POLISH_CV_HOPELESS`` (0.3) (``FINAL_POLISH * polish``, moving only the grid lines
-        whose coefficient exceeds ``POLISH_LINE_CV`` (0.1) and the points within
-        ``POLISH_REACH`` (2) lines of them);
-        each stops once the moves fall below `meshfit.tol.SPRING_POLISHED` (default
-        ``POLISH_SWEEPS`` = 10; 0: none). The final sweeps are kept only if they bring
-        every line within ``POLISH_CV_GOAL`` (0.15). The fairness force's equilibrium
-        spaces grid lines unevenly on curved patches; the coarse sweeps even the spacing out
-        before subdivision, the final ones where the new points of the last subdivision
-        left it uneven. A polished level is kept only where no more of its cells fold and
-        its median cell aspect ratio stays within ``POLISH_ASPECT`` (1.4) or does not grow:
-        on bulging and near-triangular patches the even spacing stretches the cells
-        (polished regardless, nefertiti's and spot's test layouts reach median aspect ratios
-        of 1.71 and 1.87). On the test layouts the patches with an arc-length CV above 0.15
-        go from 5 to 0 of 24 (igea), 11 to 4 of 54 (nefertiti) and 10 to 4 of 24 (spot); no
-        more cells fold and no more patches exceed an aspect ratio of 1.5. The spring meshes
-        of igea's test layout take about as long as without any polish (the early stop).
-    repair : bool, keyword-only
-        After each subdivision and each level's relaxation, re-place the free points around
-        folded cells harmonically in the planar map (`meshfit.springs.relax.unfold_in_map`,
-        when there is a map), then move the free corners of cells still folded to fold-free
-        places nearby (`meshfit.springs.relax.repair_folds`), then slide the side points of
-        cells still folded along their sides and move the free corners again
-        (`meshfit.springs.relax.slide_side_points`), and slide apart side points that
-        nearly coincide with a neighbour where a side steps back
-        (`meshfit.springs.relax.unpinch_side_points`; default True).
-    rescue : bool, keyword-only
-        Where a vertex of the patch lies more than ``RESCUE_SPACINGS`` (1) mean grid
-        spacings from the final spring mesh, make the spring mesh again from the
-        area-balanced map (:func:`meshfit.springs.planar.square_map` with ``balanced``)
-        with the arc-length force alone, one sweep per level (five on level 0), and keep it
-        when it misses by at most ``RESCUE_GAIN`` (half) as much and folds no more cells
-        (with ``init`` and ``midpoints`` "map"; default False: the relaxation of the
-        thesis; :func:`meshfit.fit` turns it on). A pleat or a bulge squeezed
-        into a sliver of the square gets almost no grid points, and the full relaxation
-        pulls grid lines away from it: on nefertiti's automatic layout a pleat at the ear
-        (patch 24) is missed by 1.46% of the bbox diagonal, by 0.33% once rescued; on
-        spot's test layout the near-triangular patches 1 and 3 go from 3.5% and 2.6% to
-        0.6%. The price: a rescued grid is less fair (arc-length CV 0.41-0.51 on those
-        patches, median aspect ratio up to 2.26), and stitched fits with few controls meet
-        less well at its corners (nefertiti's test layout with 8 x 8 controls, patches 20
-        and 45 rescued: largest corner-zone normal jump 1.25 -> 2.65 degrees). Without
-        ``level``, a kept
-        grid that still misses by more than ``RESCUE_SPACINGS`` is made the same way up to
-        ``RESCUE_LEVELS`` (2) levels finer (at most ``RESCUE_DENSITY`` (16) points per
-        patch vertex and ``RESCUE_MAX_POINTS`` in all); a finer grid is kept when it misses
-        by at most ``RESCUE_GAIN`` as much, as a distance, with no larger share of folded
-        cells (``finer`` of the result). A horn or an ear inside one patch needs more grid
-        lines than the patch has vertices across it: spot's automatic layout has them in
-        patches 31 and 34, whose grids are kept two levels finer, and its displaced fit
-        goes from 2.5% to 0.45% of the bbox diagonal (Hausdorff distance). Where neither a
-        remake nor a finer grid is kept, the relaxed grid's final level has its grid lines
-        evened out along their paths in the planar map
-        (:func:`meshfit.springs.relax.even_lines_in_map`, ``EVEN_ROUNDS`` (2) passes,
-        folds repaired), kept by the same
-        rule (``evened`` of the result; the coarser levels and the fairness stay). A bulge
-        that the map squeezes into a corner of the square folds the remakes' cells and is
-        missed as much by finer grids: nefertiti's test patch 4 (neck, shoulders and base)
-        is missed by 1.8% of the bbox diagonal, by 0.22% evened, with no folded cell (its
-        median cell aspect ratio goes from 1.47 to 1.73), and the displaced fit of that
-        layout from 1.8% to 0.35% (Hausdorff distance).
-    tolerance : float, keyword-only, optional
-        Largest two-sided distance wanted between the final grid's triangulation and the
-        patch, as a fraction of ``scale`` (the ``fidelity_max`` of
-        :func:`meshfit.springs.grid_metrics`): while the final level misses it, the patch
-        is resampled one level finer, up to ``TOLERANCE_LEVELS`` (3) levels beyond the
-        vertex-count rule, ``RESCUE_DENSITY`` (16) points per patch vertex,
-        ``RESCUE_MAX_POINTS`` and ``max_points`` (``finer`` and ``distance`` of the result
-        tell how far it went); a finer grid with a larger share of folded cells is not
-        kept, and ends the refinement. Each finer try relaxes every level again (the
-        coarser levels come out the same). Not with ``level`` or ``rescue``. At the
-        vertex-count level a grid of a scan misses by about as much as the scan's detail
-        between two grid points: on igea's test layout the median patch misses by 0.087%
-        of the bbox diagonal; asked for 0.05%, 21 of its 24 patches reach it one or two
-        levels finer.
-    metrics, fidelity : bool, keyword-only
-        Compute :func:`meshfit.springs.grid_metrics` of every level (with the fidelity
-        distances).
-    scale : float, keyword-only, optional
-        Length the fidelity distances are divided by (e.g. the whole model's bounding-box
-        diagonal); default the patch mesh's.
+    options : SpringOptions, optional
+        Default ``SpringOptions()``: the level from the vertex-count rule, the relaxation
+        of the thesis with this module's guards and remakes.
     progress : callable(done, total), keyword-only, optional
         Called after each level (with a ``tolerance``, again from the first level for each
         finer try, ``total`` counting its levels).
@@ -797,6 +780,34 @@ def resample_patch(
     .. [1] Krishnamurthy, "Fitting Smooth Surfaces to Dense Polygon Meshes", PhD thesis,
        Stanford 2000, sec. 5.3-5.8 (spring mesh), sec. 5.10-5.11 (feature curves).
     """
+    o = options if options is not None else SpringOptions()
+    if not isinstance(o, SpringOptions):
+        raise InputError(f"options must be SpringOptions, got {type(o).__name__}")
+    level = o.level
+    max_points = o.max_points
+    sections_u = o.sections_u
+    sections_v = o.sections_v
+    init_intervals = o.init_intervals
+    fairness = o.fairness
+    max_iter = o.max_iter
+    ramp = o.ramp
+    omega = o.omega
+    n_fair = o.n_fair
+    untangle_rounds = o.untangle_rounds
+    repair = o.repair
+    polish = o.polish
+    forces = o.forces
+    init = o.init
+    midpoints = o.midpoints
+    side_spacing = o.side_spacing
+    guard = o.guard
+    follow_folds = o.follow_folds
+    fairness_fallback = o.fairness_fallback
+    rescue = o.rescue
+    tolerance = o.tolerance
+    metrics = o.metrics
+    fidelity = o.fidelity
+    scale = o.scale
     if not 0.0 <= fairness <= 1.0:
         raise InputError(f"fairness must be in [0, 1], got {fairness}")
     if forces not in ("tangent", "euclidean"):
@@ -1046,8 +1057,8 @@ def resample_patch(
         if kept is res:
             # neither remake nor a finer grid kept (they fold cells, or miss as much): the
             # same grid with its final level's lines evened out along their paths in the map
-            # (the coarser levels and the fairness kept; evened after the fallback's
-            # arc-length retry, nefertiti's patch 4 keeps a folded cell, without it none)
+            # (the coarser levels and the fairness kept; evened from the grid without the
+            # fallback's arc-length retry, which can leave a folded cell the evening keeps)
             kept, miss = _rescued(
                 mesh,
                 res,
@@ -1060,17 +1071,15 @@ def resample_patch(
 
 def resample_patches(
     patches: Sequence,
+    options: SpringOptions | None = None,
     *,
     workers: int | None = None,
     progress: Callable[[int, int], None] | None = None,
-    **options,
 ) -> list[SpringResult]:
     """:func:`resample_patch` of every patch of a layout, on threads; results in order.
 
     The relaxation, subdivision and planar-map kernels release the GIL, so the patches of
-    a layout resample in parallel: on a 2-core machine nefertiti's test layout (54 patches)
-    takes 0.34 s on one thread and 0.24 s on two (``benchmarks/springs.py``, medians of
-    5; 0.40 s and 0.25 s on another run: the machines are shared). Each patch's grid
+    a layout resample in parallel (``benchmarks/springs.py`` measures it). Each patch's grid
     is the same whatever the number of workers (a patch is resampled by one thread, from
     its own mesh).
 
@@ -1082,9 +1091,8 @@ def resample_patches(
         Threads (default: every core); 1 resamples the patches one after the other.
     progress : callable(done, total), keyword-only, optional
         Called after each patch, in the calling thread.
-    **options
-        Keyword options of :func:`resample_patch` for every patch (its per-level
-        ``progress`` is not accepted here).
+    options : SpringOptions, optional
+        The options of every patch (default ``SpringOptions()``).
 
     Returns
     -------
@@ -1094,9 +1102,8 @@ def resample_patches(
     Raises
     ------
     meshfit.errors.InputError
-        ``workers`` is not an integer >= 1, an option is not one of
-        :func:`resample_patch`'s, or an option value is bad (raised from the patch that met
-        it; the patches not yet started are dropped).
+        ``workers`` is not an integer >= 1, or an option value is bad (raised from the patch
+        that met it; the patches not yet started are dropped).
 
     References
     ----------
@@ -1104,19 +1111,12 @@ def resample_patches(
        (the spring meshes of a whole model's patches).
     """
     count = n_workers(workers)
-    unknown = sorted(set(options) - _PATCH_OPTIONS)
-    if unknown:
-        raise InputError(f"unknown option(s) of resample_patch: {', '.join(unknown)}")
     patches = list(patches)
     # larger patches first, so the last one to start is small
     cost = [float(p.mesh.n_vertices) for p in patches]
     return map_threads(
-        lambda p: resample_patch(p, **options), patches, count, cost=cost, progress=progress
+        lambda p: resample_patch(p, options), patches, count, cost=cost, progress=progress
     )
-
-
-#: the options `resample_patches` passes on to `resample_patch`
-_PATCH_OPTIONS = frozenset(inspect.signature(resample_patch).parameters) - {"patch", "progress"}
 
 
 def _rescued(

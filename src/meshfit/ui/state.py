@@ -885,7 +885,7 @@ class Session:
         -------
         meshfit.springs.SpringMesh
         """
-        from meshfit.springs import resample_patch
+        from meshfit.springs import SpringOptions, resample_patch
         from meshfit.springs.preview import PREVIEW_MIN_VERTICES, coarse_level0
 
         key = ("springs", int(patch), int(level))
@@ -895,7 +895,7 @@ class Session:
             if int(level) == 0 and p.mesh.n_vertices > PREVIEW_MIN_VERTICES:
                 grid = coarse_level0(p)
             if grid is None:
-                grid = resample_patch(p, level=int(level), metrics=False).final
+                grid = resample_patch(p, SpringOptions(level=int(level), metrics=False)).final
             self._cache[key] = grid
             self._cache[("grid", int(patch))] = grid
         return self._cache[key]
