@@ -164,7 +164,7 @@ def run_demo(
     """
     from rich.console import Console
 
-    from meshfit.fit_cli import stage_progress
+    from meshfit._progress import stage_progress
     from meshfit.layout.auto import auto_layout
     from meshfit.mesh import save_mesh
     from meshfit.mesh.measures import mesh_statistics

@@ -595,7 +595,7 @@ def _to_single(loaded, path: Path, notes: list[str]):
     return loaded
 
 
-def read_mesh_arrays(path: str | os.PathLike) -> RawMesh:
+def read_mesh_arrays(path: str | os.PathLike) -> RawMesh:  # noqa: C901 (one branch per format)
     """Read a mesh file into arrays without validating it.
 
     Parameters

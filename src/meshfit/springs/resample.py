@@ -733,7 +733,7 @@ class SpringOptions:
                 object.__setattr__(self, name, tuple(int(x) for x in value))
 
 
-def resample_patch(
+def resample_patch(  # noqa: C901 (the level loop and its remakes share their state; to split)
     patch,
     options: SpringOptions | None = None,
     *,
@@ -865,7 +865,7 @@ def resample_patch(
                 _repair(state, pmap, left)
             unpinch_side_points(state)
 
-    def run(
+    def run(  # noqa: C901 (one relaxation schedule per level; split with resample_patch)
         balanced: bool,
         fairness: float,
         max_iter: int,

@@ -296,7 +296,7 @@ def _flatten_row2(P, c0, normal, row2: list[tuple[int, ...]]) -> None:
             P[ix] += off
 
 
-def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exact: bool):
+def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exact: bool):  # noqa: C901 (one corner's constraint system, built in order; to split)
     """G1 at one network corner of valence >= 3 (or a border corner of valence >= 3), in
     place on the flat control array ``P``; returns whether it was applied.
 
