@@ -17,7 +17,7 @@ from meshfit.errors import InputError
 from meshfit.pipeline import FitOptions, FitResult, load_fit
 from meshfit.pipeline.outputs import edited_maps, read_manifest
 
-from .conftest import ROOT, real_mesh
+from .conftest import ROOT, mesh_path, real_mesh
 
 LAYOUT = ROOT / "examples" / "layouts" / "spot.json"
 OPTIONS = FitOptions(controls=(6, 6), spring_level=1, formats=("exr",), report=False)
@@ -30,7 +30,7 @@ def spot(tmp_path_factory):
     mesh = real_mesh("spot")
     memory = meshfit.fit(mesh, LAYOUT, options=OPTIONS)
     out = tmp_path_factory.mktemp("spot_fit")
-    mesh_file = ROOT.parent / "shared" / "data" / "meshes" / "spot.ply"
+    mesh_file = mesh_path("spot")
     argv = ["fit", str(mesh_file), "--layout", str(LAYOUT), "--out", str(out), "--cv", "6x6"]
     argv += ["--level", "1", "--formats", "exr", "--no-report", "--json"]
     assert main(argv) == 0
