@@ -3,9 +3,9 @@
 A fit of a dense scan makes and drops many arrays of tens of megabytes. With glibc's
 defaults each of them is a fresh ``mmap`` whose pages fault in one by one and go back to the
 system when freed, so the next array of that size faults again. The command keeps such
-arrays on the heap and the freed pages in the process instead (igea refined to 1.07M
-faces: about 20% fewer page faults and a whole fit 0.3-0.6 s faster, peak memory the same;
-see ``benchmarks/pipeline.py``). Library callers keep their process's settings: only
+arrays on the heap and the freed pages in the process instead: fewer page faults and a
+somewhat faster fit of a dense scan, at the same peak memory (see
+``benchmarks/pipeline.py``). Library callers keep their process's settings: only
 :func:`meshfit.cli.main` and the benchmark that stands for it call :func:`tune_malloc`.
 """
 

@@ -44,8 +44,8 @@ def model_view(vertices: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
     Up is +y (the convention of PLY, OBJ and glTF), or +z where the model is more than
     ``Z_UP_RATIO`` times taller along z than along y. The camera looks along the horizontal
     axis of least spread, turned slightly towards the other one (a slightly oblique view
-    shows relief better than a straight one): spot, bunny and igea are seen upright from the
-    side, nefertiti's bust in profile.
+    shows relief better than a straight one): a scanned figure or head is seen upright from
+    its broader side, a bust in profile.
 
     Parameters
     ----------

@@ -45,7 +45,7 @@ def grid_xyz(V, F, face, bary):
 
 
 # the per-point helpers of `relax_sweeps` are inlined into it (calls with array arguments
-# cost about a tenth of the sweeps on igea's largest test patch; same grids bit for bit)
+# cost a noticeable share of the sweeps on a large patch; same grids bit for bit)
 @njit(cache=True, nogil=True, fastmath=False, inline="always")
 def walk_inside(V, F, FN, f, b, u, total, max_faces, bary_eps, tries, b0, u0):
     """Walk face point (f, b) by ``total`` along unit in-plane ``u``, never onto the boundary.

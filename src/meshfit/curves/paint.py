@@ -120,8 +120,8 @@ def _segment(
         mesh, SurfaceCurve(straight), spacing=spacing, n=None, cv=PAINT_SPACING_CV, checked=True
     )
     # attraction by continuation can settle unevenly, in a zigzag of the samples that the
-    # graph path's length betrays (nefertiti's side: 0.8% longer; 4 of 18 random segments
-    # on igea, nefertiti and spot): such a segment is smoothed by a few membrane steps at
+    # graph path's length betrays (the resampled curve comes out longer than the path; a
+    # minority of segments do this): such a segment is smoothed by a few membrane steps at
     # its own resolution (each sample moves under three spacings, the course stays)
     if curve_length(mesh, out) <= curve_length(mesh, SurfaceCurve(raw)):
         return out.points

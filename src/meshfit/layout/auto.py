@@ -64,17 +64,16 @@ DEFAULT_PATCHES = 60
 #: than 20 triangles start from the octahedron, the others from the icosahedron
 MIN_PATCHES = 24
 #: fewest mesh faces a patch of an automatic layout may average: more patches are refused
-#: at once (spot, 5,856 faces, lays out 204 patches, 29 faces a patch, and fails from 300,
-#: 20 faces a patch, after 5 s; 1,000 patches took 26 s to fail)
+#: at once, since a layout this fine for its mesh fails anyway, only after a long search
 MIN_FACES_PER_PATCH = 16
 #: aspect-ratio bound of the spherical triangles of the default sphere map: a map that
-#: squeezes triangles gives base cells whose images are very uneven (nefertiti unbounded:
-#: aspect 571, 310 folded spring cells in the fit; bounded: 18)
+#: squeezes triangles gives base cells whose images are very uneven, and spring grids that
+#: fold in the fit
 SPHERE_MAX_ASPECT = 10.0
 #: base-mesh rotations (seeds ``seed``, ``seed + 1``, ...) tried before the automatic layout
-#: gives up on curves that cross (bunny with 90 patches: seed 0 crosses, 1 does not), or
-#: settles for the layout with the fewest sliver patches (bunny with 120 patches: seed 0 has
-#: four along an ear, whose grids fold, seed 1 none)
+#: gives up on curves that cross, or settles for the layout with the fewest sliver patches
+#: (whose grids fold): whether curves cross or a patch along a protrusion is a sliver
+#: depends on the rotation, and another one often has neither
 SEED_TRIES = 3
 #: default face count of the coarse proxy a dense mesh is laid out on (``auto_layout``)
 PROXY_FACES = 25_000
@@ -82,8 +81,9 @@ PROXY_FACES = 25_000
 #: (meshes up to 100,000 faces are laid out on themselves)
 PROXY_RATIO = 4.0
 #: snake iterations on the full mesh after the curves relaxed on the proxy are carried over
-#: (the stop test does not end them earlier on a dense scan; igea's fit is the same with
-#: 25, 50 or 100: displaced RMS 0.004%, Hausdorff 0.18%, arc-length CV 0.18, no folds)
+#: (the stop test does not end them earlier on a dense scan, so this bounds the time; the
+#: curves relaxed on the proxy need only a local correction, and more iterations leave
+#: the fit of a dense scan unchanged)
 FINE_RELAX_ITERATIONS = 50
 #: revision of what `auto_layout` makes for given options: part of the fit's stage keys, so a
 #: resumed fit does not re-use a layout cached by an earlier revision (2: shaped bases above
@@ -96,15 +96,11 @@ FINE_RELAX_ITERATIONS = 50
 AUTO_LAYOUT_REVISION = 8
 #: ``shape=None`` of `auto_layout` shapes base meshes of more than this many triangles. The
 #: bisections that take the relaxed icosahedron beyond 20 triangles leave cells of equal area
-#: that are slivers where the sphere map stretches (spring meshes of the 96-patch layouts, with
-#: the rescue: nefertiti 382 folded cells and spot 242 unshaped, 7 and 10 shaped; with 120
-#: patches 83 and 69, 13 and 6; nefertiti with 150 patches has no unshaped layout whose
-#: curves do not cross). With 60 patches shaping helps on the whole too (base rotations 0-5:
-#: nefertiti 100 folded cells in all -> 3, spot 71 -> 17, igea 0 -> 0), but rotation 0, the
-#: default, is a lucky one whose fit meets the end-to-end bounds unshaped and not shaped
-#: (igea's largest corner-zone normal jump 1.1 -> 2.5 degrees, nefertiti 0 -> 2 folded cells,
-#: spot's displaced Hausdorff distance 0.45% -> 0.66%), so the 20-triangle base is kept as
-#: it is
+#: that are slivers where the sphere map stretches, whose spring grids fold, and at the
+#: finest layouts curves that cross; shaping removes most of these folds. On the
+#: 20-triangle base shaping also lowers the folds summed over rotations, but the default
+#: rotation fits better unshaped (smoother corner zones, fewer folds, a closer surface), so
+#: that base is kept as it is: the bound trades the average over rotations for the default
 SHAPE_ABOVE_FACES = 20
 #: samples of a base edge's image when it is split at half its surface length
 _SPLIT_SAMPLES = 65
@@ -229,8 +225,8 @@ def _fill_gaps(
     """The images of the arcs ``arcs`` (``(a, b, angle)``) sampled at the parameters
     ``params`` (one increasing array from 0 to 1 per arc), with mid-parameters added, round
     after round, wherever the images of two consecutive samples are more than ``edges`` mean
-    edge lengths apart. Where the sphere map squeezes part of the surface (a protrusion: on
-    bunny an ear's tip gets 10^-7 of its share of the sphere), samples evenly spaced on the
+    edge lengths apart. Where the sphere map squeezes part of the surface (the tip of a
+    protrusion can get a tiny fraction of its share of the sphere), samples evenly spaced on the
     arc step over it, and the traced curve would cut across it instead of following the
     arc's image. At most `TRACE_ROUNDS` rounds. Returns the inner samples' count per arc
     and the inner samples as face points, arc after arc (the ends are the corners)."""
@@ -378,9 +374,8 @@ def auto_layout(
         Seed of the base mesh's starting rotation. Where the curves cross, or a patch is a
         sliver (area under `THIN` of a square with its perimeter), the next
         ``SEED_TRIES - 1`` seeds are tried (on the proxy first, then on ``mesh``); of
-        layouts that all have slivers, the one with the fewest is returned (bunny with 120
-        patches: seed 0 has four slivers along an ear, and its fit 366 folded spring
-        cells; seed 1 has none, and its fit 10).
+        layouts that all have slivers, the one with the fewest is returned (slivers along a
+        protrusion fold the spring grids of the fit, and another rotation may have none).
     relax : bool, keyword-only
         Relax every traced curve as a surface snake with fixed ends (membrane and arc-length
         forces, :func:`meshfit.curves.relax_snake`; default True). If the relaxed curves
@@ -835,9 +830,9 @@ def balance_degrees(
     counter-clockwise on the sphere, repeats no edge and leaves no vertex below ``least``.
 
     The base mesh's edge splits (:func:`meshfit.shrinkwrap.base_mesh`) pile up round a few
-    vertices where the sphere map squeezes the surface: nefertiti's 68-triangle base has
-    vertices of degree 12 and 15, whose corners get 15 curves 6 degrees apart that cross at
-    once (its 204-patch layout could not be made); balanced, the degrees are 4 to 7.
+    vertices where the sphere map squeezes the surface: a vertex of high degree gets many
+    curves a few degrees apart at its corner, which cross at once, so fine layouts cannot be
+    made; balanced, the degrees stay close to ``target``.
 
     Parameters
     ----------

@@ -191,8 +191,8 @@ def cube_layout(
     from_axis = None if axis is None else _Axis(axis, frame, rows, levels, cap_tilt, direction_map)
     pts, ends, patches, squares = _cube_network(n, rows)
     # rays are cast on a copy centred at the origin with bbox diagonal 10: libigl's ray query
-    # misses every hit on models a few centimetres across (igea); faces and barycentrics are
-    # the same on the copy
+    # misses every hit on finely tessellated models a few centimetres across; faces and
+    # barycentrics are the same on the copy
     scale = 10.0 / mesh.bbox_diagonal
     unit = Mesh((mesh.vertices - center) * scale, mesh.faces)
 

@@ -30,35 +30,30 @@ __all__ = [
 
 #: a patch whose :attr:`Patch.bulge` exceeds this bulges far beyond its boundary (a flat
 #: disk has 1.27, a hemisphere 2.55): a tensor-product grid anchored on its sides crowds
-#: at the boundary and misses the bulge (nefertiti's test layout, the bottom face of the
-#: projected cube, over neck, shoulders and base: 11.1 -- its spring mesh misses the surface
-#: by 1.8% of the bbox diagonal)
+#: at the boundary and misses the bulge (a patch of a projected cube's face that wraps over
+#: a neck and shoulders, for one)
 BULGY = 3.0
 
 #: a patch whose :attr:`Patch.bulge` is below this is a sliver, two of its corners near 0
-#: degrees: the grid across it folds (bunny's 120-patch automatic layout, the strips along
-#: an ear: 0.013-0.024, 29-161 folded spring cells each; every patch of the test layouts
-#: and of the 60-patch automatic layouts of the scans is above 0.16)
+#: degrees: the grid across it folds (thin strips along a protrusion in a fine automatic
+#: layout); well-formed patches stay several times above it
 THIN = 0.05
 
 
 #: a patch whose :attr:`Patch.taper` exceeds this has one side much shorter than the side
 #: opposite it (a near-triangular patch): its grid's cells change size across it and the
-#: spacing along its iso-curves evens out badly (spot's test layout, the cube corners at the
-#: head: patches 0-3 at 5.0-6.9, arc-length CV 0.25-0.55; every other patch of the three test
-#: layouts is below 3.5)
+#: spacing along its iso-curves evens out badly (the corner patches of a projected cube
+#: where it wraps a narrow end of the model); patches of ordinary layouts stay below it
 TAPERED = 4.0
 
 
 #: a patch whose angle at a corner (:attr:`Patch.corner_angles`) exceeds this many degrees
 #: turns back on itself there (a reflex corner, where three patches meet on a curved surface
 #: and one takes more than half the turn): the grid cell at that corner cannot be convex,
-#: and the spring mesh may squeeze or fold there (nefertiti's test layout, patch 20's corner
-#: 3 at 192 degrees: its least even grid line, arc-length CV 0.172, is at that corner;
-#: bunny's automatic layout of revision 3, patches 0 and 20 at 234 and 221 degrees at
-#: corner 1: the cell there folds in its triangle of three side points, which no repair
-#: moves). Every other corner of the four test layouts but nefertiti_bust's patch 27 (222
-#: degrees, at corner 2: it meets the bounds) is between 17 and 160 degrees.
+#: and the spring mesh may squeeze or fold there (a patch's least even grid line can lie at
+#: such a corner, and the corner cell can fold in its triangle of three side points, which
+#: no repair moves). Not every reflex corner spoils the grid, but corners of ordinary
+#: layouts stay well below it.
 REFLEX = 180.0
 
 

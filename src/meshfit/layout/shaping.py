@@ -4,10 +4,10 @@ The area-equalised base mesh (:func:`meshfit.shrinkwrap.base_mesh`) gives every 
 about the same surface area, but where the sphere map stretches one way more than the other
 (a neck, the rim of a hollow) a triangle of equal area can be a sliver on the surface, and so
 are the three quads it is split into. Their spring meshes then fold and space unevenly
-(nefertiti with 96 patches: 14 patches with under a fifth of the area of a square of their
-perimeter, :attr:`meshfit.layout.Patch.bulge`, and 382 folded spring cells; shaped, none
-under 0.21 and 7 folded cells). :func:`shape_base` moves the base vertices over the sphere
-to make the quads' images close to squares of equal area.
+(patches with a small fraction of the area of a square of their perimeter,
+:attr:`meshfit.layout.Patch.bulge`). :func:`shape_base` moves the base vertices over the
+sphere to make the quads' images close to squares of equal area, which removes most of
+those slivers and folds.
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """Smoothing the boundary curves of a layout: mesh-edge-scale wiggles taken out.
 
 Curves painted through picks (greedy graph paths pulled toward chords, sec. 3.2-3.3) keep a
-lateral wiggle at the scale of the mesh edges: on the cube layout of nefertiti the median
-curve point sits 0.061% of the bbox diagonal off the mean of its six nearest neighbours
-along the curve (`curve_wiggle`), one in a hundred 0.28%. The spring mesh's side points
+lateral wiggle at the scale of the mesh edges (`curve_wiggle`: a curve point's distance
+from the mean of its nearest neighbours along the curve). The spring mesh's side points
 lie on the curves, so its first rows beside a side follow that wiggle while the rows
 inside do not: the spacing along the iso-curves that cross the side varies from one to
 the next. A few membrane and arc-length steps of the thesis's surface snakes (sec. 3.4)
@@ -77,11 +76,10 @@ def smooth_layout(mesh: Mesh, layout: Layout, *, iterations: int = SMOOTH_ITERAT
     sharing a face. Curves that are sides of a patch with feature curves are kept as they
     are (the feature curves end on them), and so are the feature curves.
 
-    On nefertiti's cube test layout 8 steps take the median wiggle (:func:`curve_wiggle`)
-    from 0.061% to 0.035% of the bbox diagonal, and the median over the patches of the
-    largest arc-length coefficient of variation of their spring meshes from 0.081 to 0.049
-    (`meshfit.springs.resample_patch`, defaults); a patch that met the 0.15 bound narrowly
-    may go over it (nefertiti's 36: 0.149 -> 0.181).
+    The steps lower the curves' wiggle (:func:`curve_wiggle`) and, on most patches, the
+    largest arc-length coefficient of variation of their spring meshes
+    (`meshfit.springs.resample_patch`, defaults); they move the sides, though, so a patch
+    that met an arc-length bound narrowly may go over it.
 
     Parameters
     ----------

@@ -751,7 +751,7 @@ def load_mesh(path: str | os.PathLike, *, repair: bool = False) -> Mesh:
 
     Examples
     --------
-    >>> mesh = load_mesh("bunny.ply", repair=True)  # doctest: +SKIP
+    >>> mesh = load_mesh("scan.ply", repair=True)  # doctest: +SKIP
     """
     raw = read_mesh_arrays(path)
     return Mesh.from_arrays(

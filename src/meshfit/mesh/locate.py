@@ -440,8 +440,8 @@ def ray_first_hit(mesh: Mesh, origins: ArrayLike, directions: ArrayLike) -> RayH
     if o.shape[0] == 0:
         return RayHits(np.zeros(0, bool), np.zeros(0), np.zeros(0, np.int64), np.zeros((0, 3)))
     # libigl rejects a triangle when d . (e1 x e2) is below an absolute 1e-6 (Moeller's
-    # EPSILON), which misses every triangle of a finely tessellated small model (igea's faces
-    # have areas near 1e-7). The query uses unit directions scaled by 1 / (2 median face
+    # EPSILON), which misses every triangle of a finely tessellated small model (its face
+    # areas can be far below that). The query uses unit directions scaled by 1 / (2 median face
     # area), so that product is near |cos| for a typical face whatever the model's scale;
     # t is recomputed below for the caller's directions.
     dn = np.linalg.norm(d, axis=1, keepdims=True)

@@ -286,9 +286,10 @@ def base_mesh(
     relaxation : {"equalize", "umbrella"}
         ``"umbrella"``: eq. 1 with density = summed adjacent cell areas, as in the paper.
         Its fixed point balances ``A_c`` times cell size rather than ``A_c`` alone, so on
-        strongly distorted sphere maps it stalls far from equal areas (spot: max/min 39 after
-        200 steps). ``"equalize"`` (default): a damped per-vertex Gauss-Newton step on the
-        squared deviation of each adjacent cell's area from their mean, same flip guard.
+        strongly distorted sphere maps it stalls far from equal areas (cells differing in
+        area many times over). ``"equalize"`` (default): a damped per-vertex Gauss-Newton
+        step on the squared deviation of each adjacent cell's area from their mean, same
+        flip guard.
     samples : int
         Cell areas are estimated from at most this many input faces (sphere centroids,
         area-weighted; default 60,000).

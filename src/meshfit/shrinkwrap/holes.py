@@ -24,10 +24,10 @@ REFINE_ROUNDS = 30
 #: plane; on a curved patch a cycle is cut short)
 FLIPS_PER_FACE = 10
 #: a hole whose rim faces stand on average more than this many degrees from the plane of
-#: the rim is a cut across the model (a bust's base: 70 degrees on nefertiti_fraunhofer; the
-#: bunny's holes 23-38): its patch is faired as a membrane, flat across a flat rim, not as a
-#: thin plate, which would carry the walls on past the rim (0.9 below the base of that bust,
-#: 75 folded spring cells in its fit)
+#: the rim is a cut across the model (the open base of a bust, whose walls meet the rim's
+#: plane nearly at right angles; the holes of a scan's surface stand far lower): its patch
+#: is faired as a membrane, flat across a flat rim, not as a thin plate, which would carry
+#: the walls on past the rim (a bulge below the base, and spring grids that fold over it)
 CUT_ANGLE = 60.0
 
 

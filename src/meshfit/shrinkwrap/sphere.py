@@ -525,8 +525,8 @@ def _relax_area(
 ) -> NDArray[np.float64]:
     """Flip-guarded smoothing of the sphere points: each vertex moves toward the
     surface-area-weighted mean of the centroids of its adjacent sphere triangles; moves that
-    flip a spherical triangle are undone. It evens out triangle shapes (spot, 100 steps:
-    level-5 wrap minimum angle 0.5 -> 11 degrees) but does not equalize areas."""
+    flip a spherical triangle are undone. It evens out triangle shapes (fewer near-degenerate
+    triangles in a wrap over the map) but does not equalize areas."""
     faces = mesh.faces
     af = mesh.face_areas
     indptr, vf = mesh.vertex_faces
@@ -580,8 +580,8 @@ def sphere_map(
         untangling; if flipped triangles remain it falls back to ``"tutte"`` and says so in
         ``notes`` (``method`` records what ran).
     relax_iterations : int
-        Flip-guarded smoothing steps on the sphere after the embedding (default 0; about
-        0.1 s per step on igea).
+        Flip-guarded smoothing steps on the sphere after the embedding (default 0; each step
+        is a pass over every vertex, so the cost grows with steps times vertices).
     relax_step : float
         Step of that relaxation, in (0, 1].
     max_aspect : float or None
@@ -589,22 +589,23 @@ def sphere_map(
         spanned by the sphere points (default ``None``: no bound). The corners of the
         triangles above it are smoothed on the sphere, flip-guarded, for at most
         ``_ASPECT_ROUNDS`` rounds; the bound reached is ``SphereMap.max_aspect`` and is noted
-        in ``notes``. With 10, spot goes from 20 to 9.7, nefertiti from 571 to 10.0 (its input
-        triangles reach 612), igea from 60 to 9.9. It is off by default because the local
-        smoothing makes the sphere metric depart from the surface metric: nefertiti's
-        level-5 wrap over base seeds 0-3 gave RMS 0.064 / 0.143 / 0.059 / 0.052 % of the
-        diagonal with the bound against 0.048 / 0.060 / 0.073 / 0.046 % without.
+        in ``notes``; a bound of 10 is usually reached, even where the input triangles
+        themselves are far thinner. It is off by default because the local smoothing makes
+        the sphere metric depart from the surface metric: a wrap over the bounded map is
+        usually less close to the surface, so the bound trades the wrap's closeness for
+        evenly shaped base cells (which the automatic layout wants).
     stretch_iterations : int
         Rounds of stretch-minimizing reweighting of the ``"tutte"`` embeddings (default 0):
         each round divides every mean-value weight ``w_ij`` by the area stretch of vertex
         ``j`` (:func:`vertex_stretch`) and solves the two disks again (the weights stay
         positive, so the map stays flip-free; Yoshizawa, Belyaev & Seidel 2004). The
-        mean-value map squeezes protrusions: bunny's ears, 13.6% of its surface, get 0.4%
-        of the sphere, their upper parts (3.6%) 0.0003%, and a wrap over such a map misses
-        the ear tips. Four rounds give the ears 4.7% of the sphere, their upper parts 0.34%
-        (largest vertex stretch 2,811 -> 3.8); the sphere's triangles are then less even
-        in shape. About 0.15 s a round on bunny (35K vertices), 1 s on igea (134K). Only
-        with ``method="tutte"`` (else InputError).
+        mean-value map squeezes protrusions: a protrusion gets a far smaller share of the
+        sphere than of the surface, its tip next to none, and a wrap over such a map misses
+        the tips. A few rounds give protrusions a share of the sphere much nearer their
+        share of the surface (and lower the largest vertex stretch by orders of magnitude);
+        the sphere's triangles are then less even in shape. Each round solves the two disks
+        again, at about the cost of the embedding. Only with ``method="tutte"`` (else
+        InputError).
     progress : callable(stage, fraction), optional
 
     Returns

@@ -133,8 +133,8 @@ _STRENGTH = 0.1
 #: Jacobi damping of the prolongation smoother (4/3 over the bound 2 of rho(D^-1 A))
 _OMEGA = 2.0 / 3.0
 #: systems with at most this many unknowns are solved by the sparse LU factorization at once
-#: (on the patches of igea refined to 1.07M faces, 5-7K unknowns, it takes half as long as the
-#: iterative solve; on perturbed grids the two cost the same at about 40K unknowns)
+#: (on patches of a few thousand unknowns it is faster than the iterative solve; the two cost
+#: about the same somewhat above this size, so the bound leaves a margin)
 _DIRECT_MAX = 30_000
 #: GMRES restart length and cap on preconditioned iterations before the direct solve is used
 _RESTART = 40

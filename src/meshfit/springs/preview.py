@@ -12,15 +12,10 @@ and relaxed on the full patch exactly as level 0 of ``resample_patch`` is (its f
 re-places points through the coarse map). Every point is a face point of the full patch.
 
 How close it is (measured against ``resample_patch(patch, level=0)``; distances over the
-mean spacing of the exact level-0 grid, in brackets over the patch's bounding-box diagonal).
-On the patches a session previews this way (over :data:`PREVIEW_MIN_VERTICES`): the igea
-cube-layout patch of 26.5K vertices max 0.002 / median 0.0001 (2e-4 / 1e-5); the other
-igea cube-layout patches of 27K-32K vertices max 0.07-0.14 / median under 0.008; the
-nefertiti test-layout patch of 11.5K vertices max 0.44 / median 0.020 (0.020 / 0.0009);
-the igea test-layout patch of 10.4K vertices max 0.11 / median 0.007. On small patches the
-copy is coarse next to the grid and single points settle further away (all nefertiti
-test-layout patches: max 1.14 on one of 1.2K vertices, median of the per-patch maxima
-0.0001; spot patches of 400-800 vertices up to 2.2), which is one reason for the
+mean spacing of the exact level-0 grid). On the patches a session previews this way (over
+:data:`PREVIEW_MIN_VERTICES`) every point stays within a fraction of a grid spacing of the
+exact one, and most far closer. On small patches the copy is coarse next to the grid and
+single points settle further away, up to a spacing or two, which is one reason for the
 threshold. The largest offsets are single points of bulging patches where relaxation from
 a slightly different start settles elsewhere. Bounds with margin for the large patches:
 :data:`PREVIEW_MAX_OFFSET`, :data:`PREVIEW_MEDIAN_OFFSET`.
@@ -60,14 +55,15 @@ __all__ = [
 #: a level-0 preview of a patch with more vertices than this is made on a coarse copy
 #: (:func:`coarse_level0`); below it the exact map costs under ~60 ms
 PREVIEW_MIN_VERTICES = 10_000
-#: rounds of aggregation of the interior vertices (one round: ~4x fewer vertices; two
-#: rounds take ~20 ms off the 26.5K-vertex igea patch but double the largest offsets)
+#: rounds of aggregation of the interior vertices (one round: ~4x fewer vertices; a second
+#: round saves a little more time but lets the points settle about twice as far away)
 AGGREGATE_ROUNDS = 1
 #: bound on the largest distance of a coarse level-0 point from the exact level 0, in mean
-#: exact grid spacings, for patches over the threshold and nefertiti patch 32 (measured at
-#: most 0.44 over the threshold and 0.57 on nefertiti patch 32, 3.3K vertices)
+#: exact grid spacings, for patches over the threshold and for bulging ones a few times
+#: smaller (with a margin over the offsets the tests measure; benchmarks/ui_latency.py
+#: reports the preview's)
 PREVIEW_MAX_OFFSET = 1.0
-#: bound on the median distance, in mean exact grid spacings (measured at most 0.021 there)
+#: bound on the median distance, in mean exact grid spacings (with the same margin)
 PREVIEW_MEDIAN_OFFSET = 0.05
 
 

@@ -32,12 +32,12 @@ SLIDE_FRACTIONS = tuple(float(f) for f in np.linspace(-0.9, 0.9, 19) if abs(f) >
 #: a sliding side point may take the side points within this many places along, by amounts
 #: tapering linearly to zero (stopping at patch corners and feature-curve ends), so that the
 #: side's spacing changes by a fraction of the slide per interval instead of all of it at once
-#: (4 places unfold the same nefertiti cells, but the stitched 8 x 8 fit of spot's
-#: near-triangular patch 1 then faces away from its grid at a node)
+#: (a longer taper unfolds no more cells, and the stitched fit of a near-triangular patch
+#: can then face away from its grid at a node)
 SLIDE_TAPER = 2
 #: a side point closer than this fraction of its side's median spacing to a neighbouring side
-#: point is slid apart (`unpinch_side_points`; at 0.5 a side of a patch cut from igea slides
-#: where the grid then misses the surface by 0.053% of the bbox diagonal instead of 0.042%)
+#: point is slid apart (`unpinch_side_points`; a higher ratio slides points of sides that
+#: are not pinched, and the grid can then miss the surface by more)
 PINCH_RATIO = 0.4
 #: untangling in a chart (`untangle_in_charts`): grid steps around a folded cell that may
 #: move, Gauss-Seidel rounds, the largest angle between the window's surface normals and
@@ -49,14 +49,14 @@ CHART_MAX_SPREAD = 60.0
 CHART_GOAL = 0.05
 #: evening grid lines in the planar map (`even_lines_in_map`): points per grid interval at
 #: which a line's path in the square is sampled on the surface to measure its arc length
-#: (8 resolves nefertiti's pleats about as well as 32: the largest distances of the evened
-#: grids differ by no more than between two runs of 16)
+#: (enough to resolve pleats of the surface: denser sampling changes the evened grids no
+#: more than two runs at the same density differ, and costs time)
 LINE_SAMPLES = 8
 
 #: `relax` sweeps a free point again only while it or one of its four neighbours moved more
 #: than this many times the convergence tolerance (``eps``) of its spring lengths in the
-#: sweep before: on the nefertiti test layout the spring meshes take a third less time, and
-#: no patch of the test layouts breaks a quality bound it met (at 3, one does; at 5, seven)
+#: sweep before: this trades time against quality (a higher factor skips more sweeps, and
+#: patches that met the quality bounds begin to break them)
 LAZY_MOVES = 2.0
 
 
@@ -296,9 +296,9 @@ def slide_side_points(state: State) -> int:
     side point slid right under its interior neighbour leaves a sliver cell that no fold
     test sees). The static resampling of the next level starts afresh.
 
-    On nefertiti's test layout the taper unfolds patch 7 (arc-length CV 0.44 -> 0.10) and
-    two of patch 4's three folded cells; the choice among the trials keeps slides of one
-    point from leaving a 0.1 : 1.9 pair of spacings on a side (patch 31: CV 0.21 -> 0.03).
+    The taper unfolds cells that a slide of one point leaves folded, and evens the
+    arc lengths of the patch's grid; the choice among the trials keeps slides of one point
+    from leaving a very short interval beside a very long one on a side.
 
     Parameters
     ----------
@@ -339,12 +339,12 @@ def unpinch_side_points(state: State, ratio: float | None = None) -> int:
 
     Where a side steps back over a stretch about as short as the grid spacing, points at
     equal arc lengths fall on the two legs of the step, nearly on top of each other: the
-    boundary iso-curve's spacing has a gap and a near-zero interval (nefertiti's test patch
-    26: 0.67 : 0.08 : 0.71 of the median). A side point whose shorter chord to a neighbour is
-    below ``ratio`` (default `PINCH_RATIO`) of its side's median chord tries the same
-    places as a fold's side point, and takes the one whose shortest cell edge beside the
-    moved points is longest, if that is longer than now and folds no more cells there. A
-    point that cannot be improved is not tried again on the same level.
+    boundary iso-curve's spacing has a gap and a near-zero interval beside each other. A
+    side point whose shorter chord to a neighbour is below ``ratio`` (default
+    `PINCH_RATIO`) of its side's median chord tries the same places as a fold's side point,
+    and takes the one whose shortest cell edge beside the moved points is longest, if that
+    is longer than now and folds no more cells there. A point that cannot be improved is not
+    tried again on the same level.
 
     Parameters
     ----------
@@ -554,8 +554,8 @@ def untangle_in_charts(state: State, *, reach: int | None = None, rounds: int | 
     the points then go to the surface points closest to their chart places lifted to their
     old heights. The moves are kept only if the patch has fewer folded cells.
 
-    Where a side turns sharply (the 274-degree inner corner of nefertiti's test patch 4),
-    the grid must fan around the corner: the neighbours of the corner's cells must all move,
+    Where a side turns sharply (an inner corner of a patch, far over 180 degrees), the
+    grid must fan around the corner: the neighbours of the corner's cells must all move,
     and neither the forces nor `repair_folds`, which moves one point at a time to a few trial
     places, find that. Windows whose surface normals spread by more than
     `CHART_MAX_SPREAD` degrees are skipped: there the tangent plane is no chart.

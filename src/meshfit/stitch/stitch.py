@@ -328,17 +328,17 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
     If the constraints fold a patch corner, only the row-1 constraints are kept; if they
     fold too (or the corner is not a simple fan) nothing is changed. Folds are judged in
     the tangent plane only: a patch whose surface turns by a right angle or more within two
-    knot spans of the corner (the near-triangular patches of spot's test layout) still gets
-    the rule (a plane checked against the patch's normal two knot spans in left such a
-    corner C0, with a 51 degree normal jump).
+    knot spans of the corner (a near-triangular patch at a narrow end) still gets the
+    rule (a plane checked against the patch's normal two knot spans in left such a corner
+    C0, with a large normal jump).
 
     At an interior corner a second family of flat fans is tried as well: equal wedges, each
     diagonal point in the middle of its wedge. Where row 0 cannot be collinear the family
     with the smaller corner-zone jump wins (the patches' own angles on a tie); at an exact
     corner the equal fan is used only where every own fan folds. Where the patches' corner
-    angles are far from a full turn in sum (a cone point of the surface: nefertiti's
-    automatic layout has valence-3 corners whose angles sum to 63 degrees), the own fans
-    collapse under the constraints and only the equal fan gives a corner rule.
+    angles are far from a full turn in sum (a cone point of the surface, such as a sharp tip
+    where three patches meet), the own fans collapse under the constraints and only the
+    equal fan gives a corner rule.
     """
     fan = _corner_fan(shapes, offs, slots, bound_of)
     if fan is None:

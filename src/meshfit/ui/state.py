@@ -874,12 +874,13 @@ class Session:
         :data:`meshfit.springs.preview.PREVIEW_MIN_VERTICES` vertices is a preview made on a
         coarse copy of the patch (:func:`meshfit.springs.preview.coarse_level0`: the planar
         map solved on the copy, the grid carried to the closest points of the patch and
-        relaxed on the patch; 3-4x faster cold on a 26.5K-vertex patch). Its points are face
-        points of the patch; they lie within 0.44 of a grid spacing of the exact level 0 of
-        :func:`meshfit.springs.resample_patch`, median under 0.021 (measured on the igea
-        and nefertiti layouts' patches over the threshold; 0.0005 / 0.00005 on the igea
-        cube-layout patch of the benchmark). Levels 1 and up, and every other caller of
-        ``resample_patch``, use the exact map; the first of them makes it.
+        relaxed on the patch; several times faster cold, since the planar map's solve is
+        most of a cold preview's time). Its points are face points of the patch; they lie
+        within a fraction of a grid spacing of the exact level 0 of
+        :func:`meshfit.springs.resample_patch` (bounds:
+        :data:`meshfit.springs.preview.PREVIEW_MAX_OFFSET` and
+        :data:`~meshfit.springs.preview.PREVIEW_MEDIAN_OFFSET`). Levels 1 and up, and every
+        other caller of ``resample_patch``, use the exact map; the first of them makes it.
 
         Returns
         -------
