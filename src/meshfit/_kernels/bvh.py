@@ -16,9 +16,8 @@ from numba import njit, prange
 
 from meshfit._kernels.walk import _closest_on_face
 
-#: triangles per leaf: smaller leaves cost a few more box tests and save more triangle
-#: tests (537K points against 1.07M triangles: query 0.69 s and build 0.40 s with leaves of
-#: 2, 1.03 s and 0.33 s with leaves of 8)
+#: triangles per leaf: smaller leaves cost a few more box tests and a slightly slower build,
+#: and save more triangle tests, which dominate a query
 LEAF_SIZE = 2
 #: bits per axis of the Morton codes
 _MORTON_BITS = 21

@@ -205,7 +205,7 @@ def rewrite_pairs(F, FN, VF_ptr, VF, pf, pb, qf, qb, eps, via):
 
 # ------------------------------------------------------------- serial walking for few points
 # The kernels in `meshfit._kernels.walk` are `parallel=True`; launching a parallel region costs
-# from ~20 us up to ~15 ms (OpenMP threads that must be woken on a loaded machine), which
+# far more than walking one point (threads must be woken, slowly on a loaded machine), which
 # dominates when curve bisection moves one point at a time. These are the same per-point
 # loops run serially: keep them in step with `walk_points` / `attract_points` there.
 

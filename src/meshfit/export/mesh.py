@@ -137,7 +137,7 @@ def export_objs(
         lines = ["# meshfit: tessellated B-spline patches; vt = (u, v) parameters"]
         for name, (V, _, _), (vt, faces) in zip(names_, tess, text, strict=True):
             lines.append(f"o {name}")
-            # Python floats format 2-3x faster than numpy scalars (the same text)
+            # Python floats format faster than numpy scalars (the same text)
             lines.extend(map("v {:.17g} {:.17g} {:.17g}".format, *V.T.tolist()))
             lines.extend(vt)
             lines.extend(faces)

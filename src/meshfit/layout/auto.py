@@ -97,10 +97,9 @@ AUTO_LAYOUT_REVISION = 8
 #: ``shape=None`` of `auto_layout` shapes base meshes of more than this many triangles. The
 #: bisections that take the relaxed icosahedron beyond 20 triangles leave cells of equal area
 #: that are slivers where the sphere map stretches, whose spring grids fold, and at the
-#: finest layouts curves that cross; shaping removes most of these folds. On the
-#: 20-triangle base shaping also lowers the folds summed over rotations, but the default
-#: rotation fits better unshaped (smoother corner zones, fewer folds, a closer surface), so
-#: that base is kept as it is: the bound trades the average over rotations for the default
+#: finest layouts curves that cross; shaping removes most of these folds. The 20-triangle
+#: base (the relaxed icosahedron, no bisection) is kept as it is; whether shaping it too is
+#: better is not settled: it depends on the rotation, so it should be judged over rotations
 SHAPE_ABOVE_FACES = 20
 #: samples of a base edge's image when it is split at half its surface length
 _SPLIT_SAMPLES = 65

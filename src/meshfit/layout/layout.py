@@ -25,7 +25,7 @@ _FINGERPRINTS_LOCK = threading.Lock()
 
 def mesh_fingerprint(mesh: Mesh) -> str:
     """SHA-256 (hex) of a mesh's vertex and face arrays and their counts (kept per mesh
-    object: hashing a million-face mesh takes about 30 ms).
+    object: hashing a large mesh again on every call would cost more than the lookup).
 
     Parameters
     ----------

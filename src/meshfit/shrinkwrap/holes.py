@@ -291,8 +291,7 @@ def _fair(
     is zero at those ``membrane`` marks and applied twice is zero at the others (the other
     vertices held). The umbrella's weights are the inverse edge lengths before the move (the
     scale-dependent umbrella: on a patch refined unevenly the uniform one pulls vertices
-    toward the finer parts; a 40-degree cap cut from a sphere is filled to within 5.0% of
-    the radius, 6.7% with uniform weights)."""
+    toward the finer parts, so a hole cut from a smooth surface is filled further from it)."""
     nv = len(vertices)
     e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
     e = np.unique(np.sort(e, axis=1), axis=0)

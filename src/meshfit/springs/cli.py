@@ -338,8 +338,7 @@ def add_commands(sub) -> None:
         action="store_true",
         help="spring vectors to a neighbour across a fold of the surface (a curled rim: an "
         "ear, a horn) follow the grid line instead of the chord, so the grid crosses the rim "
-        "(on the test layouts' ear and horn patches the largest distance to the patch falls "
-        "2 to 4 times)",
+        "and stays much closer to a patch over such a rim",
     )
     p.add_argument(
         "--workers",

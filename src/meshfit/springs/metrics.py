@@ -11,7 +11,7 @@ from meshfit.springs.grid import SpringMesh, grid_triangles
 
 __all__ = ["QUALITY_BOUNDS", "grid_metrics", "out_of_bounds", "spring_metrics", "worst_places"]
 
-#: quality a spring mesh is held to (the bounds the test layouts are checked against):
+#: quality a spring mesh is held to (`out_of_bounds` reports the patches that miss one):
 #: arc-length coefficient of variation along every iso-curve piece, median cell aspect ratio,
 #: folded cells, and the two-sided largest distance to the patch over the whole model's
 #: bounding-box diagonal

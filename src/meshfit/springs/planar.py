@@ -124,7 +124,7 @@ def _interior_system(
 
 #: the interior solve stops when every equation's residual over its diagonal (a length in
 #: the unit square) is below this; the error is then below this times the largest expected
-#: exit time of a random walk on the weights (a few thousand steps on 25K-vertex patches)
+#: exit time of a random walk on the weights (which grows with the patch's vertex count)
 _SOLVE_TOL = 1e-14
 #: multigrid levels stop coarsening at this many unknowns (solved densely)
 _COARSEST = 300
@@ -133,8 +133,8 @@ _STRENGTH = 0.1
 #: Jacobi damping of the prolongation smoother (4/3 over the bound 2 of rho(D^-1 A))
 _OMEGA = 2.0 / 3.0
 #: systems with at most this many unknowns are solved by the sparse LU factorization at once
-#: (on patches of a few thousand unknowns it is faster than the iterative solve; the two cost
-#: about the same somewhat above this size, so the bound leaves a margin)
+#: (on small systems the factorization is faster than the iterative solve; the bound sits
+#: with a margin below the size where the two cost the same)
 _DIRECT_MAX = 30_000
 #: GMRES restart length and cap on preconditioned iterations before the direct solve is used
 _RESTART = 40

@@ -2,8 +2,8 @@
 
 The exact level 0 of :func:`meshfit.springs.resample_patch` starts from the images of a
 regular parameter grid under the mean-value map of the whole patch onto the unit square;
-on a 25K-vertex patch that map's solve is most of the time of a cold level-0 preview
-(~150 of ~165 ms). :func:`coarse_level0` makes the map on a coarse copy of the patch
+on a large patch that map's solve is most of the time of a cold level-0 preview.
+:func:`coarse_level0` makes the map on a coarse copy of the patch
 instead: every boundary vertex kept (at the same side parameters as in the exact map), the
 interior vertices merged into graph aggregates of about one vertex ring (each represented
 by one of its own vertices, so the copy's vertices are a subset of the patch's). The grid's
@@ -53,15 +53,15 @@ __all__ = [
 ]
 
 #: a level-0 preview of a patch with more vertices than this is made on a coarse copy
-#: (:func:`coarse_level0`); below it the exact map costs under ~60 ms
+#: (:func:`coarse_level0`); below it the exact map is quick enough for an interactive preview
 PREVIEW_MIN_VERTICES = 10_000
-#: rounds of aggregation of the interior vertices (one round: ~4x fewer vertices; a second
-#: round saves a little more time but lets the points settle about twice as far away)
+#: rounds of aggregation of the interior vertices (one round merges about a vertex ring into
+#: one vertex; a second round saves a little more time but lets the points settle further away)
 AGGREGATE_ROUNDS = 1
 #: bound on the largest distance of a coarse level-0 point from the exact level 0, in mean
 #: exact grid spacings, for patches over the threshold and for bulging ones a few times
-#: smaller (with a margin over the offsets the tests measure; benchmarks/ui_latency.py
-#: reports the preview's)
+#: smaller (a bound with a margin, not a measured figure; benchmarks/ui_latency.py reports
+#: the preview's offsets)
 PREVIEW_MAX_OFFSET = 1.0
 #: bound on the median distance, in mean exact grid spacings (with the same margin)
 PREVIEW_MEDIAN_OFFSET = 0.05
@@ -205,9 +205,9 @@ def coarse_level0(
     patch itself with the sweeps, weights, untangling and fold repair of level 0 of
     ``resample_patch`` (the harmonic re-placement of folded points goes through the coarse
     map). With ``rounds=0`` the copy is the patch and the result is the exact level 0 up to
-    round-off. How close it is otherwise: see the module docstring (on patches over
-    :data:`PREVIEW_MIN_VERTICES` largest offsets from the exact level 0 measured at most
-    0.44, medians at most 0.021 of the mean grid spacing).
+    round-off. How close it is otherwise: see the module docstring; on patches over
+    :data:`PREVIEW_MIN_VERTICES` the offsets from the exact level 0 stay within
+    :data:`PREVIEW_MAX_OFFSET` (largest) and :data:`PREVIEW_MEDIAN_OFFSET` (median).
 
     Parameters
     ----------
