@@ -1,8 +1,21 @@
-"""Import layers: kernels import no package code, no stage imports a later stage, and the
-command lines and the web app are leaves (nothing imports them).
+"""Import layers of the package (``../shared/DESIGN.md``, "Layout").
 
-Every ``import`` in the package is read with ``ast`` (at any depth, so imports inside
-functions count; those under ``if TYPE_CHECKING:`` are types only and do not).
+Three rules, checked on every ``import`` in ``src/meshfit`` as read by ``ast`` (at any depth,
+so the imports inside functions count):
+
+a. a kernel (``meshfit._kernels``) imports nothing from the package but other kernels;
+b. no part imports a later part (`LAYERS`, low to high);
+c. the command lines and the web app (`leaf`) are leaves: nothing else imports them.
+
+An import under ``if TYPE_CHECKING:`` loads nothing at run time, and a low helper may name in
+its annotations the type it receives (``tol.length(mesh: Mesh)``): such imports are exempt
+from rule b only. Imports by name at run time (``importlib.import_module``: the root's lazy
+front-door names, the subcommand registry of ``meshfit.cli``) are not seen; both sit at the
+top already.
+
+A violation that cannot be fixed yet is listed in `KNOWN` with the reason; it is an
+``xfail(strict=True)`` case of its own, so every other edge stays enforced and a fixed one
+fails until it is taken off the list.
 """
 
 from __future__ import annotations
@@ -14,134 +27,254 @@ import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src"
 
-#: the package's parts, low to high (``../shared/DESIGN.md``, "Layout"): a module may import
-#: its own part and lower ones. The automatic layout uses the shrink wrap's sphere maps, and
-#: the fit writes the report, so those two sit below their users.
+#: the package's parts, low to high: a module may import modules of its own part and of
+#: lower ones. A part is the name after ``meshfit.`` (``meshfit.layout.auto``: ``layout``);
+#: the command lines and the web app are the part ``leaves`` (see `leaf`); ``meshfit`` is the
+#: package's root, the front door (``meshfit.fit``, ``meshfit.wrap``).
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("_kernels",),
-    ("errors", "_words", "_unionfind", "_atomic", "_malloc", "_threads", "types", "tol"),
-    ("_validate", "mesh"),
+    # private helpers and the shared vocabulary
+    ("errors", "types", "tol", "_validate", "_words", "_unionfind", "_atomic", "_malloc"),
+    ("_threads", "_progress", "_cliargs", "_cliout"),
+    ("mesh",),
     ("surface",),
     ("curves",),
-    ("shrinkwrap",),
     ("layout",),
     ("springs",),
     ("bspline",),
     ("displacement",),
     ("stitch",),
-    ("export", "render"),
-    ("report",),
+    ("shrinkwrap",),
+    ("export",),
     ("pipeline",),
-    ("batch", "demo", "_progress"),
-    ("meshfit",),  # the front door: names from the parts above
+    ("report", "render", "batch", "demo"),
+    ("meshfit",),
+    ("leaves",),
 )
-#: the leaves: command lines and the web app (``meshfit.<part>.cli`` too)
-LEAVES = ("cli", "fit_cli", "_cliargs", "ui")
+
+_SHRINKWRAP = (
+    "design decision: the automatic layout starts from the shrink wrap's sphere map and base "
+    "mesh, while DESIGN.md places shrinkwrap after stitch; either those verbs move below "
+    "layout (shrinkwrap itself imports only mesh) or the map moves shrinkwrap before layout"
+)
+_VERSION = (
+    "pipeline (being restructured by its owners) takes __version__ from the package root, "
+    "which names the pipeline's verbs: a cycle; a low meshfit._version module would break it"
+)
+_REPORT = (
+    "pipeline (being restructured by its owners) writes the HTML report, a later part in "
+    "DESIGN.md's order; either the report moves below pipeline or the fit's output stage "
+    "hands its results to the report from above"
+)
+_CLIOUT = (
+    "owned by others: takes EXIT_OK / print_json / print_table from the meshfit entry point; "
+    "they are in meshfit._cliout now (meshfit.cli re-exports them until this import moves)"
+)
+
+#: violations not fixed yet: (importer, imported) -> why
+KNOWN: dict[tuple[str, str], str] = {
+    ("meshfit.layout.auto", "meshfit.shrinkwrap"): _SHRINKWRAP,
+    ("meshfit.layout.auto", "meshfit.shrinkwrap.base"): _SHRINKWRAP,
+    ("meshfit.layout.auto", "meshfit.shrinkwrap.proxy"): _SHRINKWRAP,
+    ("meshfit.pipeline.run", "meshfit"): _VERSION,
+    ("meshfit.pipeline.store", "meshfit"): _VERSION,
+    ("meshfit.pipeline.run", "meshfit.report"): _REPORT,
+    ("meshfit.pipeline.stages", "meshfit.report"): _REPORT,
+    ("meshfit.bspline.cli", "meshfit.cli"): _CLIOUT,
+    ("meshfit.fit_cli", "meshfit.cli"): _CLIOUT,
+}
 
 
-def _modules(src: Path = SRC) -> dict[str, Path]:
-    out = {}
-    for p in (src / "meshfit").rglob("*.py"):
-        parts = list(p.relative_to(src).with_suffix("").parts)
-        if parts[-1] == "__init__":
-            parts = parts[:-1]
-        out[".".join(parts)] = p
-    return out
+def leaf(module: str) -> str | None:
+    """The command line or web app a module belongs to, or None: ``meshfit.cli``,
+    ``meshfit.<name>_cli``, ``meshfit.<part>.cli`` (each its own), ``meshfit.ui[.*]``."""
+    bits = module.split(".")
+    if len(bits) > 1 and bits[1] == "ui":
+        return "meshfit.ui"
+    if bits[-1] == "cli" or bits[-1].endswith("_cli"):
+        return module
+    return None
 
 
 def part(module: str) -> str:
-    """The part of the package a module belongs to (``meshfit.layout.cli`` is a CLI)."""
+    """The row of `LAYERS` a module's part is in (``meshfit.layout.cli`` is a leaf)."""
+    if leaf(module):
+        return "leaves"
     bits = module.split(".")
-    if len(bits) == 1:
-        return "meshfit"
-    if bits[-1] == "cli" or bits[1] in LEAVES:
-        return "cli"
-    return bits[1]
+    return bits[1] if len(bits) > 1 else "meshfit"
 
 
-def _type_only(node: ast.AST, parents: dict) -> bool:
-    while node in parents:
-        node = parents[node]
-        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
-            return True
-    return False
+def rank(module: str) -> int:
+    p = part(module)
+    for k, row in enumerate(LAYERS):
+        if p in row:
+            return k
+    raise KeyError(f"{module}: its part {p!r} has no row in LAYERS")
 
 
-def imports(modules: dict[str, Path]) -> list[tuple[str, str, int]]:
-    """``(importer, imported, line)`` for every import of a package module."""
-    out = []
-    for name, path in modules.items():
-        tree = ast.parse(path.read_text())
-        parents = {c: n for n in ast.walk(tree) for c in ast.iter_child_nodes(n)}
-        for node in ast.walk(tree):
-            if isinstance(node, ast.Import):
-                targets = [a.name for a in node.names]
-            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-                targets = [
-                    f"{node.module}.{a.name}"
-                    if f"{node.module}.{a.name}" in modules
-                    else node.module
-                    for a in node.names
-                ]
-            else:
-                continue
-            if _type_only(node, parents):
-                continue
-            out += [(name, t, node.lineno) for t in targets if t.split(".")[0] == "meshfit"]
+def modules(src: Path = SRC) -> dict[str, Path]:
+    """Dotted module name -> file, for every module of the ``meshfit`` package under ``src``."""
+    out = {}
+    for p in sorted((src / "meshfit").rglob("*.py")):
+        bits = list(p.relative_to(src).with_suffix("").parts)
+        if bits[-1] == "__init__":
+            bits = bits[:-1]
+        out[".".join(bits)] = p
     return out
 
 
-def violations(edges: list[tuple[str, str, int]]) -> list[str]:
-    rank = {p: k for k, layer in enumerate(LAYERS) for p in layer}
-    bad = []
-    for a, b, line in edges:
-        pa, pb = part(a), part(b)
-        if pa == pb:
+def _type_only(node: ast.AST, parents: dict[ast.AST, ast.AST]) -> bool:
+    """Whether ``node`` is in the body of an ``if TYPE_CHECKING:`` (not in its ``else``)."""
+    while node in parents:
+        up = parents[node]
+        if (
+            isinstance(up, ast.If)
+            and "TYPE_CHECKING" in ast.unparse(up.test)
+            and any(node is n for n in up.body)
+        ):
+            return True
+        node = up
+    return False
+
+
+def _targets(node: ast.AST, name: str, is_package: bool, known: dict) -> list[str]:
+    """Modules an import statement of module ``name`` loads (``from a import b`` is the
+    module ``a.b`` where that is a module, else ``a``)."""
+    if isinstance(node, ast.Import):
+        return [a.name for a in node.names]
+    if not isinstance(node, ast.ImportFrom):
+        return []
+    base = node.module or ""
+    if node.level:  # relative: resolved against the importer's package
+        pkg = name.split(".") if is_package else name.split(".")[:-1]
+        pkg = pkg[: len(pkg) - (node.level - 1)]
+        base = ".".join(pkg + ([base] if base else []))
+    return [f"{base}.{a.name}" if f"{base}.{a.name}" in known else base for a in node.names]
+
+
+def imports(mods: dict[str, Path]) -> list[tuple[str, str, int, bool]]:
+    """``(importer, imported, line, type_only)`` for every import of a package module."""
+    out = []
+    for name, path in mods.items():
+        tree = ast.parse(path.read_text(), filename=str(path))
+        parents = {c: n for n in ast.walk(tree) for c in ast.iter_child_nodes(n)}
+        is_package = path.name == "__init__.py"
+        for node in ast.walk(tree):
+            for t in _targets(node, name, is_package, mods):
+                if t == "meshfit" or t.startswith("meshfit."):
+                    out.append((name, t, node.lineno, _type_only(node, parents)))
+    return out
+
+
+def violations(edges: list[tuple[str, str, int, bool]]) -> dict[tuple[str, str], str]:
+    """(importer, imported) -> what is wrong, for every edge that breaks a rule."""
+    bad: dict[tuple[str, str], str] = {}
+    for a, b, line, type_only in edges:
+        where = f"{a}:{line} imports {b}"
+        if a.startswith("meshfit._kernels") and not b.startswith("meshfit._kernels"):
+            why = f"{where}: a kernel imports package code"
+        elif leaf(b) and leaf(b) != leaf(a):
+            why = f"{where}: the command line / web app {leaf(b)} is a leaf"
+        elif not type_only and rank(b) > rank(a):
+            why = f"{where}: part {part(a)!r} imports the later part {part(b)!r}"
+        else:
             continue
-        if pb == "cli":
-            bad.append(f"{a}:{line} imports the leaf {b}")
-        elif pa == "_kernels":
-            bad.append(f"{a}:{line}: a kernel imports {b}")
-        elif pb == "meshfit":
-            continue  # the package root itself (``__version__``; its own imports are low)
-        elif pa != "cli" and rank.get(pb, -1) > rank.get(pa, -1):
-            bad.append(f"{a}:{line} ({pa}) imports the later {b} ({pb})")
+        bad.setdefault((a, b), why)
     return bad
 
 
-def test_every_part_has_a_layer():
-    parts = {part(m) for m in _modules()} - {"cli"}
-    placed = {p for layer in LAYERS for p in layer}
-    assert parts <= placed, parts - placed
+@pytest.fixture(scope="module")
+def found() -> dict[tuple[str, str], str]:
+    return violations(imports(modules()))
 
 
-def test_no_part_imports_a_later_one_and_the_leaves_are_leaves():
-    assert violations(imports(_modules())) == []
+def test_every_part_has_a_row():
+    for m in modules():
+        rank(m)
+
+
+def test_layers_hold(found):
+    assert sorted(v for k, v in found.items() if k not in KNOWN) == []
 
 
 @pytest.mark.parametrize(
-    ("importer", "imported", "why"),
-    [
-        ("meshfit._kernels.walk", "meshfit.mesh", "kernel"),
-        ("meshfit.mesh.core", "meshfit.layout.auto", "later"),
-        ("meshfit.demo", "meshfit.fit_cli", "leaf"),
-        ("meshfit.pipeline.run", "meshfit.ui.app", "leaf"),
-    ],
+    "edge",
+    [pytest.param(e, marks=pytest.mark.xfail(strict=True, reason=why)) for e, why in KNOWN.items()],
+    ids="->".join,
 )
-def test_the_check_catches_each_kind_of_violation(importer, imported, why):
-    bad = violations([(importer, imported, 1)])
-    assert len(bad) == 1
-    assert {"kernel": "a kernel", "later": "the later", "leaf": "the leaf"}[why] in bad[0]
+def test_known_violation_is_gone(found, edge):
+    assert edge not in found, found[edge]
 
 
-def test_imports_under_type_checking_do_not_count(tmp_path):
-    pkg = tmp_path / "meshfit"
-    (pkg / "mesh").mkdir(parents=True)
-    (pkg / "__init__.py").write_text("")
-    (pkg / "mesh" / "__init__.py").write_text(
-        "from typing import TYPE_CHECKING\n"
-        "if TYPE_CHECKING:\n    from meshfit.layout import Layout\n"
-        "def f():\n    from meshfit.stitch import Network\n"
+# ----------------------------------------------------------------- the check itself
+
+
+def _package(tmp_path: Path, files: dict[str, str]) -> dict[str, Path]:
+    for rel, text in files.items():
+        p = tmp_path / "meshfit" / rel
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_text(text)
+    return modules(tmp_path)
+
+
+def test_the_check_finds_each_kind_of_violation(tmp_path):
+    """A synthetic package with one violation of each kind (two inside functions, one
+    relative), beside imports that are allowed."""
+    mods = _package(
+        tmp_path,
+        {
+            "__init__.py": "from meshfit import errors\n",
+            "errors.py": "",
+            "_kernels/__init__.py": "",
+            "_kernels/walk.py": "def f():\n    from meshfit.mesh import Mesh\n",
+            "_kernels/ok.py": "from meshfit._kernels import walk\n",
+            "mesh/__init__.py": "from meshfit import errors\nfrom meshfit._kernels import walk\n",
+            "mesh/core.py": "def f():\n    import meshfit.layout.auto\n",
+            "layout/__init__.py": "from ..mesh import core\n",
+            "layout/auto.py": "from . import cli\n",
+            "layout/cli.py": "from meshfit.layout import auto\nfrom meshfit.cli import main\n",
+            "cli.py": "from meshfit import __version__\nfrom meshfit.demo import run\n",
+            "demo.py": "from meshfit.ui.app import App\n",
+            "ui/__init__.py": "from meshfit.ui import app\n",
+            "ui/app.py": "from meshfit.layout import auto\n",
+            "ui/cli.py": "from meshfit.ui import app\n",
+        },
     )
-    edges = imports(_modules(tmp_path))
-    assert [(a, b) for a, b, _ in edges] == [("meshfit.mesh", "meshfit.stitch")]
+    got = violations(imports(mods))
+    assert sorted(got) == [
+        ("meshfit._kernels.walk", "meshfit.mesh"),
+        ("meshfit.demo", "meshfit.ui.app"),
+        ("meshfit.layout.auto", "meshfit.layout.cli"),
+        ("meshfit.layout.cli", "meshfit.cli"),
+        ("meshfit.mesh.core", "meshfit.layout.auto"),
+    ], got
+    assert "a kernel" in got[("meshfit._kernels.walk", "meshfit.mesh")]
+    assert "later part 'layout'" in got[("meshfit.mesh.core", "meshfit.layout.auto")]
+    assert "is a leaf" in got[("meshfit.demo", "meshfit.ui.app")]
+
+
+def test_type_only_imports_are_exempt_from_the_order_only(tmp_path):
+    mods = _package(
+        tmp_path,
+        {
+            "__init__.py": "",
+            "tol.py": (
+                "from typing import TYPE_CHECKING\n"
+                "if TYPE_CHECKING:\n    from meshfit.mesh import Mesh\n"
+                "else:\n    from meshfit.stitch import Network\n"
+            ),
+            "mesh.py": "",
+            "stitch.py": "",
+            "_kernels/walk.py": "from typing import TYPE_CHECKING\n"
+            "if TYPE_CHECKING:\n    from meshfit.mesh import Mesh\n",
+        },
+    )
+    assert sorted(violations(imports(mods))) == [
+        ("meshfit._kernels.walk", "meshfit.mesh"),
+        ("meshfit.tol", "meshfit.stitch"),
+    ]
+
+
+def test_a_part_without_a_row_is_an_error():
+    with pytest.raises(KeyError, match="newpart"):
+        rank("meshfit.newpart.module")

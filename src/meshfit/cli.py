@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import json
 import os
 import sys
 import time
@@ -16,12 +15,10 @@ from pathlib import Path
 
 from meshfit import __version__, errors
 from meshfit._cliargs import CLI_REPAIR_HINT, add_repair_option
+from meshfit._cliout import EXIT_ERROR, EXIT_OK, print_json, print_table
 from meshfit._malloc import tune_malloc
 
 __all__ = ["EXIT_ERROR", "EXIT_OK", "build_parser", "main", "print_json", "print_table"]
-
-EXIT_OK = 0
-EXIT_ERROR = 2
 
 #: Stage packages that add subcommands. Each module defines ``add_commands(sub)``, which adds
 #: its parsers to the ``argparse`` sub-parser action and sets ``func`` on each of them; a
@@ -34,50 +31,6 @@ _COMMAND_MODULES: tuple[str, ...] = (
     "meshfit.fit_cli",
     "meshfit.ui.cli",
 )
-
-
-def print_json(data: dict) -> None:
-    json.dump(data, sys.stdout, indent=2, sort_keys=False)
-    sys.stdout.write("\n")
-
-
-def _fmt(v) -> str:
-    if isinstance(v, float):
-        return f"{v:.6g}"
-    if isinstance(v, list) and v and isinstance(v[0], float):
-        return "[" + ", ".join(f"{x:.6g}" for x in v) + "]"
-    return str(v)
-
-
-#: line width of the tables printed to a file or a pipe (unless ``COLUMNS`` is set): wide
-#: enough that no figure is cut short
-PIPE_COLUMNS = 160
-
-
-def console():
-    """A rich console for stdout: the terminal's width, or `PIPE_COLUMNS` when stdout is
-    not a terminal (rich would take 80 columns and wrap or cut the tables' cells)."""
-    import os
-
-    from rich.console import Console
-
-    out = Console()
-    if not out.is_terminal and not os.environ.get("COLUMNS"):
-        out = Console(width=PIPE_COLUMNS)
-    return out
-
-
-def print_table(title: str, data: dict) -> None:
-    from rich.table import Table
-
-    table = Table(title=title, show_header=False, title_justify="left")
-    table.add_column("quantity", style="bold")
-    table.add_column("value")
-    for k, v in data.items():
-        if k in ("findings", "notes"):
-            continue
-        table.add_row(k.replace("_", " "), _fmt(v))
-    console().print(table)
 
 
 def cmd_info(args: argparse.Namespace) -> int:

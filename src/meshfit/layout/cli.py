@@ -42,7 +42,7 @@ def add_commands(sub) -> None:
 
 
 def cmd_layout(args: argparse.Namespace) -> int:
-    from meshfit.cli import print_json, print_table
+    from meshfit._cliout import print_json, print_table
     from meshfit.layout import extract_patches, load_layout
     from meshfit.layout.patch import patch_notes, shape_figures
     from meshfit.mesh import load_mesh

@@ -93,7 +93,7 @@ def _wrap(args: argparse.Namespace):
 
 def cmd_wrap(args: argparse.Namespace) -> int:
     """Shrink wrap a mesh; write M0..Mm, the stream and the metrics."""
-    from meshfit.cli import print_json, print_table
+    from meshfit._cliout import print_json, print_table
     from meshfit.mesh.io import save_mesh
     from meshfit.shrinkwrap import encode_stream, wrap_report, write_stream
 
@@ -133,7 +133,7 @@ def cmd_wrap(args: argparse.Namespace) -> int:
 
 
 def cmd_encode(args: argparse.Namespace) -> int:
-    from meshfit.cli import print_json
+    from meshfit._cliout import print_json
     from meshfit.shrinkwrap import encode_stream, write_stream
 
     _, res = _wrap(args)
@@ -165,7 +165,7 @@ def cmd_encode(args: argparse.Namespace) -> int:
 
 
 def cmd_decode(args: argparse.Namespace) -> int:
-    from meshfit.cli import print_json
+    from meshfit._cliout import print_json
     from meshfit.mesh import Mesh
     from meshfit.mesh.io import save_mesh
     from meshfit.shrinkwrap import decode_stream, read_stream

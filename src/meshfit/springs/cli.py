@@ -65,8 +65,8 @@ def save_spring_mesh(spring, folder: str | os.PathLike, stem: str) -> tuple[Path
 
 def cmd_springs(args: argparse.Namespace) -> int:
     """Resample every patch of a layout; print metrics and timings."""
+    from meshfit._cliout import EXIT_OK, print_json, print_table
     from meshfit._threads import map_threads, n_workers
-    from meshfit.cli import EXIT_OK, print_json, print_table
     from meshfit.layout import extract_patches, load_layout
     from meshfit.layout.patch import shape_figures
     from meshfit.mesh import load_mesh
@@ -207,7 +207,7 @@ def _print_patches(rows: list[dict]) -> None:
     from rich import box
     from rich.table import Table
 
-    from meshfit.cli import console
+    from meshfit._cliout import console
     from meshfit.springs.metrics import out_of_bounds
 
     table = Table(title="spring meshes", title_justify="left", box=box.SIMPLE_HEAD)
@@ -287,7 +287,7 @@ def _place_lines(rows: list[dict]) -> list[str]:
 
 
 def _summary_lines(summary: dict) -> dict:
-    """The summary as quantity -> value rows for `meshfit.cli.print_table`."""
+    """The summary as quantity -> value rows for `meshfit._cliout.print_table`."""
     bounds = summary["bounds"]
     labels = {
         "arc_cv_max": f"arc CV above {bounds['arc_cv_max']:g}",
