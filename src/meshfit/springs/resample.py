@@ -733,7 +733,58 @@ class SpringOptions:
                 object.__setattr__(self, name, tuple(int(x) for x in value))
 
 
-def resample_patch(  # noqa: C901 (the level loop and its remakes share their state; to split)
+def _checked_options(options: SpringOptions | None) -> SpringOptions:
+    """``options`` (default ``SpringOptions()``) once its values pass the checks of
+    :func:`resample_patch`; raises InputError naming the first bad one."""
+    o = options if options is not None else SpringOptions()
+    if not isinstance(o, SpringOptions):
+        raise InputError(f"options must be SpringOptions, got {type(o).__name__}")
+    if not 0.0 <= o.fairness <= 1.0:
+        raise InputError(f"fairness must be in [0, 1], got {o.fairness}")
+    if o.forces not in ("tangent", "euclidean"):
+        raise InputError(f"forces must be 'tangent' or 'euclidean', got {o.forces!r}")
+    if o.init not in ("map", "dijkstra"):
+        raise InputError(f"init must be 'map' or 'dijkstra', got {o.init!r}")
+    if o.side_spacing not in ("chord", "arc"):
+        raise InputError(f"side_spacing must be 'chord' or 'arc', got {o.side_spacing!r}")
+    if o.midpoints not in ("map", "findmid"):
+        raise InputError(f"midpoints must be 'map' or 'findmid', got {o.midpoints!r}")
+    polish = o.polish
+    if isinstance(polish, bool) or int(polish) != polish or polish < 0:
+        raise InputError(f"polish must be a non-negative integer, got {polish!r}")
+    if not 0.0 < o.omega < 2.0:
+        raise InputError(f"omega must be in (0, 2), got {o.omega}")
+    if int(o.init_intervals) < 1:
+        raise InputError(f"init_intervals must be >= 1, got {o.init_intervals}")
+    if o.tolerance is not None:
+        _check_tolerance(o)
+    return o
+
+
+def _check_tolerance(o: SpringOptions) -> None:
+    """A ``tolerance`` is a positive number and leaves ``level`` and ``rescue`` unset."""
+    tolerance = o.tolerance
+    try:
+        positive = not isinstance(tolerance, bool) and 0.0 < float(tolerance) < np.inf
+    except (TypeError, ValueError):
+        positive = False
+    if not positive:
+        raise InputError(f"tolerance must be a positive number, got {tolerance!r}")
+    if o.level is not None or o.rescue:
+        raise InputError("tolerance chooses the final level: not with level or rescue")
+
+
+def _check_patch(patch) -> None:
+    from meshfit.layout.patch import Patch
+
+    if not isinstance(patch, Patch):
+        raise InputError(
+            f"patch must be a meshfit.layout.Patch (from extract_patches), got "
+            f"{type(patch).__name__}"
+        )
+
+
+def resample_patch(
     patch,
     options: SpringOptions | None = None,
     *,
@@ -780,222 +831,220 @@ def resample_patch(  # noqa: C901 (the level loop and its remakes share their st
     .. [1] Krishnamurthy, "Fitting Smooth Surfaces to Dense Polygon Meshes", PhD thesis,
        Stanford 2000, sec. 5.3-5.8 (spring mesh), sec. 5.10-5.11 (feature curves).
     """
-    o = options if options is not None else SpringOptions()
-    if not isinstance(o, SpringOptions):
-        raise InputError(f"options must be SpringOptions, got {type(o).__name__}")
-    level = o.level
-    max_points = o.max_points
-    sections_u = o.sections_u
-    sections_v = o.sections_v
-    init_intervals = o.init_intervals
-    fairness = o.fairness
-    max_iter = o.max_iter
-    ramp = o.ramp
-    omega = o.omega
-    n_fair = o.n_fair
-    untangle_rounds = o.untangle_rounds
-    repair = o.repair
-    polish = o.polish
-    forces = o.forces
-    init = o.init
-    midpoints = o.midpoints
-    side_spacing = o.side_spacing
-    guard = o.guard
-    follow_folds = o.follow_folds
-    fairness_fallback = o.fairness_fallback
-    rescue = o.rescue
-    tolerance = o.tolerance
-    metrics = o.metrics
-    fidelity = o.fidelity
-    scale = o.scale
-    if not 0.0 <= fairness <= 1.0:
-        raise InputError(f"fairness must be in [0, 1], got {fairness}")
-    if forces not in ("tangent", "euclidean"):
-        raise InputError(f"forces must be 'tangent' or 'euclidean', got {forces!r}")
-    if init not in ("map", "dijkstra"):
-        raise InputError(f"init must be 'map' or 'dijkstra', got {init!r}")
-    if side_spacing not in ("chord", "arc"):
-        raise InputError(f"side_spacing must be 'chord' or 'arc', got {side_spacing!r}")
-    if midpoints not in ("map", "findmid"):
-        raise InputError(f"midpoints must be 'map' or 'findmid', got {midpoints!r}")
-    if isinstance(polish, bool) or int(polish) != polish or polish < 0:
-        raise InputError(f"polish must be a non-negative integer, got {polish!r}")
-    if not 0.0 < omega < 2.0:
-        raise InputError(f"omega must be in (0, 2), got {omega}")
-    if int(init_intervals) < 1:
-        raise InputError(f"init_intervals must be >= 1, got {init_intervals}")
-    if tolerance is not None:
-        try:
-            positive = not isinstance(tolerance, bool) and 0.0 < float(tolerance) < np.inf
-        except (TypeError, ValueError):
-            positive = False
-        if not positive:
-            raise InputError(f"tolerance must be a positive number, got {tolerance!r}")
-        if level is not None or rescue:
-            raise InputError("tolerance chooses the final level: not with level or rescue")
-    from meshfit.layout.patch import Patch
-
-    if not isinstance(patch, Patch):
-        raise InputError(
-            f"patch must be a meshfit.layout.Patch (from extract_patches), got "
-            f"{type(patch).__name__}"
-        )
-    mesh = patch.mesh
+    o = _checked_options(options)
+    _check_patch(patch)
     sides = _sides(patch)
 
-    def settle(state: State, pmap, reach: int, sweeps: int, folds: int | None = None) -> None:
-        """Untangling rounds around folded cells (``reach`` rings), then the fold repair and
-        the sliding apart of pinched side points. ``folds``: the folded cells of ``state``
-        when the caller has just counted them (0: the untangling is skipped)."""
-        left = None
-        if untangle_rounds and folds == 0:
-            left = 0
-        elif untangle_rounds:
-            left = untangle(
-                state,
-                rounds=untangle_rounds,
-                sweeps=sweeps,
-                reach=reach,
-                tangent=forces == "tangent",
-                guard=guard,
-                fold=follow_folds,
-            )
-        if repair:
-            if left != 0:  # (with no folded cell left the repair has nothing to do)
-                _repair(state, pmap, left)
-            unpinch_side_points(state)
-
-    def run(  # noqa: C901 (one relaxation schedule per level; split with resample_patch)
+    def run(
         balanced: bool,
         fairness: float,
         max_iter: int,
         polish: int,
         progress,
         finer: int = 0,
-        fallback: bool = fairness_fallback,
+        fallback: bool = o.fairness_fallback,
         even: bool = False,
     ) -> SpringResult:
-        """The coarse-to-fine resampling with these settings (the rest as given), ``finer``
-        levels beyond the final level; with ``even`` the final level's grid lines evened
-        out in the map."""
-        t0 = time.perf_counter()
-        us, vs, breaks, counts_u, counts_v = _level0_sections(
-            patch, sides, init_intervals, sections_u, sections_v
+        """The coarse-to-fine resampling with these settings (the rest from ``o``)."""
+        settings = _RunSettings(balanced, fairness, max_iter, polish, finer, fallback, even)
+        return _Resampling(patch, sides, o, settings).result(progress)
+
+    res = run(False, o.fairness, o.max_iter, o.polish, progress)
+    if o.tolerance is not None:
+        return _to_tolerance(
+            patch.mesh, res, float(o.tolerance), o.scale, o.max_points,
+            lambda extra: run(False, o.fairness, o.max_iter, o.polish, progress, extra),
+        )  # fmt: skip
+    if not (o.rescue and o.init == "map" and o.midpoints == "map"):
+        return res
+    return _rescue(patch.mesh, res, o, run)
+
+
+@dataclass(frozen=True)
+class _RunSettings:
+    """What one run of `_Resampling` takes besides the options: the map (area-balanced or
+    not), the relaxation's fairness weight, sweeps and polish, ``finer`` levels beyond the
+    vertex-count rule's, the level-0 remakes (``fallback``) and, with ``even``, the final
+    level's grid lines evened out in the map."""
+
+    balanced: bool
+    fairness: float
+    max_iter: int
+    polish: int
+    finer: int = 0
+    fallback: bool = True
+    even: bool = False
+
+
+class _Resampling:
+    """One coarse-to-fine resampling of a patch (:func:`resample_patch` with one set of
+    `_RunSettings`): level 0 (remade where it breaks a quality bound), then each finer level
+    subdivided, relaxed, polished and repaired."""
+
+    def __init__(self, patch, sides: Sides, o: SpringOptions, run: _RunSettings) -> None:
+        self.t0 = time.perf_counter()
+        self.patch, self.mesh, self.sides, self.o, self.run = patch, patch.mesh, sides, o, run
+        self.us, self.vs, self.breaks, self.counts_u, self.counts_v = _level0_sections(
+            patch, sides, o.init_intervals, o.sections_u, o.sections_v
         )
-        pmap = square_map(mesh, sides, balanced=balanced) if "map" in (init, midpoints) else None
-        mapped = init == "map" and not (us and vs)
-        coarse = (COARSE_SWEEPS, COARSE_OMEGA, COARSE_EPS)
+        maps = "map" in (o.init, o.midpoints)
+        self.pmap = square_map(self.mesh, sides, balanced=run.balanced) if maps else None
+        self.mapped = o.init == "map" and not (self.us and self.vs)
+        self.seconds = {
+            "init": time.perf_counter() - self.t0, "relax": 0.0, "subdivide": 0.0, "metrics": 0.0
+        }  # fmt: skip
 
-        def final_level(cu: list[int], cv: list[int]) -> int:
-            return finer + _final_level(
-                (sum(cu), sum(cv)), mesh.n_vertices, level, max_points, patch.index
-            )
+    def final_level(self, cu: list[int], cv: list[int]) -> int:
+        o = self.o
+        return self.run.finer + _final_level(
+            (sum(cu), sum(cv)), self.mesh.n_vertices, o.level, o.max_points, self.patch.index
+        )
 
-        def level_step(state: State, k: int, fairness: float, final: int) -> int:
-            """Relaxation, polish and fold repair of level ``k``; the sweeps done."""
-            # level 0 starts from graph paths and must travel far: it is relaxed to a tighter
-            # tolerance with more sweeps (it is small); later levels only settle new points
-            done, _ = relax(
+    def settle(self, state: State, reach: int, sweeps: int, folds: int | None = None) -> None:
+        """Untangling rounds around folded cells (``reach`` rings), then the fold repair and
+        the sliding apart of pinched side points. ``folds``: the folded cells of ``state``
+        when the caller has just counted them (0: the untangling is skipped)."""
+        o = self.o
+        left = None
+        if o.untangle_rounds and folds == 0:
+            left = 0
+        elif o.untangle_rounds:
+            left = untangle(
                 state,
-                max_iter=max_iter if k else max_iter * coarse[0],
-                ramp=ramp,
-                fairness=fairness,
-                omega=omega if k else min(1.9, omega * coarse[1]),
-                # a graph-path start is pulled into place by the arc-length force first; a mapped
-                # start is already spread out and gets the final weights at once
-                start=0 if k == 0 and not mapped else ramp,
-                eps=tol.SPRING_CONVERGED * (1.0 if k else coarse[2]),
-                tangent=forces == "tangent",
-                guard=guard,
-                fold=follow_folds,
+                rounds=o.untangle_rounds,
+                sweeps=sweeps,
+                reach=reach,
+                tangent=o.forces == "tangent",
+                guard=o.guard,
+                fold=o.follow_folds,
             )
-            folds = None
-            if polish and ((k <= 1 and k < final) or 0 < k == final):  # arc-length sweeps
-                n = int(polish) * _polish_factor(k, final)
-                folds = _polish(
-                    state, n, omega, forces, guard, lines=k == final, fold=follow_folds
-                )[1]
-            settle(state, pmap, 2, max_iter, folds)
-            return done
+        if o.repair:
+            if left != 0:  # (with no folded cell left the repair has nothing to do)
+                _repair(state, self.pmap, left)
+            unpinch_side_points(state)
 
-        def advance(
-            state: State, k: int, fairness: float, final: int, again: bool = False
-        ) -> tuple[State, int, dict]:
-            """Subdivide to level ``k`` and relax it: the state kept, the sweeps done and
-            what else was done (``final_arc``, ``evened``). With ``again`` a level that
-            breaks a quality bound is relaxed once more from its subdivided points with the
-            arc-length force alone, kept when it breaks fewer bounds or as many with a lower
-            largest arc-length coefficient of variation. With ``even`` of the run the grid
-            lines of the final level are then evened out in the planar map
-            (`even_lines_in_map`) and its folds repaired (a rescue weighs the result)."""
-            t = time.perf_counter()
-            subdivide(state, n_fair=n_fair, pmap=pmap if midpoints == "map" else None)
-            settle(state, pmap, 1, max_iter)  # mid-points placed across a fold: smooth them out
-            seconds["subdivide"] += time.perf_counter() - t
-            t = time.perf_counter()
-            trial = state.copy() if again and fairness > 0.0 else None
-            done = level_step(state, k, fairness, final)
-            kept = {"final_arc": False, "evened": False}
-            score = _bounds_and_cv(state) if trial is not None else None
-            if trial is not None and _relax_again(score):
-                done_again = level_step(trial, k, 0.0, final)
-                trial_score = _bounds_and_cv(trial)
-                if trial_score < score:
-                    state, done, score = trial, done_again, trial_score
-                    kept["final_arc"] = True
-            if even and k == final and even_lines_in_map(state, pmap, rounds=EVEN_ROUNDS):
-                settle(state, pmap, 2, max_iter)  # rows and columns evened apart: folds
-                kept["evened"] = True
-            seconds["relax"] += time.perf_counter() - t
-            return state, done, kept
+    def level_step(self, state: State, k: int, fairness: float, final: int) -> int:
+        """Relaxation, polish and fold repair of level ``k``; the sweeps done."""
+        o, max_iter, polish = self.o, self.run.max_iter, self.run.polish
+        # level 0 starts from graph paths and must travel far: it is relaxed to a tighter
+        # tolerance with more sweeps (it is small); later levels only settle new points
+        done, _ = relax(
+            state,
+            max_iter=max_iter if k else max_iter * COARSE_SWEEPS,
+            ramp=o.ramp,
+            fairness=fairness,
+            omega=o.omega if k else min(1.9, o.omega * COARSE_OMEGA),
+            # a graph-path start is pulled into place by the arc-length force first; a mapped
+            # start is already spread out and gets the final weights at once
+            start=0 if k == 0 and not self.mapped else o.ramp,
+            eps=tol.SPRING_CONVERGED * (1.0 if k else COARSE_EPS),
+            tangent=o.forces == "tangent",
+            guard=o.guard,
+            fold=o.follow_folds,
+        )
+        folds = None
+        if polish and ((k <= 1 and k < final) or 0 < k == final):  # arc-length sweeps
+            n = int(polish) * _polish_factor(k, final)
+            folds = _polish(
+                state, n, o.omega, o.forces, o.guard, lines=k == final, fold=o.follow_folds
+            )[1]
+        self.settle(state, 2, max_iter, folds)
+        return done
 
-        def start(cu: list[int], cv: list[int], f: float) -> dict:
-            """Level 0 with these intervals and fairness weight, as a candidate: its state,
-            weight, final level, sweeps and snapshots per level done, and bounds broken."""
-            t = time.perf_counter()
-            state = State(mesh, patch.index, sides, us, vs, breaks, cu, cv)
-            state.chords = side_spacing == "chord"
-            if mapped:
-                _initialize_map(state, pmap)
-            else:
-                _initialize(state)
-            final = final_level(cu, cv)
-            seconds["init"] += time.perf_counter() - t
-            t = time.perf_counter()
-            done = level_step(state, 0, f, final)
-            seconds["relax"] += time.perf_counter() - t
-            broken = [_broken_bounds(state)] if fallback else [0]
-            return {"state": state, "fair": f, "final": final, "done": [done],
-                    "snaps": [state.snapshot()], "broken": broken}  # fmt: skip
+    def advance(
+        self, state: State, k: int, fairness: float, final: int, again: bool = False
+    ) -> tuple[State, int, dict]:
+        """Subdivide to level ``k`` and relax it: the state kept, the sweeps done and
+        what else was done (``final_arc``, ``evened``). With ``again`` a level that
+        breaks a quality bound is relaxed once more from its subdivided points with the
+        arc-length force alone, kept when it breaks fewer bounds or as many with a lower
+        largest arc-length coefficient of variation. With ``even`` of the run the grid
+        lines of the final level are then evened out in the planar map
+        (`even_lines_in_map`) and its folds repaired (a rescue weighs the result)."""
+        max_iter = self.run.max_iter
+        t = time.perf_counter()
+        pmap = self.pmap if self.o.midpoints == "map" else None
+        subdivide(state, n_fair=self.o.n_fair, pmap=pmap)
+        self.settle(state, 1, max_iter)  # mid-points placed across a fold: smooth them out
+        self.seconds["subdivide"] += time.perf_counter() - t
+        t = time.perf_counter()
+        trial = state.copy() if again and fairness > 0.0 else None
+        done = self.level_step(state, k, fairness, final)
+        kept = {"final_arc": False, "evened": False}
+        score = _bounds_and_cv(state) if trial is not None else None
+        if trial is not None and _relax_again(score):
+            done_again = self.level_step(trial, k, 0.0, final)
+            trial_score = _bounds_and_cv(trial)
+            if trial_score < score:
+                state, done, score = trial, done_again, trial_score
+                kept["final_arc"] = True
+        if self.run.even and k == final and even_lines_in_map(state, self.pmap, rounds=EVEN_ROUNDS):
+            self.settle(state, 2, max_iter)  # rows and columns evened apart: folds
+            kept["evened"] = True
+        self.seconds["relax"] += time.perf_counter() - t
+        return state, done, kept
 
-        seconds = {"init": time.perf_counter() - t0, "relax": 0.0, "subdivide": 0.0, "metrics": 0.0}
-        best = start(counts_u, counts_v, fairness)
-        remade = False
-        if best["broken"][0]:
-            # a level 0 that breaks a quality bound is made again with the arc-length force
-            # alone, then with intervals rebalanced to square cells; the first of those that
-            # breaks the fewest bounds is weighed against it once more on level 1 (where a
-            # level 0 that looked better can turn worse), and kept if better there
-            tries = [] if fairness == 0.0 else [(counts_u, counts_v, 0.0)]
-            if sections_u is None and sections_v is None:
-                cu, cv = _rebalanced(best["state"])
-                if (cu, cv) != (counts_u, counts_v):
-                    tries += [(cu, cv, f) for f in dict.fromkeys((fairness, 0.0))]
-            alt = None
-            for cu, cv, f in tries:
-                c = start(cu, cv, f)
-                if c["broken"][0] < (alt or best)["broken"][0]:
-                    alt = c
-                    if not c["broken"][0]:
-                        break
-            if alt is not None:
-                if min(best["final"], alt["final"]) >= 1:
-                    for c in (best, alt):
-                        c["done"].append(advance(c["state"], 1, c["fair"], c["final"])[1])
-                        c["snaps"].append(c["state"].snapshot())
-                        c["broken"].insert(0, _broken_bounds(c["state"]))
-                if alt["broken"] < best["broken"]:  # level 1 first, then level 0
-                    best, remade = alt, True
+    def start(self, cu: list[int], cv: list[int], f: float) -> dict:
+        """Level 0 with these intervals and fairness weight, as a candidate: its state,
+        weight, final level, sweeps and snapshots per level done, and bounds broken."""
+        t = time.perf_counter()
+        state = State(
+            self.mesh, self.patch.index, self.sides, self.us, self.vs, self.breaks, cu, cv
+        )
+        state.chords = self.o.side_spacing == "chord"
+        if self.mapped:
+            _initialize_map(state, self.pmap)
+        else:
+            _initialize(state)
+        final = self.final_level(cu, cv)
+        self.seconds["init"] += time.perf_counter() - t
+        t = time.perf_counter()
+        done = self.level_step(state, 0, f, final)
+        self.seconds["relax"] += time.perf_counter() - t
+        broken = [_broken_bounds(state)] if self.run.fallback else [0]
+        return {"state": state, "fair": f, "final": final, "done": [done],
+                "snaps": [state.snapshot()], "broken": broken}  # fmt: skip
+
+    def remakes(self, best: dict) -> list[tuple[list[int], list[int], float]]:
+        """Intervals and fairness weights a level 0 that breaks a quality bound is made
+        again with: the arc-length force alone, then intervals rebalanced to square cells
+        (with the weight asked for, then alone) where no sections were given."""
+        fairness = self.run.fairness
+        tries = [] if fairness == 0.0 else [(self.counts_u, self.counts_v, 0.0)]
+        if self.o.sections_u is None and self.o.sections_v is None:
+            cu, cv = _rebalanced(best["state"])
+            if (cu, cv) != (self.counts_u, self.counts_v):
+                tries += [(cu, cv, f) for f in dict.fromkeys((fairness, 0.0))]
+        return tries
+
+    def remade(self, best: dict) -> tuple[dict, bool]:
+        """The level-0 candidate kept, and whether it is a remake. The first remake that
+        breaks the fewest bounds is weighed against ``best`` once more on level 1 (where a
+        level 0 that looked better can turn worse), and kept if better there."""
+        if not best["broken"][0]:
+            return best, False
+        alt = None
+        for cu, cv, f in self.remakes(best):
+            c = self.start(cu, cv, f)
+            if c["broken"][0] < (alt or best)["broken"][0]:
+                alt = c
+                if not c["broken"][0]:
+                    break
+        if alt is None:
+            return best, False
+        if min(best["final"], alt["final"]) >= 1:
+            for c in (best, alt):
+                c["done"].append(self.advance(c["state"], 1, c["fair"], c["final"])[1])
+                c["snaps"].append(c["state"].snapshot())
+                c["broken"].insert(0, _broken_bounds(c["state"]))
+        if alt["broken"] < best["broken"]:  # level 1 first, then level 0
+            return alt, True
+        return best, False
+
+    def result(self, progress) -> SpringResult:
+        """Every level from 0 to the final one, with metrics, sweeps and timings."""
+        o = self.o
+        best, remade = self.remade(self.start(self.counts_u, self.counts_v, self.run.fairness))
         state, fairness, final = best["state"], best["fair"], best["final"]
         levels, mets, sweeps = [], [], []
         kept = {"final_arc": False, "evened": False}
@@ -1003,30 +1052,27 @@ def resample_patch(  # noqa: C901 (the level loop and its remakes share their st
             if k < len(best["snaps"]):
                 snap, done = best["snaps"][k], best["done"][k]
             else:
-                state, done, kept = advance(
-                    state, k, fairness, final, again=fallback and k == final
-                )
+                again = self.run.fallback and k == final
+                state, done, kept = self.advance(state, k, fairness, final, again=again)
                 snap = state.snapshot()
             sweeps.append(done)
             levels.append(snap)
             t = time.perf_counter()
             mets.append(
-                spring_metrics(mesh, snap, fidelity=fidelity, scale=scale) if metrics else {}
+                spring_metrics(self.mesh, snap, fidelity=o.fidelity, scale=o.scale)
+                if o.metrics
+                else {}
             )
-            seconds["metrics"] += time.perf_counter() - t
+            self.seconds["metrics"] += time.perf_counter() - t
             if progress is not None:
                 progress(k + 1, final + 1)
-        seconds["total"] = time.perf_counter() - t0
+        seconds = {**self.seconds, "total": time.perf_counter() - self.t0}
         return SpringResult(levels, mets, sweeps, seconds, fairness=fairness, remade=remade, **kept)
 
-    res = run(False, fairness, max_iter, polish, progress)
-    if tolerance is not None:
-        return _to_tolerance(
-            mesh, res, float(tolerance), scale, max_points,
-            lambda extra: run(False, fairness, max_iter, polish, progress, extra),
-        )  # fmt: skip
-    if not (rescue and init == "map" and midpoints == "map"):
-        return res
+
+def _rescue(mesh: Mesh, res: SpringResult, o: SpringOptions, run) -> SpringResult:
+    """The ``rescue`` of :func:`resample_patch` for its first result ``res``; ``run`` makes
+    a resampling with other settings (the arguments of the ``run`` there)."""
     t = time.perf_counter()
     first = res.seconds["total"]
     kept, finer = res, 0
@@ -1036,24 +1082,10 @@ def resample_patch(  # noqa: C901 (the level loop and its remakes share their st
         if res.remade:
             # the rescue weighs its remakes against the grid of the thesis's relaxation (a
             # remade level 0 misses less but keeps the rescue from a finer, closer grid)
-            res = run(False, fairness, max_iter, polish, None, fallback=False)
+            res = run(False, o.fairness, o.max_iter, o.polish, None, fallback=False)
         # area-balanced map, arc length only, one sweep per level
         kept, miss = _rescued(mesh, res, lambda: run(True, 0.0, 1, 0, None, fallback=False))
-        # still missing: the same, finer (a protrusion inside the patch needs more grid lines)
-        for extra in range(1, RESCUE_LEVELS + 1 if level is None else 1):
-            if miss[0] <= RESCUE_SPACINGS:
-                break
-            if _points_at(res.final.shape, extra) > _point_cap(mesh, max_points):
-                break
-            cand, c_miss = _rescued(
-                mesh,
-                run(False, fairness, max_iter, polish, None, extra, fallback=False),
-                lambda e=extra: run(True, 0.0, 1, 0, None, e, fallback=False),
-            )
-            if c_miss[1] <= RESCUE_GAIN * miss[1] and _fold_share(mesh, cand) <= _fold_share(
-                mesh, kept
-            ):
-                kept, miss, finer = cand, c_miss, extra
+        kept, miss, finer = _rescue_finer(mesh, res, kept, miss, o, run)
         if kept is res:
             # neither remake nor a finer grid kept (they fold cells, or miss as much): the
             # same grid with its final level's lines evened out along their paths in the map
@@ -1062,11 +1094,38 @@ def resample_patch(  # noqa: C901 (the level loop and its remakes share their st
             kept, miss = _rescued(
                 mesh,
                 res,
-                lambda: run(False, fairness, max_iter, polish, None, fallback=False, even=True),
+                lambda: run(
+                    False, o.fairness, o.max_iter, o.polish, None, fallback=False, even=True
+                ),
             )
     spent = time.perf_counter() - t
     seconds = {**kept.seconds, "rescue": spent, "total": first + spent}
     return replace(kept, seconds=seconds, finer=finer)
+
+
+def _rescue_finer(
+    mesh: Mesh, res: SpringResult, kept: SpringResult, miss, o: SpringOptions, run
+) -> tuple[SpringResult, tuple[float, float], int]:
+    """A grid still missing its patch made again up to `RESCUE_LEVELS` levels finer (a
+    protrusion inside the patch needs more grid lines), each kept when it misses by at most
+    `RESCUE_GAIN` as much and folds no larger share of cells: the grid kept, its miss and
+    the levels added."""
+    finer = 0
+    for extra in range(1, RESCUE_LEVELS + 1 if o.level is None else 1):
+        if miss[0] <= RESCUE_SPACINGS:
+            break
+        if _points_at(res.final.shape, extra) > _point_cap(mesh, o.max_points):
+            break
+        cand, c_miss = _rescued(
+            mesh,
+            run(False, o.fairness, o.max_iter, o.polish, None, extra, fallback=False),
+            lambda e=extra: run(True, 0.0, 1, 0, None, e, fallback=False),
+        )
+        if c_miss[1] <= RESCUE_GAIN * miss[1] and _fold_share(mesh, cand) <= _fold_share(
+            mesh, kept
+        ):
+            kept, miss, finer = cand, c_miss, extra
+    return kept, miss, finer
 
 
 def resample_patches(
