@@ -595,7 +595,7 @@ def _to_single(loaded, path: Path, notes: list[str]):
     return loaded
 
 
-def read_mesh_arrays(path: str | os.PathLike) -> RawMesh:  # noqa: C901 (one branch per format)
+def read_mesh_arrays(path: str | os.PathLike) -> RawMesh:
     """Read a mesh file into arrays without validating it.
 
     Parameters
@@ -624,18 +624,7 @@ def read_mesh_arrays(path: str | os.PathLike) -> RawMesh:  # noqa: C901 (one bra
     import trimesh
 
     p = Path(path)
-    if not p.exists():
-        raise errors.MeshFileError(f"{p}: no such file")
-    if not p.is_file():
-        raise errors.MeshFileError(f"{p}: not a file")
-    suffix = p.suffix.lower()
-    if suffix not in FORMATS:
-        raise errors.MeshFileError(
-            f"{p}: unsupported format {suffix or '(no suffix)'!r}; "
-            f"meshfit reads {', '.join(FORMATS)}"
-        )
-    if p.stat().st_size == 0:
-        raise errors.MeshFileError(f"{p}: the file is empty")
+    suffix = _readable_suffix(p)
     if suffix == ".obj":
         return _read_obj(p)
     if suffix == ".off":
@@ -655,27 +644,7 @@ def read_mesh_arrays(path: str | os.PathLike) -> RawMesh:  # noqa: C901 (one bra
     try:
         loaded = trimesh.load(str(p), process=False, force=None)
     except Exception as exc:  # trimesh raises many types on corrupt input
-        if header is not None and header.fmt.startswith("binary"):
-            need = header.length + _ply_binary_min_size(header)
-            have = p.stat().st_size
-            if have < need:
-                raise errors.MeshFileError(
-                    f"{p}: truncated binary PLY: the header's {header.count('vertex')} vertices "
-                    f"and {header.count('face')} faces need at least {need} bytes, the file holds "
-                    f"{have}"
-                ) from None
-            try:  # faces of different corner counts, which trimesh does not read
-                return _read_ply_binary(p, header)
-            except errors.MeshFileError:
-                raise
-            except Exception as exc2:
-                raise errors.MeshFileError(
-                    f"{p}: cannot read binary PLY: the data does not match the header (a "
-                    f"corrupt file) ({type(exc).__name__}: {exc}; {type(exc2).__name__}: {exc2})"
-                ) from None
-        raise errors.MeshFileError(
-            f"{p}: cannot read {suffix[1:].upper()} file ({type(exc).__name__}: {exc})"
-        ) from None
+        return _read_what_trimesh_cannot(p, suffix, header, exc)
     if isinstance(loaded, trimesh.PointCloud):  # vertices but no faces
         vertices = np.asarray(loaded.vertices, dtype=np.float64).reshape(-1, 3)
         return RawMesh(vertices, np.zeros((0, 3), np.int64), None, notes)
@@ -683,32 +652,88 @@ def read_mesh_arrays(path: str | os.PathLike) -> RawMesh:  # noqa: C901 (one bra
     vertices = np.asarray(tm.vertices, dtype=np.float64)
     faces = np.asarray(tm.faces, dtype=np.int64).reshape(-1, 3)
     if header is not None:
-        want_v = header.count("vertex")
-        if want_v >= 0 and vertices.shape[0] != want_v:
-            raise errors.MeshFileError(
-                f"{p}: truncated PLY: header declares {want_v} vertices, "
-                f"file holds {vertices.shape[0]}"
-            )
-        want_f = header.count("face")
-        if want_f >= 0 and faces.shape[0] < want_f:
-            raise errors.MeshFileError(
-                f"{p}: truncated PLY: header declares {want_f} faces, "
-                f"file holds {faces.shape[0]} triangles"
-            )
-        if header.fmt != "ascii" and faces.shape[0] > want_f >= 0:
-            polys = want_f  # binary PLY: trimesh reads only faces of one corner count
-        if polys:
-            notes.append(f"triangulated {polys} polygon faces into {faces.shape[0]} triangles")
-    colors = None
-    visual = getattr(tm, "visual", None)
-    if visual is not None and getattr(visual, "kind", None) == "vertex":
-        c = np.asarray(visual.vertex_colors)
-        if c.shape[0] == vertices.shape[0]:
-            colors = c.astype(np.uint8)
+        _check_ply_counts(p, header, vertices, faces, polys, notes)
+    colors = _vertex_colors(tm, vertices.shape[0])
     if suffix == ".stl" and faces.size:
         vertices, faces = _weld_stl(vertices, faces, notes)
         colors = None
     return RawMesh(vertices, faces, colors, notes)
+
+
+def _readable_suffix(p: Path) -> str:
+    """The lower-case suffix of an existing, non-empty file of a format meshfit reads."""
+    if not p.exists():
+        raise errors.MeshFileError(f"{p}: no such file")
+    if not p.is_file():
+        raise errors.MeshFileError(f"{p}: not a file")
+    suffix = p.suffix.lower()
+    if suffix not in FORMATS:
+        raise errors.MeshFileError(
+            f"{p}: unsupported format {suffix or '(no suffix)'!r}; "
+            f"meshfit reads {', '.join(FORMATS)}"
+        )
+    if p.stat().st_size == 0:
+        raise errors.MeshFileError(f"{p}: the file is empty")
+    return suffix
+
+
+def _read_what_trimesh_cannot(p: Path, suffix: str, header, exc: Exception) -> RawMesh:
+    """After trimesh failed on ``p`` with ``exc``: a binary PLY with faces of different
+    corner counts read here; otherwise MeshFileError saying why (a binary PLY shorter than
+    its header asks for is truncated)."""
+    if header is not None and header.fmt.startswith("binary"):
+        need = header.length + _ply_binary_min_size(header)
+        have = p.stat().st_size
+        if have < need:
+            raise errors.MeshFileError(
+                f"{p}: truncated binary PLY: the header's {header.count('vertex')} vertices "
+                f"and {header.count('face')} faces need at least {need} bytes, the file holds "
+                f"{have}"
+            ) from None
+        try:  # faces of different corner counts, which trimesh does not read
+            return _read_ply_binary(p, header)
+        except errors.MeshFileError:
+            raise
+        except Exception as exc2:
+            raise errors.MeshFileError(
+                f"{p}: cannot read binary PLY: the data does not match the header (a "
+                f"corrupt file) ({type(exc).__name__}: {exc}; {type(exc2).__name__}: {exc2})"
+            ) from None
+    raise errors.MeshFileError(
+        f"{p}: cannot read {suffix[1:].upper()} file ({type(exc).__name__}: {exc})"
+    ) from None
+
+
+def _check_ply_counts(
+    p: Path, header, vertices: NDArray, faces: NDArray, polys: int, notes: list[str]
+) -> None:
+    """Raise MeshFileError where trimesh read fewer vertices or faces than the PLY header
+    declares (a truncated file); note the polygon faces it triangulated."""
+    want_v = header.count("vertex")
+    if want_v >= 0 and vertices.shape[0] != want_v:
+        raise errors.MeshFileError(
+            f"{p}: truncated PLY: header declares {want_v} vertices, file holds {vertices.shape[0]}"
+        )
+    want_f = header.count("face")
+    if want_f >= 0 and faces.shape[0] < want_f:
+        raise errors.MeshFileError(
+            f"{p}: truncated PLY: header declares {want_f} faces, "
+            f"file holds {faces.shape[0]} triangles"
+        )
+    if header.fmt != "ascii" and faces.shape[0] > want_f >= 0:
+        polys = want_f  # binary PLY: trimesh reads only faces of one corner count
+    if polys:
+        notes.append(f"triangulated {polys} polygon faces into {faces.shape[0]} triangles")
+
+
+def _vertex_colors(tm, n: int) -> NDArray[np.uint8] | None:
+    """The per-vertex colours trimesh read, if there is one per vertex."""
+    visual = getattr(tm, "visual", None)
+    if visual is not None and getattr(visual, "kind", None) == "vertex":
+        c = np.asarray(visual.vertex_colors)
+        if c.shape[0] == n:
+            return c.astype(np.uint8)
+    return None
 
 
 def _weld_stl(vertices: NDArray[np.float64], faces: NDArray[np.int64], notes: list[str]):
