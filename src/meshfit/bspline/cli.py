@@ -39,8 +39,8 @@ def load_grid(path: str | Path) -> np.ndarray:
 
 def cmd_fit(args: argparse.Namespace) -> int:
     """Fit every grid, stitch, build maps, export; print errors, seams and timings."""
+    from meshfit._cliout import EXIT_OK, print_json, print_table
     from meshfit.bspline import fit_bspline, fit_errors
-    from meshfit.cli import EXIT_OK, print_json, print_table
     from meshfit.displacement import displacement_map
     from meshfit.export import export_3dm, export_gltf, export_iges, export_obj, export_usd
     from meshfit.stitch import (

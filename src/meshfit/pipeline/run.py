@@ -9,8 +9,8 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-from meshfit import __version__
 from meshfit._threads import n_workers
+from meshfit._version import __version__
 from meshfit.mesh import Mesh
 from meshfit.pipeline.notes import quality_notes
 from meshfit.pipeline.options import FitOptions

@@ -17,8 +17,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from meshfit import __version__
 from meshfit._atomic import atomic_write, write_text
+from meshfit._version import __version__
 from meshfit.mesh import Mesh
 
 #: version of the stage files, the fit files and the summary
