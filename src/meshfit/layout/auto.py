@@ -43,6 +43,7 @@ re-used.
 from __future__ import annotations
 
 import itertools
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -497,11 +498,34 @@ def _sphere_route(
     proxy: bool,
 ) -> Layout:
     """The sphere-map route of `auto_layout` (its arguments checked there)."""
-    from meshfit.layout.extract import check_layout_topology
     from meshfit.shrinkwrap import sphere_map
 
     if not mesh.is_closed:
         raise _topology_error(mesh)
+    n_faces = _base_triangles(mesh, patches)
+    if shape is None:
+        shape = n_faces > SHAPE_ABOVE_FACES
+    tries = _Tries(
+        seeds=[int(seed) + k for k in range(SEED_TRIES)],
+        relax=relax,
+        iters=int(relax_iterations),
+        shape=shape,
+        protrusions=protrusions,
+        pick=_Fewest(mesh),
+        relaxed=_RelaxMemo(),
+    )
+    if proxy:
+        out = _layout_on_proxy(mesh, n_faces, tries, sphere_max_aspect, proxy_faces)
+        if out is not None:
+            return out
+        # the carried network does not cut the mesh: lay out on the mesh itself
+    smap = sphere_map(mesh, max_aspect=sphere_max_aspect) if sphere is None else sphere
+    return _layout_on_mesh(mesh, smap, n_faces, tries)
+
+
+def _base_triangles(mesh: Mesh, patches) -> int:
+    """Triangles of the base mesh for ``patches`` (default `DEFAULT_PATCHES`), an even
+    number; InputError where the mesh has too few faces for them (`MIN_FACES_PER_PATCH`)."""
     want = DEFAULT_PATCHES if patches is None else int(patches)
     n_faces = max(MIN_PATCHES // PATCHES_PER_TRIANGLE, round(want / PATCHES_PER_TRIANGLE))
     n_faces += n_faces % 2
@@ -518,81 +542,107 @@ def _sphere_route(
                 else f"and makes at least {MIN_PATCHES}: give a layout file or a finer mesh"
             )
         )
-    if shape is None:
-        shape = n_faces > SHAPE_ABOVE_FACES
-    iters = int(relax_iterations)
+    return n_faces
 
-    seeds = [int(seed) + k for k in range(SEED_TRIES)]
-    pick = _Fewest(mesh)
-    relaxed = _RelaxMemo()
-    if proxy:
-        from concurrent.futures import ThreadPoolExecutor
 
-        from meshfit.shrinkwrap.proxy import simplify_mesh
+@dataclass(frozen=True)
+class _Tries:
+    """What the sphere route's tries share: the base-mesh rotations (``seeds``), the curve
+    relaxation, shaping and protrusion options, the layout kept so far (``pick``) and the
+    relaxed curves already computed (``relaxed``)."""
 
-        # the genus and component count, then what the curves need on the full mesh, are
-        # found on a second thread while the proxy is made (a closed mesh of another genus
-        # keeps it through the simplification, which then goes unused)
-        with ThreadPoolExecutor(max_workers=1) as pool:
-            one_sphere = pool.submit(_one_sphere, mesh)
-            ready = pool.submit(_prepare_fine, mesh)
-            coarse = simplify_mesh(mesh, int(proxy_faces)).mesh
-            if not one_sphere.result():
-                raise _topology_error(mesh)
-            c_smap = sphere_map(coarse, max_aspect=sphere_max_aspect)
-            first = _proxy_tries(
-                coarse, c_smap, n_faces, seeds[0], relax, iters, shape, protrusions, relaxed
+    seeds: list[int]
+    relax: bool
+    iters: int
+    shape: bool
+    protrusions: bool
+    pick: _Fewest
+    relaxed: _RelaxMemo
+
+
+def _layout_on_proxy(
+    mesh: Mesh, n_faces: int, tries: _Tries, sphere_max_aspect, proxy_faces
+) -> Layout | None:
+    """The sphere route on a coarse proxy of ``mesh``, its network carried over to ``mesh``:
+    the first layout without slivers, else the one with the fewest, or None when no
+    carried network cuts ``mesh`` into disks."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from meshfit.layout.extract import check_layout_topology
+    from meshfit.shrinkwrap import sphere_map
+    from meshfit.shrinkwrap.proxy import simplify_mesh
+
+    t = tries
+    # the genus and component count, then what the curves need on the full mesh, are
+    # found on a second thread while the proxy is made (a closed mesh of another genus
+    # keeps it through the simplification, which then goes unused)
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        one_sphere = pool.submit(_one_sphere, mesh)
+        ready = pool.submit(_prepare_fine, mesh)
+        coarse = simplify_mesh(mesh, int(proxy_faces)).mesh
+        if not one_sphere.result():
+            raise _topology_error(mesh)
+        c_smap = sphere_map(coarse, max_aspect=sphere_max_aspect)
+        first = _proxy_tries(
+            coarse, c_smap, n_faces, t.seeds[0], t.relax, t.iters, t.shape, t.protrusions,
+            t.relaxed,
+        )  # fmt: skip
+        ready.result()
+    for k, s in enumerate(t.seeds):
+        c_corners, ends, quads, c_sets = (
+            first
+            if k == 0
+            else _proxy_tries(
+                coarse, c_smap, n_faces, s, t.relax, t.iters, t.shape, t.protrusions, t.relaxed
             )
-            ready.result()
-        for k, s in enumerate(seeds):
-            c_corners, ends, quads, tries = (
-                first
-                if k == 0
-                else _proxy_tries(
-                    coarse, c_smap, n_faces, s, relax, iters, shape, protrusions, relaxed
-                )
-            )
-            corners = _carry_points(mesh, coarse, c_corners)
-            for c_set, fine_iters in tries:
-                try:
-                    curves = _carry_curves(mesh, coarse, c_set, corners, ends)
-                    if fine_iters > 0:
-                        curves = _relax_all(mesh, curves, fine_iters)
-                    out = layout_from_curves(mesh, corners, curves, ends, quads)
-                    check_layout_topology(mesh, out)
-                except MeshfitError:
-                    continue
-                if pick.take(out):
-                    return out
-                break  # slivers: the next rotation
-        if pick.best is not None:
-            return pick.best
-        # the carried network does not cut the mesh: lay out on the mesh itself
+        )
+        corners = _carry_points(mesh, coarse, c_corners)
+        for c_set, fine_iters in c_sets:
+            try:
+                curves = _carry_curves(mesh, coarse, c_set, corners, ends)
+                if fine_iters > 0:
+                    curves = _relax_all(mesh, curves, fine_iters)
+                out = layout_from_curves(mesh, corners, curves, ends, quads)
+                check_layout_topology(mesh, out)
+            except MeshfitError:
+                continue
+            if t.pick.take(out):
+                return out
+            break  # slivers: the next rotation
+    return t.pick.best
 
-    smap = sphere_map(mesh, max_aspect=sphere_max_aspect) if sphere is None else sphere
+
+def _layout_on_mesh(mesh: Mesh, smap, n_faces: int, tries: _Tries) -> Layout:
+    """The sphere route on ``mesh`` itself with the sphere map ``smap``: the first layout
+    without slivers, else the one with the fewest (the last LayoutError where none is a
+    layout)."""
+    from meshfit.layout.extract import check_layout_topology
+
+    t = tries
+    iters = t.iters
     failed: LayoutError | None = None
-    for s in seeds:
+    for s in t.seeds:
         corners, curves, ends, quads = _network(
-            mesh, smap, n_faces, s, shape, protrusions, iters if relax else 0, relaxed
+            mesh, smap, n_faces, s, t.shape, t.protrusions, iters if t.relax else 0, t.relaxed
         )
         traced = layout_from_curves(mesh, corners, curves, ends, quads)
         out = None
-        if relax:
+        if t.relax:
             try:
-                out = layout_from_curves(mesh, corners, relaxed(mesh, curves, iters), ends, quads)
+                out = layout_from_curves(mesh, corners, t.relaxed(mesh, curves, iters), ends, quads)
                 check_layout_topology(mesh, out)
             except MeshfitError:
                 out = None
         if out is None:
             try:
-                out = _checked(mesh, traced, len(seeds))
+                out = _checked(mesh, traced, len(t.seeds))
             except LayoutError as exc:  # another rotation of the base mesh
                 failed = failed or exc
                 continue
-        if pick.take(out):
+        if t.pick.take(out):
             return out
-    if pick.best is not None:
-        return pick.best
+    if t.pick.best is not None:
+        return t.pick.best
     assert failed is not None
     raise failed
 

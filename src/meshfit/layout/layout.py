@@ -131,34 +131,9 @@ class Layout:
             raise LayoutError(f"{pc.shape[0]} patches but no curves: every side is a curve")
         if nk and not nc:
             raise LayoutError(f"{nk} curves but no corners: every curve runs corner to corner")
-        for i, c in enumerate(curves):
-            if c.closed:
-                raise LayoutError(f"curve {i} is closed: boundary curves run corner to corner")
-            if len(c) < 2:
-                raise LayoutError(f"curve {i} has {len(c)} point(s), needs at least 2")
-            a, b = int(ends[i, 0]), int(ends[i, 1])
-            if not (0 <= a < nc and 0 <= b < nc):
-                raise LayoutError(f"curve {i}: corner index out of range 0..{nc - 1}: [{a}, {b}]")
-            if a == b:
-                raise LayoutError(f"curve {i} starts and ends at the same corner {a}")
+        _check_curves(curves, ends, nc)
         for p in range(pc.shape[0]):
-            for s in range(4):
-                c = int(pc[p, s])
-                if not 0 <= c < nk:
-                    raise LayoutError(
-                        f"patch {p} side {s}: curve index {c} out of range 0..{nk - 1}"
-                    )
-            if len(set(pc[p].tolist())) != 4:
-                raise LayoutError(f"patch {p} uses a curve twice: {pc[p].tolist()}")
-            for s in range(4):
-                here = _side_corners(ends, pc[p, s], pr[p, s])
-                nxt = _side_corners(ends, pc[p, (s + 1) % 4], pr[p, (s + 1) % 4])
-                if here[1] != nxt[0]:
-                    raise LayoutError(
-                        f"patch {p}: side {s} (curve {int(pc[p, s])}) ends at corner {here[1]} but "
-                        f"side {(s + 1) % 4} (curve {int(pc[p, (s + 1) % 4])}) starts at corner "
-                        f"{nxt[0]}: sides must join end to end"
-                    )
+            _check_patch_sides(p, pc, pr, ends, nk)
         object.__setattr__(self, "curves", curves)
         object.__setattr__(self, "curve_ends", _readonly(ends))
         object.__setattr__(self, "patch_curves", _readonly(pc))
@@ -230,6 +205,43 @@ class Layout:
 def _side_corners(ends: NDArray[np.int64], c, rev) -> tuple[int, int]:
     a, b = int(ends[int(c), 0]), int(ends[int(c), 1])
     return (b, a) if rev else (a, b)
+
+
+def _check_curves(curves: tuple[SurfaceCurve, ...], ends: NDArray[np.int64], nc: int) -> None:
+    """Every boundary curve is open, has two points or more and joins two different corners
+    of the ``nc``."""
+    for i, c in enumerate(curves):
+        if c.closed:
+            raise LayoutError(f"curve {i} is closed: boundary curves run corner to corner")
+        if len(c) < 2:
+            raise LayoutError(f"curve {i} has {len(c)} point(s), needs at least 2")
+        a, b = int(ends[i, 0]), int(ends[i, 1])
+        if not (0 <= a < nc and 0 <= b < nc):
+            raise LayoutError(f"curve {i}: corner index out of range 0..{nc - 1}: [{a}, {b}]")
+        if a == b:
+            raise LayoutError(f"curve {i} starts and ends at the same corner {a}")
+
+
+def _check_patch_sides(
+    p: int, pc: NDArray[np.int64], pr: NDArray[np.bool_], ends: NDArray[np.int64], nk: int
+) -> None:
+    """Patch ``p``'s four sides are four different curves of the ``nk``, each ending at the
+    corner where the next one starts."""
+    for s in range(4):
+        c = int(pc[p, s])
+        if not 0 <= c < nk:
+            raise LayoutError(f"patch {p} side {s}: curve index {c} out of range 0..{nk - 1}")
+    if len(set(pc[p].tolist())) != 4:
+        raise LayoutError(f"patch {p} uses a curve twice: {pc[p].tolist()}")
+    for s in range(4):
+        here = _side_corners(ends, pc[p, s], pr[p, s])
+        nxt = _side_corners(ends, pc[p, (s + 1) % 4], pr[p, (s + 1) % 4])
+        if here[1] != nxt[0]:
+            raise LayoutError(
+                f"patch {p}: side {s} (curve {int(pc[p, s])}) ends at corner {here[1]} but "
+                f"side {(s + 1) % 4} (curve {int(pc[p, (s + 1) % 4])}) starts at corner "
+                f"{nxt[0]}: sides must join end to end"
+            )
 
 
 def _points_equal(a: SurfacePoints, b: SurfacePoints) -> bool:
