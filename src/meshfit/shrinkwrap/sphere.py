@@ -624,57 +624,16 @@ def sphere_map(
     .. [2] Floater, "Mean value coordinates", CAGD 20, 2003.
     """
     check_genus0(mesh)
-    if method not in ("tutte", "voxel"):
-        raise errors.InputError(f"method must be 'tutte' or 'voxel', got {method!r}")
-    if isinstance(stretch_iterations, bool) or int(stretch_iterations) != stretch_iterations:
-        raise errors.InputError(
-            f"stretch_iterations must be a whole number, got {stretch_iterations!r}"
-        )
-    if stretch_iterations < 0:
-        raise errors.InputError(f"stretch_iterations must be >= 0, got {stretch_iterations}")
-    if stretch_iterations and method != "tutte":
-        raise errors.InputError(
-            "stretch_iterations reweights the 'tutte' map: not with method='voxel'"
-        )
+    _check_method(method, stretch_iterations)
     notes: list[str] = []
-    s = None
-    used = "tutte"
-    if method == "voxel":
-        from meshfit.shrinkwrap.voxel import voxel_sphere
-
-        s, note = voxel_sphere(mesh, progress=progress)
-        notes.append(note)
-        if s is not None:
-            nflip = int((spherical_orientation(s, mesh.faces) <= 0).sum())
-            if nflip:
-                s = _untangle(mesh, s, _UNTANGLE_ROUNDS)
-                left = int((spherical_orientation(s, mesh.faces) <= 0).sum())
-                notes.append(
-                    f"voxel: {nflip} flipped triangles after projection, {left} after untangling"
-                )
-                if left:
-                    notes.append("voxel: not flip-free, fell back to tutte")
-                    s = None
-        if s is not None:
-            used = "voxel"
+    s = _voxel_points(mesh, progress, notes) if method == "voxel" else None
+    used = "tutte" if s is None else "voxel"
     if s is None:
-        if progress:
-            progress("sphere map (tutte)", 0.0)
-        s = _tutte_sphere(mesh, int(stretch_iterations))
-        if stretch_iterations:
-            notes.append(f"tutte: {int(stretch_iterations)} rounds of stretch reweighting")
-        if (spherical_orientation(s, mesh.faces) <= 0).any():
-            nflip = int((spherical_orientation(s, mesh.faces) <= 0).sum())
-            s = _untangle(mesh, s, _UNTANGLE_ROUNDS)
-            notes.append(f"tutte: untangled {nflip} triangle(s) flipped by the lift to the sphere")
+        s = _tutte_points(mesh, int(stretch_iterations), progress, notes)
         if relax_iterations > 0:
             s = _relax_area(mesh, s, relax_iterations, relax_step)
     if max_aspect is not None:
-        before = float(triangle_quality(s, mesh.faces)[1].max())
-        if before > max_aspect:
-            s = _bound_aspect(mesh, s, max_aspect, _ASPECT_ROUNDS)
-            after = float(triangle_quality(s, mesh.faces)[1].max())
-            notes.append(f"aspect bound {max_aspect:g}: max aspect {before:.4g} -> {after:.4g}")
+        s = _aspect_bounded(mesh, s, max_aspect, notes)
     dets = spherical_orientation(s, mesh.faces)
     _, aspect = triangle_quality(s, mesh.faces)
     if progress:
@@ -688,3 +647,68 @@ def sphere_map(
         float(aspect.max()),
         notes,
     )
+
+
+def _check_method(method: str, stretch_iterations) -> None:
+    if method not in ("tutte", "voxel"):
+        raise errors.InputError(f"method must be 'tutte' or 'voxel', got {method!r}")
+    if isinstance(stretch_iterations, bool) or int(stretch_iterations) != stretch_iterations:
+        raise errors.InputError(
+            f"stretch_iterations must be a whole number, got {stretch_iterations!r}"
+        )
+    if stretch_iterations < 0:
+        raise errors.InputError(f"stretch_iterations must be >= 0, got {stretch_iterations}")
+    if stretch_iterations and method != "tutte":
+        raise errors.InputError(
+            "stretch_iterations reweights the 'tutte' map: not with method='voxel'"
+        )
+
+
+def _voxel_points(mesh: Mesh, progress, notes: list[str]) -> NDArray[np.float64] | None:
+    """Sphere points of the ``"voxel"`` method of `sphere_map`, untangled; None (and a
+    note) where the flow fails or triangles stay flipped."""
+    from meshfit.shrinkwrap.voxel import voxel_sphere
+
+    s, note = voxel_sphere(mesh, progress=progress)
+    notes.append(note)
+    if s is not None:
+        nflip = int((spherical_orientation(s, mesh.faces) <= 0).sum())
+        if nflip:
+            s = _untangle(mesh, s, _UNTANGLE_ROUNDS)
+            left = int((spherical_orientation(s, mesh.faces) <= 0).sum())
+            notes.append(
+                f"voxel: {nflip} flipped triangles after projection, {left} after untangling"
+            )
+            if left:
+                notes.append("voxel: not flip-free, fell back to tutte")
+                s = None
+    return s
+
+
+def _tutte_points(
+    mesh: Mesh, stretch_iterations: int, progress, notes: list[str]
+) -> NDArray[np.float64]:
+    """Sphere points of the ``"tutte"`` method of `sphere_map` (with its stretch
+    reweighting), any triangle the lift to the sphere flips untangled."""
+    if progress:
+        progress("sphere map (tutte)", 0.0)
+    s = _tutte_sphere(mesh, stretch_iterations)
+    if stretch_iterations:
+        notes.append(f"tutte: {stretch_iterations} rounds of stretch reweighting")
+    if (spherical_orientation(s, mesh.faces) <= 0).any():
+        nflip = int((spherical_orientation(s, mesh.faces) <= 0).sum())
+        s = _untangle(mesh, s, _UNTANGLE_ROUNDS)
+        notes.append(f"tutte: untangled {nflip} triangle(s) flipped by the lift to the sphere")
+    return s
+
+
+def _aspect_bounded(
+    mesh: Mesh, s: NDArray[np.float64], max_aspect: float, notes: list[str]
+) -> NDArray[np.float64]:
+    """``s`` with the corners of triangles above ``max_aspect`` smoothed (`_bound_aspect`)."""
+    before = float(triangle_quality(s, mesh.faces)[1].max())
+    if before > max_aspect:
+        s = _bound_aspect(mesh, s, max_aspect, _ASPECT_ROUNDS)
+        after = float(triangle_quality(s, mesh.faces)[1].max())
+        notes.append(f"aspect bound {max_aspect:g}: max aspect {before:.4g} -> {after:.4g}")
+    return s
