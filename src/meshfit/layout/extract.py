@@ -164,50 +164,11 @@ def _compute_partition(
         if isinstance(got, MeshfitError):
             raise got
         sub, used = got
-        loops = [used[loop] for loop in sub.boundary_loops]  # split-mesh vertices
-        curves_seen: set[int] = set()
-        for loop in loops:
-            curve, _ = along.lookup(copy_of[loop])
-            curves_seen.update(np.unique(curve[curve >= 0]).tolist())
-        cand = [
-            p
-            for p in range(layout.n_patches)
-            if set(layout.patch_curves[p].tolist()) <= curves_seen
-        ]
-        name = (
-            f"patch {cand[0]}" if len(cand) == 1 else f"the region containing face {orig_face(c)}"
-        )
-        if not loops:
-            raise LayoutError(
-                f"face {orig_face(c)} lies in a closed piece of the mesh that no curve bounds: "
-                "every face must belong to a four-sided patch"
-            )
-        if len(loops) != 1:
-            raise LayoutError(
-                f"{name} is not a disk: its region has {len(loops)} boundary loops "
-                "(a hole of the mesh inside it, or curves that do not close around it)"
-            )
-        chi = sub.euler_characteristic
-        if chi != 1:
-            raise LayoutError(
-                f"{name} is not a disk: Euler characteristic {chi} instead of 1 "
-                f"(a handle inside it)"
-            )
-        seq, pos = chains(loops[0], c)
+        boundary = _disk_boundary(layout, along, copy_of, sub, used, orig_face(c))
+        seq, pos = chains(boundary, c)
         match = _match(layout, by_set, seq)
         if match is None:
-            curves = sorted({s[0] for s in seq})
-            rev = _match(layout, by_set, [(ci, not r) for ci, r in reversed(seq)])
-            if rev is not None:
-                raise LayoutError(
-                    f"patch {rev[0]}: its sides run clockwise seen from outside; list them "
-                    "counter-clockwise (the patch on the left of each side)"
-                )
-            raise LayoutError(
-                f"face {orig_face(c)} lies in a region bounded by {len(seq)} curve(s) "
-                f"{curves} at {len(pos)} corner(s) that is no patch of the layout: every face "
-                "must belong to a four-sided patch"
-            )
+            raise _no_patch_error(layout, by_set, seq, pos, orig_face(c))
         p, rot = match
         if p in claimed:
             raise LayoutError(
@@ -216,14 +177,75 @@ def _compute_partition(
             )
         claimed[p] = c
         start = pos[rot]
-        loop = np.roll(loops[0], -start)
-        cpos = [(pos[(rot + s) % 4] - start) % loops[0].size for s in range(4)]
+        loop = np.roll(boundary, -start)
+        cpos = [(pos[(rot + s) % 4] - start) % boundary.size for s in range(4)]
         regions.append(_Region(p, order[starts[c] : starts[c + 1]], loop, cpos, sub, used))
     missing = [p for p in range(layout.n_patches) if p not in claimed]
     if missing:
         raise LayoutError(f"patch {missing[0]} bounds no region of its own")
     regions.sort(key=lambda r: r.patch)
     return res, regions, n_comp
+
+
+def _disk_boundary(
+    layout: Layout,
+    along: _Along,
+    copy_of: NDArray[np.int64],
+    sub: Mesh,
+    used: NDArray[np.int64],
+    face: int,
+) -> NDArray[np.int64]:
+    """The one boundary loop (split-mesh vertices) of a region (``sub``, its vertices
+    ``used``, containing original face ``face``); LayoutError where the region is no disk,
+    naming the patch whose curves all bound it if there is one such patch."""
+    loops = [used[loop] for loop in sub.boundary_loops]  # split-mesh vertices
+    curves_seen: set[int] = set()
+    for loop in loops:
+        curve, _ = along.lookup(copy_of[loop])
+        curves_seen.update(np.unique(curve[curve >= 0]).tolist())
+    cand = [
+        p for p in range(layout.n_patches) if set(layout.patch_curves[p].tolist()) <= curves_seen
+    ]
+    name = f"patch {cand[0]}" if len(cand) == 1 else f"the region containing face {face}"
+    if not loops:
+        raise LayoutError(
+            f"face {face} lies in a closed piece of the mesh that no curve bounds: "
+            "every face must belong to a four-sided patch"
+        )
+    if len(loops) != 1:
+        raise LayoutError(
+            f"{name} is not a disk: its region has {len(loops)} boundary loops "
+            "(a hole of the mesh inside it, or curves that do not close around it)"
+        )
+    chi = sub.euler_characteristic
+    if chi != 1:
+        raise LayoutError(
+            f"{name} is not a disk: Euler characteristic {chi} instead of 1 (a handle inside it)"
+        )
+    return loops[0]
+
+
+def _no_patch_error(
+    layout: Layout,
+    by_set: dict[frozenset[int], list[int]],
+    seq: list[tuple[int, bool]],
+    pos: list[int],
+    face: int,
+) -> LayoutError:
+    """Why a region bounded by the sides ``seq`` (corners at ``pos`` of its loop) matches
+    no patch: a patch listed clockwise, or none with those sides."""
+    curves = sorted({s[0] for s in seq})
+    rev = _match(layout, by_set, [(ci, not r) for ci, r in reversed(seq)])
+    if rev is not None:
+        return LayoutError(
+            f"patch {rev[0]}: its sides run clockwise seen from outside; list them "
+            "counter-clockwise (the patch on the left of each side)"
+        )
+    return LayoutError(
+        f"face {face} lies in a region bounded by {len(seq)} curve(s) "
+        f"{curves} at {len(pos)} corner(s) that is no patch of the layout: every face "
+        "must belong to a four-sided patch"
+    )
 
 
 class _Along:
