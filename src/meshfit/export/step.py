@@ -240,59 +240,25 @@ def export_step(
     if units not in STEP_UNITS:
         raise InputError(f"units must be one of {tuple(STEP_UNITS)}, got {units!r}")
     _need_ocp()
-    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace, BRepBuilderAPI_Sewing
     from OCP.IFSelect import IFSelect_RetDone
     from OCP.Interface import Interface_Static
     from OCP.STEPCAFControl import STEPCAFControl_Writer
     from OCP.STEPControl import STEPControl_AsIs
     from OCP.TCollection import TCollection_ExtendedString
-    from OCP.TDataStd import TDataStd_Name
     from OCP.TDocStd import TDocStd_Document
-    from OCP.TopAbs import TopAbs_SHELL
-    from OCP.TopExp import TopExp_Explorer
     from OCP.XCAFApp import XCAFApp_Application
     from OCP.XCAFDoc import XCAFDoc_DocumentTool
 
     cp = np.concatenate([s.control_points.reshape(-1, 3) for s in surfaces])
     diag = float(np.linalg.norm(np.ptp(cp, axis=0))) or 1.0
-    faces = []
-    for name, s in zip(names, surfaces, strict=True):
-        mk = BRepBuilderAPI_MakeFace(step_surface(s), tol.ON_SURFACE * diag)
-        if not mk.IsDone():
-            raise ExportError(f"OpenCASCADE could not build a face from {name}")
-        faces.append(mk.Face())
+    faces = _occ_faces(surfaces, names, diag)
 
     app = XCAFApp_Application.GetApplication_s()
     doc = TDocStd_Document(TCollection_ExtendedString("MDTV-XCAF"))
     app.InitDocument(doc)
     shapes = XCAFDoc_DocumentTool.ShapeTool_s(doc.Main())
     if sew and len(faces) > 1:
-        sewing = BRepBuilderAPI_Sewing(tol.STITCH_MATCH * diag)
-        for f in faces:
-            sewing.Add(f)
-        sewing.Perform()
-        sewn = [sewing.Modified(f) if sewing.IsModified(f) else f for f in faces]
-        # one product per connected shell, its faces named as sub-shapes
-        unnamed = list(range(len(faces)))
-        n_shells = 0
-        ex = TopExp_Explorer(sewing.SewedShape(), TopAbs_SHELL)
-        while ex.More():
-            shell = ex.Current()
-            inside = [k for k in unnamed if _contains(shell, sewn[k])]
-            if len(inside) == 1:
-                _add(shapes, shell, names[inside[0]])
-            elif inside:
-                root = _add(shapes, shell, f"shell_{n_shells}")
-                n_shells += 1
-                for k in inside:
-                    sub = shapes.AddSubShape(root, sewn[k])
-                    if sub.IsNull():
-                        raise ExportError(f"sewn face of {names[k]} is not in its shell")
-                    TDataStd_Name.Set_s(sub, TCollection_ExtendedString(names[k]))
-            unnamed = [k for k in unnamed if k not in inside]
-            ex.Next()
-        for k in unnamed:
-            _add(shapes, sewn[k], names[k])
+        _add_sewn(shapes, faces, names, tol.STITCH_MATCH * diag)
     else:
         for name, f in zip(names, faces, strict=True):
             _add(shapes, f, name)
@@ -313,3 +279,54 @@ def export_step(
         if not writer.Transfer(doc, STEPControl_AsIs):
             raise ExportError("OpenCASCADE could not translate the patches to STEP")
         return atomic_write(path, write)
+
+
+def _occ_faces(surfaces: list[BSplineSurface], names: list[str], diag: float) -> list:
+    """One OpenCASCADE face per surface (ExportError naming the one it cannot build)."""
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace
+
+    faces = []
+    for name, s in zip(names, surfaces, strict=True):
+        mk = BRepBuilderAPI_MakeFace(step_surface(s), tol.ON_SURFACE * diag)
+        if not mk.IsDone():
+            raise ExportError(f"OpenCASCADE could not build a face from {name}")
+        faces.append(mk.Face())
+    return faces
+
+
+def _add_sewn(shapes, faces: list, names: list[str], tolerance: float) -> None:
+    """Sew ``faces`` within ``tolerance`` and add one product per connected shell to the
+    document's ``shapes``: a shell of one face named as that face, a larger one
+    ``shell_<k>`` with its faces named as sub-shapes; faces in no shell on their own."""
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_Sewing
+    from OCP.TCollection import TCollection_ExtendedString
+    from OCP.TDataStd import TDataStd_Name
+    from OCP.TopAbs import TopAbs_SHELL
+    from OCP.TopExp import TopExp_Explorer
+
+    sewing = BRepBuilderAPI_Sewing(tolerance)
+    for f in faces:
+        sewing.Add(f)
+    sewing.Perform()
+    sewn = [sewing.Modified(f) if sewing.IsModified(f) else f for f in faces]
+    # one product per connected shell, its faces named as sub-shapes
+    unnamed = list(range(len(faces)))
+    n_shells = 0
+    ex = TopExp_Explorer(sewing.SewedShape(), TopAbs_SHELL)
+    while ex.More():
+        shell = ex.Current()
+        inside = [k for k in unnamed if _contains(shell, sewn[k])]
+        if len(inside) == 1:
+            _add(shapes, shell, names[inside[0]])
+        elif inside:
+            root = _add(shapes, shell, f"shell_{n_shells}")
+            n_shells += 1
+            for k in inside:
+                sub = shapes.AddSubShape(root, sewn[k])
+                if sub.IsNull():
+                    raise ExportError(f"sewn face of {names[k]} is not in its shell")
+                TDataStd_Name.Set_s(sub, TCollection_ExtendedString(names[k]))
+        unnamed = [k for k in unnamed if k not in inside]
+        ex.Next()
+    for k in unnamed:
+        _add(shapes, sewn[k], names[k])
