@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -237,28 +237,47 @@ def cube_layout(
         curves.append(_tidy(mesh, paint_curve(mesh, picks, spacing=spacing), spacing))
     features = [[] for _ in patches]
     if feature_patch is not None:
-        lat = squares[feature_patch]
-        p0, p1, p3 = pts[lat[0]], pts[lat[1]], pts[lat[3]]
-        eu, ev = p1 - p0, p3 - p0
-        for along in ("u", "v"):
-            for frac in feature_fractions:
-                if along == "u":  # constant v, from side 3 (u = 0) to side 1 (u = 1)
-                    q = [p0 + s * eu + frac * ev for s in np.linspace(0, 1, picks_per_curve + 2)]
-                    s_from, s_to = 3, 1
-                else:  # constant u, from side 0 (v = 0) to side 2 (v = 1)
-                    q = [p0 + frac * eu + s * ev for s in np.linspace(0, 1, picks_per_curve + 2)]
-                    s_from, s_to = 0, 2
-                q = np.asarray(q)
-                mid = project(q[1:-1])
-                start = _nearest_sample(
-                    mesh, curves, patches[feature_patch][s_from], project(q[:1])
-                )
-                end = _nearest_sample(mesh, curves, patches[feature_patch][s_to], project(q[-1:]))
-                picks = SurfacePoints.concatenate([start, mid, end])
-                features[feature_patch].append(
-                    _tidy(mesh, paint_curve(mesh, picks, kind="feature", spacing=spacing), spacing)
-                )
+        features[feature_patch] = _feature_curves(
+            mesh, project, pts, curves, patches[feature_patch], squares[feature_patch],
+            feature_fractions, picks_per_curve, spacing,
+        )  # fmt: skip
     return layout_from_curves(mesh, corners, curves, ends, patches, features)
+
+
+def _feature_curves(
+    mesh: Mesh,
+    project: Callable[[NDArray[np.float64]], SurfacePoints],
+    pts: NDArray[np.float64],
+    curves: list[SurfaceCurve],
+    sides: Sequence,
+    lat: Sequence,
+    fractions: Sequence[float],
+    picks_per_curve: int,
+    spacing: float,
+) -> list[SurfaceCurve]:
+    """The feature curves of `cube_layout`'s ``feature_patch`` (its four ``sides`` and box
+    points ``lat``): for each fraction one iso-curve in each direction, painted from a
+    sample of one side's curve to a sample of the opposite side's curve."""
+    out = []
+    p0, p1, p3 = pts[lat[0]], pts[lat[1]], pts[lat[3]]
+    eu, ev = p1 - p0, p3 - p0
+    for along in ("u", "v"):
+        for frac in fractions:
+            if along == "u":  # constant v, from side 3 (u = 0) to side 1 (u = 1)
+                q = [p0 + s * eu + frac * ev for s in np.linspace(0, 1, picks_per_curve + 2)]
+                s_from, s_to = 3, 1
+            else:  # constant u, from side 0 (v = 0) to side 2 (v = 1)
+                q = [p0 + frac * eu + s * ev for s in np.linspace(0, 1, picks_per_curve + 2)]
+                s_from, s_to = 0, 2
+            q = np.asarray(q)
+            mid = project(q[1:-1])
+            start = _nearest_sample(mesh, curves, sides[s_from], project(q[:1]))
+            end = _nearest_sample(mesh, curves, sides[s_to], project(q[-1:]))
+            picks = SurfacePoints.concatenate([start, mid, end])
+            out.append(
+                _tidy(mesh, paint_curve(mesh, picks, kind="feature", spacing=spacing), spacing)
+            )
+    return out
 
 
 class _Axis:
