@@ -124,7 +124,7 @@ def fit_one(
     return record
 
 
-def run_batch(
+def run_batch(  # noqa: C901 (one run per mesh, its retries and its record; to split)
     pattern: str | list[str],
     out: str | os.PathLike,
     *,

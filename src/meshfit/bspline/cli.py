@@ -37,7 +37,7 @@ def load_grid(path: str | Path) -> np.ndarray:
     return xyz
 
 
-def cmd_fit(args: argparse.Namespace) -> int:
+def cmd_fit(args: argparse.Namespace) -> int:  # noqa: C901 (one branch per output of the grid command; to split)
     """Fit every grid, stitch, build maps, export; print errors, seams and timings."""
     from meshfit._cliout import EXIT_OK, print_json, print_table
     from meshfit.bspline import fit_bspline, fit_errors

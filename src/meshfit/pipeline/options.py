@@ -144,7 +144,7 @@ class FitOptions:
     image_size: int = 640
     normal_errors: bool = False
 
-    def __post_init__(self) -> None:
+    def __post_init__(self) -> None:  # noqa: C901 (one check per option, in order; to split by group)
         try:
             mu, mv = (int(c) for c in self.controls)
         except (TypeError, ValueError):

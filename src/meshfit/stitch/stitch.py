@@ -638,7 +638,7 @@ def _slot_rows(shapes, b: SharedBoundary, depth: int):
     return ia + offs[b.a], ib + offs[b.b]
 
 
-def stitch_surfaces(surfaces: Sequence[BSplineSurface], network: Network) -> list[BSplineSurface]:
+def stitch_surfaces(surfaces: Sequence[BSplineSurface], network: Network) -> list[BSplineSurface]:  # noqa: C901 (the boundary and corner passes share their state; to split)
     """Make a network of patches C0 or G1 across its shared boundaries.
 
     Parameters
@@ -1295,7 +1295,7 @@ def _unit_rows(x: NDArray) -> NDArray:
     return x / np.maximum(ln, np.finfo(float).tiny)
 
 
-def _stitch_bump(surfaces, maps, network: Network) -> list[DisplacementMap]:
+def _stitch_bump(surfaces, maps, network: Network) -> list[DisplacementMap]:  # noqa: C901 (seam rows and corners of one kind share their state; to split)
     """`stitch_displacements` for bump maps (see its Notes)."""
     vals = [m.values.copy() for m in maps]
     g1_ends: set[tuple[tuple[int, int, int], tuple[int, int, int]]] = set()
