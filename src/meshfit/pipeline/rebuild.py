@@ -8,10 +8,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from meshfit.errors import InputError
 from meshfit.mesh import Mesh
 from meshfit.mesh.locate import grid_tree
 from meshfit.pipeline import measure
 from meshfit.pipeline.stages import close_seams, displaced_grids
+from meshfit.pipeline.store import mesh_hash
 
 if TYPE_CHECKING:
     from meshfit.pipeline.result import FitResult
@@ -38,9 +40,7 @@ def rebuild(result: FitResult, mesh: Mesh | None) -> FitResult:
         row["displacement_max"] = float(np.abs(m.values).max() / diag)
         patches.append(replace(p, displacement=m, errors=row))
     if mesh is not None:
-        if measure_mesh_hash(mesh) != summary["mesh"]["sha256"]:
-            from meshfit.errors import InputError
-
+        if mesh_hash(mesh) != summary["mesh"]["sha256"]:
             raise InputError("rebuild: the mesh given is not the fit's input (its hash differs)")
         Vd, Fd = measure.soup(displaced)
         tree = grid_tree(Vd, Fd, [g.shape[:2] for g in displaced])
@@ -63,9 +63,3 @@ def rebuild(result: FitResult, mesh: Mesh | None) -> FitResult:
     summary["notes"] = [*summary.get("notes", []), *notes]
     summary["rebuilt"] = True
     return replace(result, patches=patches, summary=summary, mesh=mesh or result.mesh)
-
-
-def measure_mesh_hash(mesh: Mesh) -> str:
-    from meshfit.pipeline.store import mesh_hash
-
-    return mesh_hash(mesh)

@@ -124,6 +124,13 @@ class FitResult:
         """Write the fit into ``folder`` (created): ``fit.npz`` with every array, ``fit.json``
         (options, network, kinds), ``layout.json`` and ``summary.json``; the manifest lists
         them. :func:`load_fit` reads them back bit for bit."""
+        out = self._write(folder)
+        _update_manifest(out, FIT_FILES)
+        return out
+
+    def _write(self, folder: str | os.PathLike) -> Path:
+        """The files of :meth:`save`, without the manifest (:func:`meshfit.fit` lists every
+        file of its folder in one manifest at the end)."""
         from meshfit.layout import layout_to_json
 
         out = Path(folder)
@@ -147,7 +154,6 @@ class FitResult:
         write_json(out / "fit.json", meta)
         write_text(out / "layout.json", layout_to_json(self.layout))
         write_json(out / "summary.json", self.summary)
-        _update_manifest(out, FIT_FILES)
         return out
 
     def export(self, folder: str | os.PathLike, formats: tuple[str, ...] | None = None) -> dict:
@@ -212,7 +218,7 @@ def _update_manifest(out: Path, written) -> None:
     old = read_manifest(out)
     keep = edited_maps(out)
     others = [f for f in old if f not in written and f not in keep and (out / f).is_file()]
-    write_manifest(out, [*others, *written], keep={k: v for k, v in keep.items()})
+    write_manifest(out, [*others, *written], keep=keep)
 
 
 def _map_from_file(path: Path, like: DisplacementMap) -> DisplacementMap:

@@ -92,7 +92,7 @@ def fit(
     summary["work_done"] = [s for s, i in ctx.info.items() if not i["cached"] and s != "validate"]
     result = _result(ctx, summary)
     if folder is not None:
-        result.save(folder)
+        result._write(folder)  # the manifest follows, once, with every file
         if options.report:
             from meshfit.report import write_html
 

@@ -135,11 +135,10 @@ class Layout(Stage):
         return ctx.options.layout if self.source.startswith("auto") else None
 
     def extra(self, ctx: Context) -> Any:
-        self.source, self.make = self._resolve(ctx)
         return [ctx["mesh_hash"], self.source]
 
     def key(self, ctx: Context) -> str:
-        self.extra(ctx)  # the source decides the group
+        self.source, self.make = self._resolve(ctx)  # once: the source decides the group
         return super().key(ctx)
 
     def run(self, ctx: Context) -> None:

@@ -64,6 +64,10 @@ def layout_network(layout: Any, continuity: str = "G1", creases: Any = None) -> 
     Network
         Built from the topology alone, so curves between the same corners are never
         confused, whatever the grids' positions.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 8.1 (continuity across a patch network).
     """
     boundaries = []
     for curve, uses in sorted(_curve_users(layout).items()):
@@ -190,6 +194,11 @@ def seam_metrics(
     meant to break, are reported apart as ``crease_normal_jump_max_deg``. Gaps are over
     ``diag``: of the splines, of the displaced grids as tessellated at their own resolution
     (each row's points to the other row's polyline), and at any resolution.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 8.1 (C0 / G1 across boundaries) and sec. 8.2
+       (crack-free displacement seams).
     """
     t = np.linspace(0.0, 1.0, samples)
     f = dict.fromkeys(("gap", "angle", "inner", "ends", "disp", "any", "crease"), 0.0)
