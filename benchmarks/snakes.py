@@ -36,7 +36,7 @@ import time
 import numpy as np
 from _common import RESULTS, ROOT, median_time, mesh_path, write_result
 
-from meshfit.curves.snake import relax_snake
+from meshfit.curves.snake import SnakeOptions, relax_snake
 from meshfit.mesh import load_mesh
 from meshfit.surface import path_to_surface_points, shortest_path, walk_points
 from meshfit.types import SurfaceCurve, SurfacePoints
@@ -84,7 +84,7 @@ def auto_relaxation(patches: int, repeats: int) -> dict:
         auto._relax_all = record
         try:
             t0 = time.perf_counter()
-            auto.auto_layout(mesh, patches=patches)
+            auto.auto_layout(mesh, auto.LayoutOptions(patches=patches))
             layout_s = time.perf_counter() - t0
         finally:
             auto._relax_all = relax_all
@@ -155,7 +155,8 @@ def main() -> None:
     h = mesh.mean_edge_length
 
     snake = make_snake(mesh, args.n)
-    base = relax_snake(mesh, snake, max_iter=args.max_iter)  # equilibrium (also compiles)
+    # equilibrium (also compiles)
+    base = relax_snake(mesh, snake, SnakeOptions(max_iter=args.max_iter))
     curve = base.curve
     # pull the end sideways: perpendicular to the end segment, in the end face's plane
     x = mesh.xyz(curve.points)
@@ -175,7 +176,9 @@ def main() -> None:
         res = {}
 
         def run(levels=levels, res=res):
-            res["r"] = relax_snake(mesh, pulled, levels=levels, max_iter=args.max_iter)
+            res["r"] = relax_snake(
+                mesh, pulled, SnakeOptions(levels=levels, max_iter=args.max_iter)
+            )
 
         t, times = median_time(run, reps)
         r = res["r"]
@@ -198,8 +201,9 @@ def main() -> None:
         t0 = time.perf_counter()
         moved = 0.0
         while done < args.max_iter:
-            cur = relax_snake(mesh, cur, levels=levels, max_iter=chunk, tol_move=0.0).curve
-            ref = relax_snake(mesh, ref, levels=levels, max_iter=chunk, tol_move=0.0).curve
+            opts = SnakeOptions(levels=levels, max_iter=chunk, tol_move=0.0)
+            cur = relax_snake(mesh, cur, opts).curve
+            ref = relax_snake(mesh, ref, opts).curve
             done += chunk
             moved = np.linalg.norm(mesh.xyz(cur.points[probe]) - mesh.xyz(ref.points[probe])) / h
             if moved > args.impulse:
@@ -220,10 +224,9 @@ def main() -> None:
 
     small = make_snake(mesh, 1000)
     n_iter = 200
-    relax_snake(mesh, small, max_iter=2, tol_move=0.0)
-    t_it, times_it = median_time(
-        lambda: relax_snake(mesh, small, max_iter=n_iter, tol_move=0.0), args.repeats
-    )
+    relax_snake(mesh, small, SnakeOptions(max_iter=2, tol_move=0.0))
+    iter_options = SnakeOptions(max_iter=n_iter, tol_move=0.0)
+    t_it, times_it = median_time(lambda: relax_snake(mesh, small, iter_options), args.repeats)
 
     auto_relax = auto_relaxation(args.patches, args.repeats)
     auto_relax["numba_threads"] = numba.get_num_threads()

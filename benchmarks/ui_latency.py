@@ -46,7 +46,7 @@ from _common import median_time, mesh_path, write_result
 from scipy.sparse.csgraph import dijkstra
 
 from meshfit.bspline import fit_bspline
-from meshfit.curves import paint_curve, relax_snake, resample_curve
+from meshfit.curves import SnakeOptions, paint_curve, relax_snake, resample_curve
 from meshfit.layout.cube import cube_layout
 from meshfit.mesh import load_mesh
 from meshfit.springs import SpringOptions, resample_patch
@@ -132,8 +132,9 @@ def bench_snake(mesh, session: Session, repeats: int) -> dict:
 
     step()
     t, _ = median_time(step, repeats)
-    relax_snake(mesh, curve1000, max_iter=1)
-    peer, _ = median_time(lambda: relax_snake(mesh, curve1000, max_iter=1), repeats)
+    one = SnakeOptions(max_iter=1)
+    relax_snake(mesh, curve1000, one)
+    peer, _ = median_time(lambda: relax_snake(mesh, curve1000, one), repeats)
     return _figure("snake_step", t, peer, "relax_snake(max_iter=1) direct", points=len(curve1000))
 
 

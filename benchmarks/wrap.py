@@ -9,7 +9,8 @@ one step of plain Loop subdivision of the level-5 result to level-6 connectivity
 the total wrap time over that step. Target (issue 6): igea to level 6 in <= 20 s on 2 cores.
 
 Configurations: nefertiti and igea with the default base mesh (icosahedron start), and igea
-from the 80-face geodesic polyhedron (``base_options={"start_subdivisions": 1}``).
+from the 80-face geodesic polyhedron
+(``base_options=BaseOptions(start_subdivisions=1, min_faces=80)``).
 
 Run: ``python benchmarks/wrap.py [--repeats 3] [--levels 6]``. Prints JSON and writes
 ``benchmarks/results/wrap.json`` atomically.
@@ -27,7 +28,7 @@ import time
 from _common import median_time, mesh_path, write_result
 
 from meshfit.mesh import load_mesh
-from meshfit.shrinkwrap import level_metrics, shrink_wrap, subdivide_step
+from meshfit.shrinkwrap import BaseOptions, level_metrics, shrink_wrap, subdivide_step
 
 
 def _peak_rss_mb() -> float:
@@ -47,10 +48,10 @@ def main() -> None:
     t_compile = time.perf_counter() - t0
     out = {}
     configs = {
-        "nefertiti": ("nefertiti", {}),
-        "igea": ("igea", {}),
+        "nefertiti": ("nefertiti", None),
+        "igea": ("igea", None),
         # the 80-face geodesic start: level 6 has ~330K faces, the size the target assumes
-        "igea_base80": ("igea", {"start_subdivisions": 1, "min_faces": 80}),
+        "igea_base80": ("igea", BaseOptions(start_subdivisions=1, min_faces=80)),
     }
     for key, (name, bopt) in configs.items():
         mesh = load_mesh(mesh_path(name))

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from meshfit.layout import extract_patches, layout_from_curves, save_layout
-from meshfit.layout.cube import cube_layout, principal_frame
+from meshfit.layout.cube import AxisRays, FeatureCurves, cube_layout, principal_frame
 from meshfit.mesh import load_mesh
 from meshfit.types import SurfaceCurve, SurfacePoints
 
@@ -88,9 +88,11 @@ def axis_layout(mesh, spec: dict):
         mesh,
         n=spec["n"],
         rows=spec["rows"],
-        axis=mesh.vertices.mean(axis=0) + knots @ frame.T,
-        levels=np.interp(spec["heights"], knots[:, 0], arc / arc[-1]),
-        cap_tilt=spec["cap_tilt"],
+        axis=AxisRays(
+            mesh.vertices.mean(axis=0) + knots @ frame.T,
+            levels=np.interp(spec["heights"], knots[:, 0], arc / arc[-1]),
+            cap_tilt=spec["cap_tilt"],
+        ),
         frame=frame @ turn,
         picks_per_curve=spec["picks"],
     )
@@ -136,7 +138,8 @@ def main(argv: list[str] | None = None) -> int:
             layout = axis_layout(mesh, spec)
         else:
             n, feature_patch, picks = LAYOUTS[name]
-            layout = cube_layout(mesh, n=n, feature_patch=feature_patch, picks_per_curve=picks)
+            features = None if feature_patch is None else FeatureCurves(feature_patch)
+            layout = cube_layout(mesh, n=n, features=features, picks_per_curve=picks)
         layout = _compact(mesh, layout)
         t1 = time.perf_counter()
         patches = extract_patches(mesh, layout)

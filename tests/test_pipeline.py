@@ -658,7 +658,7 @@ def test_shape_layout_option_reaches_the_automatic_layout(monkeypatch):
         FitOptions(layout_shape="yes")
     parser = build_parser()
     seen = []
-    monkeypatch.setattr(auto, "auto_layout", lambda mesh, **kw: seen.append(kw["shape"]))
+    monkeypatch.setattr(auto, "auto_layout", lambda mesh, o, **kw: seen.append(o.shape))
     mesh = demo_mesh(400)
     for flag, want in (("auto", None), ("on", True), ("off", False)):
         opts = _options(parser.parse_args(["fit", "scan.ply", "--shape-layout", flag]))
@@ -678,7 +678,7 @@ def test_layout_seed_option_reaches_the_automatic_layout(monkeypatch):
             FitOptions(layout_seed=bad)
     parser = build_parser()
     seen = []
-    monkeypatch.setattr(auto, "auto_layout", lambda mesh, **kw: seen.append(kw["seed"]))
+    monkeypatch.setattr(auto, "auto_layout", lambda mesh, o, **kw: seen.append(o.seed))
     mesh = demo_mesh(400)
     keys = []
     for argv in ([], ["--layout-seed", "2"]):

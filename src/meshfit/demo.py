@@ -165,7 +165,7 @@ def run_demo(
     from rich.console import Console
 
     from meshfit._progress import stage_progress
-    from meshfit.layout.auto import auto_layout
+    from meshfit.layout.auto import LayoutOptions, auto_layout
     from meshfit.mesh import save_mesh
     from meshfit.mesh.measures import mesh_statistics
     from meshfit.pipeline import FitOptions, fit
@@ -187,7 +187,7 @@ def run_demo(
     )
     with console.status(f"automatic layout of about {patches} patches"):
         t0 = time.perf_counter()
-        layout = auto_layout(mesh, patches=patches, sphere=demo_sphere_map(mesh))
+        layout = auto_layout(mesh, LayoutOptions(patches=patches), sphere=demo_sphere_map(mesh))
         t_layout = time.perf_counter() - t0
     console.print(f"[bold]layout[/] {layout.n_patches} patches in {t_layout:.1f} s")
     if options is None:

@@ -16,7 +16,7 @@ from meshfit.curves.color import (
     vertex_gradients,
     vertex_normals,
 )
-from meshfit.curves.snake import _pairs_ok, relax_snake
+from meshfit.curves.snake import SnakeOptions, _pairs_ok, relax_snake
 from meshfit.errors import InputError
 from meshfit.mesh import Mesh
 
@@ -126,13 +126,17 @@ def test_colour_attraction_pulls_a_curve_onto_a_painted_band(spot_band):
     mesh, z0, curve = spot_band
     g = vertex_gradients(mesh, scalar_field(mesh, "red"))
     res = relax_snake(
-        mesh, curve, fixed=[], max_iter=3000, external=lambda c: color_force(mesh, c, g, weight=1.0)
+        mesh,
+        curve,
+        SnakeOptions(max_iter=3000),
+        fixed=[],
+        external=lambda c: color_force(mesh, c, g, weight=1.0),
     )
     assert res.converged
     d0 = np.abs(mesh.xyz(curve.points)[:, 2] - z0).mean()
     d1 = np.abs(mesh.xyz(res.curve.points)[:, 2] - z0).mean()
     assert d1 < d0 / 5
-    plain = relax_snake(mesh, curve, fixed=[], max_iter=3000)
+    plain = relax_snake(mesh, curve, SnakeOptions(max_iter=3000), fixed=[])
     assert np.abs(mesh.xyz(plain.curve.points)[:, 2] - z0).mean() > 0.5 * d0  # colour did it
     d = mesh.closest_points(mesh.xyz(res.curve.points)).distance
     assert d.max() <= tol.ON_SURFACE * mesh.bbox_diagonal
@@ -180,10 +184,8 @@ def nefertiti_run():
     res = relax_snake(
         m,
         curve,
+        SnakeOptions(w_fair=0.3, w_arc=0.3, max_iter=3000),
         fixed=[],
-        max_iter=3000,
-        w_fair=0.3,
-        w_arc=0.3,
         external=lambda c: color_force(m, c, g, weight=10.0),
     )
     return m, curve, res, distance

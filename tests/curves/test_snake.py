@@ -8,7 +8,14 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 from meshfit import tol
 from meshfit.curves import curve_length, paint_curve
-from meshfit.curves.snake import _pairs_ok, edit_snake, relax_snake, snake_forces
+from meshfit.curves.snake import (
+    SNAKE_MOVE_TOL,
+    SnakeOptions,
+    _pairs_ok,
+    edit_snake,
+    relax_snake,
+    snake_forces,
+)
 from meshfit.errors import InputError
 from meshfit.types import SurfaceCurve, SurfacePoints
 
@@ -66,7 +73,7 @@ def on_surface(mesh, curve):
 
 @pytest.fixture(scope="module")
 def fair_result():
-    return zigzag_arc(), relax_snake(SPHERE, zigzag_arc(), max_iter=20_000)
+    return zigzag_arc(), relax_snake(SPHERE, zigzag_arc(), SnakeOptions(max_iter=20_000))
 
 
 @pytest.mark.parametrize("closed", [False, True])
@@ -105,7 +112,7 @@ def test_spacing_is_even(fair_result):
 
 def test_curvature_weight_gives_smooth_curve_on_surface():
     start = zigzag_arc()
-    res = relax_snake(SPHERE, start, w_fair=0.2, w_curv=1.0, max_iter=20_000)
+    res = relax_snake(SPHERE, start, SnakeOptions(w_fair=0.2, w_curv=1.0, max_iter=20_000))
     on_surface(SPHERE, res.curve)
     x = SPHERE.xyz(res.curve.points)
     d = np.diff(x, axis=0)
@@ -121,7 +128,7 @@ def test_curvature_weight_gives_smooth_curve_on_surface():
 
 def test_closed_small_circle_shrinks_and_stays_round():
     start = circle(0.5)
-    res = relax_snake(SPHERE, start, max_iter=150)
+    res = relax_snake(SPHERE, start, SnakeOptions(max_iter=150))
     assert not res.converged  # curve shortening on the sphere: a small circle keeps shrinking
     x = SPHERE.xyz(res.curve.points)
     assert seg_lengths(SPHERE, res.curve).sum() < 0.97 * seg_lengths(SPHERE, start).sum()
@@ -136,7 +143,7 @@ def test_closed_great_circle_keeps_its_shape():
     # as nearby small circles are shorter, so use single-resolution forces, which do not
     # amplify the polyhedral perturbations as the long coarse-level chords do)
     start = circle(0.0)
-    res = relax_snake(SPHERE, start, levels=1, max_iter=2000)
+    res = relax_snake(SPHERE, start, SnakeOptions(levels=1, max_iter=2000))
     assert res.converged
     x = SPHERE.xyz(res.curve.points)
     assert abs(seg_lengths(SPHERE, res.curve).sum() / seg_lengths(SPHERE, start).sum() - 1) < 0.005
@@ -145,7 +152,7 @@ def test_closed_great_circle_keeps_its_shape():
 
 def test_coarse_to_fine_needs_fewer_iterations(fair_result):
     _, multi = fair_result
-    single = relax_snake(SPHERE, zigzag_arc(), levels=1, max_iter=20_000)
+    single = relax_snake(SPHERE, zigzag_arc(), SnakeOptions(levels=1, max_iter=20_000))
     assert multi.converged and single.converged
     assert multi.iterations < 0.6 * single.iterations
 
@@ -153,14 +160,14 @@ def test_coarse_to_fine_needs_fewer_iterations(fair_result):
 def test_fixed_points_never_move():
     start = zigzag_arc()
     fixed = [0, 10, 20, len(start) - 1]
-    res = relax_snake(SPHERE, start, fixed=fixed, max_iter=50)
+    res = relax_snake(SPHERE, start, SnakeOptions(max_iter=50), fixed=fixed)
     assert_array_equal(res.curve.points.face[fixed], start.points.face[fixed])
     assert_array_equal(res.curve.points.bary[fixed], start.points.bary[fixed])
 
 
 @pytest.fixture(scope="module")
 def great_arc():
-    return relax_snake(SPHERE, zigzag_arc(angle=2.0, n=60), max_iter=20_000).curve
+    return relax_snake(SPHERE, zigzag_arc(angle=2.0, n=60), SnakeOptions(max_iter=20_000)).curve
 
 
 def test_edit_moves_only_the_section(great_arc):
@@ -195,7 +202,7 @@ def test_edit_toward_a_target(great_arc):
 def test_external_force_array_pulls_the_curve(great_arc):
     ext = np.zeros((len(great_arc), 3))
     ext[:, 2] = 0.05
-    res = relax_snake(SPHERE, great_arc, external=ext, max_iter=300)
+    res = relax_snake(SPHERE, great_arc, SnakeOptions(max_iter=300), external=ext)
     assert SPHERE.xyz(res.curve.points)[1:-1, 2].mean() > 0.02
 
 
@@ -211,12 +218,10 @@ def test_errors(great_arc):
         relax_snake(SPHERE, great_arc, external=np.zeros((n - 1, 3)))
     with pytest.raises(InputError, match="out of range"):
         relax_snake(SPHERE, great_arc, fixed=[n])
-    with pytest.raises(InputError, match="levels"):
-        relax_snake(SPHERE, great_arc, levels=0)
-    with pytest.raises(InputError, match="step"):
-        relax_snake(SPHERE, great_arc, step=1.5)
-    with pytest.raises(InputError, match="w_fair"):
-        relax_snake(SPHERE, great_arc, w_fair=np.nan)
+    with pytest.raises(InputError, match="options must be SnakeOptions"):
+        relax_snake(SPHERE, great_arc, {"max_iter": 5})
+    with pytest.raises(InputError, match="options must be SnakeOptions"):
+        edit_snake(SPHERE, great_arc, options={}, edit_index=5, section=3, force=[0, 0, 1])
     with pytest.raises(InputError, match="exactly one"):
         edit_snake(SPHERE, great_arc, edit_index=5, section=3)
     with pytest.raises(InputError, match="force is not finite"):
@@ -229,6 +234,57 @@ def test_errors(great_arc):
         relax_snake(SPHERE, great_arc.points)
 
 
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("w_fair", -0.1),
+        ("w_curv", np.nan),
+        ("w_arc", np.inf),
+        ("w_fair", "heavy"),
+        ("step", 0.0),
+        ("step", -0.25),
+        ("step", 1.5),
+        ("tol_move", -1e-4),
+        ("max_iter", -1),
+        ("max_iter", 2.5),
+        ("max_iter", True),
+        ("levels", 0),
+        ("levels", 1.0),
+    ],
+)
+def test_options_refuse_nonsense(field, value):
+    with pytest.raises(InputError, match=field):
+        SnakeOptions(**{field: value})
+
+
+def test_options_defaults_and_conversion():
+    o = SnakeOptions()
+    assert (o.w_fair, o.w_curv, o.w_arc, o.levels) == (1.0, 0.0, 1.0, None)
+    assert (o.step, o.max_iter, o.tol_move) == (0.25, 5000, SNAKE_MOVE_TOL)
+    o = SnakeOptions(w_fair=1, levels=np.int64(2), max_iter=np.int32(7))
+    assert type(o.w_fair) is float and type(o.levels) is int and type(o.max_iter) is int
+    with pytest.raises(AttributeError):
+        o.step = 0.5  # type: ignore[misc]
+
+
+def test_options_positional_or_keyword_and_default(great_arc):
+    """``options`` as third argument, as keyword, or omitted (the defaults) is one call."""
+    o = SnakeOptions(max_iter=30)
+    a = relax_snake(SPHERE, great_arc, o)
+    b = relax_snake(SPHERE, great_arc, options=o)
+    assert_array_equal(a.curve.points.face, b.curve.points.face)
+    assert_array_equal(a.curve.points.bary, b.curve.points.bary)
+    d, e = relax_snake(SPHERE, great_arc), relax_snake(SPHERE, great_arc, SnakeOptions())
+    assert_array_equal(d.curve.points.bary, e.curve.points.bary)
+    assert_array_equal(d.max_move, e.max_move)
+    n = len(great_arc)
+    kw = dict(edit_index=n // 2, section=n // 6, force=[0, 0, 0.1])
+    f = edit_snake(SPHERE, great_arc, SnakeOptions(), **kw)
+    g = edit_snake(SPHERE, great_arc, **kw)
+    assert_array_equal(f.curve.points.bary, g.curve.points.bary)
+    assert_array_equal(f.max_move, g.max_move)
+
+
 def test_converges_on_a_bumpy_scan():
     """Forces projected on the interpolated vertex normal's plane: no jitter at creases."""
     from meshfit.demo import demo_mesh
@@ -236,7 +292,7 @@ def test_converges_on_a_bumpy_scan():
     mesh = demo_mesh(20_000)
     top, bottom = int(mesh.vertices[:, 2].argmax()), int(mesh.vertices[:, 2].argmin())
     curve = paint_curve(mesh, [top, bottom])
-    res = relax_snake(mesh, curve, max_iter=5000)
+    res = relax_snake(mesh, curve, SnakeOptions(max_iter=5000))
     assert res.converged
     assert curve_length(mesh, res.curve) < curve_length(mesh, curve)
     on_surface(mesh, res.curve)
@@ -257,9 +313,10 @@ def test_points_on_vertices_keep_the_pair_rule():
     curve = load_layout(ROOT / "examples" / "layouts" / "nefertiti.json", mesh).curves[38]
     assert not _pairs_ok(mesh.faces, curve.points.face, False).all()
     for steps in (1, 3, 5):
-        out = relax_snake(mesh, curve, levels=1, max_iter=steps, tol_move=0.0).curve
+        opts = SnakeOptions(levels=1, max_iter=steps, tol_move=0.0)
+        out = relax_snake(mesh, curve, opts).curve
         assert _pairs_ok(mesh.faces, out.points.face, False).all(), steps
         on_surface(mesh, out)
     # written in another face, the point is where it was
-    res = relax_snake(mesh, curve, max_iter=0)
+    res = relax_snake(mesh, curve, SnakeOptions(max_iter=0))
     assert_allclose(mesh.xyz(res.curve.points), mesh.xyz(curve.points), rtol=0, atol=1e-12)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import inspect
 from functools import cache
 
 import numpy as np
@@ -13,7 +12,7 @@ from meshfit.curves.base import check_sampling, densify_curve
 from meshfit.demo import demo_mesh, demo_sphere_map
 from meshfit.errors import InputError, LayoutError
 from meshfit.layout import extract_patches, layout_from_json, layout_to_json
-from meshfit.layout.auto import auto_layout, quad_network
+from meshfit.layout.auto import LayoutOptions, auto_layout, quad_network
 from meshfit.shrinkwrap import icosahedron
 
 from ..conftest import real_mesh
@@ -56,7 +55,7 @@ def test_fewer_than_sixty_patches_from_an_octahedron(patches):
     # bases of fewer than 20 triangles start from the octahedron (8): 24 patches and up
     # (protrusions=False: spot's horns would send a base this coarse to the region route)
     mesh = real_mesh("spot")
-    layout = auto_layout(mesh, patches=patches, protrusions=False)
+    layout = auto_layout(mesh, LayoutOptions(patches=patches, protrusions=False))
     assert layout.n_patches == patches
     ps = extract_patches(mesh, layout)
     np.testing.assert_allclose(sum(p.mesh.area for p in ps), mesh.area, rtol=1e-9)
@@ -71,14 +70,15 @@ def test_more_patches_than_the_mesh_has_faces_for_are_refused_at_once():
     # spot (5,856 faces) may ask for 366 patches (122 base triangles) at 16 faces a patch
     mesh = real_mesh("spot")
     with pytest.raises(InputError, match=r"1000 patches .* ask for at most 366 patches"):
-        auto_layout(mesh, patches=1000)
+        auto_layout(mesh, LayoutOptions(patches=1000))
     with pytest.raises(InputError, match="at most 366"):
-        auto_layout(mesh, patches=372)  # 124 base triangles, 372 patches: one pair too many
+        # 124 base triangles, 372 patches: one pair too many
+        auto_layout(mesh, LayoutOptions(patches=372))
     # a mesh too coarse for the fewest patches of the sphere route: asked, it is refused;
     # by default the region route lays out as many as the faces allow
     small = icosphere(2)  # 320 faces: 20 patches at most
     with pytest.raises(InputError, match="makes at least 24: give a layout file"):
-        auto_layout(small, patches=24)
+        auto_layout(small, LayoutOptions(patches=24))
     layout = auto_layout(small)
     assert 4 <= layout.n_patches and len(extract_patches(small, layout)) == layout.n_patches
 
@@ -86,14 +86,14 @@ def test_more_patches_than_the_mesh_has_faces_for_are_refused_at_once():
 def test_fewest_patches():
     mesh = demo_mesh(6000)
     smap = demo_sphere_map(mesh)
-    assert auto_layout(mesh, patches=6, sphere=smap).n_patches == 24
+    assert auto_layout(mesh, LayoutOptions(patches=6), sphere=smap).n_patches == 24
 
 
 def test_patch_count_and_demo_sphere():
     mesh = demo_mesh(6000)
     smap = demo_sphere_map(mesh)
     assert smap.flips == 0
-    layout = auto_layout(mesh, patches=120, sphere=smap)
+    layout = auto_layout(mesh, LayoutOptions(patches=120), sphere=smap)
     assert layout.n_patches == 120
     assert len(extract_patches(mesh, layout)) == 120
 
@@ -109,7 +109,7 @@ def test_open_and_higher_genus_meshes_take_the_region_route():
     layout = auto_layout(torus())
     assert len(extract_patches(torus(), layout)) == layout.n_patches
     with pytest.raises(InputError):
-        auto_layout(demo_mesh(400), patches=0)
+        auto_layout(demo_mesh(400), LayoutOptions(patches=0))
 
 
 def _record_region_route(monkeypatch) -> list:
@@ -135,7 +135,9 @@ def test_crossing_curves_hand_the_mesh_to_the_region_route(monkeypatch):
     monkeypatch.setattr(auto, "SEED_TRIES", 2)
     mesh = real_mesh("spot")
     calls = _record_region_route(monkeypatch)
-    layout = auto_layout(mesh, patches=180, relax=False, shape=False, protrusions=False)
+    layout = auto_layout(
+        mesh, LayoutOptions(patches=180, relax=False, shape=False, protrusions=False)
+    )
     assert calls == [mesh.name]
     assert len(extract_patches(mesh, layout)) == layout.n_patches
     # with a sphere map of the caller's, the sphere route's error stands
@@ -143,7 +145,11 @@ def test_crossing_curves_hand_the_mesh_to_the_region_route(monkeypatch):
 
     smap = sphere_map(mesh, max_aspect=10.0)
     with pytest.raises(LayoutError, match="fewer patches") as err:
-        auto_layout(mesh, patches=180, relax=False, shape=False, protrusions=False, sphere=smap)
+        auto_layout(
+            mesh,
+            LayoutOptions(patches=180, relax=False, shape=False, protrusions=False),
+            sphere=smap,
+        )
     assert "nor with another rotation of the base mesh" in str(err.value)
 
 
@@ -156,10 +162,10 @@ def test_crossing_curves_are_retried_with_other_rotations(monkeypatch):
     with monkeypatch.context() as m:
         m.setattr(auto, "SEED_TRIES", 1)
         calls = _record_region_route(m)
-        auto_layout(mesh, patches=150, relax=False)
+        auto_layout(mesh, LayoutOptions(patches=150, relax=False))
         assert calls == [mesh.name]  # one rotation only: the region route
-    got = auto_layout(mesh, patches=150, relax=False)
-    want = auto_layout(mesh, patches=150, relax=False, seed=1)
+    got = auto_layout(mesh, LayoutOptions(patches=150, relax=False))
+    want = auto_layout(mesh, LayoutOptions(patches=150, relax=False, seed=1))
     assert got.n_patches == want.n_patches == 150
     assert_array_equal(got.corners.face, want.corners.face)
     assert_array_equal(got.corners.bary, want.corners.bary)
@@ -170,7 +176,7 @@ def test_crossing_curves_are_retried_with_other_rotations(monkeypatch):
 
 
 def test_batched_relaxation_matches_relax_snake():
-    from meshfit.curves import relax_snake
+    from meshfit.curves import SnakeOptions, relax_snake
     from meshfit.layout.auto import _network, _relax_all
     from meshfit.shrinkwrap import sphere_map
 
@@ -180,7 +186,7 @@ def test_batched_relaxation_matches_relax_snake():
     curves = curves[:12]
     got = _relax_all(mesh, curves, 60)
     for c, g in zip(curves, got, strict=True):
-        want = relax_snake(mesh, c, max_iter=60).curve
+        want = relax_snake(mesh, c, SnakeOptions(max_iter=60)).curve
         if len(check_sampling(mesh, want)):
             want = densify_curve(mesh, want)
         np.testing.assert_array_equal(g.points.face, want.points.face)
@@ -224,7 +230,7 @@ def _relax_case(name: str) -> dict:
     return _relax_inputs(mesh, curves)
 
 
-_DEFAULT_ITERATIONS = inspect.signature(auto_layout).parameters["relax_iterations"].default
+_DEFAULT_ITERATIONS = LayoutOptions().relax_iterations
 
 
 @pytest.mark.parametrize("iterations", [1, 5, _DEFAULT_ITERATIONS])
@@ -281,7 +287,7 @@ def test_a_protrusion_a_quad_would_hold_goes_to_the_region_route(monkeypatch):
     from meshfit.layout.patch import BULGY
 
     mesh = _filled_bunny()
-    plain = auto_layout(mesh, protrusions=False)
+    plain = auto_layout(mesh, LayoutOptions(protrusions=False))
     assert max(p.bulge for p in extract_patches(mesh, plain)) > BULGY
     calls = _record_region_route(monkeypatch)
     layout = auto_layout(mesh)
@@ -291,11 +297,11 @@ def test_a_protrusion_a_quad_would_hold_goes_to_the_region_route(monkeypatch):
 
 def test_quad_depths_of_a_round_mesh_and_of_one_with_a_protrusion():
     from meshfit.layout.auto import PROTRUSION_DEPTH, quad_depths
-    from meshfit.shrinkwrap import base_mesh
+    from meshfit.shrinkwrap import BaseOptions, base_mesh
 
     mesh = demo_mesh(6000)
     smap = demo_sphere_map(mesh)
-    base = base_mesh(smap, max_faces=20, min_faces=20, seed=0)
+    base = base_mesh(smap, BaseOptions(max_faces=20, min_faces=20, seed=0))
     depth, tip = quad_depths(mesh, smap.sphere, base.sphere, base.faces)
     assert depth.shape == tip.shape == (60,)
     # a quad of a round surface reaches about as deep as a flat square (0.5), graph paths
@@ -307,7 +313,7 @@ def test_quad_depths_of_a_round_mesh_and_of_one_with_a_protrusion():
     from meshfit.shrinkwrap import sphere_map
 
     smap = sphere_map(mesh, max_aspect=10.0)
-    base = base_mesh(smap, max_faces=20, min_faces=20, seed=0)
+    base = base_mesh(smap, BaseOptions(max_faces=20, min_faces=20, seed=0))
     depth, tip = quad_depths(mesh, smap.sphere, base.sphere, base.faces)
     deep = np.flatnonzero(depth > PROTRUSION_DEPTH)
     assert deep.size == 2
@@ -352,11 +358,11 @@ def test_split_base_meshes_have_their_degrees_balanced():
     # nefertiti's 68-triangle base (204 patches) piles its edge splits round two vertices
     # (degrees 12 and 15: curves 6 degrees apart at their corners, which cross at once)
     from meshfit.layout.auto import _upright, balance_degrees
-    from meshfit.shrinkwrap import base_mesh, sphere_map
+    from meshfit.shrinkwrap import BaseOptions, base_mesh, sphere_map
 
     mesh = real_mesh("nefertiti")
     smap = sphere_map(mesh, max_aspect=10.0)
-    base = base_mesh(smap, max_faces=68, min_faces=68, seed=0)
+    base = base_mesh(smap, BaseOptions(max_faces=68, min_faces=68, seed=0))
     assert np.bincount(base.faces.ravel()).max() >= 12
     F = balance_degrees(base.sphere, base.faces)
     deg = np.bincount(F.ravel(), minlength=len(base.sphere))
@@ -365,7 +371,7 @@ def test_split_base_meshes_have_their_degrees_balanced():
     half = {(int(f[s]), int(f[(s + 1) % 3])) for f in F for s in range(3)}
     assert len(half) == 3 * len(F) and all((b, a) in half for a, b in half)  # closed
     # and the layout of that base is made
-    assert auto_layout(mesh, patches=200).n_patches == 204
+    assert auto_layout(mesh, LayoutOptions(patches=200)).n_patches == 204
 
 
 def _same_layout(a, b) -> None:
@@ -387,7 +393,7 @@ def test_of_layouts_that_all_have_slivers_the_one_with_fewest_is_kept(monkeypatc
     tries = auto.SEED_TRIES
     with monkeypatch.context() as m:
         m.setattr(auto, "SEED_TRIES", 1)
-        each = [auto_layout(mesh, seed=s) for s in range(tries)]
+        each = [auto_layout(mesh, LayoutOptions(seed=s)) for s in range(tries)]
     thinnest = [patch_bulges(mesh, x).min() for x in each]
     assert len(set(thinnest)) == len(thinnest)
     _same_layout(auto_layout(mesh), each[int(np.argmax(thinnest))])
@@ -404,8 +410,11 @@ def test_slivers_on_a_proxy_are_retried_like_on_the_mesh(monkeypatch):
     with monkeypatch.context() as m:
         m.setattr(auto, "SEED_TRIES", 1)
         each = [
-            auto_layout(mesh, seed=3 + s, proxy_faces=1000, protrusions=False) for s in range(tries)
+            auto_layout(mesh, LayoutOptions(seed=3 + s, proxy_faces=1000, protrusions=False))
+            for s in range(tries)
         ]
     thinnest = [patch_bulges(mesh, x).min() for x in each]
     assert int(np.argmax(thinnest)) == tries - 1  # 0.31, 0.04, 0.44: the last one wins
-    _same_layout(auto_layout(mesh, seed=3, proxy_faces=1000, protrusions=False), each[-1])
+    _same_layout(
+        auto_layout(mesh, LayoutOptions(seed=3, proxy_faces=1000, protrusions=False)), each[-1]
+    )

@@ -11,8 +11,8 @@ from numpy.testing import assert_allclose
 
 from meshfit import tol
 from meshfit.errors import InputError
-from meshfit.layout import extract_patches
-from meshfit.layout.cube import cube_layout
+from meshfit.layout import extract_patches, layout_to_json
+from meshfit.layout.cube import AxisRays, FeatureCurves, cube_layout
 from meshfit.mesh import Mesh
 
 from .. import shapes
@@ -111,6 +111,9 @@ def test_the_nefertiti_bust_from_its_axis_has_no_bulging_patch():
     assert_allclose(_areas(patches).sum(), mesh.area, rtol=tol.LAYOUT_AREA_RTOL)
 
 
+_LINE = [[-0.5, 0, 0], [0.5, 0, 0]]
+
+
 @pytest.mark.parametrize(
     ("kwargs", "match"),
     [
@@ -118,20 +121,26 @@ def test_the_nefertiti_bust_from_its_axis_has_no_bulging_patch():
         ({"axis": [[0.0, 0.0, 0.0]]}, r"axis must be a \(k >= 2, 3\) array"),
         ({"axis": [[0, 0, 0], [np.nan, 0, 0]]}, "finite points"),
         ({"axis": [[0, 0, 0], [0, 0, 0], [1, 0, 0]]}, "must differ from their neighbours"),
-        ({"axis": [[-0.5, 0, 0], [0.5, 0, 0]], "levels": [0.0, 1.0]}, "levels must be 3"),
-        ({"axis": [[-0.5, 0, 0], [0.5, 0, 0]], "levels": [0.0, 0.6, 0.5]}, "increasing"),
-        ({"axis": [[-0.5, 0, 0], [0.5, 0, 0]], "cap_tilt": (0.0, 1.0)}, "cap_tilt must be"),
+        ({"axis": AxisRays(_LINE, levels=[0.0, 1.0])}, "levels must be 3"),
+        ({"axis": AxisRays(_LINE, levels=[0.0, 0.6, 0.5])}, "increasing"),
+        ({"axis": AxisRays(_LINE, cap_tilt=(0.0, 1.0))}, "cap_tilt must be"),
         ({"axis": [[0, -0.5, 0], [0, 0.5, 0]]}, "must run along the frame's first axis"),
-        (
-            {"axis": [[-0.5, 0, 0], [0.5, 0, 0]], "direction_map": lambda q: q},
-            "direction_map cannot be combined with axis",
-        ),
+        ({"features": FeatureCurves(patch=99)}, r"features.patch must be in \[0, 10\)"),
     ],
 )
 def test_bad_box_options_raise(kwargs, match):
     kwargs = {"rows": 2, **kwargs}
     with pytest.raises(InputError, match=match):
         cube_layout(sphere(), n=1, frame=np.eye(3), picks_per_curve=2, **kwargs)
+
+
+def test_an_axis_given_as_points_is_the_default_axis_rays():
+    mesh = dumbbell()
+    line = [[-2.0, 0.0, 0.0], [2.0, 0.0, 0.0]]
+    kw = dict(n=1, rows=2, frame=np.eye(3), picks_per_curve=2)
+    a = cube_layout(mesh, axis=line, **kw)
+    b = cube_layout(mesh, axis=AxisRays(line, levels=[0.0, 0.5, 1.0], cap_tilt=(1.0, 1.0)), **kw)
+    assert layout_to_json(a) == layout_to_json(b)
 
 
 @pytest.mark.slow

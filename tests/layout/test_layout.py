@@ -25,7 +25,7 @@ from meshfit.layout import (
     mesh_fingerprint,
     save_layout,
 )
-from meshfit.layout.cube import cube_layout
+from meshfit.layout.cube import FeatureCurves, cube_layout
 from meshfit.mesh import Mesh
 from meshfit.types import SurfacePoints
 
@@ -53,7 +53,7 @@ def sphere() -> Mesh:
 
 @cache
 def sphere_layout() -> Layout:
-    return cube_layout(sphere(), frame=np.eye(3), feature_patch=0)
+    return cube_layout(sphere(), frame=np.eye(3), features=FeatureCurves(0))
 
 
 # ------------------------------------------------------------------------- helpers

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from meshfit.layout import extract_patches
-from meshfit.layout.auto import auto_layout
+from meshfit.layout.auto import LayoutOptions, auto_layout
 from meshfit.layout.shaping import quad_cost, shape_base
 from meshfit.mesh import Mesh
-from meshfit.shrinkwrap import base_mesh, sphere_map
+from meshfit.shrinkwrap import BaseOptions, base_mesh, sphere_map
 from meshfit.springs import SpringOptions, resample_patch
 from meshfit.types import SurfacePoints
 
@@ -42,7 +42,7 @@ def stretched():
     ball = icosphere(4)
     mesh = Mesh(ball.vertices * np.array([4.0, 1.0, 1.0]), ball.faces)
     smap = sphere_map(mesh)
-    base = base_mesh(smap, max_faces=32, min_faces=32, seed=0)
+    base = base_mesh(smap, BaseOptions(max_faces=32, min_faces=32, seed=0))
     return smap, base
 
 
@@ -62,7 +62,7 @@ def test_shape_base_squares_the_quads_of_a_stretched_map(stretched):
 def test_shape_base_leaves_a_round_map_nearly_alone():
     ball = icosphere(3)
     smap = sphere_map(ball)
-    base = base_mesh(smap, max_faces=20, min_faces=20, seed=0)
+    base = base_mesh(smap, BaseOptions(max_faces=20, min_faces=20, seed=0))
     res = shape_base(smap, base.sphere, base.faces)
     assert res.cost_after <= res.cost_before
     # the icosahedron's quads are already about as square as three quads per triangle get
@@ -91,7 +91,7 @@ def test_a_map_without_area_leaves_the_base_alone(stretched):
 def test_the_default_60_patch_layout_is_not_shaped():
     mesh = real_mesh("spot")
     got = auto_layout(mesh)
-    want = auto_layout(mesh, shape=False)
+    want = auto_layout(mesh, LayoutOptions(shape=False))
     np.testing.assert_array_equal(got.corners.face, want.corners.face)
     np.testing.assert_array_equal(got.corners.bary, want.corners.bary)
 
@@ -108,7 +108,7 @@ def test_shaped_layouts_of_many_patches_have_no_slivers_and_fold_far_less(monkey
     mesh = real_mesh("spot")
     out = {}
     for shape in (False, None):
-        patches = extract_patches(mesh, auto_layout(mesh, patches=96, shape=shape))
+        patches = extract_patches(mesh, auto_layout(mesh, LayoutOptions(patches=96, shape=shape)))
         folded = 0
         for p in patches:
             res = resample_patch(p, SpringOptions(fidelity=False, rescue=True))

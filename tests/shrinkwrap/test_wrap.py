@@ -8,6 +8,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from meshfit import errors, tol
 from meshfit.mesh import Mesh
 from meshfit.shrinkwrap import (
+    BaseOptions,
     WrapOptions,
     base_mesh,
     fill_holes,
@@ -59,20 +60,25 @@ def test_base_mesh_from_the_octahedron():
     # 8 triangles, or more by edge splits: coarser bases than the icosahedron's 20
     sm = smap("spot")
     for faces in (8, 12):
-        b = base_mesh(sm, start="octahedron", max_faces=faces, min_faces=faces)
+        b = base_mesh(sm, BaseOptions(start="octahedron", max_faces=faces, min_faces=faces))
         assert len(b.faces) == faces
         assert (spherical_orientation(b.sphere, b.faces) > 0).all()
         assert_allclose(b.cell_area.sum(), real_mesh("spot").area, rtol=1e-9)
+    # the options are checked when they are made, before any work
     with pytest.raises(errors.InputError, match="at least 8 \\(an octahedron\\)"):
-        base_mesh(sm, start="octahedron", max_faces=6)
+        BaseOptions(start="octahedron", max_faces=6)
     with pytest.raises(errors.InputError, match="at least 20 \\(an icosahedron\\)"):
-        base_mesh(sm, max_faces=12)
+        BaseOptions(max_faces=12)
     with pytest.raises(errors.InputError, match="start must be one of"):
-        base_mesh(sm, start="cube")
+        BaseOptions(start="cube")
+    with pytest.raises(errors.InputError, match="alpha must be in"):
+        BaseOptions(alpha=0.0)
+    with pytest.raises(errors.InputError, match="relaxation must be"):
+        BaseOptions(relaxation="laplace")
 
 
 def test_umbrella_base_relaxation_runs_without_flips():
-    b = base_mesh(smap("spot"), relaxation="umbrella", iterations=5, max_faces=30)
+    b = base_mesh(smap("spot"), BaseOptions(relaxation="umbrella", iterations=5, max_faces=30))
     assert (spherical_orientation(b.sphere, b.faces) > 0).all()
 
 
@@ -249,7 +255,30 @@ def test_wrap_refuses_levels_past_the_face_limit(monkeypatch):
     res = shrink_wrap(sphere, WrapOptions(base_faces=20), levels=2)
     assert len(res.levels[2].faces) == 320
     with pytest.raises(errors.InputError, match=r"2 levels over 40 base faces make 640 faces"):
-        shrink_wrap(sphere, WrapOptions(base_faces=40), levels=2, base_options={"min_faces": 40})
+        shrink_wrap(sphere, levels=2, base_options=BaseOptions(max_faces=40, min_faces=40))
+
+
+def test_base_faces_and_base_options_set_one_budget():
+    from meshfit.shrinkwrap import sphere_map
+
+    sphere = analytic_mesh("icosphere")
+    sm = sphere_map(sphere)
+    # without base options the wrap's base_faces is the budget; with them, their max_faces
+    want = base_mesh(sm, BaseOptions(max_faces=40, min_faces=40))
+    for opts, bopts in [
+        (WrapOptions(base_faces=40), BaseOptions(max_faces=40, min_faces=40)),
+        (None, BaseOptions(max_faces=40, min_faces=40)),
+    ]:
+        got = shrink_wrap(sphere, opts, levels=0, smap=sm, base_options=bopts).base
+        assert_array_equal(got.sphere, want.sphere)
+        assert_array_equal(got.faces, want.faces)
+    got = shrink_wrap(sphere, WrapOptions(base_faces=40), levels=0, smap=sm).base
+    assert_array_equal(got.sphere, base_mesh(sm, BaseOptions(max_faces=40)).sphere)
+    # two different budgets are refused rather than one silently dropped
+    with pytest.raises(errors.InputError, match=r"base_faces=40\) disagrees with BaseOptions"):
+        shrink_wrap(sphere, WrapOptions(base_faces=40), smap=sm, base_options=BaseOptions())
+    with pytest.raises(errors.InputError, match="base_options must be a BaseOptions"):
+        shrink_wrap(sphere, smap=sm, base_options={"seed": 1})  # type: ignore[arg-type]
 
 
 def test_wrap_of_a_sphere_is_regular_and_close():
@@ -264,7 +293,7 @@ def test_wrap_of_a_sphere_is_regular_and_close():
 
 
 def test_base_mesh_from_the_geodesic_polyhedron():
-    b = base_mesh(smap("nefertiti"), start_subdivisions=1, min_faces=80)
+    b = base_mesh(smap("nefertiti"), BaseOptions(start_subdivisions=1, min_faces=80))
     assert 80 <= len(b.faces) <= MAX_BASE_FACES
     assert b.area_ratio <= MAX_CELL_RATIO
 
@@ -279,7 +308,7 @@ def test_base_mesh_from_the_geodesic_polyhedron():
 )
 def test_level5_targets_hold_for_another_base_seed():
     mesh = real_mesh("nefertiti")
-    res = shrink_wrap(mesh, levels=5, smap=smap("nefertiti"), base_options={"seed": 1})
+    res = shrink_wrap(mesh, levels=5, smap=smap("nefertiti"), base_options=BaseOptions(seed=1))
     m = level_metrics(mesh, res.levels[5])
     assert m["rms"] <= MAX_RMS_L5
     assert m["min_angle_deg"] >= MIN_ANGLE_DEG

@@ -9,7 +9,13 @@ from meshfit.curves.base import (
 )
 from meshfit.curves.color import color_force, scalar_field, vertex_gradients, vertex_normals
 from meshfit.curves.paint import attract_curve, extend_to_curve, paint_curve
-from meshfit.curves.snake import SnakeResult, edit_snake, relax_snake, snake_forces
+from meshfit.curves.snake import (
+    SnakeOptions,
+    SnakeResult,
+    edit_snake,
+    relax_snake,
+    snake_forces,
+)
 from meshfit.curves.spacecurve import (
     SpaceCurve,
     fit_bspline_curve,
@@ -19,6 +25,7 @@ from meshfit.curves.spacecurve import (
 )
 
 __all__ = [
+    "SnakeOptions",
     "SnakeResult",
     "SpaceCurve",
     "attract_curve",

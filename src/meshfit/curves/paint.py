@@ -26,7 +26,7 @@ from meshfit.curves.base import (
     curve_length,
     resample_curve,
 )
-from meshfit.curves.snake import relax_snake
+from meshfit.curves.snake import SnakeOptions, relax_snake
 from meshfit.errors import InputError, PathError
 from meshfit.mesh import Mesh
 from meshfit.surface.paths import greedy_path, path_to_surface_points, vertex_points
@@ -125,7 +125,8 @@ def _segment(
     # its own resolution (each sample moves under three spacings, the course stays)
     if curve_length(mesh, out) <= curve_length(mesh, SurfaceCurve(raw)):
         return out.points
-    taut = relax_snake(mesh, out, w_arc=0.0, levels=1, max_iter=TAUT_ITERATIONS).curve
+    taut_options = SnakeOptions(w_arc=0.0, levels=1, max_iter=TAUT_ITERATIONS)
+    taut = relax_snake(mesh, out, taut_options).curve
     taut, _ = _resample(mesh, taut, spacing=spacing, n=None, cv=PAINT_SPACING_CV, checked=True)
     return taut.points
 

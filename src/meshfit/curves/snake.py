@@ -12,6 +12,9 @@ level) so an impulse at one end propagates along the whole snake in one iteratio
 
 - :func:`relax_snake` relaxes a whole snake (some points fixed);
 - :func:`edit_snake` pulls one edit point and relaxes only a symmetric edit section around it.
+
+Both take their relaxation settings (weights, levels, step, iteration cap, tolerance) as one
+:class:`SnakeOptions`.
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ from meshfit.errors import InputError
 from meshfit.mesh import Mesh
 from meshfit.types import SurfaceCurve, SurfacePoints
 
-__all__ = ["SnakeResult", "edit_snake", "relax_snake", "snake_forces"]
+__all__ = ["SnakeOptions", "SnakeResult", "edit_snake", "relax_snake", "snake_forces"]
 
 #: default stopping tolerance of :func:`relax_snake`: largest move, times the mean edge length
 SNAKE_MOVE_TOL = 1e-4
@@ -61,6 +64,68 @@ class SnakeResult:
     iterations: int
     max_move: NDArray[np.float64]
     converged: bool
+
+
+@dataclass(frozen=True)
+class SnakeOptions:
+    """Relaxation settings of :func:`relax_snake` and :func:`edit_snake` (all have defaults;
+    frozen, so one value can be shared by many calls). The values are checked, and the
+    numbers converted to ``float`` / ``int``, when the options are made.
+
+    Attributes
+    ----------
+    w_fair : float
+        Membrane (fairness) weight, >= 0: the curve behaves like a tight elastic band
+        (default 1).
+    w_curv : float
+        Thin-plate (curvature) weight, >= 0: the curve behaves like a stiff wire (default 0).
+    w_arc : float
+        Arc-length weight, >= 0: evens out the sample spacing (default 1).
+    levels : int, optional
+        Resolutions of the coarse-to-fine force evaluation (eq. 3.16), >= 1; 1 evaluates
+        forces at the curve's own resolution only. Default ``None``: as many as the relaxed
+        curve's (or edit section's) length allows (strides up to about half its samples).
+    step : float
+        Largest move per iteration as a fraction of the local sample spacing, in (0, 1]
+        (default 0.25).
+    max_iter : int
+        Iteration cap, >= 0 (default 5000; 0 moves no point).
+    tol_move : float
+        Stopping tolerance, >= 0, relative to the mean edge length (default
+        `SNAKE_MOVE_TOL`).
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        A weight, ``step`` or ``tol_move`` is not a finite number in range, or ``levels`` /
+        ``max_iter`` is not an integer in range (the message names the field).
+    """
+
+    w_fair: float = 1.0
+    w_curv: float = 0.0
+    w_arc: float = 1.0
+    levels: int | None = None
+    step: float = 0.25
+    max_iter: int = 5000
+    tol_move: float = SNAKE_MOVE_TOL
+
+    def __post_init__(self) -> None:
+        for name in ("w_fair", "w_curv", "w_arc", "step", "tol_move"):
+            object.__setattr__(self, name, _as_weight(getattr(self, name), name))
+        if not 0.0 < self.step <= 1.0:
+            raise InputError(f"step must be in (0, 1], got {self.step!r}")
+        object.__setattr__(self, "max_iter", _as_count(self.max_iter, "max_iter", minimum=0))
+        if self.levels is not None:
+            object.__setattr__(self, "levels", _as_count(self.levels, "levels"))
+
+
+def _as_options(options: SnakeOptions | None) -> SnakeOptions:
+    """``options``, or the defaults for None; anything else raises InputError."""
+    if options is None:
+        return SnakeOptions()
+    if not isinstance(options, SnakeOptions):
+        raise InputError(f"options must be SnakeOptions, got {type(options).__name__}")
+    return options
 
 
 # ------------------------------------------------------------------------------------ forces
@@ -315,19 +380,19 @@ def _relax(
     mesh: Mesh,
     face: NDArray[np.int64],
     bary: NDArray[np.float64],
+    options: SnakeOptions,
     *,
     closed: bool,
     kind: str,
     fixed: NDArray[np.bool_],
-    w_fair: float,
-    w_curv: float,
-    w_arc: float,
     levels: int,
-    step: float,
     max_iter: int,
-    tol_move: float,
     external,
 ):
+    """Relax the face points ``face``, ``bary`` with the weights, ``step`` and ``tol_move``
+    of ``options``; ``levels`` and ``max_iter`` are given apart (resolved by the caller)."""
+    w_fair, w_curv, w_arc = options.w_fair, options.w_curv, options.w_arc
+    step, tol_move = options.step, options.tol_move
     stepper = _Stepper(mesh, closed)
     n = face.shape[0]
     ids = np.arange(n, dtype=np.int64)
@@ -377,15 +442,9 @@ def _relax(
 def relax_snake(
     mesh: Mesh,
     curve: SurfaceCurve,
+    options: SnakeOptions | None = None,
     *,
-    w_fair: float = 1.0,
-    w_curv: float = 0.0,
-    w_arc: float = 1.0,
     fixed: ArrayLike | None = None,
-    levels: int | None = None,
-    step: float = 0.25,
-    max_iter: int = 5000,
-    tol_move: float = SNAKE_MOVE_TOL,
     external: ExternalForce | ArrayLike | None = None,
 ) -> SnakeResult:
     """Relax a surface snake toward its minimum-energy shape without leaving the surface.
@@ -400,7 +459,9 @@ def relax_snake(
     they were before) is halved, and dropped if halving does not help, so the curve keeps
     the sampling rule. Fixed samples never move. Iteration stops when the largest move, or
     the largest net move over the last two iterations (a point flipping between two faces at
-    a sharp fold), is below ``tol_move * mesh.mean_edge_length``.
+    a sharp fold), is below ``tol_move * mesh.mean_edge_length``. The weights, ``levels``,
+    ``step``, ``max_iter`` and ``tol_move`` are the fields of ``options``: grouped in one
+    value because :func:`edit_snake` takes the same settings.
 
     Parameters
     ----------
@@ -408,25 +469,12 @@ def relax_snake(
         Manifold triangle mesh.
     curve : SurfaceCurve
         The snake: n >= 2 face points, open or closed.
-    w_fair : float, keyword-only
-        Membrane (fairness) weight: the curve behaves like a tight elastic band.
-    w_curv : float, keyword-only
-        Thin-plate (curvature) weight: the curve behaves like a stiff wire.
-    w_arc : float, keyword-only
-        Arc-length weight: evens out the sample spacing.
+    options : SnakeOptions, optional
+        Weights, levels, step, iteration cap and stopping tolerance (default
+        ``SnakeOptions()``); ``levels=None`` uses as many as the curve's length allows.
     fixed : (k,) int64 or (n,) bool, optional, keyword-only
         Samples that never move. Default: both ends of an open curve, none of a closed one;
         ``[]`` frees the ends (a free end feels only the external force).
-    levels : int, optional, keyword-only
-        Resolutions of the coarse-to-fine force evaluation (eq. 3.16); 1 evaluates forces at
-        the curve's own resolution only. Default: as many as the curve's length allows
-        (strides up to about n / 2).
-    step : float, keyword-only
-        Largest move per iteration as a fraction of the local sample spacing (0 < step <= 1).
-    max_iter : int, keyword-only
-        Iteration cap.
-    tol_move : float, keyword-only
-        Stopping tolerance, relative to the mean edge length.
     external : callable or (n, 3) float64, optional, keyword-only
         Extra force per sample, model units (a displacement, already weighted against the
         internal forces, eq. 3.18), or a function ``external(curve) -> (n, 3)`` evaluated
@@ -441,17 +489,17 @@ def relax_snake(
     Raises
     ------
     meshfit.errors.InputError
-        The curve is not on ``mesh``, has fewer than 2 points, a weight or option is out of
-        range, ``fixed`` is out of range, or the external force has the wrong shape or a
-        non-finite row (the message names the sample).
+        The curve is not on ``mesh``, has fewer than 2 points, ``options`` is not
+        SnakeOptions, ``fixed`` is out of range, or the external force has the wrong shape
+        or a non-finite row (the message names the sample).
 
     Notes
     -----
     Coarse levels compare a sample with neighbours ``2**l`` samples away; on a curved
     surface their chord midpoints are not exactly in the sample's tangent plane, so a
     coarse-to-fine equilibrium may differ slightly from the single-resolution one where the
-    curve's curvature changes (not on spheres or planes). Run again with ``levels=1`` to
-    finish at the curve's own resolution.
+    curve's curvature changes (not on spheres or planes). Run again with
+    ``SnakeOptions(levels=1)`` to finish at the curve's own resolution.
 
     References
     ----------
@@ -460,16 +508,9 @@ def relax_snake(
        (eq. 3.15), sec. 3.7 (eq. 3.16), sec. 3.8.2 (eq. 3.18).
     """
     curve = _as_curve(mesh, curve)
+    opt = _as_options(options)
     n = len(curve)
-    w_fair = _as_weight(w_fair, "w_fair")
-    w_curv = _as_weight(w_curv, "w_curv")
-    w_arc = _as_weight(w_arc, "w_arc")
-    step = _as_weight(step, "step")
-    if not 0.0 < step <= 1.0:
-        raise InputError(f"step must be in (0, 1], got {step!r}")
-    tol_move = _as_weight(tol_move, "tol_move")
-    max_iter = _as_count(max_iter, "max_iter", minimum=0)
-    levels = _auto_levels(n, curve.closed) if levels is None else _as_count(levels, "levels")
+    levels = _auto_levels(n, curve.closed) if opt.levels is None else opt.levels
     mask = _fixed_mask(fixed, n, curve.closed)
     if external is not None and not callable(external):
         external = _external(external, curve, n)
@@ -484,16 +525,12 @@ def relax_snake(
         mesh,
         face,
         bary,
+        opt,
         closed=curve.closed,
         kind=curve.kind,
         fixed=mask,
-        w_fair=w_fair,
-        w_curv=w_curv,
-        w_arc=w_arc,
         levels=levels,
-        step=step,
-        max_iter=max_iter,
-        tol_move=tol_move,
+        max_iter=opt.max_iter,
         external=external,
     )
     # fixed points are returned bitwise unchanged
@@ -506,18 +543,12 @@ def relax_snake(
 def edit_snake(
     mesh: Mesh,
     curve: SurfaceCurve,
+    options: SnakeOptions | None = None,
     *,
     edit_index: int,
     section: int,
     force: ArrayLike | None = None,
     target: ArrayLike | None = None,
-    w_fair: float = 1.0,
-    w_curv: float = 0.0,
-    w_arc: float = 1.0,
-    levels: int | None = None,
-    step: float = 0.25,
-    max_iter: int = 5000,
-    tol_move: float = SNAKE_MOVE_TOL,
 ) -> SnakeResult:
     """Pull one edit point of a snake and relax only the symmetric edit section around it.
 
@@ -533,6 +564,9 @@ def edit_snake(
     mesh : Mesh
     curve : SurfaceCurve
         The snake.
+    options : SnakeOptions, optional
+        As in :func:`relax_snake`, for the relaxation of the section (default
+        ``SnakeOptions()``); ``levels=None`` uses as many as the section's length allows.
     edit_index : int, keyword-only
         The edit point (negative indices count from the end).
     section : int, keyword-only
@@ -543,8 +577,6 @@ def edit_snake(
         walked). Give exactly one of ``force`` and ``target``.
     target : (3,) float64, optional, keyword-only
         A 3-D position the edit point is walked toward.
-    w_fair, w_curv, w_arc, levels, step, max_iter, tol_move
-        As in :func:`relax_snake`, for the relaxation of the section.
 
     Returns
     -------
@@ -555,8 +587,8 @@ def edit_snake(
     Raises
     ------
     meshfit.errors.InputError
-        Bad curve, index or section, neither or both of ``force`` / ``target``, or a
-        non-finite force or target.
+        Bad curve, options, index or section, neither or both of ``force`` / ``target``, or
+        a non-finite force or target.
 
     References
     ----------
@@ -564,6 +596,7 @@ def edit_snake(
        Stanford 2000, sec. 3.8.1 ("Curve editing with surface snakes").
     """
     curve = _as_curve(mesh, curve)
+    opt = _as_options(options)
     n = len(curve)
     if (
         isinstance(edit_index, bool)
@@ -593,13 +626,8 @@ def edit_snake(
     local = int(np.flatnonzero(ids == e)[0])
     if local == 0 or local == ids.size - 1:
         raise InputError(f"edit point {e} is an end of the curve: it has no section to edit")
-    kw = dict(
-        w_fair=_as_weight(w_fair, "w_fair"),
-        w_curv=_as_weight(w_curv, "w_curv"),
-        w_arc=_as_weight(w_arc, "w_arc"),
-    )
     m = ids.size
-    lv = _auto_levels(m, False) if levels is None else _as_count(levels, "levels")
+    lv = _auto_levels(m, False) if opt.levels is None else opt.levels
     fixed = np.zeros(m, dtype=bool)
     fixed[[0, local, m - 1]] = True
     face = np.array(curve.points.face[ids], dtype=np.int64)
@@ -618,7 +646,7 @@ def edit_snake(
             d = pull - xe
             remaining = d - np.dot(d, nrm) * nrm
         size = float(np.linalg.norm(remaining))
-        if size < tol.length(mesh, tol.ATTRACT_EPS) + tol_move * h * 0.01:
+        if size < tol.length(mesh, tol.ATTRACT_EPS) + opt.tol_move * h * 0.01:
             break
         sp = 0.5 * float(_spacing(x, False)[local])
         sub = remaining * min(1.0, sp / size)
@@ -638,29 +666,25 @@ def edit_snake(
             mesh,
             face,
             bary,
+            opt,
             closed=False,
             kind=curve.kind,
             fixed=fixed,
             levels=lv,
-            step=step,
             max_iter=10,
-            tol_move=tol_move,
             external=None,
-            **kw,
         )
     face, bary, history, converged = _relax(
         mesh,
         face,
         bary,
+        opt,
         closed=False,
         kind=curve.kind,
         fixed=fixed,
         levels=lv,
-        step=step,
-        max_iter=_as_count(max_iter, "max_iter", minimum=0),
-        tol_move=tol_move,
+        max_iter=opt.max_iter,
         external=None,
-        **kw,
     )
     out_face = np.array(curve.points.face)
     out_bary = np.array(curve.points.bary)

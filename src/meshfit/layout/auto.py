@@ -55,7 +55,14 @@ from meshfit.layout.patch import THIN
 from meshfit.mesh import Mesh
 from meshfit.types import SurfaceCurve, SurfacePoints
 
-__all__ = ["auto_layout", "auto_route", "balance_degrees", "quad_depths", "quad_network"]
+__all__ = [
+    "LayoutOptions",
+    "auto_layout",
+    "auto_route",
+    "balance_degrees",
+    "quad_depths",
+    "quad_network",
+]
 
 #: patches per base triangle
 PATCHES_PER_TRIANGLE = 3
@@ -337,19 +344,85 @@ def auto_route(mesh: Mesh, *, patches: int | None = None, crease_angle: float | 
     return "sphere"
 
 
+@dataclass(frozen=True)
+class LayoutOptions:
+    """What :func:`auto_layout` is asked for (all have defaults; frozen, so one value can be
+    shared and be part of a cache key).
+
+    Attributes
+    ----------
+    patches : int, optional
+        Wanted patch count; the base mesh gets ``round(patches / 3)`` faces (an even number,
+        at least 8), so the result has about ``patches`` patches (default `DEFAULT_PATCHES`,
+        at least `MIN_PATCHES`). Bases of fewer than 20 faces are made from an octahedron,
+        the others from an icosahedron (:func:`meshfit.shrinkwrap.base_mesh`); a base whose
+        edges were split has its vertex degrees balanced by flips (:func:`balance_degrees`).
+        At most one patch per `MIN_FACES_PER_PATCH` faces of the mesh.
+    seed : int
+        Seed of the base mesh's starting rotation (default 0). Where the curves cross, or a
+        patch is a sliver (area under `THIN` of a square with its perimeter), the next
+        ``SEED_TRIES - 1`` seeds are tried (on the proxy first, then on the mesh); of
+        layouts that all have slivers, the one with the fewest is returned (slivers along a
+        protrusion fold the spring grids of the fit, and another rotation may have none).
+    shape : bool, optional
+        Move the base vertices over the sphere so that the quads' images are close to
+        squares of equal area (:func:`meshfit.layout.shaping.shape_base`) before the curves
+        are traced. None (default): when the base mesh has more than `SHAPE_ABOVE_FACES`
+        triangles, where the area-equalised base mesh gives slivers.
+    crease_angle : float, optional
+        A mesh with chains of edges sharper than this many degrees
+        (:func:`meshfit.layout.regions.crease_edges`), like a mesh that is not one closed
+        genus-0 surface, is laid out by :func:`meshfit.layout.regions.region_layout`, which
+        puts the creases on patch boundaries (default 40; None: creases are not looked for).
+    relax : bool
+        Relax every traced curve as a surface snake with fixed ends (membrane and arc-length
+        forces, :func:`meshfit.curves.relax_snake`; default True). If the relaxed curves
+        cross, the traced images are kept (they never cross).
+    relax_iterations : int
+        Iteration cap of each snake (default 200).
+    sphere_max_aspect : float, optional
+        Aspect-ratio bound of the default sphere map's triangles (default
+        `SPHERE_MAX_ASPECT`; None: unbounded).
+    proxy_faces : int, optional
+        A mesh with more than `PROXY_RATIO` times this many faces (and no caller's sphere
+        map) is laid out on a coarse proxy: :func:`meshfit.shrinkwrap.simplify_mesh` to
+        about ``proxy_faces`` faces, the sphere map, base mesh, traced curves and their
+        relaxation on the proxy; then the corners and curve points are carried to the
+        closest points of the mesh, the curves densified there and relaxed for
+        `FINE_RELAX_ITERATIONS` more iterations. If the carried network does not cut the
+        mesh into disks, the layout is made on the mesh itself. Default `PROXY_FACES`;
+        None: never.
+    protrusions : bool
+        Where a quad of the base mesh would hold a protrusion whole (an ear, a tail: deeper
+        than `PROTRUSION_DEPTH`, :func:`quad_depths`), lay the mesh out by the region route
+        instead, whose cells split where the surface turns (default True). A patch holding
+        a protrusion is anchored round its foot and its spring mesh misses the tip.
+    """
+
+    patches: int | None = None
+    seed: int = 0
+    shape: bool | None = None
+    crease_angle: float | None = 40.0
+    relax: bool = True
+    relax_iterations: int = 200
+    sphere_max_aspect: float | None = SPHERE_MAX_ASPECT
+    proxy_faces: int | None = PROXY_FACES
+    protrusions: bool = True
+
+    def __post_init__(self) -> None:
+        if self.patches is not None and int(self.patches) < 1:
+            raise InputError(f"patches must be >= 1, got {self.patches}")
+        if self.proxy_faces is not None and int(self.proxy_faces) < 20:
+            raise InputError(f"proxy_faces must be >= 20, got {self.proxy_faces}")
+        if int(self.relax_iterations) < 0:
+            raise InputError(f"relax_iterations must be >= 0, got {self.relax_iterations}")
+
+
 def auto_layout(
     mesh: Mesh,
+    options: LayoutOptions | None = None,
     *,
-    patches: int | None = None,
     sphere=None,
-    seed: int = 0,
-    relax: bool = True,
-    relax_iterations: int = 200,
-    sphere_max_aspect: float | None = SPHERE_MAX_ASPECT,
-    proxy_faces: int | None = PROXY_FACES,
-    shape: bool | None = None,
-    protrusions: bool = True,
-    crease_angle: float | None = 40.0,
     report: list | None = None,
 ) -> Layout:
     """A four-sided layout of any mesh: for one closed genus-0 surface without creases,
@@ -359,60 +432,16 @@ def auto_layout(
     Parameters
     ----------
     mesh : Mesh
-        A closed, connected genus-0 mesh.
-    patches : int, keyword-only, optional
-        Wanted patch count; the base mesh gets ``round(patches / 3)`` faces (an even number,
-        at least 8), so the result has about ``patches`` patches (default 60, at least
-        `MIN_PATCHES` = 24). Bases of fewer than 20 faces are made from an octahedron, the
-        others from an icosahedron (:func:`meshfit.shrinkwrap.base_mesh`); a base whose
-        edges were split has its vertex degrees balanced by flips (:func:`balance_degrees`).
-        At most one patch per `MIN_FACES_PER_PATCH` (16) faces of ``mesh``.
+        Any mesh: closed or open, of any genus, one component or several.
+    options : LayoutOptions, optional
+        Default ``LayoutOptions()``.
     sphere : meshfit.shrinkwrap.SphereMap, keyword-only, optional
-        A ready parameterization of ``mesh`` over the unit sphere; default
-        :func:`meshfit.shrinkwrap.sphere_map` with ``max_aspect=sphere_max_aspect``.
-    seed : int, keyword-only
-        Seed of the base mesh's starting rotation. Where the curves cross, or a patch is a
-        sliver (area under `THIN` of a square with its perimeter), the next
-        ``SEED_TRIES - 1`` seeds are tried (on the proxy first, then on ``mesh``); of
-        layouts that all have slivers, the one with the fewest is returned (slivers along a
-        protrusion fold the spring grids of the fit, and another rotation may have none).
-    relax : bool, keyword-only
-        Relax every traced curve as a surface snake with fixed ends (membrane and arc-length
-        forces, :func:`meshfit.curves.relax_snake`; default True). If the relaxed curves
-        cross, the traced images are kept (they never cross).
-    relax_iterations : int, keyword-only
-        Iteration cap of each snake (default 200).
-    sphere_max_aspect : float or None, keyword-only
-        Aspect-ratio bound of the default sphere map's triangles (default
-        ``SPHERE_MAX_ASPECT`` = 10; None: unbounded).
-    proxy_faces : int or None, keyword-only
-        A mesh with more than ``PROXY_RATIO`` times this many faces (and no ``sphere``) is
-        laid out on a coarse proxy: :func:`meshfit.shrinkwrap.simplify_mesh` to about
-        ``proxy_faces`` faces, the sphere map, base mesh, traced curves and their relaxation
-        on the proxy; then the corners and curve points are carried to the closest points of
-        ``mesh``, the curves densified there and relaxed for ``FINE_RELAX_ITERATIONS`` more
-        iterations on ``mesh``. If the carried network does not cut ``mesh`` into disks, the
-        layout is made on ``mesh`` itself. Default ``PROXY_FACES`` (25,000); None: never.
-    shape : bool or None, keyword-only
-        Move the base vertices over the sphere so that the quads' images are close to
-        squares of equal area (:func:`meshfit.layout.shaping.shape_base`) before the curves
-        are traced. None (default): when the base mesh has more than ``SHAPE_ABOVE_FACES``
-        (20) triangles, i.e. from ``patches=62`` on (22 triangles), where the area-equalised
-        base mesh gives slivers (see ``SHAPE_ABOVE_FACES``).
+        A ready parameterization of ``mesh`` over the unit sphere (the sphere route only);
+        default :func:`meshfit.shrinkwrap.sphere_map` with ``options.sphere_max_aspect``.
     report : list, keyword-only, optional
         Gets a dict appended: ``route`` (``"sphere"``, ``"regions"``, or ``"sphere ->
         regions"`` where the sphere route handed the mesh on) and, from the region route,
         ``cells`` and ``seeds_added`` (:class:`meshfit.layout.regions.CellReport`).
-    crease_angle : float or None, keyword-only
-        A mesh with chains of edges sharper than this many degrees
-        (:func:`meshfit.layout.regions.crease_edges`), like a mesh that is not one closed
-        genus-0 surface, is laid out by :func:`meshfit.layout.regions.region_layout`, which
-        puts the creases on patch boundaries (default 40; None: creases are not looked for).
-    protrusions : bool, keyword-only
-        Where a quad of the base mesh would hold a protrusion whole (an ear, a tail: deeper
-        than ``PROTRUSION_DEPTH``, :func:`quad_depths`), lay the mesh out by the region
-        route instead, whose cells split where the surface turns (default True). A patch
-        holding a protrusion is anchored round its foot and its spring mesh misses the tip.
 
     Returns
     -------
@@ -437,32 +466,30 @@ def auto_layout(
     .. [2] Krishnamurthy 2000, sec. 1.3 (four-sided patch layouts).
     """
 
-    if patches is not None and int(patches) < 1:
-        raise InputError(f"patches must be >= 1, got {patches}")
-    if proxy_faces is not None and int(proxy_faces) < 20:
-        raise InputError(f"proxy_faces must be >= 20, got {proxy_faces}")
+    o = options if options is not None else LayoutOptions()
+    patches, crease_angle, proxy_faces = o.patches, o.crease_angle, o.proxy_faces
     proxy = sphere is None and proxy_faces is not None and mesh.n_faces > PROXY_RATIO * proxy_faces
     info: dict = {}
     if report is not None:
         report.append(info)
-    regions = dict(patches=patches, crease_angle=crease_angle, relax=relax)
+    regions = dict(patches=patches, crease_angle=crease_angle, relax=o.relax)
     if sphere is None and auto_route(mesh, patches=patches, crease_angle=crease_angle) != "sphere":
         info["route"] = "regions"
-        return _region_route(mesh, regions, relax_iterations, info)
+        return _region_route(mesh, regions, o.relax_iterations, info)
     info["route"] = "sphere"
     try:
         return _sphere_route(
             mesh,
             patches=patches,
             sphere=sphere,
-            seed=seed,
-            relax=relax,
-            relax_iterations=relax_iterations,
-            sphere_max_aspect=sphere_max_aspect,
+            seed=o.seed,
+            relax=o.relax,
+            relax_iterations=o.relax_iterations,
+            sphere_max_aspect=o.sphere_max_aspect,
             proxy_faces=proxy_faces,
-            shape=shape,
+            shape=o.shape,
             # (with the caller's sphere map there is no other route to hand the mesh to)
-            protrusions=protrusions and sphere is None,
+            protrusions=o.protrusions and sphere is None,
             proxy=proxy,
         )
     except (_HoldsProtrusion, LayoutError):
@@ -471,7 +498,7 @@ def auto_layout(
         if sphere is not None:
             raise
         info["route"] = "sphere -> regions"
-        return _region_route(mesh, regions, relax_iterations, info)
+        return _region_route(mesh, regions, o.relax_iterations, info)
 
 
 def _region_route(mesh: Mesh, options: dict, relax_iterations: int, info: dict) -> Layout:
@@ -755,11 +782,12 @@ def _network(
     ``protrusions``, `_HoldsProtrusion` where a quad is deeper than `PROTRUSION_DEPTH`."""
     del relax_iterations, relaxed
     from meshfit.layout.shaping import shape_base
-    from meshfit.shrinkwrap import base_mesh
+    from meshfit.shrinkwrap import BaseOptions, base_mesh
     from meshfit.shrinkwrap.base import STARTS
 
     start = "octahedron" if n_faces < STARTS["icosahedron"][1] else "icosahedron"
-    base = base_mesh(smap, max_faces=n_faces, min_faces=n_faces, seed=seed, start=start)
+    opts = BaseOptions(max_faces=n_faces, min_faces=n_faces, seed=seed, start=start)
+    base = base_mesh(smap, opts)
     S, BF = base.sphere, base.faces
     if len(BF) > STARTS[start][1]:  # edges were split: even out the vertex degrees
         BF = balance_degrees(S, BF)

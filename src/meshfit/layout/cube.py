@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -15,7 +16,7 @@ from meshfit.mesh import Mesh
 from meshfit.mesh.locate import RayHits
 from meshfit.types import SurfaceCurve, SurfacePoints
 
-__all__ = ["cube_layout", "principal_frame"]
+__all__ = ["AxisRays", "FeatureCurves", "cube_layout", "principal_frame"]
 
 #: ray origins tried again (on the copy of bbox diagonal 10) where a ray slips between faces
 _NUDGES = 1e-6 * np.array([[1.0, 0.7, 0.3], [-0.4, 1.0, -0.8], [0.9, -0.6, 1.0]])
@@ -96,21 +97,61 @@ def principal_frame(mesh: Mesh) -> NDArray[np.float64]:
     return r
 
 
+@dataclass(frozen=True, eq=False)
+class AxisRays:
+    """Where :func:`cube_layout` casts its rays from when no single point sees the whole
+    model: an axis polyline inside it.
+
+    Attributes
+    ----------
+    points : (k, 3) float64
+        Polyline inside the closed mesh (``k >= 2`` points, model units) along which the
+        ray origins move. The box's first axis ``e0`` is the first column of the layout's
+        ``frame``, turned to point from the first point to the last; ``e1``, ``e2`` are the
+        other two columns (made square to ``e0``).
+    levels : (rows + 1,) float64, optional
+        Increasing fractions of the axis's length where the ray origins of each row boundary
+        sit (default evenly spread from 0 to 1).
+    cap_tilt : (float, float)
+        Tilt of the rays towards ``-e0`` at the first end and ``+e0`` at the last end
+        (default 1.0: 45 degrees at the middle of a cap's sides); larger values make
+        smaller caps.
+    """
+
+    points: ArrayLike
+    levels: ArrayLike | None = None
+    cap_tilt: tuple[float, float] = (1.0, 1.0)
+
+
+@dataclass(frozen=True)
+class FeatureCurves:
+    """Feature curves :func:`cube_layout` paints inside one patch (thesis sec. 5.10.1).
+
+    Attributes
+    ----------
+    patch : int
+        The patch that gets them.
+    fractions : tuple of float
+        For each fraction one iso-curve in each direction at that parameter, painted from a
+        sample of one side's curve to a sample of the opposite side's curve (default
+        ``(1/3, 2/3)``).
+    """
+
+    patch: int
+    fractions: tuple[float, ...] = (1 / 3, 2 / 3)
+
+
 def cube_layout(
     mesh: Mesh,
     *,
     n: int = 2,
+    rows: int | None = None,
     center: ArrayLike | None = None,
     frame: ArrayLike | None = None,
+    axis: AxisRays | ArrayLike | None = None,
     picks_per_curve: int = 8,
     spacing: float | None = None,
-    feature_patch: int | None = None,
-    feature_fractions: tuple[float, ...] = (1 / 3, 2 / 3),
-    direction_map: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
-    rows: int | None = None,
-    axis: ArrayLike | None = None,
-    levels: ArrayLike | None = None,
-    cap_tilt: tuple[float, float] = (1.0, 1.0),
+    features: FeatureCurves | None = None,
 ) -> Layout:
     """Project an ``n x n`` subdivided cube from a centre onto a closed mesh (``6 n^2``
     patches), or a box from an axis, and paint its edges as boundary curves.
@@ -126,8 +167,8 @@ def cube_layout(
     middle of one end to the middle of the other. The box then has ``rows`` rows of ``4 n``
     patches around the axis and an ``n x n`` cap at each end (``4 n rows + 2 n^2``
     patches). The lattice points of row boundary ``j`` are projected from the axis point at
-    ``levels[j]`` (a fraction of the axis length), along rays square to the axis; towards
-    the caps the rays tilt to the axis direction by ``cap_tilt`` (the cap lattice is
+    ``axis.levels[j]`` (a fraction of the axis length), along rays square to the axis; towards
+    the caps the rays tilt to the axis direction by ``axis.cap_tilt`` (the cap lattice is
     projected from the axis ends along ``a e1 + b e2 -+ cap_tilt e0``, ``a, b`` in
     ``[-1, 1]``). Where the model is star-shaped from every axis point along the rays square
     to it (each cross-section seen from its axis point), the curves do not cross.
@@ -138,36 +179,22 @@ def cube_layout(
         Closed mesh containing ``center``.
     n : int, keyword-only
         Patches per cube face along each direction (default 2: 24 patches).
+    rows : int, keyword-only, optional
+        Patches along the box's first axis (default ``n``: a cube). Without ``axis`` that is
+        the first column of ``frame``.
     center : (3,) float64, keyword-only, optional
         Ray origin; default the vertex centroid.
     frame : (3, 3) float64, keyword-only, optional
         Rotation whose columns are the cube axes; default the principal axes of the vertices.
+    axis : AxisRays or (k, 3) float64, keyword-only, optional
+        Cast the rays from this axis instead of from ``center`` (a bare polyline is
+        ``AxisRays(points)``).
     picks_per_curve : int, keyword-only
         Projected picks painted through on each cube edge, ends excluded (default 8).
     spacing : float, keyword-only, optional
         Sample spacing of the painted curves, model units; default the mean edge length.
-    feature_patch : int, keyword-only, optional
-        Patch that gets feature curves: for each fraction in ``feature_fractions`` one
-        iso-curve in each direction, painted from a sample of one side's curve to a sample of
-        the opposite side's curve.
-    direction_map : callable, keyword-only, optional
-        Maps ``(k, 3)`` cube points to ray directions (default: the points themselves, rotated
-        by ``frame``; not with ``axis``).
-    rows : int, keyword-only, optional
-        Patches along the box's first axis (default ``n``: a cube). Without ``axis`` that is
-        the first column of ``frame``.
-    axis : (k, 3) float64, keyword-only, optional
-        Polyline inside the closed mesh (``k >= 2`` points, model units) along which the ray
-        origins move. The box's first axis ``e0`` is the first column of ``frame``, turned
-        to point from the axis's first point to its last; ``e1``, ``e2`` are the other two
-        columns (made square to ``e0``).
-    levels : (rows + 1,) float64, keyword-only, optional
-        Increasing fractions of the axis's length where the ray origins of each row boundary
-        sit (default evenly spread from 0 to 1).
-    cap_tilt : (float, float), keyword-only
-        Tilt of the rays towards ``-e0`` at the first end and ``+e0`` at the last end
-        (default 1.0: 45 degrees at the middle of a cap's sides); larger values make
-        smaller caps.
+    features : FeatureCurves, keyword-only, optional
+        Feature curves painted inside one patch.
 
     Returns
     -------
@@ -188,7 +215,9 @@ def cube_layout(
     frame = principal_frame(mesh) if frame is None else np.asarray(frame, float)
     if spacing is None:
         spacing = mesh.mean_edge_length
-    from_axis = None if axis is None else _Axis(axis, frame, rows, levels, cap_tilt, direction_map)
+    if axis is not None and not isinstance(axis, AxisRays):
+        axis = AxisRays(axis)
+    from_axis = None if axis is None else _Axis(axis, frame, rows)
     pts, ends, patches, squares = _cube_network(n, rows)
     # rays are cast on a copy centred at the origin with bbox diagonal 10: libigl's ray query
     # misses every hit on finely tessellated models a few centimetres across; faces and
@@ -196,14 +225,9 @@ def cube_layout(
     scale = 10.0 / mesh.bbox_diagonal
     unit = Mesh((mesh.vertices - center) * scale, mesh.faces)
 
-    def directions(q: NDArray[np.float64]) -> NDArray[np.float64]:
-        if direction_map is not None:
-            return np.asarray(direction_map(q), dtype=float)
-        return q @ frame.T
-
     def project(q: NDArray[np.float64]) -> SurfacePoints:
         if from_axis is None:
-            d = directions(q)
+            d = q @ frame.T
             o = np.zeros_like(d)
         else:
             o, d = from_axis.rays(q)
@@ -235,13 +259,16 @@ def cube_layout(
         mid = project(q) if len(t) else SurfacePoints(np.zeros(0, np.int64), np.zeros((0, 3)))
         picks = SurfacePoints.concatenate([corners[a], mid, corners[b]])
         curves.append(_tidy(mesh, paint_curve(mesh, picks, spacing=spacing), spacing))
-    features = [[] for _ in patches]
-    if feature_patch is not None:
-        features[feature_patch] = _feature_curves(
-            mesh, project, pts, curves, patches[feature_patch], squares[feature_patch],
-            feature_fractions, picks_per_curve, spacing,
+    inside: list[list[SurfaceCurve]] = [[] for _ in patches]
+    if features is not None:
+        k = features.patch
+        if not 0 <= int(k) < len(patches):
+            raise InputError(f"features.patch must be in [0, {len(patches)}), got {k}")
+        inside[k] = _feature_curves(
+            mesh, project, pts, curves, patches[k], squares[k],
+            features.fractions, picks_per_curve, spacing,
         )  # fmt: skip
-    return layout_from_curves(mesh, corners, curves, ends, patches, features)
+    return layout_from_curves(mesh, corners, curves, ends, patches, inside)
 
 
 def _feature_curves(
@@ -255,7 +282,7 @@ def _feature_curves(
     picks_per_curve: int,
     spacing: float,
 ) -> list[SurfaceCurve]:
-    """The feature curves of `cube_layout`'s ``feature_patch`` (its four ``sides`` and box
+    """The feature curves of `cube_layout`'s ``features`` patch (its four ``sides`` and box
     points ``lat``): for each fraction one iso-curve in each direction, painted from a
     sample of one side's curve to a sample of the opposite side's curve."""
     out = []
@@ -284,10 +311,9 @@ class _Axis:
     """Ray origins and directions of box points projected from an axis polyline (see
     `cube_layout`)."""
 
-    def __init__(self, axis, frame, rows: int, levels, cap_tilt, direction_map) -> None:
-        if direction_map is not None:
-            raise InputError("direction_map cannot be combined with axis")
-        P = np.asarray(axis, dtype=np.float64)
+    def __init__(self, axis: AxisRays, frame, rows: int) -> None:
+        levels, cap_tilt = axis.levels, axis.cap_tilt
+        P = np.asarray(axis.points, dtype=np.float64)
         if P.ndim != 2 or P.shape[0] < 2 or P.shape[1] != 3 or not np.isfinite(P).all():
             raise InputError(f"axis must be a (k >= 2, 3) array of finite points, got {P.shape}")
         seg = np.linalg.norm(np.diff(P, axis=0), axis=1)

@@ -1,7 +1,8 @@
 """Options of the fit: one frozen dataclass for the user, a small view per stage.
 
 :class:`FitOptions` holds every choice with its default (the command line and the web app
-fill it); each stage reads only its own group (:class:`LayoutOptions`,
+fill it); each stage reads only its own group
+(:class:`meshfit.layout.auto.LayoutOptions`,
 :class:`meshfit.springs.SpringOptions`, :class:`SplineOptions`, :class:`MapOptions`,
 :class:`OutputOptions`), and a stage's cache key holds exactly that group, so changing an
 output option never recomputes a spring mesh.
@@ -17,6 +18,7 @@ import numpy as np
 
 from meshfit._threads import n_workers
 from meshfit.errors import InputError
+from meshfit.layout.auto import LayoutOptions
 from meshfit.springs import SpringOptions
 
 __all__ = [
@@ -216,7 +218,12 @@ class FitOptions:
     @property
     def layout(self) -> LayoutOptions:
         """The automatic layout's group."""
-        return LayoutOptions(self.patches, self.layout_shape, self.layout_seed, self.crease_angle)
+        return LayoutOptions(
+            patches=self.patches,
+            seed=self.layout_seed,
+            shape=self.layout_shape,
+            crease_angle=self.crease_angle,
+        )
 
     @property
     def springs(self) -> SpringOptions:
@@ -249,16 +256,6 @@ class FitOptions:
     def outputs(self) -> OutputOptions:
         """The exports' and the report's group."""
         return OutputOptions(self.formats, self.report, self.image_size)
-
-
-@dataclass(frozen=True)
-class LayoutOptions:
-    """What the automatic layout is asked for (see :class:`FitOptions`)."""
-
-    patches: int | None
-    shape: bool | None
-    seed: int
-    crease_angle: float | None
 
 
 @dataclass(frozen=True)

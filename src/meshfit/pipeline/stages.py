@@ -110,14 +110,7 @@ class Layout(Stage):
             o = ctx.options.layout
 
             def make():
-                return auto_layout(
-                    mesh,
-                    patches=o.patches,
-                    shape=o.shape,
-                    seed=o.seed,
-                    crease_angle=o.crease_angle,
-                    report=self.report,
-                )
+                return auto_layout(mesh, o, report=self.report)
 
             return f"auto:r{AUTO_LAYOUT_REVISION}", make
         if not isinstance(self.layout, (str, os.PathLike)):

@@ -5,7 +5,7 @@ Verbs: :func:`sphere_map` (sec. 6), :func:`base_mesh` (sec. 6), :func:`shrink_wr
 (sec. 4, 7), :func:`encode_stream` / :func:`decode_stream` (sec. 8.1), :func:`fill_holes`.
 """
 
-from meshfit.shrinkwrap.base import BaseMesh, base_mesh, icosahedron, octahedron
+from meshfit.shrinkwrap.base import BaseMesh, BaseOptions, base_mesh, icosahedron, octahedron
 from meshfit.shrinkwrap.holes import fill_holes
 from meshfit.shrinkwrap.sphere import (
     SphereMap,
@@ -35,6 +35,7 @@ from meshfit.shrinkwrap.wrap import (
 
 __all__ = [
     "BaseMesh",
+    "BaseOptions",
     "Packet",
     "SphereMap",
     "Stream",

@@ -16,7 +16,7 @@ from meshfit.mesh import Mesh
 from meshfit.shrinkwrap import _topo
 from meshfit.shrinkwrap.sphere import SphereMap, spherical_orientation
 
-__all__ = ["BaseMesh", "base_mesh", "cell_areas", "icosahedron", "octahedron"]
+__all__ = ["BaseMesh", "BaseOptions", "base_mesh", "cell_areas", "icosahedron", "octahedron"]
 
 
 def icosahedron() -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -59,6 +59,80 @@ def octahedron() -> tuple[NDArray[np.float64], NDArray[np.int64]]:
 
 #: starting polyhedra of `base_mesh`: name -> (builder, face count)
 STARTS = {"icosahedron": (icosahedron, 20), "octahedron": (octahedron, 8)}
+
+
+@dataclass(frozen=True)
+class BaseOptions:
+    """Options of :func:`base_mesh` (all have defaults); checked on construction.
+
+    Attributes
+    ----------
+    max_faces : int
+        Face budget (default 100); at least the face count of ``start``.
+    target_ratio : float
+        Stop splitting once ``max/min`` cell area is at most this (default 2).
+    min_faces : int
+        Keep splitting until the base has at least this many faces (default 20: the
+        icosahedron; more base faces give finer levels for the same level count).
+    start_subdivisions : int
+        1-to-4 splits of the starting polyhedron before the relaxation (default 0; 1 turns
+        the icosahedron into the 80-face geodesic polyhedron).
+    start : {"icosahedron", "octahedron"}
+        The polyhedron relaxed and split (default the icosahedron, 20 faces, as in the
+        paper; the octahedron's 8 faces allow coarser bases, e.g. for automatic layouts of
+        fewer than 60 patches).
+    iterations : int
+        Relaxation steps after the start and after every split (default 20).
+    alpha : float
+        Damping factor of eq. 1, in (0, 1] (default 0.5).
+    seed : int
+        Seed of the random rotation of the starting polyhedron and of the sampling
+        (default 0).
+    relaxation : {"equalize", "umbrella"}
+        ``"umbrella"``: eq. 1 with density = summed adjacent cell areas, as in the paper.
+        Its fixed point balances ``A_c`` times cell size rather than ``A_c`` alone, so on
+        strongly distorted sphere maps it stalls far from equal areas (cells differing in
+        area many times over). ``"equalize"`` (default): a damped per-vertex Gauss-Newton
+        step on the squared deviation of each adjacent cell's area from their mean, same
+        flip guard.
+    samples : int
+        Cell areas are estimated from at most this many input faces (sphere centroids,
+        area-weighted; default 60,000).
+
+    Raises
+    ------
+    InputError
+        Unknown ``start`` or ``relaxation``, ``max_faces`` below the start's face count,
+        ``alpha`` outside (0, 1].
+    """
+
+    max_faces: int = 100
+    target_ratio: float = 2.0
+    min_faces: int = 20
+    start_subdivisions: int = 0
+    start: str = "icosahedron"
+    iterations: int = 20
+    alpha: float = 0.5
+    seed: int = 0
+    relaxation: str = "equalize"
+    samples: int = 60_000
+
+    def __post_init__(self) -> None:
+        if self.start not in STARTS:
+            raise errors.InputError(
+                f"start must be one of {', '.join(map(repr, STARTS))}, got {self.start!r}"
+            )
+        start_faces = STARTS[self.start][1]
+        if self.max_faces < start_faces:
+            raise errors.InputError(
+                f"max_faces must be at least {start_faces} (an {self.start}), got {self.max_faces}"
+            )
+        if not 0 < self.alpha <= 1:
+            raise errors.InputError(f"alpha must be in (0, 1], got {self.alpha}")
+        if self.relaxation not in ("equalize", "umbrella"):
+            raise errors.InputError(
+                f"relaxation must be 'equalize' or 'umbrella', got {self.relaxation!r}"
+            )
 
 
 def _face_centroids_on_sphere(smap: SphereMap) -> NDArray[np.float64]:
@@ -124,9 +198,6 @@ class BaseMesh:
         ``max / min`` of ``cell_area`` (``inf`` when a cell is empty).
     splits : int
         Edges bisected by the split heuristic.
-    min_faces : int
-        Keep splitting until the base has at least this many faces (default 20: the
-        icosahedron; more base faces give finer levels for the same level count).
     iterations : int
         Relaxation steps run in total.
     """
@@ -237,17 +308,8 @@ def _split(s, faces, area):
 
 def base_mesh(
     smap: SphereMap,
+    options: BaseOptions | None = None,
     *,
-    max_faces: int = 100,
-    target_ratio: float = 2.0,
-    min_faces: int = 20,
-    start_subdivisions: int = 0,
-    start: str = "icosahedron",
-    iterations: int = 20,
-    alpha: float = 0.5,
-    seed: int = 0,
-    relaxation: str = "equalize",
-    samples: int = 60_000,
     progress: Callable[[str, float], None] | None = None,
 ) -> BaseMesh:
     """Build the base mesh ``M0`` by relaxing and splitting an icosahedron (or an
@@ -263,37 +325,10 @@ def base_mesh(
     Parameters
     ----------
     smap : SphereMap
-    max_faces : int
-        Face budget (default 100).
-    target_ratio : float
-        Stop splitting once ``max/min`` cell area is at most this (default 2).
-    min_faces : int
-        Keep splitting until the base has at least this many faces (default 20: the
-        icosahedron; more base faces give finer levels for the same level count).
-    start_subdivisions : int
-        1-to-4 splits of the icosahedron before the relaxation (default 0: 20 faces; 1: the
-        80-face geodesic polyhedron).
-    start : {"icosahedron", "octahedron"}
-        The polyhedron relaxed and split (default the icosahedron, 20 faces, as in the
-        paper; the octahedron's 8 faces allow coarser bases, e.g. for automatic layouts of
-        fewer than 60 patches). ``max_faces`` must be at least its face count.
-    iterations : int
-        Relaxation steps after the start and after every split (default 20).
-    alpha : float
-        Damping factor of eq. 1, in (0, 1] (default 0.5).
-    seed : int
-        Seed of the random rotation of the starting icosahedron (and of the sampling).
-    relaxation : {"equalize", "umbrella"}
-        ``"umbrella"``: eq. 1 with density = summed adjacent cell areas, as in the paper.
-        Its fixed point balances ``A_c`` times cell size rather than ``A_c`` alone, so on
-        strongly distorted sphere maps it stalls far from equal areas (cells differing in
-        area many times over). ``"equalize"`` (default): a damped per-vertex Gauss-Newton
-        step on the squared deviation of each adjacent cell's area from their mean, same
-        flip guard.
-    samples : int
-        Cell areas are estimated from at most this many input faces (sphere centroids,
-        area-weighted; default 60,000).
-    progress : callable(stage, fraction), optional
+    options : BaseOptions, optional
+        Default ``BaseOptions()``: the settings live in one frozen dataclass, checked when
+        it is made, so a caller (e.g. :func:`shrink_wrap`) can pass them on whole.
+    progress : callable(stage, fraction), keyword-only, optional
 
     Returns
     -------
@@ -303,22 +338,18 @@ def base_mesh(
     ----------
     .. [1] Kobbelt, Vorsatz, Labsik & Seidel 1999, sec. 6 and eq. 1.
     """
-    if start not in STARTS:
-        raise errors.InputError(
-            f"start must be one of {', '.join(map(repr, STARTS))}, got {start!r}"
-        )
-    build, start_faces = STARTS[start]
-    if max_faces < start_faces:
-        raise errors.InputError(
-            f"max_faces must be at least {start_faces} (an {start}), got {max_faces}"
-        )
-    if not 0 < alpha <= 1:
-        raise errors.InputError(f"alpha must be in (0, 1], got {alpha}")
-    if relaxation not in ("equalize", "umbrella"):
-        raise errors.InputError(f"relaxation must be 'equalize' or 'umbrella', got {relaxation!r}")
-    step = _equalize if relaxation == "equalize" else _relax
+    o = options if options is not None else BaseOptions()
+    max_faces = o.max_faces
+    target_ratio = o.target_ratio
+    min_faces = o.min_faces
+    iterations = o.iterations
+    alpha = o.alpha
+    seed = o.seed
+    samples = o.samples
+    build = STARTS[o.start][0]
+    step = _equalize if o.relaxation == "equalize" else _relax
     v, f = build()
-    for _ in range(start_subdivisions):
+    for _ in range(o.start_subdivisions):
         f, e = _topo.subdivide(f, len(v))
         mid = v[e[:, 0]] + v[e[:, 1]]
         v = np.vstack([v, mid / np.linalg.norm(mid, axis=1, keepdims=True)])

@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 from meshfit import errors, tol
 from meshfit.mesh import Mesh
 from meshfit.shrinkwrap import _topo
-from meshfit.shrinkwrap.base import STARTS, BaseMesh, base_mesh, cell_areas
+from meshfit.shrinkwrap.base import STARTS, BaseMesh, BaseOptions, base_mesh, cell_areas
 from meshfit.shrinkwrap.sphere import (
     SphereMap,
     sphere_map,
@@ -308,7 +308,10 @@ class WrapOptions:
     Attributes
     ----------
     base_faces : int
-        Face budget of the base mesh (default 100).
+        Face budget of the base mesh (default 100): :func:`shrink_wrap` without
+        ``base_options`` builds the base with ``BaseOptions(max_faces=base_faces)``. Given
+        base options carry their own ``max_faces``; a ``base_faces`` other than the default
+        must then agree with it (InputError otherwise, rather than one silently winning).
     sphere_method : {"tutte", "voxel"}
         Construction of the sphere map when ``smap`` is omitted (see :func:`sphere_map`).
     sphere_max_aspect : float, optional
@@ -368,6 +371,25 @@ class WrapOptions:
             )
 
 
+def _base_options(o: WrapOptions, given: BaseOptions | None) -> BaseOptions:
+    """The base mesh's options: ``given``, or ``o.base_faces`` as the budget when omitted.
+
+    ``WrapOptions.base_faces`` and ``BaseOptions.max_faces`` name the same budget; a
+    non-default ``base_faces`` that disagrees with given base options is an InputError, so
+    neither setting is dropped without notice.
+    """
+    if given is None:
+        return BaseOptions(max_faces=o.base_faces)
+    if not isinstance(given, BaseOptions):
+        raise errors.InputError(f"base_options must be a BaseOptions, got {type(given).__name__}")
+    if o.base_faces != WrapOptions.base_faces and o.base_faces != given.max_faces:
+        raise errors.InputError(
+            f"WrapOptions(base_faces={o.base_faces}) disagrees with "
+            f"BaseOptions(max_faces={given.max_faces}): set the budget in one of them"
+        )
+    return given
+
+
 def shrink_wrap(
     mesh: Mesh,
     options: WrapOptions | None = None,
@@ -375,7 +397,7 @@ def shrink_wrap(
     levels: int = 5,
     smap: SphereMap | None = None,
     base: BaseMesh | None = None,
-    base_options: dict | None = None,
+    base_options: BaseOptions | None = None,
     progress: Callable[[str, float], None] | None = None,
 ) -> WrapResult:
     """Remesh a closed genus-0 mesh with subdivision connectivity by shrink wrapping.
@@ -421,8 +443,11 @@ def shrink_wrap(
         would have more than `WRAP_MAX_FACES` faces.
     smap, base : optional
         A sphere map / base mesh computed before (recomputed when omitted).
-    base_options : dict, optional
-        Extra keyword arguments of :func:`base_mesh` (e.g. ``start_subdivisions=1``).
+    base_options : BaseOptions, optional
+        Options of :func:`base_mesh` (e.g. ``BaseOptions(start_subdivisions=1)``); default
+        ``BaseOptions(max_faces=options.base_faces)``. When given, its ``max_faces`` is the
+        face budget, and a non-default ``options.base_faces`` that differs from it is an
+        InputError. Unused when ``base`` is given.
     progress : callable(stage, fraction), optional
 
     Returns
@@ -434,7 +459,6 @@ def shrink_wrap(
     .. [1] Kobbelt, Vorsatz, Labsik & Seidel 1999, sec. 4 (eq. 1), sec. 7.
     """
     o = options if options is not None else WrapOptions()
-    base_faces = o.base_faces
     sphere_method = o.sphere_method
     sphere_max_aspect = o.sphere_max_aspect
     sphere_stretch = o.sphere_stretch
@@ -455,6 +479,8 @@ def shrink_wrap(
         raise errors.InputError(f"alpha must be in (0, 1], got {alpha}")
     if count_weight < 0:
         raise errors.InputError(f"count_weight must be >= 0, got {count_weight}")
+    if base is None:  # checked before the sphere map is made
+        base_options = _base_options(o, base_options)
     secs: dict[str, float] = {}
     t0 = time.perf_counter()
     if smap is None:
@@ -468,7 +494,7 @@ def shrink_wrap(
     secs["sphere_map"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     if base is None:
-        base = base_mesh(smap, max_faces=base_faces, progress=progress, **(base_options or {}))
+        base = base_mesh(smap, base_options, progress=progress)
     secs["base_mesh"] = time.perf_counter() - t0
     _check_level_faces(len(base.faces), levels)
     s = np.array(base.sphere)

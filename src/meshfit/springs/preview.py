@@ -32,7 +32,7 @@ from meshfit import tol
 from meshfit._kernels import planar as _kp
 from meshfit.springs.grid import FREE, SpringMesh
 from meshfit.springs.planar import PlanarMap, _square_map
-from meshfit.springs.relax import relax, repair_folds, unfold_in_map, untangle
+from meshfit.springs.relax import Sweeps, relax, repair_folds, unfold_in_map, untangle
 from meshfit.springs.resample import (
     COARSE_EPS,
     COARSE_OMEGA,
@@ -263,17 +263,15 @@ def coarse_level0(
     state.s_v = [np.linspace(0.0, ln.total, nu) for ln in state.v_feat]
     state.set_feature_points()
 
-    relax(
-        state,
+    schedule = Sweeps(
         max_iter=max_iter * COARSE_SWEEPS,
         ramp=ramp,
         fairness=fairness,
         omega=min(1.9, COARSE_OMEGA),
         start=ramp,
         eps=tol.SPRING_CONVERGED * COARSE_EPS,
-        tangent=True,
-        guard=True,
     )
+    relax(state, schedule, tangent=True, guard=True)
     untangle(state, rounds=3, sweeps=max_iter, reach=2, tangent=True, guard=True)
     unfold_in_map(state, pmap)
     repair_folds(state)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from meshfit import tol
@@ -11,6 +13,7 @@ from meshfit.springs.grid import FREE, dilate_grid
 from meshfit.springs.state import State
 
 __all__ = [
+    "Sweeps",
     "even_lines_in_map",
     "folded_cells",
     "relax",
@@ -108,28 +111,53 @@ def _curve_step(state: State, X: np.ndarray, w_arc: float, w_fair: float) -> flo
     return float(np.sqrt(np.mean(m * m)))
 
 
+@dataclass(frozen=True)
+class Sweeps:
+    """The schedule of one :func:`relax` call.
+
+    Attributes
+    ----------
+    max_iter : int
+        Gauss-Seidel sweeps allowed.
+    ramp : int
+        Sweeps over which the fairness weight grows from 0 to ``fairness``.
+    fairness : float
+        Final weight of the fairness force in [0, 1]; the arc-length force gets the rest.
+    omega : float
+        Over-relaxation factor, in (0, 2).
+    start : int
+        Sweep of the schedule to start from (``start >= ramp``: final weights at once;
+        default 0).
+    eps : float
+        Stop when the root-mean-square move is below this share of the spring lengths
+        (default ``tol.SPRING_CONVERGED``).
+    """
+
+    max_iter: int
+    ramp: int
+    fairness: float
+    omega: float
+    start: int = 0
+    eps: float = tol.SPRING_CONVERGED
+
+
 def relax(
     state: State,
+    sweeps: Sweeps,
     *,
-    max_iter: int,
-    ramp: int,
-    fairness: float,
-    omega: float,
-    start: int = 0,
-    eps: float = tol.SPRING_CONVERGED,
     tangent: bool = True,
     guard: bool = True,
-    only: np.ndarray | None = None,
     fold: bool = False,
+    only: np.ndarray | None = None,
 ) -> tuple[int, float]:
     """Relax the spring mesh of ``state`` at its current level, in place.
 
     Free points move by the weighted sum (eq. 5.4) of the arc-length force (eq. 5.1) and the
     fairness force (sec. 5.5.2), walked on the patch mesh (so they never leave it); curve
     points slide along their feature curve (eq. 5.17); boundary points and anchors stay.
-    The fairness weight ramps from 0 to ``fairness`` over ``ramp`` sweeps (arc length first),
-    counted from sweep ``start`` of the schedule (``start >= ramp``: final weights at once).
-    Sweeps stop when the root-mean-square move is below ``eps`` of the spring lengths. With
+    The fairness weight ramps from 0 to ``sweeps.fairness`` over ``sweeps.ramp`` sweeps (arc
+    length first), counted from sweep ``sweeps.start`` of the schedule (see :class:`Sweeps`).
+    Sweeps stop when the root-mean-square move is below ``sweeps.eps`` of the spring lengths. With
     ``tangent`` the spring vectors are turned into each point's tangent plane keeping their
     lengths (see `meshfit._kernels.springs.spring_force`), else they are Euclidean. With
     ``guard`` a move that folds more triangles of the point's cells than before is halved
@@ -138,7 +166,7 @@ def relax(
     more than 90 degrees apart) follows the grid line instead of the chord turned into the
     tangent plane (see `meshfit._kernels.springs.spring_force`). Without feature curves, a
     sweep after the first moves only the points near a move of more than `LAZY_MOVES` times
-    ``eps`` in the sweep before (the rest have settled).
+    ``sweeps.eps`` in the sweep before (the rest have settled).
 
     Returns
     -------
@@ -150,6 +178,8 @@ def relax(
     .. [1] Krishnamurthy 2000, sec. 5.5.1-5.5.3, eq. 5.1 and 5.4; sec. 5.11.3, eq. 5.14-5.17.
     """
     mesh = state.mesh
+    max_iter, ramp, fairness, omega = sweeps.max_iter, sweeps.ramp, sweeps.fairness, sweeps.omega
+    start, eps = sweeps.start, sweeps.eps
     movable = state.free()
     if only is not None:
         movable &= np.asarray(only, dtype=bool).ravel()

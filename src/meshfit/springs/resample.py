@@ -19,6 +19,7 @@ from meshfit.springs.init import chain_arc, chain_edge_faces, closest_approach, 
 from meshfit.springs.metrics import QUALITY_BOUNDS, _fidelity, _section_ends, spring_metrics
 from meshfit.springs.planar import PlanarMap, square_map
 from meshfit.springs.relax import (
+    Sweeps,
     even_lines_in_map,
     folded_cells,
     relax,
@@ -519,19 +520,8 @@ def _polish(
         [a.copy() for a in state.s_u],
         [a.copy() for a in state.s_v],
     )
-    relax(
-        state,
-        max_iter=sweeps,
-        ramp=0,
-        fairness=0.0,
-        omega=omega,
-        start=0,
-        eps=tol.SPRING_POLISHED,
-        tangent=forces == "tangent",
-        guard=guard,
-        only=only,
-        fold=fold,
-    )
+    schedule = Sweeps(max_iter=sweeps, ramp=0, fairness=0.0, omega=omega, eps=tol.SPRING_POLISHED)
+    relax(state, schedule, tangent=forces == "tangent", guard=guard, only=only, fold=fold)
     after = _shape(state)
     ok = after[0] <= before[0] and after[1] <= max(POLISH_ASPECT, before[1])
     if lines:  # an uneven level the sweeps cannot even out (a pleat) keeps its fairness
@@ -928,8 +918,7 @@ class _Resampling:
         o, max_iter, polish = self.o, self.run.max_iter, self.run.polish
         # level 0 starts from graph paths and must travel far: it is relaxed to a tighter
         # tolerance with more sweeps (it is small); later levels only settle new points
-        done, _ = relax(
-            state,
+        schedule = Sweeps(
             max_iter=max_iter if k else max_iter * COARSE_SWEEPS,
             ramp=o.ramp,
             fairness=fairness,
@@ -938,9 +927,9 @@ class _Resampling:
             # start is already spread out and gets the final weights at once
             start=0 if k == 0 and not self.mapped else o.ramp,
             eps=tol.SPRING_CONVERGED * (1.0 if k else COARSE_EPS),
-            tangent=o.forces == "tangent",
-            guard=o.guard,
-            fold=o.follow_folds,
+        )
+        done, _ = relax(
+            state, schedule, tangent=o.forces == "tangent", guard=o.guard, fold=o.follow_folds
         )
         folds = None
         if polish and ((k <= 1 and k < final) or 0 < k == final):  # arc-length sweeps

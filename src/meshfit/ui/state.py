@@ -31,6 +31,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from meshfit import _atomic, tol
 from meshfit.curves import (
+    SnakeOptions,
     SpaceCurve,
     color_force,
     edit_snake,
@@ -690,9 +691,7 @@ class Session:
         res = relax_snake(
             self._need_mesh(),
             self.state.curves[i].curve,
-            w_fair=w_fair,
-            w_curv=w_curv,
-            max_iter=max_iter,
+            SnakeOptions(w_fair=w_fair, w_curv=w_curv, max_iter=max_iter),
             external=self._external(),
         )
         self._replace_curve(i, res.curve, None)
@@ -705,9 +704,7 @@ class Session:
         res = relax_snake(
             self._need_mesh(),
             self.state.curves[i].curve,
-            w_fair=w_fair,
-            w_curv=w_curv,
-            max_iter=1,
+            SnakeOptions(w_fair=w_fair, w_curv=w_curv, max_iter=1),
             external=self._external(),
         )
         self._replace_curve(i, res.curve, None)
@@ -738,12 +735,10 @@ class Session:
         res = edit_snake(
             self._need_mesh(),
             self.state.curves[i].curve,
+            SnakeOptions(w_fair=w_fair, w_curv=w_curv, max_iter=500),
             edit_index=edit_index,
             section=section,
             target=np.asarray(target, dtype=np.float64),
-            w_fair=w_fair,
-            w_curv=w_curv,
-            max_iter=500,
         )
         self._replace_curve(i, res.curve, None)
 
