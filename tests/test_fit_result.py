@@ -176,6 +176,30 @@ def test_rebuild_with_the_mesh_measures_the_errors_again(spot, tmp_path):
         load_fit(folder, mesh=other).rebuild()
 
 
+def test_rebuild_renders_the_report_again_where_it_can(spot, tmp_path):
+    folder, _, _, _, _ = _painted_fit(spot, tmp_path, height=0.05)
+    mesh, _, _ = spot
+    with pytest.raises(InputError, match="drawn on the input mesh"):
+        load_fit(folder, edited=False).report(folder)
+    files = load_fit(folder, edited=False, mesh=mesh).report(folder, image_size=96)
+    assert files[0] == "report.html" and "report/displaced.png" in files
+    listed = read_manifest(folder)
+    assert all(f in listed for f in files)
+    shown = (folder / "report" / "displaced.png").read_bytes()
+    # without the mesh the page stays as it was, and the rebuild says so
+    assert main(["rebuild", str(folder), "--out", str(tmp_path / "bare"), "--json"]) == 0
+    notes = json.loads((tmp_path / "bare" / "summary.json").read_text())["notes"]
+    assert not any("report.html still shows" in n for n in notes)  # no page there to be stale
+    assert main(["rebuild", str(folder), "--json"]) == 0
+    notes = load_fit(folder).summary["notes"]
+    assert any("report.html still shows the fit before the rebuild" in n for n in notes)
+    assert (folder / "report" / "displaced.png").read_bytes() == shown
+    # with it the painted bump shows in the displaced render
+    assert main(["rebuild", str(folder), "--mesh", str(mesh_path("spot")), "--json"]) == 0
+    assert (folder / "report" / "displaced.png").read_bytes() != shown
+    assert "report.html" in load_fit(folder).summary["outputs"]["report"]
+
+
 def test_a_refit_keeps_the_edited_map_and_says_so(spot, tmp_path):
     folder, _, image, _, _ = _painted_fit(spot, tmp_path)
     mesh, _, _ = spot

@@ -8,7 +8,14 @@ import pytest
 
 from meshfit._kernels import render as kernel
 from meshfit.errors import InputError
-from meshfit.render import camera_frame, heat_colors, patch_colors, render, write_png_rgb
+from meshfit.render import (
+    Camera,
+    camera_frame,
+    heat_colors,
+    patch_colors,
+    render,
+    write_png_rgb,
+)
 
 from .conftest import real_mesh
 from .reference import render as oracle
@@ -93,13 +100,14 @@ def _square(z=0.0):
 
 def test_square_fills_the_frame_and_keeps_colours():
     V, F = _square()
-    img = render(V, F, size=(50, 50), view=(0, 1, 0), vertex_colors=np.full((4, 3), 0.5))
+    cam = Camera(size=(50, 50), view=(0, 1, 0))
+    img = render(V, F, camera=cam, vertex_colors=np.full((4, 3), 0.5))
     covered = (img != 255).any(axis=2)
     # the square seen head-on fills the frame less the 6% margin on each side
     assert covered[3:47, 3:47].all()
     assert not covered[:2].any() and not covered[:, :2].any()
     assert (np.abs(img[covered].astype(int) - 128) <= 1).all()  # lit head-on: the colour
-    face = render(V, F, size=(50, 50), face_colors=[[1, 0, 0], [0, 0, 1]], shading="flat")
+    face = render(V, F, camera=cam, face_colors=[[1, 0, 0], [0, 0, 1]], shading="flat")
     colours = {tuple(c) for c in face.reshape(-1, 3).tolist()}
     assert {(255, 0, 0), (0, 0, 255)} <= colours
 
@@ -110,7 +118,8 @@ def test_nearer_surface_hides_the_farther():
     V = np.vstack([V1, V2 * [0.5, 1, 0.5]])
     F = np.vstack([F1, F2 + 4])
     cols = np.vstack([np.tile([1.0, 0, 0], (4, 1)), np.tile([0, 0, 1.0], (4, 1))])
-    img = render(V, F, size=(40, 40), view=(0, 1, 0), vertex_colors=cols, bounds=V1)
+    cam = Camera(size=(40, 40), view=(0, 1, 0), bounds=V1)
+    img = render(V, F, camera=cam, vertex_colors=cols)
     assert tuple(img[20, 20]) == (0, 0, 255)
     assert tuple(img[5, 5]) == (255, 0, 0)
 
@@ -118,14 +127,15 @@ def test_nearer_surface_hides_the_farther():
 def test_checkerboard_alternates():
     V, F = _square()
     uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
-    img = render(V, F, size=(80, 80), view=(0, 1, 0), uv=uv, checker=2.0)
+    img = render(V, F, camera=Camera(size=(80, 80), view=(0, 1, 0)), uv=uv, checker=2.0)
     a, b = img[25, 25, 0], img[25, 55, 0]
     assert a != b and img[55, 55, 0] == a
 
 
 def test_real_mesh_render_and_png(tmp_path):
     mesh = real_mesh("spot")
-    img = render(mesh.vertices, mesh.faces, size=(64, 48), view=(1, 0, 0), up=(0, 1, 0))
+    cam = Camera(size=(64, 48), view=(1, 0, 0), up=(0, 1, 0))
+    img = render(mesh.vertices, mesh.faces, camera=cam)
     assert img.shape == (48, 64, 3) and img.dtype == np.uint8
     covered = (img < 250).any(axis=2).mean()
     assert 0.1 < covered < 0.9
@@ -147,4 +157,32 @@ def test_helpers_and_errors():
     with pytest.raises(InputError):
         render(V, F, shading="phong")
     with pytest.raises(InputError):
+        render(V, F, camera={"size": (50, 50)})
+    with pytest.raises(InputError):
         write_png_rgb("x.png", np.zeros((4, 4, 3)))
+
+
+def test_camera_normalises_and_validates():
+    cam = Camera(size=(64.9, 48), view=np.array([1, 0, 0]), up=[0, 1, 0], bounds=np.eye(3)[:2])
+    assert cam.size == (64, 48) and cam.view == (1.0, 0.0, 0.0) and cam.up == (0.0, 1.0, 0.0)
+    assert cam.bounds == ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0))
+    assert all(type(x) is float for x in cam.view + cam.up + cam.bounds[0])
+    assert hash(cam) == hash(Camera((64, 48), (1, 0, 0), (0, 1, 0), ((1, 0, 0), (0, 1, 0))))
+    assert Camera(bounds=np.zeros((0, 3))).bounds == ()
+    # a view along up is drawn (camera_frame takes another up), not refused
+    V, F = _square()
+    assert render(V, F, camera=Camera(size=(8, 8), view=(0, 0, 1))).shape == (8, 8, 3)
+    bad = [
+        {"size": (0, 50)},
+        {"size": (50,)},
+        {"size": "big"},
+        {"view": (0, 0, 0)},
+        {"view": (0, np.nan, 1)},
+        {"view": (1, 0)},
+        {"up": (0.0, 0.0, 0.0)},
+        {"bounds": [[0, 0]]},
+        {"bounds": [[0, 0, np.inf]]},
+    ]
+    for kw in bad:
+        with pytest.raises(InputError):
+            Camera(**kw)

@@ -134,8 +134,15 @@ def cmd_rebuild(args: argparse.Namespace) -> int:
     result = load_fit(folder, mesh=mesh).rebuild()
     out = Path(args.out) if args.out else folder
     formats = _formats(args.formats) if args.formats else None
-    result.save(out)
     files = result.export(out, formats)
+    if result.mesh is not None and (folder / "report.html").is_file():
+        files["report"] = result.report(out)
+    elif (out / "report.html").is_file():
+        result.summary.setdefault("notes", []).append(
+            "report.html still shows the fit before the rebuild: give the input mesh "
+            "(meshfit rebuild --mesh PATH) to render it again"
+        )
+    result.save(out)
     if out == folder:
         accept_edits(folder)  # the edits are in the fit now
     if args.json:
@@ -153,7 +160,7 @@ def cmd_rebuild(args: argparse.Namespace) -> int:
         rows["displaced_hausdorff"] = e["displaced"]["hausdorff"]
     print_table("rebuild (errors as fractions of the bbox diagonal)", rows)
     for note in result.summary["notes"][-2:]:
-        if "rebuil" in note or "edited" in note:
+        if "rebuil" in note or "edited" in note or "report.html" in note:
             print(f"note: {note}")
     return EXIT_OK
 

@@ -1,16 +1,17 @@
 """Headless renders for the report: a small numba z-buffer rasteriser and a PNG writer.
 
-Orthographic camera looking along a view direction, a head light with ambient term
-(two-sided Lambert), flat (per-face) or Gouraud (per-vertex) shading, vertex or face colours,
-a checkerboard texture from per-vertex (u, v), and heat-map colours of a scalar. No display,
-no OpenGL context: the triangles are scan-converted by :func:`meshfit._kernels.render.raster`
-(serial, releases the GIL). Output images are 8-bit RGB PNG through pypng, written
-atomically.
+Orthographic camera (:class:`Camera`) looking along a view direction, a head light with
+ambient term (two-sided Lambert), flat (per-face) or Gouraud (per-vertex) shading, vertex or
+face colours, a checkerboard texture from per-vertex (u, v), and heat-map colours of a scalar.
+No display, no OpenGL context: the triangles are scan-converted by
+:func:`meshfit._kernels.render.raster` (serial, releases the GIL). Output images are 8-bit
+RGB PNG through pypng, written atomically.
 """
 
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +23,7 @@ from meshfit.errors import InputError
 
 __all__ = [
     "PALETTE",
+    "Camera",
     "camera_frame",
     "heat_colors",
     "patch_colors",
@@ -54,6 +56,77 @@ PALETTE = np.array(
         [0.898, 0.769, 0.580],
     ]
 )
+
+
+#: a point or direction in model space
+Vec3 = tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Camera:
+    """The orthographic camera of :func:`render`: image size, view, up and framing.
+
+    One value for what several renders of a model share, so that they match and
+    :func:`render` keeps a short signature. Array-likes are accepted and stored as tuples
+    of floats, so a camera is immutable and hashable.
+
+    Attributes
+    ----------
+    size : (int, int)
+        Image width and height, pixels, each at least 1 (default 640 x 640); each is
+        truncated to an integer.
+    view : (3,) float
+        Viewing direction, from the camera into the scene, of any nonzero length
+        (default +y).
+    up : (3,) float
+        Direction shown upwards, nonzero (default +z). Where it is (nearly) parallel to
+        ``view``, :func:`camera_frame` takes another axis.
+    bounds : tuple of (3,) float, optional
+        Points framed by the camera, given as any ``(k, 3)`` array-like (default None: the
+        rendered vertices; two points are a box given by its two extreme corners), so
+        several renders of one model share a framing.
+
+    Raises
+    ------
+    InputError
+        A size that is not two integers of at least 1, a view or up that is not a finite
+        nonzero 3-vector, or bounds that are not finite points ``(k, 3)``.
+    """
+
+    size: tuple[int, int] = (640, 640)
+    view: Vec3 = (0.0, 1.0, 0.0)
+    up: Vec3 = (0.0, 0.0, 1.0)
+    bounds: tuple[Vec3, ...] | None = None
+
+    def __post_init__(self) -> None:
+        try:
+            w, h = (int(s) for s in self.size)
+        except (TypeError, ValueError):
+            raise InputError(f"image size must be two integers, got {self.size!r}") from None
+        if w < 1 or h < 1:
+            raise InputError(f"image size must be positive, got {self.size}")
+        object.__setattr__(self, "size", (w, h))
+        object.__setattr__(self, "view", _direction(self.view, "view"))
+        object.__setattr__(self, "up", _direction(self.up, "up"))
+        if self.bounds is not None:
+            pts = np.asarray(self.bounds, dtype=np.float64)
+            if pts.size == 0:
+                pts = pts.reshape(0, 3)
+            if pts.ndim != 2 or pts.shape[1] != 3 or not np.isfinite(pts).all():
+                raise InputError(f"bounds must be finite points (k, 3), got shape {pts.shape}")
+            object.__setattr__(self, "bounds", tuple(map(tuple, pts.tolist())))
+
+
+def _direction(value: ArrayLike, name: str) -> Vec3:
+    """A finite nonzero 3-vector as a tuple of floats, else InputError naming ``name``."""
+    try:
+        d = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a 3-vector, got {value!r}") from None
+    if d.shape != (3,) or not np.isfinite(d).all() or not d.any():
+        raise InputError(f"{name} must be a finite nonzero 3-vector, got {value!r}")
+    x, y, z = d.tolist()
+    return (x, y, z)
 
 
 def camera_frame(view: ArrayLike, up: ArrayLike = (0.0, 0.0, 1.0)) -> NDArray[np.float64]:
@@ -94,15 +167,12 @@ def render(
     vertices: ArrayLike,
     faces: ArrayLike,
     *,
-    size: tuple[int, int] = (640, 640),
-    view: ArrayLike = (0.0, 1.0, 0.0),
-    up: ArrayLike = (0.0, 0.0, 1.0),
+    camera: Camera | None = None,
     vertex_colors: ArrayLike | None = None,
     face_colors: ArrayLike | None = None,
     uv: ArrayLike | None = None,
     checker: float = 0.0,
     shading: str = "gouraud",
-    bounds: ArrayLike | None = None,
 ) -> NDArray[np.uint8]:
     """Render a triangle mesh to an RGB image.
 
@@ -111,12 +181,9 @@ def render(
     vertices : (n, 3) float64
         Model units.
     faces : (m, 3) int64
-    size : (int, int)
-        Image width and height, pixels (default 640 x 640).
-    view : (3,) float64
-        Viewing direction (from the camera into the scene); default +y.
-    up : (3,) float64
-        Direction shown upwards (default +z).
+    camera : Camera, optional
+        Image size, view, up and framing (default ``Camera()``: 640 x 640 pixels, looking
+        along +y with +z up, framing the vertices).
     vertex_colors : (n, 3) float64 in [0, 1] or uint8, optional
         Interpolated across faces; default light grey.
     face_colors : (m, 3) float64 in [0, 1] or uint8, optional
@@ -127,9 +194,6 @@ def render(
         Checker squares per unit of ``uv`` (default 0: no texture).
     shading : {"gouraud", "flat"}
         Light per vertex (normals averaged over faces) interpolated, or per face.
-    bounds : (k, 3) float64, optional
-        Points framed by the camera (default the vertices; ``k = 2`` is a box given by its
-        two extreme corners), so several renders of one model share a framing.
 
     Returns
     -------
@@ -143,11 +207,12 @@ def render(
         raise InputError("render: a face index is out of range")
     if shading not in ("gouraud", "flat"):
         raise InputError(f"shading must be 'gouraud' or 'flat', got {shading!r}")
-    w, h = (int(s) for s in size)
-    if w < 1 or h < 1:
-        raise InputError(f"image size must be positive, got {size}")
-    R = camera_frame(view, up)
-    pts = np.asarray(bounds, dtype=np.float64) if bounds is not None else V
+    cam = Camera() if camera is None else camera
+    if not isinstance(cam, Camera):
+        raise InputError(f"camera must be a Camera, got {type(camera).__name__}")
+    w, h = cam.size
+    R = camera_frame(cam.view, cam.up)
+    pts = V if cam.bounds is None else np.array(cam.bounds, dtype=np.float64).reshape(-1, 3)
     if pts.shape[0] == 2:  # a box: frame its eight corners
         pts = np.array(
             [[pts[i][0], pts[j][1], pts[k][2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)]

@@ -12,6 +12,7 @@ import html
 import os
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -19,9 +20,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from meshfit._atomic import write_text
-from meshfit.render import heat_colors, patch_colors, render, write_png_rgb
+from meshfit.render import Camera, heat_colors, patch_colors, render, write_png_rgb
 
-__all__ = ["REPORT_IMAGES", "model_view", "write_html", "write_report"]
+__all__ = ["REPORT_IMAGES", "ReportInputs", "model_view", "write_html", "write_report"]
 
 #: the model renders of the report, in order: (file stem, caption)
 REPORT_IMAGES = (
@@ -111,21 +112,50 @@ def _map_image(values: NDArray[np.float64], scale: float) -> NDArray[np.uint8]:
     return np.rint(t * 255.0).astype(np.uint8)
 
 
+@dataclass(frozen=True, eq=False)
+class ReportInputs:
+    """What :func:`write_report` shows of a fit.
+
+    Attributes
+    ----------
+    mesh : Mesh
+        The input.
+    grids : list of (nu, nv, 3) float64
+        Spring meshes.
+    surfaces : list of BSplineSurface
+    maps : list of DisplacementMap
+    displaced : list of (nu, nv, 3) float64, or a callable returning it
+        Displaced reconstructions (a callable is called only when images are rendered).
+    summary : dict
+        The fit summary (tables); ``report_images`` and the map and error scales are added
+        to it.
+    face_patch : (nf,) int64, optional
+        Patch of each input face (from the cut); None draws the input in one grey.
+    spline : list of (nu, nv, 3) float64, or a callable returning it, optional
+        Each surface evaluated at its spring grid's parameters, when already computed;
+        default evaluated here.
+    spline_distance : (n,) float64, optional
+        Distance of each spline-only grid vertex (patches in order, row-major) to the input,
+        model units, when already measured; default measured here.
+    """
+
+    mesh: Any
+    grids: list[NDArray[np.float64]]
+    surfaces: list
+    maps: list
+    displaced: Callable[[], list[NDArray[np.float64]]] | list[NDArray[np.float64]]
+    summary: dict[str, Any]
+    face_patch: NDArray[np.int64] | None = None
+    spline: Callable[[], list[NDArray[np.float64]]] | list[NDArray[np.float64]] | None = None
+    spline_distance: NDArray[np.float64] | None = None
+
+
 def write_report(
     out: str | os.PathLike,
+    fit: ReportInputs,
     *,
-    mesh,
-    layout,
-    face_patch: NDArray[np.int64] | None,
-    grids: list[NDArray[np.float64]],
-    surfaces: list,
-    displaced: Callable[[], list[NDArray[np.float64]]] | list[NDArray[np.float64]],
-    dmaps: list,
-    spline: Callable[[], list[NDArray[np.float64]]] | list[NDArray[np.float64]] | None = None,
-    summary: dict[str, Any],
     image_size: int = 640,
     render_images: bool = True,
-    spline_distance: NDArray[np.float64] | None = None,
 ) -> dict[str, Any]:
     """Render the report images and write ``report.html``.
 
@@ -133,35 +163,20 @@ def write_report(
     ----------
     out : path
         The fit's output folder; images go to ``out/report/``.
-    mesh : Mesh
-        The input.
-    layout : Layout
-    face_patch : (nf,) int64 or None
-        Patch of each input face (from the cut); None paints the layout curves' faces only.
-    grids : list of (nu, nv, 3) float64
-        Spring meshes.
-    surfaces : list of BSplineSurface
-    displaced : list of (nu, nv, 3) float64, or a callable returning it
-        Displaced reconstructions.
-    dmaps : list of DisplacementMap
-    spline : list of (nu, nv, 3) float64, or a callable returning it, optional
-        Each surface evaluated at its spring grid's parameters, when already computed;
-        default evaluated here.
-    summary : dict
-        The fit summary (tables); ``report_images`` is added to it.
+    fit : ReportInputs
+        What is shown; its ``summary`` gets ``report_images`` added.
     image_size : int
         Width and height of the model renders, pixels.
     render_images : bool
         False re-uses images already in ``out/report`` (resume) and only rewrites the page.
-    spline_distance : (n,) float64, optional
-        Distance of each spline-only grid vertex (patches in order, row-major) to the input,
-        model units, when already measured; default measured here.
 
     Returns
     -------
     dict
         ``images``: paths of the images relative to ``out``.
     """
+    mesh, grids, surfaces, summary = fit.mesh, fit.grids, fit.surfaces, fit.summary
+    face_patch, spline, dmaps = fit.face_patch, fit.spline, fit.maps
     out = Path(out)
     folder = out / "report"
     folder.mkdir(parents=True, exist_ok=True)
@@ -169,10 +184,13 @@ def write_report(
     images = [f"report/{stem}.png" for stem, _ in REPORT_IMAGES]
     images += [f"report/map_{p:03d}.png" for p in range(n)]
     if render_images:
-        size = (int(image_size), int(image_size))
         view, up = model_view(mesh.vertices)
-        frame = mesh.vertices[:: max(1, mesh.n_vertices // 20000)]
-        kw = {"size": size, "view": view, "up": up, "bounds": frame}
+        camera = Camera(
+            size=(int(image_size), int(image_size)),
+            view=tuple(view),
+            up=tuple(up),
+            bounds=mesh.vertices[:: max(1, mesh.n_vertices // 20000)].tolist(),
+        )
         # layout: input faces coloured by patch
         if face_patch is None:
             face_patch = np.full(mesh.n_faces, -1, dtype=np.int64)
@@ -182,7 +200,7 @@ def write_report(
                 mesh.faces,
                 face_colors=patch_colors(face_patch),
                 shading="flat",
-                **kw,
+                camera=camera,
             )
         }
         topology: dict = {}  # the grids, splines and displaced grids share their triangles
@@ -193,7 +211,7 @@ def write_report(
         vcol[F[:, 1]] = cols
         vcol[F[:, 2]] = cols
         jobs["springs"] = lambda: render(
-            V, F, vertex_colors=vcol, uv=UV, checker=1.0, shading="flat", **kw
+            V, F, camera=camera, vertex_colors=vcol, uv=UV, checker=1.0, shading="flat"
         )
         if spline is None:
             spline = [
@@ -201,16 +219,16 @@ def write_report(
                 for s, g in zip(surfaces, grids, strict=True)
             ]
         Vs, Fs, _, _ = _grid_soup(spline() if callable(spline) else spline, topology)
-        jobs["spline"] = lambda: render(Vs, Fs, **kw)
-        disp = displaced() if callable(displaced) else displaced
+        jobs["spline"] = lambda: render(Vs, Fs, camera=camera)
+        disp = fit.displaced() if callable(fit.displaced) else fit.displaced
         Vd, Fd, _, _ = _grid_soup(disp, topology)
-        jobs["displaced"] = lambda: render(Vd, Fd, **kw)
-        dist = spline_distance
+        jobs["displaced"] = lambda: render(Vd, Fd, camera=camera)
+        dist = fit.spline_distance
         if dist is None or len(dist) != len(Vs):
             dist = mesh.closest_points(Vs).distance
         vmax = float(np.quantile(dist, 0.99)) if dist.size else 0.0
         summary["error_map_max"] = vmax / mesh.bbox_diagonal
-        jobs["error"] = lambda: render(Vs, Fs, vertex_colors=heat_colors(dist, vmax), **kw)
+        jobs["error"] = lambda: render(Vs, Fs, camera=camera, vertex_colors=heat_colors(dist, vmax))
         scale = max(float(np.abs(d.values).max()) for d in dmaps) if dmaps else 0.0
 
         def map_png(p: int) -> None:

@@ -169,6 +169,36 @@ class FitResult:
         _update_manifest(out, [f for fs in files.values() for f in fs])
         return files
 
+    def report(self, folder: str | os.PathLike, *, image_size: int | None = None) -> list[str]:
+        """Render ``report.html`` and its images into ``folder`` (default size the options');
+        returns the files written, relative to ``folder``. Needs the input mesh (the result's
+        own, or ``load_fit(folder, mesh=...)``): the layout and error renders are drawn on it."""
+        from meshfit.report import ReportInputs, write_report
+
+        if self.mesh is None:
+            raise InputError(
+                "a report is drawn on the input mesh: load the fit with it "
+                "(load_fit(folder, mesh=...), meshfit rebuild --mesh PATH)"
+            )
+        out = Path(folder)
+        out.mkdir(parents=True, exist_ok=True)
+        shown = ReportInputs(
+            mesh=self.mesh,
+            grids=[p.spring for p in self.patches],
+            surfaces=self.surfaces,
+            maps=self.maps,
+            displaced=lambda: [p.displaced() for p in self.patches],
+            summary=self.summary,
+            face_patch=self.face_patch,
+            spline_distance=self.spline_distance,
+        )
+        size = self.options.image_size if image_size is None else int(image_size)
+        images = write_report(out, shown, image_size=size)["images"]
+        self.summary.setdefault("outputs", {})["report"] = ["report.html"]
+        files = ["report.html", *images]
+        _update_manifest(out, files)
+        return files
+
     # ------------------------------------------------------------------ edit / rebuild
     def with_maps(self, maps: list[DisplacementMap]) -> FitResult:
         """The same fit with other maps (one per patch), not yet rebuilt."""

@@ -657,22 +657,24 @@ class Report(Stage):
         return self.images_ok
 
     def run(self, ctx: Context) -> None:
-        from meshfit.report import write_report
+        from meshfit.report import ReportInputs, write_report
 
-        ctx["report"] = write_report(
-            self.out,
+        shown = ReportInputs(
             mesh=ctx["mesh"],
-            layout=ctx["layout"],
-            face_patch=ctx["face_patch"],
             grids=ctx["grids"],
             surfaces=ctx["surfaces"],
+            maps=ctx["maps"],
             displaced=lambda: ctx["displaced"],
-            spline=lambda: ctx["spline_grids"],
-            dmaps=ctx["maps"],
             summary=ctx["summary"],
+            face_patch=ctx["face_patch"],
+            spline=lambda: ctx["spline_grids"],
+            spline_distance=ctx["spline_distance"],
+        )
+        ctx["report"] = write_report(
+            self.out,
+            shown,
             image_size=ctx.options.outputs.image_size,
             render_images=not self.images_ok,
-            spline_distance=ctx["spline_distance"],
         )
 
     def save(self, ctx: Context, path: Path) -> None:
