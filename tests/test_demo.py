@@ -14,6 +14,7 @@ from meshfit import cli, tol
 from meshfit.demo import demo_mesh, run_demo
 from meshfit.mesh import load_mesh
 from meshfit.pipeline import FitOptions
+from meshfit.pipeline.outputs import read_manifest
 
 from .conftest import ROOT
 
@@ -68,6 +69,15 @@ def test_run_demo_fits_and_reports(tmp_path):
     assert sum(p["folded"] for p in summary["patches"]) == 0
     assert summary["errors"]["displaced"]["rms"] < summary["errors"]["spline_only"]["rms"]
     assert not list(tmp_path.rglob("*.tmp"))
+    # every file the demo wrote is in the manifest (the stage cache is not a result)
+    listed = set(read_manifest(tmp_path))
+    written = {
+        p.relative_to(tmp_path).as_posix()
+        for p in tmp_path.rglob("*")
+        if p.is_file() and "stages" not in p.relative_to(tmp_path).parts
+    }
+    assert written - listed == {"manifest.json"}
+    assert read_manifest(tmp_path)["demo_scan.ply"]["kind"] == "mesh"
 
 
 def test_cli_demo_json(tmp_path, capsys):

@@ -169,6 +169,7 @@ def run_demo(
     from meshfit.mesh import save_mesh
     from meshfit.mesh.measures import mesh_statistics
     from meshfit.pipeline import FitOptions, fit
+    from meshfit.pipeline.outputs import update_manifest
 
     console = Console(quiet=quiet, stderr=True)
     out = Path(out)
@@ -196,6 +197,7 @@ def run_demo(
         )
     with stage_progress(quiet=quiet) as prog:
         summary = fit(mesh, layout, options=options, out=out, progress=prog).summary
+    update_manifest(out, [mesh_path.name, "info.json"])  # the input beside the fit
     summary["statistics"] = stats
     summary["generate_seconds"] = round(generate, 3)
     summary["layout_seconds"] = round(t_layout, 3)

@@ -44,6 +44,19 @@ class Side(StrEnum):
         """Index of the parameter running along this side: 1 (v) on u0/u1, 0 (u) on v0/v1."""
         return 1 if self.value[0] == "u" else 0
 
+    def row(self, a: NDArray, depth: int = 0) -> NDArray:
+        """Row ``depth`` in from this side of an ``(n, m, ...)`` array, in increasing
+        parameter order: a view, so it can be assigned to (``depth=0`` is the boundary row,
+        ``depth=1`` the row of tangent control points)."""
+        d = int(depth)
+        if self is Side.U0:
+            return a[d, :]
+        if self is Side.U1:
+            return a[-1 - d, :]
+        if self is Side.V0:
+            return a[:, d]
+        return a[:, -1 - d]
+
 
 _AROUND = (Side.V0, Side.U1, Side.V1, Side.U0)
 

@@ -14,11 +14,12 @@ from meshfit._kernels import bspline as _k
 from meshfit.bspline.basis import DEGREE, basis_local, basis_matrix, clamped_knots
 from meshfit.bspline.surface import BSplineSurface
 from meshfit.errors import InputError
+from meshfit.types import Side
 
 __all__ = ["FitErrors", "closest_parameters", "fit_bspline", "fit_errors", "grid_parameters"]
 
-#: names of the boundary rows of control points that can be pinned, and the row they name
-SIDES = ("u0", "u1", "v0", "v1")
+#: names of the boundary rows of control points that can be pinned (:class:`Side`)
+SIDES = tuple(Side)
 #: reach of `fit_bspline`'s smoothing Gaussian in standard deviations: terms below
 #: exp(-REACH^2 / 2) of its peak are dropped (in its Fourier series too)
 _GAUSS_REACH = 8.0
@@ -225,19 +226,19 @@ def fit_bspline(
     cols_free = np.ones(mv, dtype=bool)
     for side, values in pin_boundary.items():
         if side not in SIDES:
-            raise InputError(f"pin_boundary side must be one of {SIDES}, got {side!r}")
+            raise InputError(f"pin_boundary side must be one of {', '.join(SIDES)}, got {side!r}")
         n = mv if side[0] == "u" else mu
         vals = np.asarray(values, dtype=np.float64)
         if vals.shape != (n, 3) or not np.isfinite(vals).all():
             raise InputError(
                 f"pin_boundary[{side!r}] must be finite with shape ({n}, 3), got {vals.shape}"
             )
-        idx = (np.s_[0, :], np.s_[-1, :], np.s_[:, 0], np.s_[:, -1])[SIDES.index(side)]
-        overlap = fixed[idx]
-        if overlap.any() and not np.array_equal(P[idx][overlap], vals[overlap]):
+        row = Side(side)
+        overlap = row.row(fixed)
+        if overlap.any() and not np.array_equal(row.row(P)[overlap], vals[overlap]):
             raise InputError(f"pin_boundary[{side!r}] disagrees with another side at a corner")
-        P[idx] = vals
-        fixed[idx] = True
+        row.row(P)[...] = vals
+        row.row(fixed)[...] = True
         if side[0] == "u":
             rows_free[0 if side == "u0" else -1] = False
         else:

@@ -25,6 +25,7 @@ __all__ = [
     "file_kind",
     "patch_names",
     "read_manifest",
+    "update_manifest",
     "write_exports",
     "write_manifest",
 ]
@@ -57,6 +58,7 @@ def file_kind(name: str) -> str:
     return {
         "png": "image",
         "obj": "mesh",
+        "ply": "mesh",
         "glb": "mesh",
         "usda": "usd",
         "3dm": "cad",
@@ -98,6 +100,17 @@ def write_manifest(folder: Path, files: Sequence[str], keep: dict | None = None)
     data: dict[str, Any] = {"meshfit_manifest": MANIFEST_FORMAT, "pipeline": PIPELINE_FORMAT}
     data["files"] = dict(sorted(entries.items()))
     return write_json(folder / MANIFEST, data)
+
+
+def update_manifest(folder: Path, written: Sequence[str]) -> Path:
+    """The manifest with ``written`` (re-hashed) added to what it listed before (files gone
+    since are dropped); maps the user edited keep their old entries, so they still read as
+    edited."""
+    folder = Path(folder)
+    old = read_manifest(folder)
+    keep = edited_maps(folder)
+    others = [f for f in old if f not in written and f not in keep and (folder / f).is_file()]
+    return write_manifest(folder, [*others, *written], keep=keep)
 
 
 def edited_maps(folder: Path) -> dict[str, dict[str, str]]:

@@ -28,9 +28,8 @@ from meshfit.pipeline.options import FitOptions
 from meshfit.pipeline.outputs import (
     edited_maps,
     patch_names,
-    read_manifest,
+    update_manifest,
     write_exports,
-    write_manifest,
 )
 from meshfit.pipeline.store import PIPELINE_FORMAT, load_npz, save_npz, write_json
 from meshfit.stitch import Network, SharedBoundary
@@ -125,7 +124,7 @@ class FitResult:
         (options, network, kinds), ``layout.json`` and ``summary.json``; the manifest lists
         them. :func:`load_fit` reads them back bit for bit."""
         out = self._write(folder)
-        _update_manifest(out, FIT_FILES)
+        update_manifest(out, FIT_FILES)
         return out
 
     def _write(self, folder: str | os.PathLike) -> Path:
@@ -166,7 +165,7 @@ class FitResult:
         files = write_exports(out, self.surfaces, self.maps, fmts, notes=notes)
         self.summary.setdefault("notes", []).extend(notes)
         self.summary.setdefault("outputs", {}).update(files)
-        _update_manifest(out, [f for fs in files.values() for f in fs])
+        update_manifest(out, [f for fs in files.values() for f in fs])
         return files
 
     def report(self, folder: str | os.PathLike, *, image_size: int | None = None) -> list[str]:
@@ -196,7 +195,7 @@ class FitResult:
         images = write_report(out, shown, image_size=size)["images"]
         self.summary.setdefault("outputs", {})["report"] = ["report.html"]
         files = ["report.html", *images]
-        _update_manifest(out, files)
+        update_manifest(out, files)
         return files
 
     # ------------------------------------------------------------------ edit / rebuild
@@ -240,15 +239,6 @@ def _network_from_json(d: dict[str, Any]) -> Network:
     )
     corners = tuple(tuple((int(k), int(i), int(j)) for k, i, j in c) for c in d["corners"])
     return Network(int(d["n_patches"]), bounds, corners)
-
-
-def _update_manifest(out: Path, written) -> None:
-    """The manifest with ``written`` (re-hashed) added to what it listed before; maps the
-    user edited keep their old entries, so they still read as edited."""
-    old = read_manifest(out)
-    keep = edited_maps(out)
-    others = [f for f in old if f not in written and f not in keep and (out / f).is_file()]
-    write_manifest(out, [*others, *written], keep=keep)
 
 
 def _map_from_file(path: Path, like: DisplacementMap) -> DisplacementMap:

@@ -37,15 +37,9 @@ def side_row(a: NDArray, side: str, depth: int = 0) -> NDArray:
     ``depth=0`` is the boundary row itself, ``depth=1`` the row of tangent control points.
     Returns a view.
     """
-    if side == "u0":
-        return a[depth, :]
-    if side == "u1":
-        return a[-1 - depth, :]
-    if side == "v0":
-        return a[:, depth]
-    if side == "v1":
-        return a[:, -1 - depth]
-    raise InputError(f"side must be one of {SIDES}, got {side!r}")
+    if side not in SIDES:
+        raise InputError(f"side must be one of {', '.join(SIDES)}, got {side!r}")
+    return Side(side).row(a, depth)
 
 
 def _direction(side: str) -> int:
