@@ -74,7 +74,7 @@ def test_run_demo_fits_and_reports(tmp_path):
     written = {
         p.relative_to(tmp_path).as_posix()
         for p in tmp_path.rglob("*")
-        if p.is_file() and "stages" not in p.relative_to(tmp_path).parts
+        if p.is_file() and ".meshfit" not in p.relative_to(tmp_path).parts
     }
     assert written - listed == {"manifest.json"}
     assert read_manifest(tmp_path)["demo_scan.ply"]["kind"] == "mesh"

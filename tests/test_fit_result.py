@@ -13,6 +13,7 @@ import pytest
 import meshfit
 from meshfit import tol
 from meshfit.cli import main
+from meshfit.displacement.io import from_image
 from meshfit.errors import InputError
 from meshfit.pipeline import FitOptions, FitResult, load_fit
 from meshfit.pipeline.outputs import edited_maps, read_manifest
@@ -20,7 +21,10 @@ from meshfit.pipeline.outputs import edited_maps, read_manifest
 from .conftest import ROOT, mesh_path, real_mesh
 
 LAYOUT = ROOT / "examples" / "layouts" / "spot.json"
-OPTIONS = FitOptions(controls=(6, 6), spring_level=1, formats=("exr",), report=False)
+# native maps: the displaced surface is the spring mesh itself, which the tests below use
+OPTIONS = FitOptions(
+    controls=(6, 6), spring_level=1, formats=("exr",), report=False, map_shapes="native"
+)
 PATCH = 5  # the patch whose map is painted
 
 
@@ -32,7 +36,8 @@ def spot(tmp_path_factory):
     out = tmp_path_factory.mktemp("spot_fit")
     mesh_file = mesh_path("spot")
     argv = ["fit", str(mesh_file), "--layout", str(LAYOUT), "--out", str(out), "--cv", "6x6"]
-    argv += ["--level", "1", "--formats", "exr", "--no-report", "--json"]
+    argv += ["--level", "1", "--formats", "exr", "--no-report", "--map-shapes", "native"]
+    argv += ["--json"]
     assert main(argv) == 0
     return mesh, memory, out
 
@@ -125,15 +130,16 @@ def _painted_fit(spot, tmp_path, height: float = 0.01):
     shutil.copytree(out, folder)
     before = load_fit(folder)
     diag = before.summary["mesh"]["bbox_diagonal"]
-    image = folder / "maps" / f"patch_{PATCH:03d}.vector.exr"
+    image = folder / "maps" / f"spot_vector.{1001 + PATCH}.exr"
     h, w = before.patches[PATCH].displacement.shape
-    bump = _paint(image, (h // 2, w // 2), min(h, w) / 5, height * diag)
+    # the image is w rows (v, upwards) by h columns (u); the bump back in texel order
+    bump = from_image(_paint(image, (w // 2, h // 2), min(h, w) / 5, height * diag))
     return folder, before, image, bump, diag
 
 
 def test_an_edited_map_moves_the_surface_there_and_nowhere_else(spot, tmp_path):
     folder, before, image, bump, diag = _painted_fit(spot, tmp_path)
-    assert list(edited_maps(folder)) == [f"maps/patch_{PATCH:03d}.vector.exr"]
+    assert list(edited_maps(folder)) == [f"maps/spot_vector.{1001 + PATCH}.exr"]
     edited_bytes = image.read_bytes()
     assert main(["rebuild", str(folder), "--json"]) == 0
     assert image.read_bytes() == edited_bytes  # the user's image is the input: never rewritten
@@ -208,7 +214,7 @@ def test_a_refit_keeps_the_edited_map_and_says_so(spot, tmp_path):
         again = meshfit.fit(mesh, LAYOUT, options=OPTIONS, out=folder, resume=resume)
         assert image.read_bytes() == edited_bytes
         assert any("edited map file(s) kept" in n for n in again.summary["notes"])
-        assert list(edited_maps(folder)) == [f"maps/patch_{PATCH:03d}.vector.exr"]
+        assert list(edited_maps(folder)) == [f"maps/spot_vector.{1001 + PATCH}.exr"]
     # the stored fit is the fit's own: the edit waits for a rebuild
     stored = load_fit(folder, edited=False).patches[PATCH].displacement.values
     edited = load_fit(folder).patches[PATCH].displacement.values
@@ -279,11 +285,11 @@ def test_every_map_kind_fits_saves_and_rebuilds(spot, tmp_path, kind):
     e, ev = res.summary["errors"], vector.summary["errors"]
     if kind == "bump":  # shading only: the surface is the spline
         assert e["displaced"]["rms"] == pytest.approx(e["spline_only"]["rms"], rel=1e-9)
-        assert (tmp_path / "spline.obj").is_file() and not (tmp_path / "displaced.obj").exists()
+        assert (tmp_path / "spot_spline.obj").is_file() and not (tmp_path / "spot.obj").exists()
     else:  # a distance along the normal: between the spline alone and the vector map
         assert ev["displaced"]["rms"] < e["displaced"]["rms"] < e["spline_only"]["rms"]
         assert res.summary["seams"]["displaced_gap_max"] <= tol.STITCH_GAP
-    assert (tmp_path / "maps" / f"patch_000.{kind}.exr").is_file()
+    assert (tmp_path / "maps" / f"spot_{kind}.1001.exr").is_file()
     back = load_fit(tmp_path)
     assert [m.kind for m in back.maps] == [kind] * 24
     for a, b in zip(back.maps, res.maps, strict=True):

@@ -22,7 +22,13 @@ from .conftest import ROOT, real_mesh
 
 LAYOUT = ROOT / "examples" / "layouts" / "spot.json"
 OPTIONS = FitOptions(
-    controls=(6, 6), spring_level=1, formats=FORMATS, report=False, workers=2, continuity="c0"
+    controls=(6, 6),
+    spring_level=1,
+    formats=FORMATS,
+    report=False,
+    workers=2,
+    continuity="c0",
+    map_shapes="native",  # the maps at the spring grids' resolutions (matched: see below)
 )
 
 
@@ -130,30 +136,33 @@ def test_exports_read_back(spot_fit):
             assert (out / f).is_file(), f
     assert not list(out.rglob("*.tmp")) and not list(out.rglob(".*.*"))
     shapes = {p["patch"]: tuple(p["map_shape"]) for p in summary["patches"]}
-    m = read_exr(out / "maps" / "patch_003.vector.exr")
+    m = read_exr(out / "maps" / "spot_vector.1004.exr")
     assert m.shape == shapes[3]
-    assert read_png(out / "maps" / "patch_003.vector.png").shape == shapes[3]
-    obj = trimesh.load(out / "displaced.obj", process=False, force="mesh")
-    assert len(obj.vertices) == sum(a * b for a, b in shapes.values())
+    assert read_png(out / "maps" / "spot_vector.1004.png").shape == shapes[3]
+    obj = trimesh.load(out / "spot.obj", process=False, force="mesh")
+    obj.merge_vertices(merge_tex=True, merge_norm=True)  # one vertex, a uv per patch
+    assert obj.is_watertight and obj.is_winding_consistent
     # the spline-only surface on the same vertex grid
-    spline = trimesh.load(out / "spline.obj", process=False, force="mesh")
-    assert len(spline.vertices) == len(obj.vertices)
-    # the displaced OBJ holds the spring points: inside the patches on the input surface
-    d = mesh.closest_points(np.asarray(obj.vertices)).distance
-    assert np.median(d) < 1e-9 * mesh.bbox_diagonal
+    spline = trimesh.load(out / "spot_spline.obj", process=False, force="mesh")
+    spline.merge_vertices(merge_tex=True, merge_norm=True)
+    assert len(spline.vertices) == len(obj.vertices) and spline.is_watertight
+    # the displaced OBJ is closer to the input than the spline alone
+    d = mesh.closest_points(np.asarray(obj.vertices)).distance / mesh.bbox_diagonal
+    ds = mesh.closest_points(np.asarray(spline.vertices)).distance / mesh.bbox_diagonal
+    assert np.median(d) < 0.5 * np.median(ds)
     assert (out / "layout.json").is_file()
     # STEP: one named B-spline face per patch, sewn along the stitched boundaries of the
     # closed model into one closed shell
     from tests.export.step_reader import read_step
 
-    faces, topo = read_step(out / "patches.step")
+    faces, topo = read_step(out / "spot.step")
     assert sorted(f.name for f in faces) == [f"patch_{p:03d}" for p in range(len(shapes))]
     assert topo == {"shells": 1, "closed_shells": 1, "free_edges": 0}
 
 
 def test_stage_files_reload(spot_fit):
     _, out, summary = spot_fit
-    fits = sorted((out / "stages").glob("fit-*.npz"))
+    fits = sorted((out / ".meshfit").glob("fit-*.npz"))
     assert len(fits) == 1
     z = _load_npz(fits[0])
     s = BSplineSurface(z["ctrl_0"])
@@ -267,7 +276,7 @@ def test_matched_map_shapes(spot_fit, tmp_path):
     assert any(shapes[p] != grid[p] for p in grid)
     assert matched["seams"]["displaced_gap_max"] <= tol.STITCH_GAP
     assert matched["seams"]["displaced_gap_any_resolution_max"] <= tol.STITCH_GAP
-    assert read_exr(copy / "maps" / "patch_003.vector.exr").shape == shapes[3]
+    assert read_exr(copy / "maps" / "spot_vector.1004.exr").shape == shapes[3]
     # native displaced vertices are spring points (on the input but along the averaged
     # seams); resampled maps put vertices between spring points
     near, far = (s["errors"]["displaced"]["to_input_max"] for s in (native, matched))
@@ -344,7 +353,7 @@ def test_cli_fit(tmp_path, capsys):
     out = json.loads(capsys.readouterr().out)
     assert out["patches_total"] == 24
     assert out["options"]["controls"] == [5, 4]
-    assert (tmp_path / "summary.json").is_file() and (tmp_path / "displaced.obj").is_file()
+    assert (tmp_path / "summary.json").is_file() and (tmp_path / "spot.obj").is_file()
     # the second run with --resume re-uses every stage
     assert cli.main([*argv, "--resume"]) == 0
     text = capsys.readouterr().out

@@ -68,6 +68,8 @@ def _options(args: argparse.Namespace):
         map_kind=args.maps,
         workers=args.workers,
         report=not args.no_report,
+        units=args.units,
+        up_axis=args.up_axis,
     )
 
 
@@ -259,9 +261,24 @@ def _common(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--formats",
-        default="usd,obj,glb,exr,png",
-        help="outputs among usd,3dm,iges,step,obj,glb,exr,png; step needs meshfit[cad] "
-        "(default: %(default)s)",
+        default="usd,obj,exr",
+        help="outputs among usd,3dm,iges,step,obj,glb,ply,exr,png; step needs meshfit[cad] "
+        "(default: %(default)s: USD for studio tools and Blender, OBJ for mesh tools, the "
+        "EXR maps both reference)",
+    )
+    p.add_argument(
+        "--units",
+        default="mm",
+        choices=("mm", "cm", "m", "in", "ft"),
+        help="length unit of the scan's coordinates, declared in the USD, 3dm, IGES and STEP "
+        "files (never scaled; default: %(default)s)",
+    )
+    p.add_argument(
+        "--up-axis",
+        default="auto",
+        choices=("auto", "y", "z"),
+        help="axis the exports declare as up (default auto: z for models much taller along z "
+        "than along y, else y)",
     )
     p.add_argument(
         "--level", type=int, default=None, help="final spring-mesh level (default: auto)"
@@ -290,11 +307,11 @@ def _common(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--map-shapes",
-        choices=("native", "matched"),
-        default="native",
-        help="displacement map resolutions: each at its spring grid's (native), or equal "
-        "texel counts along shared curves so that the seams are crack-free at any resolution "
-        "(matched; more texels) (default: %(default)s)",
+        choices=("matched", "native"),
+        default="matched",
+        help="displacement map resolutions: equal texel counts along shared curves, so the "
+        "exported meshes are watertight and the seams crack-free at any resolution (matched), "
+        "or each at its spring grid's (native; fewer texels) (default: %(default)s)",
     )
     p.add_argument("--no-report", action="store_true", help="skip report.html and its images")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
@@ -371,7 +388,7 @@ def add_commands(sub) -> None:
     p.add_argument(
         "--formats",
         default=None,
-        help="outputs to write, among usd,3dm,iges,step,obj,glb,exr,png (default: the fit's)",
+        help="outputs to write, among usd,3dm,iges,step,obj,glb,ply,exr,png (default: the fit's)",
     )
     p.add_argument("--mesh", default=None, help="the fit's input mesh, to measure the errors again")
     p.add_argument(

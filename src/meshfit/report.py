@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from meshfit._atomic import write_text
+from meshfit.mesh.measures import up_axis
 from meshfit.render import Camera, heat_colors, patch_colors, render, write_png_rgb
 
 __all__ = ["REPORT_IMAGES", "ReportInputs", "model_view", "write_html", "write_report"]
@@ -34,19 +35,14 @@ REPORT_IMAGES = (
 )
 
 
-#: a model is shown z-up when it is this many times taller along z than along y (scanner and
-#: CAD data); else y-up, the convention of PLY, OBJ and glTF scans
-Z_UP_RATIO = 1.25
-
-
 def model_view(vertices: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
     """View direction and up vector of the report's images.
 
-    Up is +y (the convention of PLY, OBJ and glTF), or +z where the model is more than
-    ``Z_UP_RATIO`` times taller along z than along y. The camera looks along the horizontal
-    axis of least spread, turned slightly towards the other one (a slightly oblique view
-    shows relief better than a straight one): a scanned figure or head is seen upright from
-    its broader side, a bust in profile.
+    Up is +y (the convention of PLY, OBJ and glTF), or +z where the model is much taller
+    along z than along y (:func:`meshfit.mesh.measures.up_axis`). The camera looks along
+    the horizontal axis of least spread, turned slightly towards the other one (a slightly
+    oblique view shows relief better than a straight one): a scanned figure or head is seen
+    upright from its broader side, a bust in profile.
 
     Parameters
     ----------
@@ -65,8 +61,7 @@ def model_view(vertices: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
     .. [1] Krishnamurthy 2000, sec. 7.6 (the fitted and displaced models shown as renders).
     """
     V = np.asarray(vertices, dtype=np.float64)
-    ext = V.max(axis=0) - V.min(axis=0) if len(V) else np.zeros(3)
-    up = np.array([0.0, 0.0, 1.0]) if ext[2] > Z_UP_RATIO * ext[1] else np.array([0.0, 1.0, 0.0])
+    up = np.array([0.0, 0.0, 1.0]) if up_axis(V) == "z" else np.array([0.0, 1.0, 0.0])
     x = V - V.mean(axis=0) if len(V) else np.zeros((1, 3))
     flat = x - np.outer(x @ up, up)  # the horizontal spread
     w, vecs = np.linalg.eigh(flat.T @ flat)
@@ -103,6 +98,17 @@ def _grid_soup(grids: list[NDArray[np.float64]], topology: dict | None = None):
     if topology is not None:
         topology[shapes] = rest
     return (V, *rest)
+
+
+def _hull_points(points: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The points of ``points`` on their convex hull: a camera framing them frames all of
+    them the same (the extremes of a projection lie on the hull), from far fewer points."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    try:
+        return points[ConvexHull(points).vertices]
+    except (QhullError, ValueError):  # flat or too few points: frame them all
+        return points
 
 
 def _map_image(values: NDArray[np.float64], scale: float) -> NDArray[np.uint8]:
@@ -189,7 +195,7 @@ def write_report(
             size=(int(image_size), int(image_size)),
             view=tuple(view),
             up=tuple(up),
-            bounds=mesh.vertices[:: max(1, mesh.n_vertices // 20000)].tolist(),
+            bounds=_hull_points(mesh.vertices[:: max(1, mesh.n_vertices // 20000)]),
         )
         # layout: input faces coloured by patch
         if face_patch is None:

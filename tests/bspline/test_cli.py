@@ -38,7 +38,7 @@ def test_grid_fit_command(grid_files, tmp_path, capsys):
     assert res["seams_after"]["angle_max_deg"] <= 0.5
     assert res["seams_before"]["gap_max"] > res["seams_after"]["gap_max"]
     names = ("patches.usda", "displaced.obj", "splines.obj", "patches.igs", "patches.3dm")
-    for name in (*names, "preview.glb", "patch_000.vector.exr"):
+    for name in (*names, "preview.glb", "patch_000.vector.exr", "maps/patches_vector.1004.exr"):
         assert (out / name).is_file()
     assert _own(["fit", *grid_files, "--controls", "5", "7"]) == 0
     assert "seams after stitching" in capsys.readouterr().out

@@ -1,4 +1,5 @@
 import numpy as np
+import OpenEXR
 import png
 import pytest
 from numpy.testing import assert_allclose
@@ -16,6 +17,7 @@ from meshfit.displacement import (
     sample_bilinear,
     vector_values,
 )
+from meshfit.displacement.io import to_image, write_png
 from meshfit.errors import ImageFileError, InputError
 from tests.bspline.grids import random_surface, scan_grid
 
@@ -209,7 +211,7 @@ def test_edited_images_rebuild_geometry(fitted, tmp_path):
     n = displacement_map(s, X, kind="scalar", scalar="component")
     lo, hi = float(n.values.min()), float(n.values.max())
     q8 = np.rint((n.values[..., 0] - lo) / (hi - lo) * 255).astype(np.uint8)
-    rgb = np.repeat(q8[..., None], 3, axis=2)
+    rgb = to_image(np.repeat(q8[..., None], 3, axis=2))  # x along u, y up along v
     with open(tmp_path / "edit.png", "wb") as fh:
         png.Writer(rgb.shape[1], rgb.shape[0], bitdepth=8, greyscale=False).write(
             fh, rgb.reshape(rgb.shape[0], -1).tolist()
@@ -267,3 +269,35 @@ def test_bad_maps_and_files(tmp_path, rng):
         displacement_map(s, X, kind="scalar", scalar="closest")
     with pytest.raises(InputError, match="needs a bump map"):
         bump_normals(s, displacement_map(s, X))
+
+
+@pytest.mark.parametrize("fmt", ["exr", "png"])
+def test_map_images_are_in_texture_orientation(tmp_path, fmt):
+    # texel [i, j] at (u_i, v_j): image x runs along u, image y along v, row 0 at v = 1
+    h, w = 5, 3
+    u, v = np.meshgrid(np.arange(h), np.arange(w), indexing="ij")
+    d = DisplacementMap(np.stack([u, v, u * 10 + v], axis=-1).astype(float), "vector")
+    path = tmp_path / f"ramp.{fmt}"
+    if fmt == "exr":
+        d.to_exr(path)
+        with OpenEXR.File(str(path)) as f:
+            img = np.asarray(f.channels()["RGB"].pixels, dtype=float)
+        back = read_exr(path)
+    else:
+        write_png(d, path, value_range=(0.0, 50.0))
+        _, _, rows, _ = png.Reader(bytes=path.read_bytes()).asDirect()
+        img = np.vstack([np.asarray(r, float) for r in rows]).reshape(w, h, 3) / 65535 * 50
+        back = read_png(path)
+    assert img.shape == (w, h, 3)  # w rows (v), h columns (u)
+    assert_allclose(img[0, :, 0], np.arange(h), atol=1e-3)  # u grows to the right
+    assert_allclose(img[:, 0, 1], np.arange(w)[::-1], atol=1e-3)  # v grows upwards
+    assert_allclose(back.values, d.values, atol=1e-3)
+
+
+def test_map_images_of_format_2_keep_rows_along_u(tmp_path):
+    vals = np.arange(5 * 3, dtype=np.float32).reshape(5, 3, 1)
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    header |= {"meshfit_map": "2", "meshfit_kind": "scalar"}
+    with OpenEXR.File(header, {"Y": np.ascontiguousarray(vals[:, :, 0])}) as f:
+        f.write(str(tmp_path / "old.exr"))
+    assert_allclose(read_exr(tmp_path / "old.exr").values, vals)

@@ -43,6 +43,7 @@ def cmd_fit(args: argparse.Namespace) -> int:  # noqa: C901 (one branch per outp
     from meshfit.bspline import fit_bspline, fit_errors
     from meshfit.displacement import displacement_map
     from meshfit.export import export_3dm, export_gltf, export_iges, export_obj, export_usd
+    from meshfit.export.weld import udim
     from meshfit.stitch import (
         control_classes,
         match_map_shapes,
@@ -104,9 +105,15 @@ def cmd_fit(args: argparse.Namespace) -> int:  # noqa: C901 (one branch per outp
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
         if "usd" in formats:
-            files.append(
-                export_usd(out / "patches.usda", surfaces, displacements=maps, names=names)
+            # the layer references its maps as UDIM tiles, maps/patches_vector.<UDIM>.exr
+            (out / "maps").mkdir(exist_ok=True)
+            for k, m in enumerate(maps):
+                files.append(out / "maps" / f"patches_vector.{udim(k)}.exr")
+                m.to_exr(files[-1])
+            usd = export_usd(
+                out / "patches.usda", surfaces, displacements=maps, network=net, names=names
             )
+            files.append(usd)
         if "3dm" in formats:
             files.append(export_3dm(out / "patches.3dm", surfaces, names=names))
         if "iges" in formats:

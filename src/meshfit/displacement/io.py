@@ -1,5 +1,12 @@
 """Map images: OpenEXR float32 and 16-bit PNG with the value range in the text metadata.
 
+Orientation: the texture convention of OpenEXR, USD and Blender. Image x (columns, left to
+right) runs along u and image y along v with row 0 at the top, i.e. at ``v = 1``: a map's
+texel ``values[i, j]`` at ``(u, v) = (i / (h - 1), j / (w - 1))`` is pixel ``(row w - 1 -
+j, column i)`` of a ``w`` rows by ``h`` columns image, so a renderer that samples the image
+at texture coordinate ``(u, v)`` (origin at the lower left) reads the map there. Files of
+format 2 and older stored rows along u; they are read as they were written.
+
 Every kind is written and read back: vector and bump maps as three channels, scalar and
 magnitude maps as one (a grey image). EXR files hold the float32 values (``RGB`` for
 3-channel maps, ``Y`` for 1-channel maps) and string header attributes ``meshfit_map``
@@ -27,10 +34,36 @@ from meshfit._atomic import atomic_write
 from meshfit.displacement.maps import FRAME, KINDS, DisplacementMap, canonical_kind
 from meshfit.errors import ImageFileError, InputError
 
-__all__ = ["read_exr", "read_png", "write_exr", "write_png"]
+__all__ = ["from_image", "read_exr", "read_png", "to_image", "write_exr", "write_png"]
 
-#: version of the metadata written to map images (1: scalar maps were named "normal")
-MAP_FORMAT = 2
+#: version of the metadata written to map images (1: scalar maps were named "normal";
+#: 2: image rows along u; 3: the texture orientation of the module docstring)
+MAP_FORMAT = 3
+
+
+def to_image(values: np.ndarray) -> np.ndarray:
+    """A map's ``(h, w, c)`` values (texel ``[i, j]`` at ``(u_i, v_j)``) as a ``(w, h, c)``
+    image in texture orientation: x along u, y along v, row 0 at ``v = 1``."""
+    return np.ascontiguousarray(np.swapaxes(values, 0, 1)[::-1])
+
+
+def from_image(image: np.ndarray, fmt: int = MAP_FORMAT) -> np.ndarray:
+    """The inverse of :func:`to_image` for a file of format ``fmt`` (older formats stored
+    the values as they are)."""
+    if fmt < 3:
+        return image
+    return np.swapaxes(image[::-1], 0, 1)
+
+
+def _format(value) -> int:
+    """The format version a file's metadata names; files without one (an image edited
+    elsewhere that lost its metadata) are taken as written in today's convention."""
+    try:
+        return int(value)
+    except (TypeError, ValueError):
+        return MAP_FORMAT
+
+
 _COMPRESSION = {
     "none": OpenEXR.NO_COMPRESSION,
     "zip": OpenEXR.ZIP_COMPRESSION,
@@ -54,7 +87,7 @@ def write_exr(dmap: DisplacementMap, path: str | os.PathLike, *, compression: st
     """
     if compression not in _COMPRESSION:
         raise InputError(f"compression must be one of {tuple(_COMPRESSION)}, got {compression!r}")
-    img = np.ascontiguousarray(dmap.image)
+    img = to_image(dmap.image)
     channels = {"RGB": img} if dmap.channels == 3 else {"Y": np.ascontiguousarray(img[:, :, 0])}
     header = {
         "compression": _COMPRESSION[compression],
@@ -104,7 +137,8 @@ def read_exr(path: str | os.PathLike, *, kind: str | None = None) -> Displacemen
         raise ImageFileError(
             f"{path}: a {kind} map needs {KINDS[kind]} channels, not {vals.shape[2]}"
         )
-    return DisplacementMap(vals.astype(np.float64), kind)
+    vals = from_image(vals, _format(header.get("meshfit_map")))
+    return DisplacementMap(np.ascontiguousarray(vals, dtype=np.float64), kind)
 
 
 def _kind(path: Path, kind: str | None, missing: str) -> str:
@@ -145,6 +179,7 @@ def write_png(
     if hi == lo:
         hi = lo + 1.0
     q = np.rint((np.clip(vals, lo, hi) - lo) / (hi - lo) * 65535.0).astype(np.uint16)
+    q = to_image(q)
     h, w, c = q.shape
     buf = io.BytesIO()
     png.Writer(w, h, bitdepth=16, greyscale=c == 1).write(buf, q.reshape(h, w * c).tolist())
@@ -201,6 +236,7 @@ def read_png(
     if c != KINDS[kind]:
         raise ImageFileError(f"{path}: a {kind} map needs {KINDS[kind]} channels, not {c}")
     vals = lo + q / float(2 ** info["bitdepth"] - 1) * (hi - lo)
+    vals = np.ascontiguousarray(from_image(vals, _format(meta.get("meshfit_map"))))
     if kind == "bump":
         vals /= np.linalg.norm(vals, axis=-1, keepdims=True)
     return DisplacementMap(vals, kind)

@@ -62,6 +62,40 @@ def as_displacements(displacements, n: int) -> list[DisplacementMap | None]:
     return out
 
 
+def as_maps(maps, n: int) -> list[DisplacementMap | None]:
+    """One DisplacementMap (any kind, bump included) or None per patch."""
+    if maps is None:
+        return [None] * n
+    if isinstance(maps, DisplacementMap):
+        maps = [maps]
+    out = list(maps)
+    if len(out) != n:
+        raise InputError(f"{len(out)} maps for {n} surfaces")
+    for k, d in enumerate(out):
+        if d is not None and not isinstance(d, DisplacementMap):
+            raise InputError(f"maps[{k}] is a {type(d).__name__}, not a DisplacementMap")
+    return out
+
+
+def as_shapes(shape, n: int) -> list[tuple[int, int] | None]:
+    """``shape`` as one vertex grid ``(h, w)`` (or None) per patch: a pair applies to every
+    patch; each needs at least 2 x 2 vertices."""
+    if shape is None:
+        return [None] * n
+    if len(shape) == 2 and all(isinstance(x, (int, np.integer)) for x in shape):
+        shape = [shape] * n
+    if len(shape) != n:
+        raise InputError(f"{len(shape)} shapes for {n} patches")
+    out: list[tuple[int, int] | None] = []
+    for sh in shape:
+        if len(sh) != 2 or not all(isinstance(x, (int, np.integer)) for x in sh):
+            raise InputError(f"a vertex grid is a pair of integers (h, w), got {sh!r}")
+        if min(sh) < 2:
+            raise InputError(f"a vertex grid needs at least 2 x 2 vertices, got {tuple(sh)}")
+        out.append((int(sh[0]), int(sh[1])))
+    return out
+
+
 def grid_faces(h: int, w: int) -> NDArray[np.int64]:
     """Triangles of an ``(h, w)`` grid of vertices numbered ``i * w + j``: ``(2 (h-1)(w-1), 3)``.
 

@@ -25,11 +25,9 @@ import numpy as np
 from meshfit.bspline import BSplineSurface
 from meshfit.errors import InputError
 from meshfit.export._common import as_names, as_surfaces, atomic_write
+from meshfit.export.units import unit
 
 __all__ = ["export_iges", "iges_entity_128"]
-
-#: IGES unit flags (Global parameter 14) by unit name
-UNITS = {"IN": 1, "MM": 2, "FT": 4, "MI": 5, "M": 6, "KM": 7, "MIL": 8, "UM": 9, "CM": 10}
 
 
 def _real(x: float) -> str:
@@ -80,7 +78,7 @@ def export_iges(
     surfaces: BSplineSurface | Sequence[BSplineSurface],
     *,
     names: Sequence[str] | None = None,
-    units: str = "MM",
+    units: str = "mm",
     author: str = "",
     organization: str = "",
 ) -> Path:
@@ -94,8 +92,9 @@ def export_iges(
     names : sequence of str, optional
         Entity labels (at most 8 characters are kept); default ``P0, P1, ...``.
     units : str
-        Model unit declared in the Global section, one of ``UNITS`` (default ``"MM"``);
-        coordinates are written unchanged.
+        Model unit declared in the Global section (unit flag and name), one of
+        :data:`meshfit.export.units.UNITS` (``"mm"``, ``"cm"``, ``"m"``, ``"in"``, ``"ft"``,
+        any case; default ``"mm"``); coordinates are written unchanged.
     author, organization : str
         Global section fields.
 
@@ -114,8 +113,7 @@ def export_iges(
         if names is not None
         else [f"P{k}" for k in range(len(surfaces))]
     )
-    if units not in UNITS:
-        raise InputError(f"units must be one of {tuple(UNITS)}, got {units!r}")
+    u = unit(units)
     path = Path(path)
     now = _dt.datetime.now(_dt.UTC).strftime("%Y%m%d.%H%M%S")
     cp = np.concatenate([s.control_points.reshape(-1, 3) for s in surfaces])
@@ -135,8 +133,8 @@ def export_iges(
         "15",
         _hollerith("meshfit"),
         _real(1.0),
-        str(UNITS[units]),
-        _hollerith(units),
+        str(u.iges_flag),
+        _hollerith(u.iges_name),
         "1",
         _real(diag * 1e-3),
         _hollerith(now),

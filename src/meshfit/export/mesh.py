@@ -1,9 +1,16 @@
-"""Tessellated exports: OBJ (displaced or spline-only surfaces) and a glTF binary preview."""
+"""Tessellated exports of a patch network: OBJ, glTF binary and PLY of one welded mesh.
+
+Every writer tessellates with :func:`meshfit.export.patch_mesh`: neighbouring patches share
+their boundary vertices, so each file is watertight wherever the patch network is closed, at
+every resolution, and a vertex shared by several patches has the same coordinates in every
+file written from the same patches.
+"""
 
 from __future__ import annotations
 
 import os
 from collections.abc import Mapping, Sequence
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
@@ -16,36 +23,40 @@ from meshfit.export._common import (
     as_names,
     as_surfaces,
     atomic_write,
-    tessellate,
 )
+from meshfit.export.weld import PatchMesh, _weld, spline_network
+from meshfit.stitch import Network
 
-__all__ = ["export_gltf", "export_obj", "export_objs"]
+__all__ = ["export_gltf", "export_obj", "export_objs", "export_ply"]
 
-
-def _tessellations(surfaces, displacements, names, shape):
-    surfaces = as_surfaces(surfaces)
-    names = as_names(names, len(surfaces))
-    disps = as_displacements(displacements, len(surfaces))
-    shapes = _shapes(shape, len(surfaces))
-    return names, [
-        tessellate(s, d, shape=sh) for s, d, sh in zip(surfaces, disps, shapes, strict=True)
-    ]
+Shapes = tuple[int, int] | Sequence[tuple[int, int]]
+Displacements = DisplacementMap | Sequence[DisplacementMap | None] | None
 
 
-def _shapes(shape, n: int) -> list:
-    """``shape`` as one vertex grid (or None) per patch: a pair applies to every patch."""
-    if shape is None:
-        return [None] * n
-    if all(isinstance(x, (int, np.integer)) for x in shape):  # one (h, w) for all
-        return [tuple(shape)] * n
-    if len(shape) != n:
-        raise InputError(f"{len(shape)} shapes for {n} patches")
-    return [tuple(sh) for sh in shape]
+def _patch_meshes(
+    outputs: Sequence[Displacements], surfaces, shape, network, scale
+) -> list[PatchMesh]:
+    """One PatchMesh per entry of ``outputs`` (displacements of the patches, or None): the
+    same network for all, and texture coordinates addressing each patch's first map among
+    the outputs, so spline-only and displaced meshes of one fit carry the same ones."""
+    n = len(surfaces)
+    maps = [as_displacements(d, n) for d in outputs]
+    texels: list[tuple[int, int] | None] = [None] * n
+    for ms in reversed(maps):
+        texels = [t if m is None else m.shape for t, m in zip(texels, ms, strict=True)]
+    if network is None:
+        network = spline_network(surfaces)
+    return [_weld(surfaces, ms, network, shape, scale, texels) for ms in maps]
+
+
+def _patch_ranges(pm: PatchMesh) -> np.ndarray:
+    """Face ranges of the patches: patch p's faces are ``[r[p], r[p + 1])``."""
+    return np.searchsorted(pm.face_patch, np.arange(pm.n_patches + 1))
 
 
 def _uv_lines(UV) -> list[str]:
-    """``vt`` lines of parameters ``UV (n, 2)``: each distinct u and v formatted once (a grid
-    has few), the same text as formatting every pair."""
+    """``vt`` lines of ``UV (k, 2)``: each distinct coordinate formatted once (a grid has
+    few), the same text as formatting every pair."""
     u, iu = np.unique(UV[:, 0], return_inverse=True)
     v, iv = np.unique(UV[:, 1], return_inverse=True)
     su = [f"vt {x:.17g} " for x in u.tolist()]
@@ -53,15 +64,38 @@ def _uv_lines(UV) -> list[str]:
     return [su[i] + sv[j] for i, j in zip(iu.ravel().tolist(), iv.ravel().tolist(), strict=True)]
 
 
+def _face_lines(pm: PatchMesh) -> list[list[str]]:
+    """``f v/vt/vn`` lines (1-based) of each patch."""
+    cols = np.hstack([pm.faces + 1, pm.face_uv + 1]).T.tolist()
+    lines = list(map("f {0}/{3}/{0} {1}/{4}/{1} {2}/{5}/{2}".format, *cols))
+    r = _patch_ranges(pm).tolist()
+    return [lines[a:b] for a, b in pairwise(r)]
+
+
+def _as_materials(materials: Sequence[str] | None, n: int) -> list[str] | None:
+    if materials is None:
+        return None
+    out = [os.fspath(m) for m in materials]
+    if len(out) != n:
+        raise InputError(f"{len(out)} material images for {n} surfaces")
+    for m in out:
+        if not m.strip() or any(c in m for c in "\r\n"):
+            raise InputError(f"material image {m!r} must be a non-empty single-line path")
+    return out
+
+
 def export_obj(
     path: str | os.PathLike,
     surfaces: BSplineSurface | Sequence[BSplineSurface],
     *,
-    displacements: DisplacementMap | Sequence[DisplacementMap | None] | None = None,
+    displacements: Displacements = None,
     names: Sequence[str] | None = None,
-    shape: tuple[int, int] | Sequence[tuple[int, int]] | None = None,
+    shape: Shapes | None = None,
+    network: Network | None = None,
+    scale: float = 1.0,
+    materials: Sequence[str] | None = None,
 ) -> Path:
-    """Write the patches as triangulated grids to a Wavefront OBJ file.
+    """Write the patches as one welded triangle mesh to a Wavefront OBJ file.
 
     Parameters
     ----------
@@ -69,13 +103,27 @@ def export_obj(
         Output ``.obj`` (written atomically).
     surfaces : BSplineSurface or sequence of them
     displacements : DisplacementMap or sequence of (DisplacementMap or None), optional
-        The displaced surface ``S + d`` for patches with a map, the spline alone otherwise
-        (so ``None`` writes the spline-only surfaces).
+        The displaced surface ``S + d`` for patches with a vector, scalar or magnitude map,
+        the spline alone otherwise (so ``None`` writes the spline-only surfaces).
     names : sequence of str, optional
-        One object (``o``) per patch; default ``patch_0, ...``.
+        One group (``g``) per patch; default ``patch_0, ...``.
     shape : (int, int) or sequence of them, optional
         Vertex grid of every patch, or one per patch; default the map's resolution, else 8
-        per control point.
+        per control point (made equal along shared boundaries, see
+        :func:`meshfit.export.patch_mesh`).
+    network : Network, optional
+        The patches' shared boundaries; default found from where the splines meet
+        (:func:`meshfit.export.spline_network`).
+    scale : float
+        Multiplies the number of grid intervals of every patch (default 1).
+    materials : sequence of str, optional
+        One displacement image path per patch (relative to the OBJ, or a ``<UDIM>`` path
+        shared by all): a ``.mtl`` of the same stem is written beside the OBJ with one
+        material per patch, named after it, whose ``disp`` is that image, and each group
+        uses its material. Default none: no ``.mtl``, no ``usemtl``. Only with
+        ``displacements=None``: a displaced mesh holds the detail already, and a renderer
+        would displace it twice (to have the texture coordinates address the maps' texels,
+        write the spline file together with the displaced one, :func:`export_objs`).
 
     Returns
     -------
@@ -83,18 +131,36 @@ def export_obj(
 
     Notes
     -----
-    Coordinates are written with 17 significant digits (exact float64); ``vt`` holds the
-    (u, v) parameters; triangles turn like ``S_u x S_v``.
+    ``v`` holds the welded vertices with 17 significant digits (exact float64), ``vt`` the
+    UDIM texture coordinates of :func:`meshfit.export.patch_mesh` (17 digits), ``vn`` the
+    unit vertex normals (9 digits, float32 exact); faces are ``f v/vt/vn`` and turn like
+    ``S_u x S_v``. A vertex on a shared boundary is one ``v`` with one ``vt`` per patch.
     """
-    return export_objs({path: displacements}, surfaces, names=names, shape=shape)[0]
+    if materials is not None and displacements is not None:
+        raise InputError(
+            "materials go with a spline-only OBJ (displacements=None): a displaced mesh "
+            "holds the detail already"
+        )
+    return export_objs(
+        {path: displacements},
+        surfaces,
+        names=names,
+        shape=shape,
+        network=network,
+        scale=scale,
+        materials=materials,
+    )[0]
 
 
 def export_objs(
-    outputs: Mapping[str | os.PathLike, DisplacementMap | Sequence[DisplacementMap | None] | None],
+    outputs: Mapping[str | os.PathLike, Displacements],
     surfaces: BSplineSurface | Sequence[BSplineSurface],
     *,
     names: Sequence[str] | None = None,
-    shape: tuple[int, int] | Sequence[tuple[int, int]] | None = None,
+    shape: Shapes | None = None,
+    network: Network | None = None,
+    scale: float = 1.0,
+    materials: Sequence[str] | None = None,
 ) -> list[Path]:
     """Several OBJ files of the same patches, e.g. the displaced and the spline-only surface.
 
@@ -102,12 +168,12 @@ def export_objs(
     ----------
     outputs : mapping of path to displacements
         ``{path: displacements}``: each file as :func:`export_obj` writes it with those
-        displacements (None: the splines alone). Files whose patches have the same vertex
-        grids share the text of their texture coordinates and faces, formatted once.
+        displacements (None: the splines alone).
     surfaces : BSplineSurface or sequence of them
-    names : sequence of str, optional
-    shape : (int, int) or sequence of them, optional
-        As for :func:`export_obj`, for every file.
+    names, shape, network, scale, materials
+        As for :func:`export_obj`, for every file, except that ``materials`` go only to the
+        spline-only files (displacements None): the maps complete those, while a displaced
+        file holds the detail already and a renderer would displace it twice.
 
     Returns
     -------
@@ -117,64 +183,205 @@ def export_objs(
     Raises
     ------
     meshfit.errors.InputError
-        Bad names, displacements or shapes (as :func:`export_obj`).
+        Bad names, displacements, shapes or materials (as :func:`export_obj`).
+
+    Notes
+    -----
+    All files use one network, and their texture coordinates address each patch's first
+    map among the outputs: a spline-only file carries the displaced file's coordinates, so a
+    renderer can displace it with the same images, and with the same vertex grids the files
+    share the text of their texture coordinates and faces, formatted once.
     """
-    topology: dict[tuple, list[tuple[list[str], list[str]]]] = {}
+    surfaces = as_surfaces(surfaces)
+    names_ = as_names(names, len(surfaces))
+    mats = _as_materials(materials, len(surfaces))
+    meshes = _patch_meshes(list(outputs.values()), surfaces, shape, network, scale)
+    texts: list[tuple[PatchMesh, list[str], list[list[str]]]] = []
     out = []
-    for path, displacements in outputs.items():
-        names_, tess = _tessellations(surfaces, displacements, names, shape)
-        key = tuple(V.shape[0] for V, _, _ in tess) + tuple(F.shape[0] for _, F, _ in tess)
-        if key not in topology or not all(
-            np.array_equal(a[2], b[2]) for a, b in zip(topology[key][1], tess, strict=True)
-        ):
-            text, base = [], 1
-            for V, F, UV in tess:
-                faces = map("f {0}/{0} {1}/{1} {2}/{2}".format, *(F + base).T.tolist())
-                text.append((_uv_lines(UV), list(faces)))
-                base += V.shape[0]
-            topology[key] = (text, tess)
-        text = topology[key][0]
-        lines = ["# meshfit: tessellated B-spline patches; vt = (u, v) parameters"]
-        for name, (V, _, _), (vt, faces) in zip(names_, tess, text, strict=True):
-            lines.append(f"o {name}")
-            # Python floats format faster than numpy scalars (the same text)
-            lines.extend(map("v {:.17g} {:.17g} {:.17g}".format, *V.T.tolist()))
-            lines.extend(vt)
-            lines.extend(faces)
+    for (path, displacements), pm in zip(outputs.items(), meshes, strict=True):
+        shared = next(
+            (
+                t
+                for t in texts
+                if np.array_equal(t[0].faces, pm.faces)
+                and np.array_equal(t[0].face_uv, pm.face_uv)
+                and np.array_equal(t[0].uv, pm.uv)
+            ),
+            None,
+        )
+        if shared is None:
+            shared = (pm, _uv_lines(pm.uv), _face_lines(pm))
+            texts.append(shared)
+        _, vt, faces = shared
+        path = Path(path)
+        lines = ["# meshfit: welded tessellation of B-spline patches; vt = UDIM coordinates"]
+        # the maps complete a spline-only file; a displaced file holds the detail already
+        with_mtl = mats is not None and displacements is None
+        if with_mtl:
+            mtl = path.with_suffix(".mtl")
+            _write_mtl(mtl, names_, mats)
+            lines.append(f"mtllib {mtl.name}")
+        # Python floats format faster than numpy scalars (the same text)
+        lines.extend(map("v {:.17g} {:.17g} {:.17g}".format, *pm.vertices.T.tolist()))
+        lines.extend(vt)
+        lines.extend(map("vn {:.9g} {:.9g} {:.9g}".format, *pm.normals.T.tolist()))
+        for name, patch_faces in zip(names_, faces, strict=True):
+            lines.append(f"g {name}")
+            if with_mtl:
+                lines.append(f"usemtl {name}")
+            lines.extend(patch_faces)
 
         def write(tmp: str, lines=lines) -> None:
-            with open(tmp, "w", encoding="ascii", newline="\n") as fh:
+            with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
                 fh.write("\n".join(lines) + "\n")
 
         out.append(atomic_write(path, write))
     return out
 
 
+def _write_mtl(path: Path, names: list[str], images: list[str]) -> Path:
+    lines = ["# meshfit: one material per patch; disp = its displacement image"]
+    for name, image in zip(names, images, strict=True):
+        lines += [f"newmtl {name}", "Kd 0.8 0.8 0.8", f"disp {image}", ""]
+
+    def write(tmp: str) -> None:
+        with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
+            fh.write("\n".join(lines))
+
+    return atomic_write(path, write)
+
+
 def export_gltf(
     path: str | os.PathLike,
     surfaces: BSplineSurface | Sequence[BSplineSurface],
     *,
-    displacements: DisplacementMap | Sequence[DisplacementMap | None] | None = None,
+    displacements: Displacements = None,
     names: Sequence[str] | None = None,
-    shape: tuple[int, int] | None = None,
+    shape: Shapes | None = None,
+    network: Network | None = None,
+    scale: float = 1.0,
 ) -> Path:
-    """Write a glTF binary (``.glb``) preview: one mesh per (displaced) patch.
+    """Write a glTF binary (``.glb``): one mesh per patch, cut from one welded mesh.
 
-    Same parameters as :func:`export_obj`. glTF stores float32 positions, so coordinates
-    carry float32 rounding (about 6e-8 relative). No texture coordinates: trimesh needs
-    Pillow to write them, which meshfit does not depend on.
+    Parameters
+    ----------
+    path : str or path
+        Output ``.glb`` (written atomically).
+    surfaces, displacements, names, shape, network, scale
+        As for :func:`export_obj`; ``names`` name the nodes and meshes.
+
+    Returns
+    -------
+    Path
+
+    Notes
+    -----
+    Each patch's mesh holds ``POSITION``, ``NORMAL`` and ``TEXCOORD_0`` per vertex. glTF
+    attributes are per vertex, so a vertex on a shared boundary is repeated in each patch's
+    mesh (with that patch's texture coordinate) at the same float32 position and normal:
+    merging coincident vertices gives the watertight mesh. glTF stores float32 (positions
+    carry about 6e-8 relative rounding). Its texture origin is the image's top-left corner,
+    so ``TEXCOORD_0`` holds ``(x, 1 - y)`` of the UDIM coordinates ``(x, y)`` of
+    :func:`meshfit.export.patch_mesh`; readers that flip back to a bottom-left origin
+    (trimesh, Blender) recover ``(x, y)``. The material is plain grey, without images, so
+    no image library is needed.
     """
     import trimesh
+    from trimesh.visual.material import PBRMaterial
+    from trimesh.visual.texture import TextureVisuals
 
-    names, tess = _tessellations(surfaces, displacements, names, shape)
+    surfaces = as_surfaces(surfaces)
+    names_ = as_names(names, len(surfaces))
+    pm = _patch_meshes([displacements], surfaces, shape, network, scale)[0]
+    uv_vertex = pm.uv_vertex
+    material = PBRMaterial(name="meshfit", baseColorFactor=[204, 204, 204, 255])
+    r = _patch_ranges(pm)
     scene = trimesh.Scene()
-    for name, (V, F, _uv) in zip(names, tess, strict=True):
-        mesh = trimesh.Trimesh(vertices=V, faces=F, process=False)
+    for p, name in enumerate(names_):
+        used, local = np.unique(pm.face_uv[r[p] : r[p + 1]], return_inverse=True)
+        vertex = uv_vertex[used]
+        mesh = trimesh.Trimesh(
+            vertices=pm.vertices[vertex],
+            faces=local.reshape(-1, 3),
+            vertex_normals=pm.normals[vertex],
+            process=False,
+            visual=TextureVisuals(uv=pm.uv[used], material=material),
+        )
         scene.add_geometry(mesh, node_name=name, geom_name=name)
-    data = scene.export(file_type="glb")
+    data = scene.export(file_type="glb", include_normals=True)
 
     def write(tmp: str) -> None:
         with open(tmp, "wb") as fh:
             fh.write(data)
+
+    return atomic_write(path, write)
+
+
+def export_ply(
+    path: str | os.PathLike,
+    surfaces: BSplineSurface | Sequence[BSplineSurface],
+    *,
+    displacements: Displacements = None,
+    shape: Shapes | None = None,
+    network: Network | None = None,
+    scale: float = 1.0,
+    patch_ids: bool = True,
+) -> Path:
+    """Write the welded mesh to a binary little-endian PLY file.
+
+    Parameters
+    ----------
+    path : str or path
+        Output ``.ply`` (written atomically).
+    surfaces, displacements, shape, network, scale
+        As for :func:`export_obj`.
+    patch_ids : bool
+        Give each face an ``int patch`` property, its patch index (default True).
+
+    Returns
+    -------
+    Path
+
+    Notes
+    -----
+    ``element vertex``: ``double x, y, z`` (exact float64) and ``float nx, ny, nz`` (unit
+    normals); ``element face``: ``list uchar int vertex_indices`` turning like
+    ``S_u x S_v``, then ``int patch``. PLY has no per-corner texture coordinates, so the
+    UDIM coordinates are left to the OBJ and glTF files.
+    """
+    surfaces = as_surfaces(surfaces)
+    pm = _patch_meshes([displacements], surfaces, shape, network, scale)[0]
+    n, m = len(pm.vertices), len(pm.faces)
+    if n > np.iinfo(np.int32).max:
+        raise InputError(f"{n} vertices: PLY's int vertex indices hold at most 2**31 - 1")
+    vdt = np.dtype([("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("n", "<f4", (3,))])
+    fields = [("k", "u1"), ("f", "<i4", (3,))] + ([("p", "<i4")] if patch_ids else [])
+    fdt = np.dtype(fields)
+    verts = np.empty(n, dtype=vdt)
+    verts["x"], verts["y"], verts["z"] = pm.vertices.T
+    verts["n"] = pm.normals
+    faces = np.empty(m, dtype=fdt)
+    faces["k"] = 3
+    faces["f"] = pm.faces
+    if patch_ids:
+        faces["p"] = pm.face_patch
+    header = [
+        "ply",
+        "format binary_little_endian 1.0",
+        "comment meshfit: welded tessellation of B-spline patches",
+        f"element vertex {n}",
+        *(f"property double {c}" for c in "xyz"),
+        *(f"property float {c}" for c in ("nx", "ny", "nz")),
+        f"element face {m}",
+        "property list uchar int vertex_indices",
+        *(["property int patch"] if patch_ids else []),
+        "end_header",
+    ]
+
+    def write(tmp: str) -> None:
+        with open(tmp, "wb") as fh:
+            fh.write(("\n".join(header) + "\n").encode("ascii"))
+            fh.write(verts.tobytes())
+            fh.write(faces.tobytes())
 
     return atomic_write(path, write)

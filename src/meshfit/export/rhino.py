@@ -9,6 +9,7 @@ from pathlib import Path
 from meshfit.bspline import BSplineSurface
 from meshfit.errors import ExportError
 from meshfit.export._common import as_names, as_surfaces, atomic_write
+from meshfit.export.units import unit
 
 __all__ = ["export_3dm", "rhino_knots"]
 
@@ -27,6 +28,7 @@ def export_3dm(
     surfaces: BSplineSurface | Sequence[BSplineSurface],
     *,
     names: Sequence[str] | None = None,
+    units: str = "mm",
     version: int = 8,
 ) -> Path:
     """Write the patches to a Rhino ``.3dm`` file.
@@ -38,6 +40,10 @@ def export_3dm(
     surfaces : BSplineSurface or sequence of them
     names : sequence of str, optional
         Object names; default ``patch_0, ...``.
+    units : str
+        The model's unit system, one of :data:`meshfit.export.units.UNITS` (``"mm"``,
+        ``"cm"``, ``"m"``, ``"in"``, ``"ft"``, any case; default ``"mm"``, Rhino's own
+        default); coordinates are written unchanged.
     version : int
         3dm archive version (default 8).
 
@@ -54,7 +60,9 @@ def export_3dm(
 
     surfaces = as_surfaces(surfaces)
     names = as_names(names, len(surfaces))
+    u = unit(units)
     model = rhino3dm.File3dm()
+    model.Settings.ModelUnitSystem = getattr(rhino3dm.UnitSystem, u.rhino_name)
     for name, s in zip(names, surfaces, strict=True):
         mu, mv = s.shape
         srf = rhino3dm.NurbsSurface.Create(3, False, s.degree + 1, s.degree + 1, mu, mv)

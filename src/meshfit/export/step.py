@@ -29,20 +29,9 @@ from meshfit import tol
 from meshfit.bspline import BSplineSurface
 from meshfit.errors import ExportError, InputError
 from meshfit.export._common import as_names, as_surfaces, atomic_write
+from meshfit.export.units import unit
 
-__all__ = ["STEP_UNITS", "export_step", "step_available", "step_surface", "surface_from_occ"]
-
-#: length units a STEP file may declare: OpenCASCADE's name (``write.step.unit``) and metres
-#: per unit (inch and mil are left out: cadquery-ocp 8.0 writes them as millimetres, rescaled)
-STEP_UNITS = {
-    "MM": ("MM", 1e-3),
-    "CM": ("CM", 1e-2),
-    "M": ("M", 1.0),
-    "KM": ("KM", 1e3),
-    "UM": ("UM", 1e-6),
-    "FT": ("FT", 0.3048),
-    "MI": ("MI", 1609.344),
-}
+__all__ = ["export_step", "step_available", "step_surface", "surface_from_occ"]
 
 
 def step_available() -> bool:
@@ -199,7 +188,7 @@ def export_step(
     surfaces: BSplineSurface | Sequence[BSplineSurface],
     *,
     names: Sequence[str] | None = None,
-    units: str = "MM",
+    units: str = "mm",
     sew: bool = True,
 ) -> Path:
     """Write the patches to a STEP (AP214) file.
@@ -212,8 +201,10 @@ def export_step(
     names : sequence of str, optional
         Face names; default ``patch_0, ...``.
     units : str
-        Length unit declared in the file, one of :data:`STEP_UNITS` (default ``"MM"``);
-        coordinates are written unchanged.
+        Length unit declared in the file, one of :data:`meshfit.export.units.UNITS`
+        (``"mm"``, ``"cm"``, ``"m"``, ``"in"``, ``"ft"``, any case; default ``"mm"``): an SI
+        unit, or inch and foot as conversion-based units over the millimetre; coordinates
+        are written unchanged.
     sew : bool
         Sew the faces along shared boundaries (within ``tol.STITCH_MATCH`` of the network's
         bbox diagonal) into shells; False writes them as separate faces.
@@ -236,9 +227,7 @@ def export_step(
     path = Path(path)
     if path.suffix.lower() not in (".step", ".stp"):
         raise InputError(f"a STEP file ends in .step or .stp, got {path.name!r}")
-    units = str(units).upper()
-    if units not in STEP_UNITS:
-        raise InputError(f"units must be one of {tuple(STEP_UNITS)}, got {units!r}")
+    u = unit(units)
     _need_ocp()
     from OCP.IFSelect import IFSelect_RetDone
     from OCP.Interface import Interface_Static
@@ -266,8 +255,8 @@ def export_step(
     # the writer's constructor registers (and resets) the static parameters: set them after
     writer = STEPCAFControl_Writer()
     # the document's coordinates are in the declared unit, so nothing is rescaled
-    XCAFDoc_DocumentTool.SetLengthUnit_s(doc, STEP_UNITS[units][1])
-    Interface_Static.SetCVal_s("write.step.unit", STEP_UNITS[units][0])
+    XCAFDoc_DocumentTool.SetLengthUnit_s(doc, u.meters)
+    Interface_Static.SetCVal_s("write.step.unit", u.step_name)
     Interface_Static.SetIVal_s("write.stepcaf.subshapes.name", 1)
     writer.SetNameMode(True)
 

@@ -10,7 +10,22 @@ from meshfit.mesh.core import Mesh
 from meshfit.mesh.io import RawMesh
 from meshfit.mesh.validate import Finding
 
-__all__ = ["mesh_statistics", "raw_statistics"]
+__all__ = ["Z_UP_RATIO", "mesh_statistics", "raw_statistics", "up_axis"]
+
+#: a model is taken as z-up when it is this many times taller along z than along y (scanner
+#: and CAD data); else y-up, the convention of PLY, OBJ and glTF scans
+Z_UP_RATIO = 1.25
+
+
+def up_axis(vertices) -> str:
+    """``"z"`` where the model is more than `Z_UP_RATIO` times taller along z than along y,
+    else ``"y"``: the axis the report's renders show upwards and the exports name as up
+    when not told (files of scans rarely say which axis is up)."""
+    V = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+    if not len(V):
+        return "y"
+    ext = V.max(axis=0) - V.min(axis=0)
+    return "z" if ext[2] > Z_UP_RATIO * ext[1] else "y"
 
 
 def raw_statistics(raw: RawMesh, findings: list[Finding]) -> dict[str, Any]:

@@ -36,7 +36,7 @@ __all__ = [
 #: kinds of map a fit makes (``FitOptions.map_kind``)
 MAP_KINDS = ("vector", "scalar", "bump")
 #: output formats of ``FitOptions.formats``
-FORMATS = ("usd", "3dm", "iges", "step", "obj", "glb", "exr", "png")
+FORMATS = ("usd", "3dm", "iges", "step", "obj", "glb", "ply", "exr", "png")
 
 
 @dataclass(frozen=True)
@@ -65,7 +65,10 @@ class FitOptions:
         Continuity across shared boundaries (default ``"auto"``: G1 except across the
         layout's crease curves, which stay C0). Lower case is accepted.
     formats : tuple of str
-        Outputs among :data:`FORMATS` (default usd, obj, glb, exr, png).
+        Outputs among :data:`FORMATS` (default usd, obj, exr: the USD stage for studio
+        pipelines and Blender, the OBJ with its material for every other mesh tool, and the
+        lossless EXR maps both of them reference; glb, png, ply and the CAD formats on
+        request).
     patches : int, optional
         Patch count asked of the automatic layout (``layout="auto"``).
     layout_shape : bool, optional
@@ -105,15 +108,15 @@ class FitOptions:
         user paints, thesis fig. 7.4; the spline's normal at each seam makes the seams meet
         only where both sides agree, so values on crease seams go to 0). ``"bump"``: shading
         normals for renderers; the geometry is the spline. ``"normal"`` is read as scalar.
-    map_shapes : {"native", "matched"}
-        Resolution of the vector maps. ``"native"`` (default): each map at its spring
-        grid's resolution; the displaced mesh is the spring mesh, and the seams are
-        crack-free as tessellated at the maps' own resolutions (the exported meshes; thesis
-        sec. 8.2). ``"matched"``: equal texel counts along every shared curve, the largest
-        of each equal-count class (:func:`meshfit.stitch.match_map_shapes`), so the seams
-        are crack-free at every output resolution, for a renderer that tessellates the
-        maps at its own rate; it costs texels (each class takes its largest member's
-        count) and time in the later stages.
+    map_shapes : {"matched", "native"}
+        Resolution of the maps. ``"matched"`` (default): equal texel counts along every
+        shared curve, the largest of each equal-count class
+        (:func:`meshfit.stitch.match_map_shapes`), so the seams are crack-free at every
+        output resolution: the exported meshes share their boundary vertices, and a renderer
+        that tessellates the maps at its own rate opens no crack. It costs texels (each class
+        takes its largest member's count). ``"native"``: each map at its spring grid's
+        resolution; the displaced mesh is the spring mesh, crack-free only as tessellated at
+        the maps' own resolutions (thesis sec. 8.2).
     workers : int, optional
         Threads for the per-patch stages (default: all cores).
     report : bool
@@ -123,13 +126,21 @@ class FitOptions:
     normal_errors : bool
         Also measure each patch's normal-distance fit error (eq. 6.2, a closest-point
         search per grid point; default False: the parametric error, eq. 6.1, only).
+    units : str
+        The length unit of the input's coordinates, declared by every export (USD, 3dm,
+        IGES, STEP; :data:`meshfit.export.units.UNITS`; default ``"mm"``, what scanners
+        write). Coordinates are never scaled.
+    up_axis : {"auto", "y", "z"}
+        The axis the exports declare as up (default ``"auto"``:
+        :func:`meshfit.mesh.measures.up_axis`, z for models much taller along z than along
+        y, else y). Coordinates are never turned.
     """
 
     controls: tuple[int, int] = (16, 16)
     class_controls: Any = ()
     continuity: str = "auto"
     spline_smoothing: float = 0.0
-    formats: tuple[str, ...] = ("usd", "obj", "glb", "exr", "png")
+    formats: tuple[str, ...] = ("usd", "obj", "exr")
     patches: int | None = None
     layout_shape: bool | None = None
     layout_seed: int = 0
@@ -140,11 +151,13 @@ class FitOptions:
     spring_rescue: bool = True
     spring_follow_folds: bool = False
     map_kind: str = "vector"
-    map_shapes: str = "native"
+    map_shapes: str = "matched"
     workers: int | None = None
     report: bool = True
     image_size: int = 640
     normal_errors: bool = False
+    units: str = "mm"
+    up_axis: str = "auto"
 
     def __post_init__(self) -> None:  # noqa: C901 (one check per option, in order; to split by group)
         try:
@@ -207,6 +220,13 @@ class FitOptions:
         object.__setattr__(self, "spline_smoothing", float(sm))
         if int(self.image_size) < 16:
             raise InputError(f"image_size must be >= 16 pixels, got {self.image_size}")
+        from meshfit.export.units import unit
+
+        object.__setattr__(self, "units", unit(self.units).name)
+        axis = str(self.up_axis).lower()
+        if axis not in ("auto", "y", "z"):
+            raise InputError(f"up_axis must be 'auto', 'y' or 'z', got {self.up_axis!r}")
+        object.__setattr__(self, "up_axis", axis)
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> FitOptions:
@@ -255,7 +275,7 @@ class FitOptions:
     @property
     def outputs(self) -> OutputOptions:
         """The exports' and the report's group."""
-        return OutputOptions(self.formats, self.report, self.image_size)
+        return OutputOptions(self.formats, self.report, self.image_size, self.units, self.up_axis)
 
 
 @dataclass(frozen=True)
@@ -284,6 +304,8 @@ class OutputOptions:
     formats: tuple[str, ...]
     report: bool
     image_size: int
+    units: str
+    up_axis: str
 
 
 def stage_key(group: Any) -> dict[str, Any]:

@@ -1,6 +1,21 @@
 """The fit folder's files: exports by format, and ``manifest.json``, which lists every file
 the fit wrote with its kind and content hash.
 
+Layout of a fit folder (``<stem>`` is the input's name, made safe for file names)::
+
+    <stem>.usda  <stem>.obj  <stem>.mtl  <stem>_spline.obj  <stem>.glb  <stem>.ply
+    <stem>.3dm  <stem>.igs  <stem>.step             the deliverables, by format
+    maps/<stem>_<kind>.<udim>.exr|png               one image per patch, UDIM tile 1001 + p
+    report.html  report/                            the report
+    fit.npz  fit.json  layout.json  summary.json    the fit itself (meshfit.load_fit)
+    manifest.json                                   every file above with kind and hash
+    .meshfit/                                       the stage cache (for --resume)
+
+Maps are written once: the USD and the OBJ's materials reference the files in ``maps/``.
+PNG maps of one fit share one value range, symmetric about zero (``[-r, r]``, ``r`` the
+largest displacement component of the fit; ``[-1, 1]`` for bump maps), so zero is the same
+mid-grey in every image.
+
 The manifest is how a later run knows what the user changed: a map image whose hash
 differs from the manifest's was edited, and no run overwrites it (:func:`write_exports`
 keeps it and says so; ``meshfit rebuild`` applies it).
@@ -10,21 +25,30 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Callable, Sequence
+import re
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from meshfit._atomic import write_bytes
 from meshfit.errors import InputError
 from meshfit.pipeline.store import PIPELINE_FORMAT, sha_file, write_json
 
 __all__ = [
+    "CACHE",
     "MANIFEST",
     "accept_edits",
     "edited_maps",
     "file_kind",
+    "map_file",
+    "map_patch",
+    "output_stem",
     "patch_names",
     "read_manifest",
+    "remove_stale",
     "update_manifest",
     "write_exports",
     "write_manifest",
@@ -35,9 +59,40 @@ MANIFEST = "manifest.json"
 MANIFEST_FORMAT = 1
 
 
+#: the stage cache's folder inside a fit folder
+CACHE = ".meshfit"
+#: the first UDIM tile: patch ``p`` is tile ``UDIM_FIRST + p``
+UDIM_FIRST = 1001
+#: extensions of the tessellated and CAD deliverables, by format
+DELIVERABLES = {"usd": ".usda", "3dm": ".3dm", "iges": ".igs", "step": ".step", "glb": ".glb"}
+
+
 def patch_names(n: int) -> list[str]:
     """The name of each patch in every output (``patch_000``, ...)."""
     return [f"patch_{p:03d}" for p in range(n)]
+
+
+def output_stem(name: str | None) -> str:
+    """The stem the deliverables are named by: the input's name without a mesh file's
+    extension, every run of characters other than letters, digits, ``-`` and ``_`` turned
+    into ``_`` (``fit`` when nothing is left)."""
+    text = re.sub(r"\.(ply|obj|stl|off|glb|gltf)$", "", str(name or ""), flags=re.IGNORECASE)
+    stem = re.sub(r"[^A-Za-z0-9_-]+", "_", text).strip("_")
+    return stem or "fit"
+
+
+def map_file(stem: str, kind: str, patch: int, ext: str) -> str:
+    """The map image of ``patch``: ``maps/<stem>_<kind>.<udim>.<ext>``."""
+    return f"maps/{stem}_{kind}.{UDIM_FIRST + patch}.{ext}"
+
+
+def map_patch(name: str, kind: str) -> int | None:
+    """The patch a file of ``maps/`` holds the ``kind`` map of (by its UDIM number), or
+    None when the name is not such a map."""
+    m = re.fullmatch(rf"maps/.+_{re.escape(kind)}\.(\d{{4}})\.(exr|png)", name)
+    if m is None or int(m.group(1)) < UDIM_FIRST:
+        return None
+    return int(m.group(1)) - UDIM_FIRST
 
 
 def file_kind(name: str) -> str:
@@ -58,6 +113,7 @@ def file_kind(name: str) -> str:
     return {
         "png": "image",
         "obj": "mesh",
+        "mtl": "mesh",
         "ply": "mesh",
         "glb": "mesh",
         "usda": "usd",
@@ -127,51 +183,82 @@ def edited_maps(folder: Path) -> dict[str, dict[str, str]]:
     return out
 
 
-def _write_format(out: Path, fmt: str, names, surfaces, maps) -> list[str]:
-    from meshfit import export
+def _write_maps(out: Path, stem: str, maps, ext: str) -> list[str]:
+    """Every map as ``maps/<stem>_<kind>.<udim>.<ext>``; PNG maps share one range."""
     from meshfit.displacement import write_exr, write_png
 
-    geometry = maps[0].kind != "bump"  # a bump map shades; it does not move the surface
-    if fmt == "usd":
-        if not geometry:
-            export.export_usd(out / "patches.usda", surfaces, names=names)
-            return ["patches.usda"]
-        export.export_usd(out / "patches.usda", surfaces, displacements=maps, names=names)
-        return ["patches.usda"] + [
-            f"patches.{n}.{d.kind}.exr" for n, d in zip(names, maps, strict=True)
-        ]
-    if fmt == "3dm":
-        export.export_3dm(out / "patches.3dm", surfaces, names=names)
-        return ["patches.3dm"]
-    if fmt == "iges":
-        export.export_iges(
-            out / "patches.igs", surfaces, names=[f"P{k}" for k in range(len(names))]
-        )
-        return ["patches.igs"]
-    if fmt == "step":
-        export.export_step(out / "patches.step", surfaces, names=names)
-        return ["patches.step"]
-    if fmt == "obj":
-        # the spline on the displaced surface's vertex grid (a finer tessellation would make
-        # the file many times larger)
-        objs: dict[str | os.PathLike, Any] = {out / "spline.obj": None}
-        if geometry:
-            objs = {out / "displaced.obj": maps, **objs}
-        export.export_objs(objs, surfaces, names=names, shape=[d.shape[:2] for d in maps])
-        return [Path(p).name for p in objs]
-    if fmt == "glb":
-        name = "displaced.glb" if geometry else "spline.glb"
-        export.export_gltf(
-            out / name, surfaces, displacements=maps if geometry else None, names=names
-        )
-        return [name]
     (out / "maps").mkdir(exist_ok=True)
+    bump = maps[0].kind == "bump"
+    r = 1.0 if bump else max(float(abs(d.values).max()) for d in maps)
     files = []
-    for n, d in zip(names, maps, strict=True):
-        f = f"maps/{n}.{d.kind}.{fmt}"
-        (write_exr if fmt == "exr" else write_png)(d, out / f)
+    for p, d in enumerate(maps):
+        f = map_file(stem, d.kind, p, ext)
+        if ext == "exr":
+            write_exr(d, out / f)
+        else:
+            write_png(d, out / f, value_range=(-r, r) if r > 0 else (-1.0, 1.0))
         files.append(f)
     return files
+
+
+@dataclass(frozen=True)
+class _Export:
+    """What every writer of one fit's exports needs."""
+
+    out: Path
+    stem: str
+    surfaces: Sequence
+    maps: Sequence
+    network: Any
+    units: str
+    up_axis: str
+
+    @property
+    def geometry(self) -> bool:
+        """Whether the maps move the surface (a bump map only shades)."""
+        return self.maps[0].kind != "bump"
+
+
+def _write_format(job: _Export, fmt: str, images: list[str]) -> list[str]:
+    """Write one format; ``images``: the map files already written (EXR first), which the
+    USD and the OBJ's material reference."""
+    from meshfit import export
+
+    names = patch_names(len(job.surfaces))
+    surfaces, network = job.surfaces, job.network
+    maps = job.maps if job.geometry else None
+    target = job.out / f"{job.stem}{DELIVERABLES.get(fmt, '')}"
+    if fmt == "usd":
+        export.export_usd(
+            target, surfaces, displacements=maps, network=network, names=names,
+            units=job.units, up_axis=job.up_axis,
+        )  # fmt: skip
+    elif fmt == "3dm":
+        export.export_3dm(target, surfaces, names=names, units=job.units)
+    elif fmt == "iges":
+        export.export_iges(target, surfaces, names=[f"P{k}" for k in range(len(names))],
+                           units=job.units)  # fmt: skip
+    elif fmt == "step":
+        export.export_step(target, surfaces, names=names, units=job.units)
+    elif fmt == "glb":
+        export.export_gltf(target, surfaces, displacements=maps, names=names, network=network)
+    elif fmt == "ply":
+        export.export_ply(target, surfaces, displacements=maps, network=network)
+    elif fmt == "obj":
+        spline = job.out / f"{job.stem}_spline.obj"
+        objs: dict[str | os.PathLike, Any] = {spline: None}
+        if maps is not None:
+            objs = {job.out / f"{job.stem}.obj": maps, **objs}
+        # the spline's texture coordinates address the maps' texels: it is displaced by them
+        shapes = [d.shape[:2] for d in job.maps]
+        mats = images if (maps is not None and images) else None
+        export.export_objs(objs, surfaces, names=names, shape=shapes, network=network,
+                           materials=mats)  # fmt: skip
+        files = [Path(p).name for p in objs]
+        return files + ([f"{job.stem}_spline.mtl"] if mats else [])
+    else:
+        raise InputError(f"unknown output format {fmt!r}")
+    return [target.name]
 
 
 def write_exports(
@@ -180,22 +267,46 @@ def write_exports(
     maps: Sequence,
     formats: Sequence[str],
     *,
+    stem: str = "fit",
+    network: Any = None,
+    units: str = "mm",
+    up_axis: str = "auto",
     progress: Callable[[int, int], None] | None = None,
     notes: list[str] | None = None,
 ) -> dict[str, list[str]]:
-    """Write ``formats`` of a fit into ``out``; returns the files per format.
+    """Write ``formats`` of a fit into ``out``, the deliverables named ``stem``; returns the
+    files per format.
+
+    The maps are written first, once (EXR where ``exr`` or ``usd`` is asked for, since the
+    USD stage reads them; PNG where ``png`` is), and the USD and the spline OBJ's material
+    reference them. ``network`` (the fit's shared boundaries) makes the tessellated meshes
+    watertight; ``units`` and ``up_axis`` (``"auto"``: from the splines' extent, see
+    :func:`meshfit.mesh.measures.up_axis`) are declared where a format can say them.
 
     A map the user edited since the last run (:func:`edited_maps`) is put back as the user
     left it after the writers run, and ``notes`` says so: a re-fit never loses an edit.
     """
+    from meshfit.mesh.measures import up_axis as guess_up
+
     out = Path(out)
     kept = {name: (out / name).read_bytes() for name in edited_maps(out)}
-    names = patch_names(len(surfaces))
+    if up_axis == "auto":
+        up_axis = guess_up(np.concatenate([s.control_points.reshape(-1, 3) for s in surfaces]))
+    job = _Export(out, stem, surfaces, maps, network, units, up_axis)
     outputs: dict[str, list[str]] = {}
-    for i, fmt in enumerate(formats):
-        outputs[fmt] = _write_format(out, fmt, names, surfaces, maps)
+    images: list[str] = []
+    todo = list(formats)
+    for ext in ("exr", "png"):
+        if ext in todo or (ext == "exr" and "usd" in todo):
+            files = _write_maps(out, stem, maps, ext)
+            outputs[ext if ext in todo else "usd"] = files
+            images = images or files
+    for i, fmt in enumerate(todo):
+        if fmt not in ("exr", "png"):
+            outputs[fmt] = outputs.get(fmt, []) + _write_format(job, fmt, images)
         if progress is not None:
-            progress(i + 1, len(formats))
+            progress(i + 1, len(todo))
+    outputs = {f: outputs[f] for f in todo if f in outputs}
     for name, data in kept.items():
         if (out / name).read_bytes() != data:
             write_bytes(out / name, data)
@@ -214,3 +325,20 @@ def accept_edits(folder: Path) -> None:
     folder = Path(folder)
     files = [f for f in read_manifest(folder) if (folder / f).is_file()]
     write_manifest(folder, files)
+
+
+def remove_stale(folder: Path, listed: Mapping[str, Any], written: Sequence[str]) -> list[str]:
+    """Delete the files a previous run's manifest (``listed``) named that this run did not
+    write, except maps the user edited; nothing else is ever deleted. Returns them."""
+    folder = Path(folder)
+    keep = set(written) | set(edited_maps(folder))
+    gone = []
+    for name in listed:
+        path = folder / name
+        if name in keep or Path(name).is_absolute() or ".." in Path(name).parts:
+            continue
+        if not path.is_file():
+            continue
+        path.unlink()
+        gone.append(name)
+    return sorted(gone)

@@ -27,7 +27,8 @@ from meshfit.mesh import Mesh
 from meshfit.pipeline.options import FitOptions
 from meshfit.pipeline.outputs import (
     edited_maps,
-    patch_names,
+    map_patch,
+    output_stem,
     update_manifest,
     write_exports,
 )
@@ -162,7 +163,12 @@ class FitResult:
         out.mkdir(parents=True, exist_ok=True)
         fmts = self.options.formats if formats is None else FitOptions(formats=formats).formats
         notes: list[str] = []
-        files = write_exports(out, self.surfaces, self.maps, fmts, notes=notes)
+        stem = output_stem(self.summary["mesh"].get("name"))
+        o = self.options
+        files = write_exports(
+            out, self.surfaces, self.maps, fmts, stem=stem, network=self.network,
+            units=o.units, up_axis=o.up_axis, notes=notes,
+        )  # fmt: skip
         self.summary.setdefault("notes", []).extend(notes)
         self.summary.setdefault("outputs", {}).update(files)
         update_manifest(out, [f for fs in files.values() for f in fs])
@@ -254,15 +260,15 @@ def _map_from_file(path: Path, like: DisplacementMap) -> DisplacementMap:
 
 
 def edited_map_files(folder: Path, n: int, kinds: list[str]) -> dict[int, Path]:
-    """Per patch, the newest map image the user edited in ``folder`` (if any)."""
-    names = patch_names(n)
+    """Per patch, the newest map image of the fit's kind the user edited in ``folder``."""
     found: dict[int, Path] = {}
     for name in edited_maps(folder):
-        for p, base in enumerate(names):
-            if f"{base}.{kinds[p]}." in name:
-                path = folder / name
-                if p not in found or path.stat().st_mtime > found[p].stat().st_mtime:
-                    found[p] = path
+        p = next((q for q in range(n) if map_patch(name, kinds[q]) == q), None)
+        if p is None:
+            continue
+        path = folder / name
+        if p not in found or path.stat().st_mtime > found[p].stat().st_mtime:
+            found[p] = path
     return found
 
 

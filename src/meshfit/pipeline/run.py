@@ -14,11 +14,18 @@ from meshfit._version import __version__
 from meshfit.mesh import Mesh
 from meshfit.pipeline.notes import quality_notes
 from meshfit.pipeline.options import FitOptions
-from meshfit.pipeline.outputs import edited_maps, write_manifest
+from meshfit.pipeline.outputs import (
+    CACHE,
+    MANIFEST,
+    edited_maps,
+    read_manifest,
+    remove_stale,
+    write_manifest,
+)
 from meshfit.pipeline.result import FIT_FILES, FitResult, PatchFit
 from meshfit.pipeline.runner import Context, Progress, Runner
 from meshfit.pipeline.stages import STAGES, Report, Validate, fit_stages
-from meshfit.pipeline.store import PIPELINE_FORMAT
+from meshfit.pipeline.store import PIPELINE_FORMAT, write_json
 
 __all__ = ["fit"]
 
@@ -78,7 +85,8 @@ def fit(
     t_all = time.perf_counter()
     ctx = Context(options, n_workers(options.workers), progress)
     ctx["input"] = mesh
-    runner = Runner(None if folder is None else folder / "stages", resume)
+    listed = {} if folder is None else read_manifest(folder)  # what the last run wrote
+    runner = Runner(None if folder is None else folder / CACHE, resume)
     runner.run([Validate()], ctx)
     runner.run(fit_stages(layout, patch_map, folder), ctx)
     ctx.info = {k: ctx.info[k] for k in STAGES if k in ctx.info}  # the stage order
@@ -98,7 +106,7 @@ def fit(
 
             write_html(folder, summary)  # its timing table includes the report stage
         images = ctx["report"]["images"] if options.report else []
-        _manifest(folder, summary, images)
+        _manifest(folder, result.summary, images, listed)
     return result
 
 
@@ -170,8 +178,17 @@ def _result(ctx: Context, summary: dict[str, Any]) -> FitResult:
     )
 
 
-def _manifest(folder: Path, summary: dict[str, Any], images: list[str]) -> None:
+def _manifest(folder: Path, summary: dict[str, Any], images: list[str], listed) -> None:
     """The manifest of a finished run: the fit's files, the exports, the report and its
-    images (maps the user edited keep their old entries)."""
+    images (maps the user edited keep their old entries). Files the last run's manifest
+    (``listed``) named that this run did not write are removed, and a note says so."""
     files = [*FIT_FILES, *(f for fs in summary["outputs"].values() for f in fs), *images]
+    gone = remove_stale(folder, listed, [*files, MANIFEST])
+    if gone:
+        shown = ", ".join(gone[:5]) + (" ..." if len(gone) > 5 else "")
+        summary.setdefault("notes", []).append(
+            f"{len(gone)} file(s) of the previous run that this run did not write were "
+            f"removed ({shown})"
+        )
+        write_json(folder / "summary.json", summary)
     write_manifest(folder, sorted(set(files)), keep=edited_maps(folder))

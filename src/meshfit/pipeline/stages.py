@@ -581,7 +581,7 @@ class Exports(Stage):
     record keeps every file's hash, so a resumed run re-writes only what changed."""
 
     name = "exports"
-    inputs = ("surfaces", "maps")
+    inputs = ("surfaces", "maps", "network")
     outputs = ("outputs",)
     after = ("stitch",)
     suffix = ".json"
@@ -608,13 +608,17 @@ class Exports(Stage):
                 importlib.import_module(name)
 
     def run(self, ctx: Context) -> None:
-        from meshfit.pipeline.outputs import write_exports
+        from meshfit.pipeline.outputs import output_stem, write_exports
 
         ctx["outputs"] = write_exports(
             self.out,
             ctx["surfaces"],
             ctx["maps"],
             ctx.options.outputs.formats,
+            stem=output_stem(ctx["mesh"].name),
+            network=ctx["network"],
+            units=ctx.options.outputs.units,
+            up_axis=ctx.options.outputs.up_axis,
             progress=lambda d, n: ctx.tick(self.name, d, n),
             notes=ctx.notes,
         )
