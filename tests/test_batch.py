@@ -49,11 +49,16 @@ def cluster():
 
 
 def _files(folder):
-    """Every file's bytes by its name, the deliverables' stem (the mesh's name) taken out."""
+    """Every file's bytes by its name, the deliverables' stem (the mesh's name) taken out of
+    both (the OBJ's material names the map files)."""
+    stem = folder.name
     return {
-        str(p.relative_to(folder)).replace(folder.name, "<stem>"): p.read_bytes()
+        str(p.relative_to(folder)).replace(stem, "<stem>"): p.read_bytes().replace(
+            stem.encode(), b"<stem>"
+        )
         for p in sorted(folder.rglob("*"))
-        if p.is_file() and p.name not in TIMED
+        # (the exports' cache record holds the hashes of files that name the stem)
+        if p.is_file() and p.name not in TIMED and not p.name.startswith("exports-")
     }
 
 

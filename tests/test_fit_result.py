@@ -105,8 +105,8 @@ def test_load_fit_refuses_what_is_not_a_fit(tmp_path):
 
 
 def _paint(path, centre, radius: float, height: float) -> np.ndarray:
-    """Add a bump of ``height`` along the normal channel of a vector map image, as a user
-    would with numpy and OpenEXR; returns the bump per pixel."""
+    """Add a bump of ``height`` along the normal channel (green: the files hold T, N, B) of
+    a vector map image, as a user would with numpy and OpenEXR; returns the bump per pixel."""
     with OpenEXR.File(str(path)) as f:
         header = dict(f.header())
         rgb = np.array(f.channels()["RGB"].pixels, dtype=np.float32)
@@ -114,7 +114,7 @@ def _paint(path, centre, radius: float, height: float) -> np.ndarray:
     i, j = np.meshgrid(np.arange(h), np.arange(w), indexing="ij")
     d2 = (i - centre[0]) ** 2 + (j - centre[1]) ** 2
     bump = np.where(d2 < radius**2, height * (1.0 - d2 / radius**2) ** 2, 0.0)
-    rgb[:, :, 2] += bump.astype(np.float32)
+    rgb[:, :, 1] += bump.astype(np.float32)
     keep = {k: v for k, v in header.items() if k.startswith("meshfit") or k == "compression"}
     keep["type"] = OpenEXR.scanlineimage
     with OpenEXR.File(keep, {"RGB": np.ascontiguousarray(rgb)}) as f:

@@ -8,14 +8,17 @@ import dataclasses
 import hashlib
 import json
 
+import numpy as np
 import png
 import pytest
+import trimesh
 
 import meshfit
+from meshfit.mesh import load_mesh
 from meshfit.pipeline import FitOptions
 from meshfit.pipeline.outputs import edited_maps, map_patch, output_stem, read_manifest
 
-from .conftest import ROOT, real_mesh
+from .conftest import ROOT, mesh_path, real_mesh
 
 LAYOUT = ROOT / "examples" / "layouts" / "spot.json"
 OPTIONS = FitOptions(controls=(6, 6), spring_level=1, report=False)
@@ -101,3 +104,58 @@ def test_a_manifest_naming_files_outside_the_folder_deletes_nothing(tmp_path):
     (folder / "gone.obj").write_text("old")
     assert remove_stale(folder, listed, []) == ["gone.obj"]
     assert outside.read_text() == "keep"
+
+
+def assert_obj_watertight(path, closed: bool) -> None:
+    """The OBJ's patches share their boundary vertices: after merging the corners of one
+    vertex (a texture coordinate per patch), every edge has two faces on a closed input, one
+    or two (the mesh boundary's) on an open one, and the faces turn consistently."""
+    obj = trimesh.load(path, process=False, force="mesh")
+    obj.merge_vertices(merge_tex=True, merge_norm=True)
+    e = np.sort(np.asarray(obj.faces)[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    counts = np.unique(e, axis=0, return_counts=True)[1]
+    assert counts.max() == 2 and obj.is_winding_consistent
+    if closed:
+        assert obj.is_watertight
+    else:
+        assert (counts == 1).any()
+
+
+@pytest.mark.slow
+def test_the_bunny_obj_is_watertight_but_for_its_holes(tmp_path):
+    # open, with unreferenced vertices: the command line's defaults (the other shared meshes:
+    # tests/test_pipeline.py and tests/layout/test_regions.py)
+    mesh = load_mesh(mesh_path("bunny"), repair=True)
+    meshfit.fit(mesh, options=FitOptions(formats=("obj",), report=False), out=tmp_path)
+    assert_obj_watertight(tmp_path / "bunny.obj", closed=False)
+
+
+def test_the_3dm_spline_and_the_exr_map_rebuild_the_displaced_surface(spot, tmp_path):
+    # as a CAD or texturing tool would: the spline from the 3dm (rhino3dm), the map read with
+    # OpenEXR in the standard orientation (x along u, y up along v; R, G, B = T, N, B)
+    import OpenEXR
+    import rhino3dm
+
+    opts = dataclasses.replace(OPTIONS, formats=("3dm", "exr"))
+    res = meshfit.fit(spot, LAYOUT, options=opts, out=tmp_path)
+    diag = res.summary["mesh"]["bbox_diagonal"]
+    model = rhino3dm.File3dm.Read(str(tmp_path / "spot.3dm"))
+    surfaces = {o.Attributes.Name: o.Geometry for o in model.Objects}
+    for p in (0, 7, 23):
+        srf = surfaces[f"patch_{p:03d}"]
+        with OpenEXR.File(str(tmp_path / "maps" / f"spot_vector.{1001 + p}.exr")) as f:
+            img = np.asarray(f.channels()["RGB"].pixels, dtype=np.float64)
+        rows, cols = img.shape[:2]  # rows along v (top: v = 1), columns along u
+        (u0, u1), (v0, v1) = ((srf.Domain(k).T0, srf.Domain(k).T1) for k in (0, 1))
+        want = res.patches[p].displaced()
+        assert want.shape[:2] == (cols, rows)
+        for i in range(0, cols, 3):
+            for j in range(0, rows, 3):
+                u = u0 + (u1 - u0) * i / (cols - 1)
+                v = v0 + (v1 - v0) * j / (rows - 1)
+                frame = srf.FrameAt(u, v)[1]  # X: dS/du, Y: N x X, Z: the normal
+                t, n, b = img[rows - 1 - j, i]
+                x = [frame.Origin, frame.XAxis, frame.YAxis, frame.ZAxis]
+                x = np.array([[q.X, q.Y, q.Z] for q in x])
+                got = x[0] + t * x[1] + b * x[2] + n * x[3]
+                assert np.linalg.norm(got - want[i, j]) <= 1e-6 * diag, (p, i, j)

@@ -3,7 +3,8 @@
 Images (8-bit PNG, :mod:`meshfit.render`) in ``<out>/report/``: the patch layout on the input
 model, the spring meshes as a checkerboard (one square per grid cell), the spline-only
 surface, the displaced surface, a heat map of the spline-only surface's distance to the
-input, and each patch's displacement map (T, B, N components as R, G, B, mid-grey = 0).
+input, and each patch's displacement map as its image file shows it (x along u, y up along
+v; a vector map's T, N, B components as R, G, B; mid-grey = 0).
 """
 
 from __future__ import annotations
@@ -238,7 +239,9 @@ def write_report(
         scale = max(float(np.abs(d.values).max()) for d in dmaps) if dmaps else 0.0
 
         def map_png(p: int) -> None:
-            img = _map_image(dmaps[p].values, scale)
+            d = dmaps[p]
+            # the channels in the files' order: a vector map's T, N, B as R, G, B
+            img = _map_image(d.values[..., [0, 2, 1]] if d.kind == "vector" else d.values, scale)
             # rows along v, columns along u, magnified to at least 128 pixels
             img = np.transpose(img, (1, 0, 2))[::-1]
             k = max(1, -(-128 // max(img.shape[:2])))
@@ -331,7 +334,7 @@ def write_html(out: str | os.PathLike, summary: dict[str, Any]) -> Path:
         scale = s.get("map_scale")
         note = f" (full scale +-{100 * scale:.3g}% of the bbox diagonal)" if scale else ""
         parts.append(
-            "<h2>Displacement maps</h2><p>T, B, N components as red, green, blue; mid-grey is "
+            "<h2>Displacement maps</h2><p>T, N, B components as red, green, blue; mid-grey is "
             f"no displacement{html.escape(note)}; u to the right, v upwards.</p><div class='maps'>"
         )
         for img in maps:

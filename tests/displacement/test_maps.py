@@ -288,9 +288,9 @@ def test_map_images_are_in_texture_orientation(tmp_path, fmt):
         _, _, rows, _ = png.Reader(bytes=path.read_bytes()).asDirect()
         img = np.vstack([np.asarray(r, float) for r in rows]).reshape(w, h, 3) / 65535 * 50
         back = read_png(path)
-    assert img.shape == (w, h, 3)  # w rows (v), h columns (u)
+    assert img.shape == (w, h, 3)  # w rows (v), h columns (u); channels T, N, B
     assert_allclose(img[0, :, 0], np.arange(h), atol=1e-3)  # u grows to the right
-    assert_allclose(img[:, 0, 1], np.arange(w)[::-1], atol=1e-3)  # v grows upwards
+    assert_allclose(img[:, 0, 2], np.arange(w)[::-1], atol=1e-3)  # v grows upwards
     assert_allclose(back.values, d.values, atol=1e-3)
 
 
@@ -301,3 +301,58 @@ def test_map_images_of_format_2_keep_rows_along_u(tmp_path):
     with OpenEXR.File(header, {"Y": np.ascontiguousarray(vals[:, :, 0])}) as f:
         f.write(str(tmp_path / "old.exr"))
     assert_allclose(read_exr(tmp_path / "old.exr").values, vals)
+
+
+def _vector_ramp(h: int = 5, w: int = 3) -> DisplacementMap:
+    """A vector map whose components tell each other apart: T = i, B = 10 + j, N = -(i + j)."""
+    i, j = np.meshgrid(np.arange(h), np.arange(w), indexing="ij")
+    return DisplacementMap(np.stack([i, 10.0 + j, -(i + j)], axis=-1).astype(float), "vector")
+
+
+def _raw_exr(path) -> tuple[dict, np.ndarray]:
+    with OpenEXR.File(str(path)) as f:
+        return dict(f.header()), np.asarray(f.channels()["RGB"].pixels, dtype=np.float64)
+
+
+def test_vector_map_files_hold_tangent_normal_bitangent(tmp_path):
+    # Blender's tangent-space Vector Displacement node (and Maya, Mudbox) read R along the
+    # tangent, G along the normal, B along the bitangent
+    d = _vector_ramp()
+    d.to_exr(tmp_path / "v.exr")
+    header, img = _raw_exr(tmp_path / "v.exr")
+    assert header["meshfit_map"] == "3"
+    T, B, N = (to_image(d.image[:, :, k]) for k in range(3))
+    np.testing.assert_array_equal(img[:, :, 0], T)
+    np.testing.assert_array_equal(img[:, :, 1], N)
+    np.testing.assert_array_equal(img[:, :, 2], B)
+    back = read_exr(tmp_path / "v.exr")
+    assert back.kind == "vector"
+    np.testing.assert_array_equal(back.values, d.values)  # in memory: T, B, N again
+    # PNG alike
+    write_png(d, tmp_path / "v.png", value_range=(-10.0, 20.0))
+    _, _, rows, _ = png.Reader(bytes=(tmp_path / "v.png").read_bytes()).asDirect()
+    q = np.vstack([np.asarray(r, float) for r in rows]).reshape(3, 5, 3) / 65535 * 30 - 10
+    assert_allclose(q[:, :, 1], N, atol=1e-3)
+    assert_allclose(q[:, :, 2], B, atol=1e-3)
+    assert_allclose(read_png(tmp_path / "v.png").values, d.values, atol=1e-3)
+    # an image that lost its metadata, read as a vector map: today's order
+    with OpenEXR.File({"type": OpenEXR.scanlineimage}, {"RGB": img.astype(np.float32)}) as f:
+        f.write(str(tmp_path / "bare.exr"))
+    np.testing.assert_array_equal(read_exr(tmp_path / "bare.exr", kind="vector").values, d.values)
+    # bump maps keep the normal-map order: R = T, G = B, B = N
+    bump = DisplacementMap(np.broadcast_to([0.6, 0.0, 0.8], (5, 3, 3)), "bump")
+    bump.to_exr(tmp_path / "b.exr")
+    _, img = _raw_exr(tmp_path / "b.exr")
+    np.testing.assert_array_equal(img, to_image(bump.image))
+
+
+def test_vector_map_files_of_format_2_read_as_written(tmp_path):
+    d = _vector_ramp()
+    # format 2: RGB = T, B, N, image rows along u
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    header |= {"meshfit_map": "2", "meshfit_kind": "vector"}
+    with OpenEXR.File(header, {"RGB": np.ascontiguousarray(d.image)}) as f:
+        f.write(str(tmp_path / "old.exr"))
+    old = read_exr(tmp_path / "old.exr")
+    assert old.kind == "vector"
+    np.testing.assert_array_equal(old.values, d.values)

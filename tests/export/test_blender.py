@@ -150,7 +150,7 @@ def test_blender_imports_the_mesh_material_and_units(fit, tmp_path, units, up_ax
     assert nodes[disp_node]["type"] == "DISPLACEMENT"
     assert (nodes[disp_node]["Midlevel"], nodes[disp_node]["Scale"]) == (0.0, 1.0)
     split, channel = links[(disp_node, "Height")]
-    assert (nodes[split]["type"], channel) == ("SEPARATE_COLOR", "Blue")  # N of T, B, N
+    assert (nodes[split]["type"], channel) == ("SEPARATE_COLOR", "Green")  # N of T, N, B
     image, _ = links[(split, "Color")]
     tex = nodes[image]
     assert tex["type"] == "TEX_IMAGE" and tex["source"] == "TILED"
@@ -168,7 +168,8 @@ def test_blender_imports_the_mesh_material_and_units(fit, tmp_path, units, up_ax
     assert_allclose(mesh["dimensions"], size, rtol=1e-5)  # object axes: before the turn
 
     # the faces keep their corners and winding, and Blender's tangent space on st is the
-    # maps' frame (T, B, N) up to the tessellation: what the vector wiring relies on
+    # maps' frame (T, B, N) up to the tessellation: what the vector wiring (the image's
+    # T, N, B straight into a tangent-space Vector Displacement node) relies on
     loops = np.load(tmp_path / "loops.npz")
     np.testing.assert_array_equal(loops["vertex"], faces.ravel())
     T, B, N = _corner_frames(fit.surfaces, pm)
@@ -270,8 +271,8 @@ def test_blender_renders_the_displacement_where_the_map_is(fit, tmp_path, render
 
 
 def test_blender_vector_displacement_wired_as_documented(fit, tmp_path, renders):
-    """The fit's own vector maps, wired into a tangent-space Vector Displacement node as
-    ``export_usd`` documents, render as the displaced surface itself."""
+    """The fit's own vector maps, their image straight into a tangent-space Vector
+    Displacement node as ``export_usd`` documents, render as the displaced surface itself."""
     renders = renders / "vector_displacement"
     renders.mkdir(exist_ok=True)
     layer = write_layer(tmp_path, fit, fit.maps)

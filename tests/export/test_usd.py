@@ -6,11 +6,13 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import OpenEXR
 import pytest
 from numpy.testing import assert_allclose
 
 from meshfit.bspline import BSplineSurface
 from meshfit.displacement import DisplacementMap, read_exr, reconstruct, write_exr
+from meshfit.displacement.io import to_image
 from meshfit.errors import InputError
 from meshfit.export import export_usd
 from meshfit.export.units import UNITS
@@ -130,8 +132,14 @@ def test_material_displaces_by_the_map_tiles(demo_fit, tmp_path, kind):
     surface = material.ComputeSurfaceSource()[0]
     assert surface.GetIdAttr().Get() == "UsdPreviewSurface"
     assert _source(material.GetDisplacementOutput()) == ("PreviewSurface", "displacement")
-    channel = {"vector": "b", "scalar": "r"}[kind]  # the normal component
+    channel = {"vector": "g", "scalar": "r"}[kind]  # the normal component
     assert _source(surface.GetInput("displacement")) == ("displacementTexture", channel)
+    # the channel named holds the normal component in the tile files (vector: T, N, B)
+    for p, m in enumerate(maps):
+        with OpenEXR.File(str(tmp_path / "maps" / f"scan_{kind}.{udim(p)}.exr")) as f:
+            ch = {k: np.asarray(v.pixels) for k, v in f.channels().items()}
+        image = ch["RGB"][:, :, "rgb".index(channel)] if kind == "vector" else ch["Y"]
+        np.testing.assert_array_equal(image, to_image(m.image)[:, :, -1])
     tex = UsdShade.Shader(stage.GetPrimAtPath("/meshfit/Looks/surface/displacementTexture"))
     assert tex.GetIdAttr().Get() == "UsdUVTexture"
     assert tex.GetInput("file").Get().path == f"./maps/scan_{kind}.<UDIM>.exr"

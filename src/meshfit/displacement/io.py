@@ -7,16 +7,27 @@ j, column i)`` of a ``w`` rows by ``h`` columns image, so a renderer that sample
 at texture coordinate ``(u, v)`` (origin at the lower left) reads the map there. Files of
 format 2 and older stored rows along u; they are read as they were written.
 
+Channels: a vector map's file holds its components in the order of tangent-space vector
+displacement maps, R = T (tangent), G = N (normal), B = B (bitangent): the order Blender's
+Vector Displacement node reads in Tangent Space (R along the tangent, G along the normal, B
+along the bitangent) and Maya's and Mudbox's tangent-space vector displacement use (x
+tangent, y normal, z binormal), so the image plugs straight into such a node with no
+swizzle. In memory a map keeps ``(T, B, N)`` (:mod:`meshfit.displacement.maps`); reading
+swaps back. Bump maps keep ``(T, B, N)`` as RGB, the tangent-space normal-map convention (R
+tangent, G bitangent, B normal; a flat map is blue). Vector files of format 2 and older hold
+``(T, B, N)`` and are read as they were written; a file without metadata read as a vector
+map is taken as written in today's order.
+
 Every kind is written and read back: vector and bump maps as three channels, scalar and
 magnitude maps as one (a grey image). EXR files hold the float32 values (``RGB`` for
 3-channel maps, ``Y`` for 1-channel maps) and string header attributes ``meshfit_map``
 (format version), ``meshfit_kind`` and ``meshfit_frame``. PNG files hold values quantised to
 16 bits over ``[min, max]``: pixel ``q`` stands for ``min + q / 65535 (max - min)``; a
-``tEXt`` chunk with keyword ``meshfit`` holds JSON ``{"meshfit_map": 2, "kind", "min",
-"max", "frame"}``. Format 1 files name scalar maps ``"normal"``; they are read as scalar
-maps. An image edited elsewhere that lost its metadata is read back by passing ``kind``
-(and for PNG ``value_range``); a one-channel kind saved by an editor as RGB is read as the
-mean of its channels. Files are written to a temporary name and renamed.
+``tEXt`` chunk with keyword ``meshfit`` holds JSON ``{"meshfit_map", "kind", "min", "max",
+"frame"}``. Format 1 files name scalar maps ``"normal"``; they are read as scalar maps. An
+image edited elsewhere that lost its metadata is read back by passing ``kind`` (and for PNG
+``value_range``); a one-channel kind saved by an editor as RGB is read as the mean of its
+channels. Files are written to a temporary name and renamed.
 """
 
 from __future__ import annotations
@@ -37,8 +48,12 @@ from meshfit.errors import ImageFileError, InputError
 __all__ = ["from_image", "read_exr", "read_png", "to_image", "write_exr", "write_png"]
 
 #: version of the metadata written to map images (1: scalar maps were named "normal";
-#: 2: image rows along u; 3: the texture orientation of the module docstring)
+#: 2: image rows along u; 3: the texture orientation and the vector channel order of the
+#: module docstring)
 MAP_FORMAT = 3
+#: file channel c of a vector map of format 3 holds its in-memory component
+#: ``VECTOR_CHANNELS[c]``: R = T, G = N, B = B (tangent-space vector displacement)
+VECTOR_CHANNELS = (0, 2, 1)
 
 
 def to_image(values: np.ndarray) -> np.ndarray:
@@ -53,6 +68,39 @@ def from_image(image: np.ndarray, fmt: int = MAP_FORMAT) -> np.ndarray:
     if fmt < 3:
         return image
     return np.swapaxes(image[::-1], 0, 1)
+
+
+def _channel_order(kind: str, fmt: int) -> tuple[int, ...] | None:
+    """The in-memory component each file channel of a ``kind`` map of format ``fmt`` holds
+    (None: the file holds them in memory order)."""
+    if kind == "vector" and fmt >= 3:
+        return VECTOR_CHANNELS
+    return None
+
+
+def _to_file(values: np.ndarray, kind: str) -> np.ndarray:
+    """A map's ``(h, w, c)`` values as the image written today: texture orientation, file
+    channel order."""
+    order = _channel_order(kind, MAP_FORMAT)
+    return to_image(values if order is None else values[:, :, order])
+
+
+def _from_file(image: np.ndarray, kind: str, fmt: int) -> np.ndarray:
+    """The inverse of :func:`_to_file` for a file of format ``fmt`` holding a ``kind`` map
+    (a vector file read as a one-channel kind has been averaged: no order to undo)."""
+    order = _channel_order(kind, fmt)
+    if order is not None and image.shape[2] == len(order):
+        image = image[:, :, np.argsort(order)]
+    return from_image(image, fmt)
+
+
+def _file_kind(written, kind: str) -> str:
+    """The kind a file's channels are laid out for: the kind its metadata names (``written``)
+    when that is one, else ``kind``, the kind it is read as."""
+    try:
+        return canonical_kind(written)
+    except InputError:
+        return kind
 
 
 def _format(value) -> int:
@@ -77,6 +125,12 @@ _COMPRESSION = {
 def write_exr(dmap: DisplacementMap, path: str | os.PathLike, *, compression: str = "zip") -> None:
     """Write a map as an OpenEXR float32 image.
 
+    Channels ``RGB`` for vector and bump maps, ``Y`` for scalar and magnitude maps. A vector
+    map's channels are R = T, G = N, B = B, the order of tangent-space vector displacement
+    in Blender (Vector Displacement node, Tangent Space), Maya and Mudbox, so the file feeds
+    such a node as it is; a bump map's are R = T, G = B, B = N, the tangent-space normal-map
+    order. See the module docstring.
+
     Parameters
     ----------
     dmap : DisplacementMap
@@ -87,7 +141,7 @@ def write_exr(dmap: DisplacementMap, path: str | os.PathLike, *, compression: st
     """
     if compression not in _COMPRESSION:
         raise InputError(f"compression must be one of {tuple(_COMPRESSION)}, got {compression!r}")
-    img = to_image(dmap.image)
+    img = _to_file(dmap.image, dmap.kind)
     channels = {"RGB": img} if dmap.channels == 3 else {"Y": np.ascontiguousarray(img[:, :, 0])}
     header = {
         "compression": _COMPRESSION[compression],
@@ -137,7 +191,8 @@ def read_exr(path: str | os.PathLike, *, kind: str | None = None) -> Displacemen
         raise ImageFileError(
             f"{path}: a {kind} map needs {KINDS[kind]} channels, not {vals.shape[2]}"
         )
-    vals = from_image(vals, _format(header.get("meshfit_map")))
+    fmt = _format(header.get("meshfit_map"))
+    vals = _from_file(vals, _file_kind(header.get("meshfit_kind"), kind), fmt)
     return DisplacementMap(np.ascontiguousarray(vals, dtype=np.float64), kind)
 
 
@@ -179,7 +234,7 @@ def write_png(
     if hi == lo:
         hi = lo + 1.0
     q = np.rint((np.clip(vals, lo, hi) - lo) / (hi - lo) * 65535.0).astype(np.uint16)
-    q = to_image(q)
+    q = _to_file(q, dmap.kind)
     h, w, c = q.shape
     buf = io.BytesIO()
     png.Writer(w, h, bitdepth=16, greyscale=c == 1).write(buf, q.reshape(h, w * c).tolist())
@@ -236,7 +291,8 @@ def read_png(
     if c != KINDS[kind]:
         raise ImageFileError(f"{path}: a {kind} map needs {KINDS[kind]} channels, not {c}")
     vals = lo + q / float(2 ** info["bitdepth"] - 1) * (hi - lo)
-    vals = np.ascontiguousarray(from_image(vals, _format(meta.get("meshfit_map"))))
+    fmt = _format(meta.get("meshfit_map"))
+    vals = np.ascontiguousarray(_from_file(vals, _file_kind(meta.get("kind"), kind), fmt))
     if kind == "bump":
         vals /= np.linalg.norm(vals, axis=-1, keepdims=True)
     return DisplacementMap(vals, kind)

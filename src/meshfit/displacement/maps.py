@@ -67,6 +67,7 @@ __all__ = [
     "displacement_map",
     "grid_normals",
     "reconstruct",
+    "refine_on_scan",
     "resample_map",
     "sample_bilinear",
     "shading_normals",
@@ -405,8 +406,35 @@ def _unit(n: NDArray) -> NDArray:
     return n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), np.finfo(float).tiny)
 
 
+def refine_on_scan(
+    mesh, surface: BSplineSurface, grid: NDArray, shape: tuple[int, int]
+) -> NDArray[np.float64]:
+    """A patch's grid of points on the scan at a finer resolution ``shape``, for a map of
+    that resolution made with :func:`displacement_map`.
+
+    Each new point starts on the bilinear interpolation of ``grid`` (points on the scan, a
+    spring mesh) and moves to its closest point on ``mesh`` where the scan faces there the
+    way the spline does (a thin shell's other sheet faces the other way, so a point never
+    jumps to it); the grid's own points, on the scan already, keep their places.
+    Interpolating alone would cut the scan's detail between the grid's points; the scan
+    has it.
+    """
+    X = _filtered(np.asarray(grid, dtype=np.float64), shape)
+    cp = mesh.closest_points(X.reshape(-1, 3))
+    u, v = np.meshgrid(grid_parameters(shape[0]), grid_parameters(shape[1]), indexing="ij")
+    normal = surface.points_and_frames(u, v)[3].reshape(-1, 3)
+    facing = (mesh.face_normals[cp.points.face] * normal).sum(axis=1) > 0
+    out = X.reshape(-1, 3).copy()
+    out[facing] = cp.xyz[facing]
+    return out.reshape(X.shape)
+
+
 def resample_map(
-    dmap: DisplacementMap, shape: tuple[int, int], *, surface: BSplineSurface | None = None
+    dmap: DisplacementMap,
+    shape: tuple[int, int],
+    *,
+    surface: BSplineSurface | None = None,
+    points: bool = False,
 ) -> DisplacementMap:
     """The map bilinearly resampled to ``shape = (h', w')`` (the thesis' image scaling).
 
@@ -417,10 +445,26 @@ def resample_map(
     the resampled map read at its own resolution is the old map read at ``shape``. Scalar
     and magnitude maps are filtered as values either way (for a scalar map that is exact
     in the same sense: its value is applied along the normal at the output point).
+
+    With ``points`` (a vector map and its ``surface``) the displaced points are filtered
+    instead: the resampled map puts each new texel's point on the bilinear interpolation of
+    the old displaced grid, the surface the old map's own tessellation draws, and holds
+    what is left after the spline there. Filtering the vectors instead adds them to the
+    spline between the old texels, which cuts outside the scan wherever the spline bends
+    away from the displaced grid (a fold, a thin rim); the points never leave the old
+    displaced grid's cells. At the old texels both give the old displaced points.
     """
     h2, w2 = (int(s) for s in shape)
     if h2 < 2 or w2 < 2:
         raise InputError(f"a map needs at least 2 x 2 texels, got {shape}")
+    if points:
+        if surface is None or dmap.kind != "vector":
+            raise InputError("points=True resamples a vector map with its surface")
+        S, T, B, N = _grid_frames(surface, *dmap.shape)
+        c = dmap.values
+        X = _filtered(S + c[..., :1] * T + c[..., 1:2] * B + c[..., 2:] * N, (h2, w2))
+        S2, T2, B2, N2 = _grid_frames(surface, h2, w2)
+        return DisplacementMap(_components(X - S2, T2, B2, N2), "vector")
     if surface is not None and dmap.kind in ("vector", "bump"):
         world = _world_filtered(surface, dmap.values, (h2, w2))
         if dmap.kind == "bump":

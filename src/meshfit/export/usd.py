@@ -36,9 +36,10 @@ __all__ = ["MATERIAL", "UDIM_TOKEN", "export_usd"]
 UDIM_TOKEN = "<UDIM>"
 #: name of the material under ``<root>/Looks``
 MATERIAL = "surface"
-#: the texture channel UsdPreviewSurface displaces by, per map kind: a vector map's
-#: channels are T, B, N, so its normal component is the third (blue) one
-_DISPLACEMENT_CHANNEL = {"vector": "b", "scalar": "r"}
+#: the texture channel UsdPreviewSurface displaces by, per map kind: a vector map's file
+#: channels are T, N, B (the tangent-space vector displacement order of
+#: :mod:`meshfit.displacement.io`), so its normal component is the second (green) one
+_DISPLACEMENT_CHANNEL = {"vector": "g", "scalar": "r"}
 
 
 def export_usd(
@@ -112,14 +113,16 @@ def export_usd(
         a renderer that wants more vertices for displacement subdivides linearly.
     ``<root>/Looks/surface``
         ``UsdShade.Material`` bound to the mesh: a ``UsdPreviewSurface`` whose
-        ``displacement`` input reads the normal component of the map (``b``, the N channel of
-        a vector map; ``r`` of a scalar map) from the ``UsdUVTexture`` ``displacementTexture``
+        ``displacement`` input reads the normal component of the map (``g``, the N channel of
+        a vector map, whose file channels are T, N, B; ``r`` of a scalar map) from the
+        ``UsdUVTexture`` ``displacementTexture``
         (``sourceColorSpace = raw``, file ``map_pattern``), addressed by the
         ``UsdPrimvarReader_float2`` ``stReader`` of ``st``; the material's ``displacement``
         output is that surface's. UsdPreviewSurface displaces along the normal only, so for
         a vector map the tangential part is left to renderers with vector displacement: the
         texture ``vectorDisplacementTexture`` (output ``rgb``, not connected) holds the whole
-        map, in the frame named by the material's ``meshfit:displacementFrame``.
+        map as tangent, normal, bitangent components, in the frame named by the material's
+        ``meshfit:displacementFrame``.
     ``<root>/nurbs``
         ``Scope`` of ``purpose = guide`` (drawn by no renderer) with one ``NurbsPatch`` per
         patch: ``uOrder = vOrder = 4``, ``uVertexCount = mu``, ``vVertexCount = mv``, the
@@ -133,15 +136,15 @@ def export_usd(
 
     In Blender (File > Import > Universal Scene Description) the mesh arrives scaled to
     metres by ``metersPerUnit`` and turned Z-up, its material reading the UDIM tiles in an
-    Image Texture node (Non-Color, UV map ``st``) whose blue channel feeds a Displacement
+    Image Texture node (Non-Color, UV map ``st``) whose green channel feeds a Displacement
     node; Cycles renders the displacement (the material's Displacement method "Displacement
     Only" or "Displacement and Bump"). The mesh has a vertex per texel; a Subdivision
     Surface modifier (Simple) smooths the displaced surface between them. For a vector map,
-    split the same image with Separate Color and recombine it as Combine XYZ ``(R, B, G)``
-    (a tangent-space Vector Displacement node reads tangent, normal, bitangent; the map's
-    channels are T, B, N, and Blender's tangent space on ``st`` is that frame), into a
-    Vector Displacement node in Tangent space, midlevel 0, scale 1, connected to the
-    Material Output's Displacement in place of the Displacement node.
+    connect the Color of an Image Texture of the same tiles (Non-Color, UV map ``st``)
+    straight to a Vector Displacement node in Tangent space, midlevel 0, scale 1, and that
+    node to the Material Output's Displacement in place of the Displacement node: the map's
+    file channels are tangent, normal, bitangent, the order that node reads, and Blender's
+    tangent space on ``st`` is the maps' frame.
     """
     from pxr import Sdf, Usd, UsdGeom, UsdShade
 

@@ -402,26 +402,36 @@ class Fit(Stage):
 
 
 class Displacement(Stage):
-    """A displacement map per patch: its spring grid over its spline."""
+    """A displacement map per patch: its spring grid over its spline; with matched map
+    shapes, the scan over the spline at the class resolution
+    (:func:`meshfit.displacement.refine_on_scan`)."""
 
     name = "displacement"
-    inputs = ("surfaces", "grids")
+    inputs = ("mesh", "network", "surfaces", "grids")
     outputs = ("maps",)
     after = ("fit",)
 
     def extra(self, ctx: Context) -> Any:
-        return ctx.options.maps.kind
+        return [ctx.options.maps.kind, ctx.options.maps.shapes]
 
     def run(self, ctx: Context) -> None:
-        from meshfit.displacement import displacement_map
+        from meshfit.displacement import displacement_map, refine_on_scan
+        from meshfit.stitch import texel_shapes
 
         self._early(ctx)
         surfaces, grids, kind = ctx["surfaces"], ctx["grids"], ctx.options.maps.kind
-        ctx["maps"] = ctx.map(
-            lambda p: displacement_map(surfaces[p], grids[p], kind=kind),
-            list(range(len(grids))),
-            "displacement",
-        )
+        shapes = [g.shape[:2] for g in grids]
+        if ctx.options.maps.shapes == "matched":
+            shapes = texel_shapes(ctx["network"], shapes)
+        mesh = ctx["mesh"]
+
+        def one(p: int):
+            g = grids[p]
+            if shapes[p] != g.shape[:2]:
+                g = refine_on_scan(mesh, surfaces[p], g, shapes[p])
+            return displacement_map(surfaces[p], g, kind=kind)
+
+        ctx["maps"] = ctx.map(one, list(range(len(grids))), "displacement")
 
     def _early(self, ctx: Context) -> None:
         """With maps at their spring grids' shapes the spline-only surface is known now:

@@ -934,13 +934,12 @@ def match_map_shapes(
 
     Each map takes the resolution :func:`meshfit.stitch.texel_shapes` gives (the largest
     count of each equal-count class, so no map is made coarser). A map whose resolution
-    changes is resampled as :func:`meshfit.displacement.reconstruct` and
-    :func:`meshfit.displacement.bump_normals` read it at any resolution
-    (:func:`meshfit.displacement.resample_map` with the surface): vector and bump maps as
-    model-space vectors filtered bilinearly, then expressed in the frames at the new
-    texels; scalar maps as values (applied along the normal at the output point). The
-    resampled map read at its new resolution is therefore the old map read at that
-    resolution.
+    changes is resampled by :func:`meshfit.displacement.resample_map` with its surface:
+    vector maps by their displaced points (each new texel's point on the bilinear
+    interpolation of the old displaced grid, so the finer surface stays in the old one's
+    cells and as near the scan), bump maps as model-space normals filtered bilinearly and
+    expressed in the frames at the new texels, scalar maps as values (applied along the
+    normal at the output point).
 
     Run it before :func:`stitch_displacements` to close the seams at every output
     resolution, not only with each patch tessellated at its map's own resolution.
@@ -975,7 +974,7 @@ def match_map_shapes(
     surfaces, maps = _check_maps(surfaces, maps, network)
     shapes = texel_shapes(network, [m.shape for m in maps])
     return [
-        m if shape == m.shape else resample_map(m, shape, surface=s)
+        m if shape == m.shape else resample_map(m, shape, surface=s, points=m.kind == "vector")
         for s, m, shape in zip(surfaces, maps, shapes, strict=True)
     ]
 

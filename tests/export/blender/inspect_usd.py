@@ -6,7 +6,8 @@ counts and UV maps, every material's nodes and links) and ``OUT_DIR/world.npy`` 
 vertices in world coordinates, in file order) and ``OUT_DIR/loops.npz``: per face corner
 (loop) its vertex and Blender's tangent space on the UV map ``st`` (MikkTSpace tangent,
 bitangent and normal, object coordinates), the frame of a tangent-space Vector
-Displacement node.
+Displacement node (which reads an image's R, G, B along tangent, normal, bitangent: the
+channel order of the vector map files).
 """
 
 import json

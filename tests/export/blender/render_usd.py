@@ -9,8 +9,8 @@ scene as ``out/<name>.png``, where the variant is
 
 - ``displaced``: the material as imported, Displacement method "Displacement Only";
 - ``plain``: nothing connected to the material's displacement (or no material);
-- ``vector``: the image read again into a Vector Displacement node in tangent space, wired
-  as :func:`meshfit.export.export_usd` documents;
+- ``vector``: the image read again, its Color straight into a Vector Displacement node in
+  tangent space, as :func:`meshfit.export.export_usd` documents;
 - ``mask``: white emission where the displacement texture is non-zero, no lights.
 
 ``out/render.json`` holds the probes' pixel positions ``(column, row from the top)`` in the
@@ -111,7 +111,8 @@ def displacement_link(tree):
 
 
 def vector_wiring(material) -> None:
-    """The documented wiring: the map's (T, B, N) as Blender's tangent-space (T, N, B)."""
+    """The documented wiring: the image's Color straight into a tangent-space Vector
+    Displacement node (the map files hold T, N, B, the order that node reads)."""
     tree = material.node_tree
     image = next(n for n in tree.nodes if n.type == "TEX_IMAGE")
     uv = tree.nodes.new("ShaderNodeUVMap")
@@ -119,8 +120,6 @@ def vector_wiring(material) -> None:
     tex = tree.nodes.new("ShaderNodeTexImage")
     tex.image = image.image
     tex.interpolation = image.interpolation
-    split = tree.nodes.new("ShaderNodeSeparateColor")
-    xyz = tree.nodes.new("ShaderNodeCombineXYZ")
     vd = tree.nodes.new("ShaderNodeVectorDisplacement")
     vd.space = "TANGENT"
     vd.inputs["Midlevel"].default_value = 0.0
@@ -129,11 +128,7 @@ def vector_wiring(material) -> None:
     if link is not None:
         tree.links.remove(link)
     tree.links.new(uv.outputs["UV"], tex.inputs["Vector"])
-    tree.links.new(tex.outputs["Color"], split.inputs["Color"])
-    tree.links.new(split.outputs["Red"], xyz.inputs["X"])
-    tree.links.new(split.outputs["Blue"], xyz.inputs["Y"])
-    tree.links.new(split.outputs["Green"], xyz.inputs["Z"])
-    tree.links.new(xyz.outputs["Vector"], vd.inputs["Vector"])
+    tree.links.new(tex.outputs["Color"], vd.inputs["Vector"])
     tree.links.new(vd.outputs["Displacement"], out.inputs["Displacement"])
 
 
