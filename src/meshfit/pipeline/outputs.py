@@ -3,7 +3,7 @@ the fit wrote with its kind and content hash.
 
 Layout of a fit folder (``<stem>`` is the input's name, made safe for file names)::
 
-    <stem>.usda  <stem>.obj  <stem>.mtl  <stem>_spline.obj  <stem>.glb  <stem>.ply
+    <stem>.usdc  <stem>.obj  <stem>_spline.obj  <stem>_spline.mtl  <stem>.glb  <stem>.ply
     <stem>.3dm  <stem>.igs  <stem>.step             the deliverables, by format
     maps/<stem>_<kind>.<udim>.exr|png               one image per patch, UDIM tile 1001 + p
     report.html  report/                            the report
@@ -64,7 +64,9 @@ CACHE = ".meshfit"
 #: the first UDIM tile: patch ``p`` is tile ``UDIM_FIRST + p``
 UDIM_FIRST = 1001
 #: extensions of the tessellated and CAD deliverables, by format
-DELIVERABLES = {"usd": ".usda", "3dm": ".3dm", "iges": ".igs", "step": ".step", "glb": ".glb"}
+#: (the USD stage in the binary crate format: a text layer of a fine mesh is several times
+#: larger and slower to read)
+DELIVERABLES = {"usd": ".usdc", "3dm": ".3dm", "iges": ".igs", "step": ".step", "glb": ".glb"}
 
 
 def patch_names(n: int) -> list[str]:
@@ -117,6 +119,7 @@ def file_kind(name: str) -> str:
         "ply": "mesh",
         "glb": "mesh",
         "usda": "usd",
+        "usdc": "usd",
         "3dm": "cad",
         "igs": "cad",
         "step": "cad",
