@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import re
+import sys
 
 import numpy as np
 import png
 import pytest
 from numpy.testing import assert_allclose
 
+from meshfit.errors import RenderError
 from meshfit.pipeline import FitOptions
-from meshfit.report import REPORT_IMAGES
+from meshfit.report import REPORT_IMAGES, blender_renders
 from tests.fitting import run_fit
 
 from .conftest import ROOT, real_mesh
@@ -113,3 +115,19 @@ def test_model_view_is_upright():
     for pts in (np.zeros((4, 3)), np.array([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0]])):
         view, up = model_view(pts)
         assert np.isfinite(view).all() and np.linalg.norm(view) > 0 and abs(view @ up) < 1e-9
+
+
+def test_blender_renders_fail_with_the_reason(tmp_path):
+    """Each way Blender's Python can fail is a RenderError saying which (the renders with
+    Blender itself: tests/export/test_blender.py); no image is left behind."""
+    args = {"size": 16, "view": (1.0, 0.0, 0.0)}
+    with pytest.raises(RenderError, match="no Blender Python at"):
+        blender_renders(tmp_path, "fit.usdc", python=tmp_path / "missing", **args)
+    with pytest.raises(RenderError, match=r"fit.usdc .* failed \(exit 1\)(.|\n)*'bpy'"):
+        blender_renders(tmp_path, "fit.usdc", python=sys.executable, **args)
+    slow = tmp_path / "python"
+    slow.write_text("#!/bin/sh\nexec sleep 30\n")
+    slow.chmod(0o755)
+    with pytest.raises(RenderError, match=r"took longer than 0\.5 s"):
+        blender_renders(tmp_path, "fit.usdc", python=slow, timeout=0.5, **args)
+    assert not list(tmp_path.rglob("*.png"))

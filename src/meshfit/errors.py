@@ -26,6 +26,7 @@ __all__ = [
     "NonManifoldVertexError",
     "OrientationError",
     "PathError",
+    "RenderError",
     "StreamError",
     "TopologyError",
     "UnreferencedVertexError",
@@ -135,6 +136,13 @@ class ImageFileError(MeshfitError):
 class ExportError(MeshfitError):
     """A spline export cannot be written or read back: an optional library is missing
     (STEP needs ``meshfit[cad]``), or a file does not hold what the exporter wrote."""
+
+
+class RenderError(MeshfitError):
+    """An external renderer failed: Blender's Python (``$MESHFIT_BLENDER_PYTHON``) is
+    missing, cannot import ``bpy``, exits with an error or runs past its time limit. The
+    message names the interpreter and the layer and ends with the renderer's last lines of
+    stderr."""
 
 
 class StreamError(MeshfitError):

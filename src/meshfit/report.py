@@ -5,14 +5,22 @@ model, the spring meshes as a checkerboard (one square per grid cell), the splin
 surface, the displaced surface, a heat map of the spline-only surface's distance to the
 input, and each patch's displacement map as its image file shows it (x along u, y up along
 v; a vector map's T, N, B components as R, G, B; mid-grey = 0).
+
+With Blender's Python at hand (``$MESHFIT_BLENDER_PYTHON``, an interpreter that imports
+``bpy``) and a USD stage among the fit's outputs, the page also shows that stage as Blender
+imports it, rendered with Cycles with its displacement on and off
+(:func:`blender_renders`): what a user opening the deliverable in Blender gets.
 """
 
 from __future__ import annotations
 
 import html
+import json
 import os
+import subprocess
+import tempfile
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -20,11 +28,24 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from meshfit._atomic import write_text
+from meshfit._atomic import write_bytes, write_text
+from meshfit.errors import RenderError
 from meshfit.mesh.measures import up_axis
 from meshfit.render import Camera, heat_colors, patch_colors, render, write_png_rgb
 
-__all__ = ["REPORT_IMAGES", "ReportInputs", "model_view", "write_html", "write_report"]
+__all__ = [
+    "BLENDER_IMAGES",
+    "BLENDER_PYTHON_ENV",
+    "BLENDER_SCRIPT",
+    "REPORT_IMAGES",
+    "ReportInputs",
+    "blender_python",
+    "blender_renders",
+    "model_view",
+    "usd_layer",
+    "write_html",
+    "write_report",
+]
 
 #: the model renders of the report, in order: (file stem, caption)
 REPORT_IMAGES = (
@@ -34,6 +55,145 @@ REPORT_IMAGES = (
     ("displaced", "displaced surface (spline + displacement maps)"),
     ("error", "distance of the spline-only surface to the input (heat map)"),
 )
+
+#: the environment variable naming Blender's Python, an interpreter that imports ``bpy``
+#: (Blender's module pins its own Python and numpy, so it lives in a virtualenv of its own)
+BLENDER_PYTHON_ENV = "MESHFIT_BLENDER_PYTHON"
+#: the script Blender's Python runs (a resource of the package: meshfit never imports it)
+BLENDER_SCRIPT = Path(__file__).with_name("report_blender.py")
+#: the Blender renders of the USD layer, in order: (file stem, the script's variant, what
+#: the caption says)
+BLENDER_IMAGES = (
+    ("blender_displaced", "displaced", "displacement on"),
+    ("blender_plain", "plain", "displacement off"),
+)
+#: Blender renders: largest image side (pixels), Cycles samples, levels of the Simple
+#: subdivision that gives the displacement vertices between the texels, and the seconds the
+#: interpreter is given for both renders before the report goes on without them
+BLENDER_MAX_SIZE = 320
+BLENDER_SAMPLES = 8
+BLENDER_SUBDIVISION = 1
+BLENDER_TIMEOUT = 300.0
+#: lines of the renderer's stderr a RenderError quotes
+_STDERR_LINES = 6
+#: file suffixes of a USD stage
+_USD_SUFFIXES = (".usd", ".usda", ".usdc")
+
+
+def blender_python() -> Path | None:
+    """The interpreter ``$MESHFIT_BLENDER_PYTHON`` names, or None where the variable is unset
+    or empty: the report renders with Blender only when the user points it at one."""
+    value = os.environ.get(BLENDER_PYTHON_ENV, "").strip()
+    return Path(value).expanduser() if value else None
+
+
+def usd_layer(summary: dict[str, Any]) -> str | None:
+    """The USD stage among a fit's outputs (``summary["outputs"]["usd"]``, beside its map
+    images), relative to the fit folder; None when the fit wrote none."""
+    files = summary.get("outputs", {}).get("usd", [])
+    return next((f for f in files if Path(f).suffix.lower() in _USD_SUFFIXES), None)
+
+
+def blender_renders(
+    folder: str | os.PathLike,
+    layer: str | os.PathLike,
+    *,
+    python: str | os.PathLike,
+    size: int,
+    view: Any,
+    up: Any = None,
+    timeout: float = BLENDER_TIMEOUT,
+) -> list[str]:
+    """Render a USD layer with Blender (Cycles on the CPU), displacement on and off.
+
+    Runs :data:`BLENDER_SCRIPT` with ``python`` in a subprocess (Blender's module cannot
+    share this interpreter: it pins its own Python and numpy), the spec in a temporary
+    file. Both renders share one orthographic camera round the mesh, a sun and a dim sky;
+    the material is the one the import builds from the layer's ``UsdPreviewSurface``, its
+    displacement method "Displacement Only", on a Simple subdivision of the mesh
+    (:data:`BLENDER_SUBDIVISION`) at :data:`BLENDER_SAMPLES` samples. The images are
+    written only once both are made, so a failure leaves none behind.
+
+    Parameters
+    ----------
+    folder : path
+        The fit folder: the images go to ``folder/report/``.
+    layer : path
+        The USD layer (relative to ``folder`` unless absolute); the maps it references are
+        read from where it says.
+    python : path
+        An interpreter that imports ``bpy``.
+    size : int
+        Width and height of the images, pixels.
+    view : (3,) float
+        Viewing direction in the layer's coordinates (e.g. :func:`model_view`'s).
+    up : (3,) float, optional
+        Direction shown upwards, in the layer's coordinates (default: the stage's up axis).
+    timeout : float
+        Seconds allowed for both renders.
+
+    Returns
+    -------
+    list of str
+        ``report/<stem>.png`` of each of :data:`BLENDER_IMAGES`, relative to ``folder``.
+
+    Raises
+    ------
+    RenderError
+        The interpreter is missing or exits non-zero (the message ends with its last lines
+        of stderr), the renders take longer than ``timeout``, or an image is missing.
+    """
+    folder = Path(folder)
+    layer = (folder / layer).absolute()
+    python = Path(python)
+    if not python.is_file():
+        raise RenderError(f"no Blender Python at {python} (${BLENDER_PYTHON_ENV})")
+    (folder / "report").mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="meshfit-blender-") as tmp:
+        spec = {
+            "out": tmp,
+            "size": int(size),
+            "samples": BLENDER_SAMPLES,
+            "view": [float(x) for x in view],
+            "subdivision": BLENDER_SUBDIVISION,
+            "renders": [[stem, str(layer), variant] for stem, variant, _ in BLENDER_IMAGES],
+        }
+        if up is not None:
+            spec["up"] = [float(x) for x in up]
+        spec_file = Path(tmp) / "spec.json"
+        spec_file.write_text(json.dumps(spec))
+        # run from a copy: Python puts a script's folder first on its path, and the
+        # package's own modules (``types``) would shadow the standard library's
+        script = Path(tmp) / BLENDER_SCRIPT.name
+        script.write_bytes(BLENDER_SCRIPT.read_bytes())
+        # the caller's module path would put this interpreter's packages (numpy 2) before
+        # Blender's own
+        env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+        cmd = [str(python), str(script), str(spec_file)]
+        try:
+            res = subprocess.run(
+                cmd, env=env, capture_output=True, text=True, timeout=timeout,
+                stdin=subprocess.DEVNULL, check=False,
+            )  # fmt: skip
+        except subprocess.TimeoutExpired:
+            raise RenderError(
+                f"Blender render of {layer.name} with {python} took longer than {timeout:g} s"
+            ) from None
+        except OSError as exc:
+            raise RenderError(f"cannot run Blender Python {python}: {exc}") from None
+        if res.returncode != 0:
+            tail = (res.stderr or res.stdout or "").strip().splitlines()[-_STDERR_LINES:]
+            raise RenderError(
+                f"Blender render of {layer.name} with {python} failed (exit {res.returncode})"
+                + "".join(f"\n  {line}" for line in tail)
+            )
+        made = [Path(tmp) / f"{stem}.png" for stem, _, _ in BLENDER_IMAGES]
+        for f in made:
+            if not f.is_file():
+                raise RenderError(f"Blender render of {layer.name} with {python} wrote no {f.name}")
+        for f in made:
+            write_bytes(folder / "report" / f.name, f.read_bytes())
+    return [f"report/{stem}.png" for stem, _, _ in BLENDER_IMAGES]
 
 
 def model_view(vertices: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
@@ -163,6 +323,7 @@ def write_report(
     *,
     image_size: int = 640,
     render_images: bool = True,
+    blender_python: str | os.PathLike | None = None,
 ) -> dict[str, Any]:
     """Render the report images and write ``report.html``.
 
@@ -175,12 +336,20 @@ def write_report(
     image_size : int
         Width and height of the model renders, pixels.
     render_images : bool
-        False re-uses images already in ``out/report`` (resume) and only rewrites the page.
+        False re-uses images already in ``out/report`` (resume) and only rewrites the page
+        (the Blender renders are shown where both files are there).
+    blender_python : path, optional
+        Blender's Python (e.g. :func:`blender_python`): where the summary lists a USD stage
+        among the outputs (:func:`usd_layer`) and it is in ``out``, the page also shows it
+        rendered by Blender (:func:`blender_renders`, at most :data:`BLENDER_MAX_SIZE`
+        pixels, the model renders' view). A failed or timed-out render adds a note to the
+        summary instead; the report is written without it. Default None: no Blender.
 
     Returns
     -------
     dict
-        ``images``: paths of the images relative to ``out``.
+        ``images``: paths of the images relative to ``out``; ``notes``: the notes added to
+        the summary.
     """
     mesh, grids, surfaces, summary = fit.mesh, fit.grids, fit.surfaces, fit.summary
     face_patch, spline, dmaps = fit.face_patch, fit.spline, fit.maps
@@ -190,8 +359,24 @@ def write_report(
     n = len(grids)
     images = [f"report/{stem}.png" for stem, _ in REPORT_IMAGES]
     images += [f"report/map_{p:03d}.png" for p in range(n)]
+    layer = usd_layer(summary) if blender_python is not None else None
+    if layer is not None and not (out / layer).is_file():
+        layer = None
+    notes: list[str] = []
+    if not render_images and layer is not None:
+        shown = [f"report/{stem}.png" for stem, _, _ in BLENDER_IMAGES]
+        images += shown if all((out / f).is_file() for f in shown) else []
     if render_images:
         view, up = model_view(mesh.vertices)
+        blender = None
+        if layer is not None and blender_python is not None:
+            # Blender works in its own process: it renders while the images below are made
+            side = ThreadPoolExecutor(max_workers=1)
+            blender = side.submit(
+                blender_renders, out, layer, python=blender_python, view=view, up=up,
+                size=min(int(image_size), BLENDER_MAX_SIZE),
+            )  # fmt: skip
+            side.shutdown(wait=False)  # its thread ends with the render
         camera = Camera(
             size=(int(image_size), int(image_size)),
             view=tuple(view),
@@ -257,9 +442,23 @@ def write_report(
             for fut in maps:
                 fut.result()
         summary["map_scale"] = scale / mesh.bbox_diagonal
+        if blender is not None:
+            images += _blender_result(blender, layer, notes)
+            summary.setdefault("notes", []).extend(notes)
     summary["report_images"] = images
     write_html(out, summary)
-    return {"images": images}
+    return {"images": images, "notes": notes}
+
+
+def _blender_result(future: Future, layer: str | None, notes: list[str]) -> list[str]:
+    """The Blender renders' images, or none and a note saying why: the report is complete
+    without them, so their failure is reported, not raised."""
+    try:
+        return future.result()
+    except RenderError as exc:
+        reason = "; ".join(line.strip() for line in str(exc).splitlines() if line.strip())
+        notes.append(f"the report has no Blender render of {layer}: {reason}")
+        return []
 
 
 def _fmt(v: Any) -> str:
@@ -325,6 +524,15 @@ def write_html(out: str | os.PathLike, summary: dict[str, Any]) -> Path:
             cap = captions[stem]
             if stem == "error" and "error_map_max" in s:
                 cap += f" (red: {100 * s['error_map_max']:.3g}% of the bbox diagonal and above)"
+            parts.append(
+                f"<figure><img src='{html.escape(img)}' width='420'>"
+                f"<figcaption>{html.escape(cap)}</figcaption></figure>"
+            )
+    blender = {stem: what for stem, _, what in BLENDER_IMAGES}
+    for img in images:
+        stem = Path(img).stem
+        if stem in blender:
+            cap = f"Blender (Cycles) render of {usd_layer(s) or 'the USD layer'}: {blender[stem]}"
             parts.append(
                 f"<figure><img src='{html.escape(img)}' width='420'>"
                 f"<figcaption>{html.escape(cap)}</figcaption></figure>"

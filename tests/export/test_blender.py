@@ -1,18 +1,22 @@
 """Blender as a client of the USD export: the layer is imported and rendered by Blender itself.
 
 Blender's Python module (``bpy``) pins its own Python and numpy, so it lives in a virtualenv
-of its own and the scripts in ``tests/export/blender/`` run there in a subprocess. The
-interpreter is ``$MESHFIT_BLENDER_PYTHON``, else the venv ``.ci/run`` creates at
-``${MESHFIT_BLENDER_VENV:-~/.cache/meshfit/blender-venv}``; without either the tests fail
-and say how to make one. The renders are written to ``$MESHFIT_BLENDER_RENDERS`` when set
-(a report can include them), else to a temporary folder.
+of its own and the scripts run there in a subprocess: the package's render script
+(``meshfit/report_blender.py``, which the fit report runs too) and the inspection script in
+``tests/export/blender/``. The interpreter is ``$MESHFIT_BLENDER_PYTHON``, else the venv
+``.ci/run`` creates at ``${MESHFIT_BLENDER_VENV:-~/.cache/meshfit/blender-venv}``; without
+either the tests fail and say how to make one. The renders are written to
+``$MESHFIT_BLENDER_RENDERS`` when set (a report can include them), else to a temporary
+folder.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -20,12 +24,22 @@ import png
 import pytest
 from numpy.testing import assert_allclose
 
+import meshfit
+from meshfit.demo import demo_mesh
 from meshfit.displacement import DisplacementMap, write_exr
 from meshfit.export import export_usd
 from meshfit.export.units import unit
 from meshfit.export.weld import patch_mesh, udim
+from meshfit.layout import cube_layout
+from meshfit.pipeline import FitOptions
+from meshfit.pipeline.outputs import read_manifest
+from meshfit.report import BLENDER_PYTHON_ENV, BLENDER_SCRIPT
 
-SCRIPTS = Path(__file__).parent / "blender"
+#: the test scripts, and the package's render script
+SCRIPTS = {
+    "inspect_usd.py": Path(__file__).parent / "blender" / "inspect_usd.py",
+    "render_usd.py": BLENDER_SCRIPT,
+}
 DEFAULT_VENV = Path.home() / ".cache" / "meshfit" / "blender-venv"
 HOW_TO = (
     "the Blender tests need Blender's Python module in its own virtualenv (bpy pins Python "
@@ -57,9 +71,11 @@ def blender_python() -> Path:
 
 
 def run_blender(script: str, *args) -> None:
-    """Run ``tests/export/blender/<script>`` with Blender's Python; fail with its stderr."""
+    """Run one of `SCRIPTS` with Blender's Python; fail with its stderr."""
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
-    cmd = [str(blender_python()), str(SCRIPTS / script), *map(str, args)]
+    # -P: the script's folder stays off the path (the package's ``types`` module would
+    # shadow the standard library's)
+    cmd = [str(blender_python()), "-P", str(SCRIPTS[script]), *map(str, args)]
     res = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
     if res.returncode != 0:
         tail = (res.stderr or res.stdout)[-3000:]
@@ -318,3 +334,65 @@ def _mesh_layer(path: Path, pm) -> Path:
     mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
     stage.GetRootLayer().Save()
     return path
+
+
+def _report_fit(out: Path, resume: bool = False):
+    """A quick fit with the report into ``out``: a box layout on the demo input, the USD
+    stage the only format, small images."""
+    mesh = demo_mesh(4000)
+    options = FitOptions(controls=(6, 6), spring_level=1, formats=("usd",), image_size=96)
+    return meshfit.fit(mesh, cube_layout(mesh, n=1), options=options, out=out, resume=resume)
+
+
+BLENDER_PNGS = ["report/blender_displaced.png", "report/blender_plain.png"]
+
+
+def test_the_report_shows_blender_renders_of_the_usd(tmp_path, monkeypatch, renders):
+    monkeypatch.setenv(BLENDER_PYTHON_ENV, str(blender_python()))
+    out = tmp_path / "fit"
+    result = _report_fit(out)
+    layer = next(f for f in result.summary["outputs"]["usd"] if f.endswith((".usda", ".usdc")))
+    page = (out / "report.html").read_text()
+    srcs = re.findall(r"src='([^']+)'", page)
+    assert [s for s in srcs if "blender" in s] == BLENDER_PNGS
+    assert f"Blender (Cycles) render of {layer}: displacement on" in page
+    assert f"Blender (Cycles) render of {layer}: displacement off" in page
+    assert not [n for n in result.summary["notes"] if "Blender" in n]
+    assert all(f in read_manifest(out) for f in BLENDER_PNGS)
+
+    on, off = (read_png(out / f) for f in BLENDER_PNGS)
+    assert on.shape == off.shape == (96, 96, 4)  # the report's size (below the cap)
+    for img in (on, off):  # the model, framed: neither empty nor filling the image
+        assert 0.1 < (img[:, :, 3] > 0.5).mean() < 0.9
+    # the maps move the surface: the shading differs over much of the model
+    model = (on[:, :, 3] == 1.0) & (off[:, :, 3] == 1.0)
+    diff = np.abs(on - off)[model].max(axis=1)
+    assert (diff > 0.05).mean() > 0.05, (diff > 0.05).mean()  # identical geometry: 0
+    for f in BLENDER_PNGS:
+        (renders / "report").mkdir(exist_ok=True)
+        (renders / "report" / Path(f).name).write_bytes((out / f).read_bytes())
+
+    # a resumed run keeps the report stage and its Blender renders
+    stamp = [(out / f).stat().st_mtime_ns for f in BLENDER_PNGS]
+    again = _report_fit(out, resume=True)
+    assert again.summary["stages"]["report"]["cached"]
+    assert [(out / f).stat().st_mtime_ns for f in BLENDER_PNGS] == stamp
+    assert [s for s in re.findall(r"src='([^']+)'", (out / "report.html").read_text())
+            if "blender" in s] == BLENDER_PNGS  # fmt: skip
+    assert all(f in read_manifest(out) for f in BLENDER_PNGS)
+
+
+def test_a_failed_blender_render_is_a_note_not_a_failed_fit(tmp_path, monkeypatch):
+    monkeypatch.setenv(BLENDER_PYTHON_ENV, sys.executable)  # no bpy there
+    out = tmp_path / "fit"
+    result = _report_fit(out)
+    (note,) = [n for n in result.summary["notes"] if "Blender" in n]
+    assert "Blender render" in note and "failed" in note and "bpy" in note
+    page = (out / "report.html").read_text()
+    assert "blender_" not in page and "Blender (Cycles)" not in page
+    assert not list((out / "report").glob("blender_*"))
+    assert (out / "report" / "displaced.png").is_file()  # the rest of the report is there
+    # a resumed run keeps the report stage, and says again why it has no Blender render
+    again = _report_fit(out, resume=True)
+    assert again.summary["stages"]["report"]["cached"]
+    assert [n for n in again.summary["notes"] if "Blender" in n] == [note]

@@ -177,8 +177,10 @@ class FitResult:
     def report(self, folder: str | os.PathLike, *, image_size: int | None = None) -> list[str]:
         """Render ``report.html`` and its images into ``folder`` (default size the options');
         returns the files written, relative to ``folder``. Needs the input mesh (the result's
-        own, or ``load_fit(folder, mesh=...)``): the layout and error renders are drawn on it."""
-        from meshfit.report import ReportInputs, write_report
+        own, or ``load_fit(folder, mesh=...)``): the layout and error renders are drawn on it.
+        With ``$MESHFIT_BLENDER_PYTHON`` set and the fit's USD stage in ``folder``, Blender's
+        renders of it are included, as in :func:`meshfit.fit`."""
+        from meshfit.report import ReportInputs, blender_python, write_report
 
         if self.mesh is None:
             raise InputError(
@@ -198,7 +200,8 @@ class FitResult:
             spline_distance=self.spline_distance,
         )
         size = self.options.image_size if image_size is None else int(image_size)
-        images = write_report(out, shown, image_size=size)["images"]
+        drawn = write_report(out, shown, image_size=size, blender_python=blender_python())
+        images = drawn["images"]
         self.summary.setdefault("outputs", {})["report"] = ["report.html"]
         files = ["report.html", *images]
         update_manifest(out, files)

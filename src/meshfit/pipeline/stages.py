@@ -648,7 +648,14 @@ class Exports(Stage):
 
 
 class Report(Stage):
-    """``report.html`` and its renders (the renders are kept on a resumed run)."""
+    """``report.html`` and its renders (the renders are kept on a resumed run).
+
+    With ``$MESHFIT_BLENDER_PYTHON`` set and a USD stage among the formats, the page also
+    shows that stage rendered by Blender (:func:`meshfit.report.blender_renders`); the
+    interpreter is part of the key, so setting or changing it renders the report again. A
+    failed Blender render is a note (kept in the record, so a resumed run says it again),
+    never a failed fit.
+    """
 
     name = "report"
     inputs = ("mesh", "layout", "surfaces", "maps", "summary")
@@ -657,16 +664,23 @@ class Report(Stage):
     suffix = ".json"
 
     def __init__(self, out: Path) -> None:
+        from meshfit.report import blender_python
+
         self.out = out
         self.images_ok = False
+        self.blender = blender_python()
 
     def extra(self, ctx: Context) -> Any:
-        return ctx.options.outputs.image_size
+        size = ctx.options.outputs.image_size
+        if self.blender is None or "usd" not in ctx.options.outputs.formats:
+            return size  # the key of a report without Blender renders
+        return [size, str(self.blender)]
 
     def load(self, ctx: Context, path: Path) -> bool:
         rec = json.loads(path.read_text())
         self.images_ok = all((self.out / f).is_file() for f in rec["images"])
         if self.images_ok:
+            ctx["summary"].setdefault("notes", []).extend(rec.get("notes", []))
             self.run(ctx)
         return self.images_ok
 
@@ -689,10 +703,12 @@ class Report(Stage):
             shown,
             image_size=ctx.options.outputs.image_size,
             render_images=not self.images_ok,
+            blender_python=self.blender,
         )
 
     def save(self, ctx: Context, path: Path) -> None:
-        write_json(path, {"images": ctx["report"]["images"]})
+        report = ctx["report"]
+        write_json(path, {"images": report["images"], "notes": report["notes"]})
 
 
 def fit_stages(layout: Any, patch_map=None, out: Path | None = None) -> list[Stage]:

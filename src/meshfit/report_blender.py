@@ -1,11 +1,17 @@
 """Blender script: import USD layers and render them with Cycles.
 
-Run by ``tests/export/test_blender.py`` with Blender's Python (``bpy``):
-``python render_usd.py SPEC.json``. The spec gives the output folder ``out``, the image
-``size`` and ``samples``, the camera's ``view`` direction (world coordinates), a
-``subdivision`` level (a Simple Subdivision Surface modifier; 0 for none), model-space
-``probes`` and ``renders``: ``[name, layer, variant]`` triples, each rendered into a fresh
-scene as ``out/<name>.png``, where the variant is
+This file is run BY Blender's Python interpreter (the one that imports ``bpy``, in a
+virtualenv of its own), in a subprocess: ``python report_blender.py SPEC.json``. meshfit
+never imports it, and it imports nothing from meshfit (Blender's Python has no meshfit). It
+ships in the package as a resource for :func:`meshfit.report.blender_renders`, the report's
+renders of the USD deliverable; the tests run it too.
+
+The spec (JSON) gives the output folder ``out``, the image ``size`` and ``samples``, the
+camera's ``view`` direction and, optionally, its ``up`` direction (both in the layer's own
+coordinates, turned and scaled as the import places the mesh; default up: Blender's +Z), a
+``subdivision`` level (a Simple Subdivision Surface modifier; 0 for none), optional
+model-space ``probes`` and ``renders``: ``[name, layer, variant]`` triples, each rendered
+into a fresh scene as ``out/<name>.png``, where the variant is
 
 - ``displaced``: the material as imported, Displacement method "Displacement Only";
 - ``plain``: nothing connected to the material's displacement (or no material);
@@ -13,10 +19,11 @@ scene as ``out/<name>.png``, where the variant is
   tangent space, as :func:`meshfit.export.export_usd` documents;
 - ``mask``: white emission where the displacement texture is non-zero, no lights.
 
-``out/render.json`` holds the probes' pixel positions ``(column, row from the top)`` in the
-first render. Every render uses the first one's camera (orthographic, round the bounding
-sphere of its mesh), CPU Cycles with a fixed seed and no bounces, so two renders of the
-same geometry agree pixel for pixel.
+With ``probes``, ``out/render.json`` holds their pixel positions ``(column, row from the
+top)`` in the first render. Every render uses the first one's camera (orthographic, round
+the bounding sphere of its mesh), CPU Cycles with a fixed seed and no bounces, so two
+renders of the same geometry agree pixel for pixel. A failure exits non-zero with the reason
+on stderr.
 """
 
 import json
@@ -26,14 +33,18 @@ from pathlib import Path
 import bpy
 import numpy as np
 from bpy_extras.object_utils import world_to_camera_view
-from mathutils import Vector
+from mathutils import Matrix, Vector
 
 
 def import_layer(layer: str):
+    """A fresh, empty Blender with ``layer`` imported; its (first) mesh object."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     if bpy.ops.wm.usd_import(filepath=layer) != {"FINISHED"}:
         raise SystemExit(f"USD import of {layer} failed")
-    return next(o for o in bpy.data.objects if o.type == "MESH")
+    meshes = [o for o in bpy.data.objects if o.type == "MESH"]
+    if not meshes:
+        raise SystemExit(f"{layer} holds no mesh")
+    return meshes[0]
 
 
 def world_vertices(obj) -> np.ndarray:
@@ -41,13 +52,37 @@ def world_vertices(obj) -> np.ndarray:
     return np.array([v.co[:] for v in obj.data.vertices]) @ M[:3, :3].T + M[:3, 3]
 
 
-def frame(obj, view) -> dict:
-    """The camera: orthographic, along ``view``, round the object's bounding sphere."""
+def to_world(obj, direction) -> np.ndarray:
+    """A direction in the layer's coordinates as a unit vector in Blender's world (the
+    import's turn of a Y-up stage and its unit scale are in the object's matrix)."""
+    M = np.array(obj.matrix_world)[:3, :3]
+    d = M @ np.asarray(direction, dtype=np.float64)
+    return d / np.linalg.norm(d)
+
+
+def frame(obj, view, up=None) -> dict:
+    """The camera: orthographic, along ``view``, ``up`` upwards (None: world +Z), round the
+    object's bounding sphere."""
     co = world_vertices(obj)
     centre = (co.min(0) + co.max(0)) / 2
     radius = float(np.linalg.norm(co - centre, axis=1).max())
-    view = np.asarray(view, dtype=np.float64)
-    return {"centre": centre, "radius": radius, "view": view / np.linalg.norm(view)}
+    return {
+        "centre": centre,
+        "radius": radius,
+        "view": to_world(obj, view),
+        "up": None if up is None else to_world(obj, up),
+    }
+
+
+def look(view: np.ndarray, up) -> Matrix:
+    """The rotation of a camera (it looks along its local -Z, local +Y up) looking along
+    ``view`` with ``up`` shown upwards; Blender's +Z up where ``up`` is None or along
+    ``view``."""
+    right = np.cross(view, up) if up is not None else np.zeros(3)
+    if np.linalg.norm(right) < 1e-6:
+        return Vector(view).to_track_quat("-Z", "Y").to_matrix()
+    right /= np.linalg.norm(right)
+    return Matrix(np.stack([right, np.cross(right, view), -view], axis=1).tolist())
 
 
 def setup(spec: dict, layer: str, camera: dict | None = None):
@@ -74,7 +109,7 @@ def setup(spec: dict, layer: str, camera: dict | None = None):
         mod = obj.modifiers.new("subdivide", "SUBSURF")
         mod.subdivision_type = "SIMPLE"
         mod.levels = mod.render_levels = spec["subdivision"]
-    camera = camera or frame(obj, spec["view"])
+    camera = camera or frame(obj, spec["view"], spec.get("up"))
     centre, radius, view = camera["centre"], camera["radius"], camera["view"]
     cam_data = bpy.data.cameras.new("camera")
     cam_data.type = "ORTHO"
@@ -84,7 +119,7 @@ def setup(spec: dict, layer: str, camera: dict | None = None):
     cam = bpy.data.objects.new("camera", cam_data)
     scene.collection.objects.link(cam)
     cam.location = Vector(centre - 4 * radius * view)
-    cam.rotation_euler = Vector(view).to_track_quat("-Z", "Y").to_euler()
+    cam.rotation_euler = look(view, camera["up"]).to_euler()
     scene.camera = cam
     sun_data = bpy.data.lights.new("sun", "SUN")
     sun_data.energy = 3.0
@@ -151,7 +186,8 @@ def mask_material(material):
 
 
 def displaced(scene, material) -> None:
-    material.displacement_method = "DISPLACEMENT"
+    if material is not None:
+        material.displacement_method = "DISPLACEMENT"
 
 
 def plain(scene, material) -> None:
@@ -185,13 +221,14 @@ def main(spec: dict) -> None:
         scene, obj, cam, camera = setup(spec, layer, camera)
         if k == 0:
             M = np.array(obj.matrix_world)
-            for p in spec["probes"]:
+            for p in spec.get("probes", ()):
                 w = M[:3, :3] @ np.asarray(p, dtype=np.float64) + M[:3, 3]
                 c = world_to_camera_view(scene, cam, Vector(w))
                 pixels.append([c.x * spec["size"], (1.0 - c.y) * spec["size"]])
         VARIANTS[variant](scene, obj.data.materials[0] if obj.data.materials else None)
         render(scene, out / f"{name}.png")
-    (out / "render.json").write_text(json.dumps({"probes": pixels}))
+    if "probes" in spec:
+        (out / "render.json").write_text(json.dumps({"probes": pixels}))
 
 
 if __name__ == "__main__":
