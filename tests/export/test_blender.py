@@ -12,9 +12,11 @@ folder.
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -56,18 +58,37 @@ SIZE, SAMPLES = 128, 4
 VIEW = (1.0, 1.0, -0.7)
 
 
+@functools.cache
 def blender_python() -> Path:
-    """The interpreter with ``bpy``: ``$MESHFIT_BLENDER_PYTHON``, else the default venv's."""
-    tried = []
+    """The interpreter with ``bpy``: ``$MESHFIT_BLENDER_PYTHON``, else the default venv's,
+    made here the first time (as ``.ci/run`` makes it), so the README's test command works
+    on a fresh machine."""
     env = os.environ.get("MESHFIT_BLENDER_PYTHON")
     if env:
-        tried.append(Path(env))
+        if Path(env).is_file():
+            return Path(env)
+        pytest.fail(f"MESHFIT_BLENDER_PYTHON={env}: no such interpreter; {HOW_TO}")
     venv = os.environ.get("MESHFIT_BLENDER_VENV")
-    tried.append((Path(venv) if venv else DEFAULT_VENV) / "bin" / "python")
-    for p in tried:
-        if p.is_file():
-            return p
-    pytest.fail(f"no Blender Python at {', '.join(map(str, tried))}; {HOW_TO}")
+    python = (Path(venv) if venv else DEFAULT_VENV) / "bin" / "python"
+    ok = python.is_file() and subprocess.run([str(python), "-c", "import bpy"]).returncode == 0
+    if not ok:
+        _make_venv(python.parent.parent)
+    return python
+
+
+def _make_venv(folder: Path) -> None:
+    """A virtualenv at ``folder`` with Blender's module (it pins Python 3.11)."""
+    base = shutil.which("python3.11") or (
+        sys.executable if sys.version_info[:2] == (3, 11) else None
+    )
+    if base is None:
+        pytest.fail(f"no Python 3.11 to make {folder} with; {HOW_TO}")
+    steps = [[base, "-m", "venv", str(folder)]]
+    steps.append([str(folder / "bin" / "python"), "-m", "pip", "install", "-q", "bpy==4.5.4"])
+    for cmd in steps:
+        res = subprocess.run(cmd, capture_output=True, text=True, timeout=1800)
+        if res.returncode != 0:
+            pytest.fail(f"{' '.join(cmd)} failed: {res.stderr[-2000:]}; {HOW_TO}")
 
 
 def run_blender(script: str, *args) -> None:
