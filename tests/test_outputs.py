@@ -14,6 +14,7 @@ import pytest
 import trimesh
 
 import meshfit
+from meshfit.errors import InputError
 from meshfit.mesh import load_mesh
 from meshfit.pipeline import FitOptions
 from meshfit.pipeline.outputs import edited_maps, map_patch, output_stem, read_manifest
@@ -159,3 +160,24 @@ def test_the_3dm_spline_and_the_exr_map_rebuild_the_displaced_surface(spot, tmp_
                 x = np.array([[q.X, q.Y, q.Z] for q in x])
                 got = x[0] + t * x[1] + b * x[2] + n * x[3]
                 assert np.linalg.norm(got - want[i, j]) <= 1e-6 * diag, (p, i, j)
+
+
+def test_the_input_and_the_users_files_are_never_overwritten(tmp_path):
+    import shutil
+
+    scan = tmp_path / "spot.ply"
+    shutil.copy(mesh_path("spot"), scan)
+    before = scan.read_bytes()
+    opts = dataclasses.replace(OPTIONS, formats=("ply",))
+    with pytest.raises(InputError, match="no fit wrote it"):
+        meshfit.fit(scan, LAYOUT, options=opts, out=tmp_path)  # spot.ply is the input
+    assert scan.read_bytes() == before
+    # in its own folder the PLY is written, watertight, with the fit's patch of each face
+    out = tmp_path / "fit"
+    meshfit.fit(scan, LAYOUT, options=opts, out=out)
+    ply = trimesh.load(out / "spot.ply", process=False)
+    ply.merge_vertices()
+    assert ply.is_watertight
+    # a re-run into the same folder overwrites what the fit wrote
+    meshfit.fit(scan, LAYOUT, options=opts, out=out)
+    assert "spot.ply" in read_manifest(out)

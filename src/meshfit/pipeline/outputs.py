@@ -47,7 +47,9 @@ __all__ = [
     "map_patch",
     "output_stem",
     "patch_names",
+    "planned_files",
     "read_manifest",
+    "refuse_foreign",
     "remove_stale",
     "update_manifest",
     "write_exports",
@@ -66,7 +68,14 @@ UDIM_FIRST = 1001
 #: extensions of the tessellated and CAD deliverables, by format
 #: (the USD stage in the binary crate format: a text layer of a fine mesh is several times
 #: larger and slower to read)
-DELIVERABLES = {"usd": ".usdc", "3dm": ".3dm", "iges": ".igs", "step": ".step", "glb": ".glb"}
+DELIVERABLES = {
+    "usd": ".usdc",
+    "3dm": ".3dm",
+    "iges": ".igs",
+    "step": ".step",
+    "glb": ".glb",
+    "ply": ".ply",
+}
 
 
 def patch_names(n: int) -> list[str]:
@@ -264,6 +273,39 @@ def _write_format(job: _Export, fmt: str, images: list[str]) -> list[str]:
     return [target.name]
 
 
+def planned_files(stem: str, formats: Sequence[str], maps: Sequence = ()) -> list[str]:
+    """The files :func:`write_exports` writes for ``formats`` (relative to the folder); the
+    map images only when ``maps`` are given (their kind and count name them)."""
+    files: list[str] = []
+    for fmt in formats:
+        if maps and (fmt in ("exr", "png") or (fmt == "usd" and "exr" not in formats)):
+            ext = "exr" if fmt == "usd" else fmt
+            files += [map_file(stem, maps[0].kind, p, ext) for p in range(len(maps))]
+        if fmt == "obj":
+            files += [f"{stem}.obj", f"{stem}_spline.obj", f"{stem}_spline.mtl"]
+        elif fmt in DELIVERABLES:
+            files.append(f"{stem}{DELIVERABLES[fmt]}")
+    return files
+
+
+def refuse_foreign(folder: Path, files: Sequence[str]) -> None:
+    """InputError when a file about to be written exists and no fit wrote it (neither the
+    last manifest nor a cached exports record of an interrupted run lists it): the input,
+    or a file of the user's, is never overwritten."""
+    listed = set(read_manifest(folder))
+    for record in (Path(folder) / CACHE).glob("exports-*.json"):
+        try:
+            listed |= set(json.loads(record.read_text())["sha256"])
+        except (ValueError, KeyError, TypeError):
+            continue  # a damaged record vouches for nothing
+    for name in files:
+        if (folder / name).exists() and name not in listed:
+            raise InputError(
+                f"{folder / name} exists and no fit wrote it: meshfit does not overwrite it "
+                "(is it the input?); choose another output folder"
+            )
+
+
 def write_exports(
     out: Path,
     surfaces: Sequence,
@@ -292,6 +334,7 @@ def write_exports(
     from meshfit.mesh.measures import up_axis as guess_up
 
     out = Path(out)
+    refuse_foreign(out, planned_files(stem, formats, maps))
     kept = {name: (out / name).read_bytes() for name in edited_maps(out)}
     if up_axis == "auto":
         up_axis = guess_up(np.concatenate([s.control_points.reshape(-1, 3) for s in surfaces]))

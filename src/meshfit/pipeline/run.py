@@ -18,7 +18,10 @@ from meshfit.pipeline.outputs import (
     CACHE,
     MANIFEST,
     edited_maps,
+    output_stem,
+    planned_files,
     read_manifest,
+    refuse_foreign,
     remove_stale,
     write_manifest,
 )
@@ -86,6 +89,10 @@ def fit(
     ctx = Context(options, n_workers(options.workers), progress)
     ctx["input"] = mesh
     listed = {} if folder is None else read_manifest(folder)  # what the last run wrote
+    if folder is not None:  # before any work: the input is never overwritten
+        path_like = isinstance(mesh, (str, os.PathLike))
+        name = Path(mesh).name if path_like else getattr(mesh, "name", None)
+        refuse_foreign(folder, planned_files(output_stem(name), options.formats))
     runner = Runner(None if folder is None else folder / CACHE, resume)
     runner.run([Validate()], ctx)
     runner.run(fit_stages(layout, patch_map, folder), ctx)
