@@ -90,8 +90,10 @@ def fit(
     ctx["input"] = mesh
     listed = {} if folder is None else read_manifest(folder)  # what the last run wrote
     if folder is not None:  # before any work: the input is never overwritten
-        path_like = isinstance(mesh, (str, os.PathLike))
-        name = Path(mesh).name if path_like else getattr(mesh, "name", None)
+        if isinstance(mesh, (str, os.PathLike)):
+            name: str | None = Path(mesh).name
+        else:
+            name = getattr(mesh, "name", None)
         refuse_foreign(folder, planned_files(output_stem(name), options.formats))
     runner = Runner(None if folder is None else folder / CACHE, resume)
     runner.run([Validate()], ctx)
