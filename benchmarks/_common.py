@@ -5,14 +5,34 @@ from __future__ import annotations
 import json
 import os
 import statistics
+import subprocess
 import sys
+import tempfile
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from meshfit._atomic import write_text
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
+
+
+@contextmanager
+def worktree(commit: str) -> Iterator[Path]:
+    """A git worktree of ``commit`` of this repository in a temporary folder (removed on
+    exit): the ``src`` folder of an earlier meshfit, for the ``--against`` comparisons."""
+    with tempfile.TemporaryDirectory() as tmp:
+        old = Path(tmp) / "old"
+        git = ["git", "-C", str(ROOT), "worktree"]
+        subprocess.run([*git, "add", "-f", "--detach", str(old), commit], check=True,
+                       capture_output=True)  # fmt: skip
+        try:
+            yield old
+        finally:
+            subprocess.run([*git, "remove", "--force", str(old)], check=False,
+                           capture_output=True)  # fmt: skip
 
 
 def mesh_path(name: str) -> Path:

@@ -22,7 +22,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from _common import mesh_path, write_result
+from _common import mesh_path, worktree, write_result
 
 CACHES = ("stages", ".meshfit")
 
@@ -76,39 +76,25 @@ def _median(runs: list[dict]) -> dict:
 
 
 def compare(args) -> None:
-    root = Path(__file__).resolve().parents[1]
     result: dict = {"benchmark": "outputs", "against": args.against, "runs": args.repeats}
-    with tempfile.TemporaryDirectory() as tmp:
-        old = Path(tmp) / "old"
-        subprocess.run(
-            ["git", "-C", str(root), "worktree", "add", "-f", "--detach", str(old), args.against],
-            check=True,
-            capture_output=True,
-        )
-        try:
-            for name in args.meshes.split(","):
-                _run(name), _run(name, str(old / "src"))  # warm-up (kernel caches)
-                new, prev = [], []
-                for _ in range(max(1, args.repeats)):
-                    new.append(_run(name))
-                    prev.append(_run(name, str(old / "src")))
-                a, b = _median(new), _median(prev)
-                result[name] = {
-                    "new": a,
-                    "old": b,
-                    "exports_new_over_old": round(
-                        a["exports_seconds"] / max(b["exports_seconds"], 1e-9), 3
-                    ),
-                    "files_new_over_old": round(a["files"] / b["files"], 3),
-                    "megabytes_new_over_old": round(a["megabytes"] / b["megabytes"], 3),
-                }
-                print(name, json.dumps(result[name]), flush=True)
-        finally:
-            subprocess.run(
-                ["git", "-C", str(root), "worktree", "remove", "--force", str(old)],
-                check=False,
-                capture_output=True,
-            )
+    with worktree(args.against) as old:
+        for name in args.meshes.split(","):
+            _run(name), _run(name, str(old / "src"))  # warm-up (kernel caches)
+            new, prev = [], []
+            for _ in range(max(1, args.repeats)):
+                new.append(_run(name))
+                prev.append(_run(name, str(old / "src")))
+            a, b = _median(new), _median(prev)
+            result[name] = {
+                "new": a,
+                "old": b,
+                "exports_new_over_old": round(
+                    a["exports_seconds"] / max(b["exports_seconds"], 1e-9), 3
+                ),
+                "files_new_over_old": round(a["files"] / b["files"], 3),
+                "megabytes_new_over_old": round(a["megabytes"] / b["megabytes"], 3),
+            }
+            print(name, json.dumps(result[name]), flush=True)
     write_result("outputs", result)
 
 

@@ -25,10 +25,9 @@ import subprocess
 import sys
 import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
-from _common import mesh_path, write_result
+from _common import mesh_path, worktree, write_result
 
 THESIS_SECONDS_PER_MILLION = 600.0
 QUADRIFLOW_SECONDS_1_3M = 52.0
@@ -132,42 +131,28 @@ def _run(size: str, patches: int, src: str | None = None) -> dict:
 def compare(args) -> None:
     """This checkout against ``args.against``, alternating runs (after one warm-up run each,
     which compiles the kernels), medians per size; writes ``pipeline_against.json``."""
-    root = Path(__file__).resolve().parents[1]
-    with tempfile.TemporaryDirectory() as tmp:
-        old = Path(tmp) / "old"
-        subprocess.run(
-            ["git", "-C", str(root), "worktree", "add", "-f", "--detach", str(old), args.against],
-            check=True,
-            capture_output=True,
-        )
-        try:
-            out = {"benchmark": "pipeline_against", "against": args.against, "runs": args.repeats}
-            for size in args.sizes.split(","):
-                new_runs, old_runs = [], []
-                _run(size, args.patches)
-                _run(size, args.patches, str(old / "src"))
-                for _ in range(max(1, args.repeats)):
-                    new_runs.append(_run(size, args.patches))
-                    old_runs.append(_run(size, args.patches, str(old / "src")))
-                new, prev = _median_run(new_runs), _median_run(old_runs)
-                out[size] = {
-                    "new_seconds_total": new["seconds_total"],
-                    "old_seconds_total": prev["seconds_total"],
-                    "new_runs": new["seconds_total_runs"],
-                    "old_runs": prev["seconds_total_runs"],
-                    "new_over_old": round(new["seconds_total"] / prev["seconds_total"], 3),
-                    "new_peak_memory_mib": new["peak_memory_mib"],
-                    "old_peak_memory_mib": prev["peak_memory_mib"],
-                    "same_errors": new["displaced_rms"] == prev["displaced_rms"]
-                    and new["displaced_hausdorff"] == prev["displaced_hausdorff"],
-                }
-                print(size, json.dumps(out[size]))
-        finally:
-            subprocess.run(
-                ["git", "-C", str(root), "worktree", "remove", "--force", str(old)],
-                check=False,
-                capture_output=True,
-            )
+    out = {"benchmark": "pipeline_against", "against": args.against, "runs": args.repeats}
+    with worktree(args.against) as old:
+        for size in args.sizes.split(","):
+            new_runs, old_runs = [], []
+            _run(size, args.patches)
+            _run(size, args.patches, str(old / "src"))
+            for _ in range(max(1, args.repeats)):
+                new_runs.append(_run(size, args.patches))
+                old_runs.append(_run(size, args.patches, str(old / "src")))
+            new, prev = _median_run(new_runs), _median_run(old_runs)
+            out[size] = {
+                "new_seconds_total": new["seconds_total"],
+                "old_seconds_total": prev["seconds_total"],
+                "new_runs": new["seconds_total_runs"],
+                "old_runs": prev["seconds_total_runs"],
+                "new_over_old": round(new["seconds_total"] / prev["seconds_total"], 3),
+                "new_peak_memory_mib": new["peak_memory_mib"],
+                "old_peak_memory_mib": prev["peak_memory_mib"],
+                "same_errors": new["displaced_rms"] == prev["displaced_rms"]
+                and new["displaced_hausdorff"] == prev["displaced_hausdorff"],
+            }
+            print(size, json.dumps(out[size]))
     write_result("pipeline_against", out)
 
 

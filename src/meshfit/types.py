@@ -11,7 +11,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from meshfit.errors import InputError
 
-__all__ = ["CONTINUITIES", "Side", "SurfaceCurve", "SurfacePoints"]
+__all__ = ["CONTINUITIES", "Side", "SurfaceCurve", "SurfacePoints", "readonly"]
 
 #: continuity across a shared boundary: positions only, or positions and tangent planes
 CONTINUITIES = ("C0", "G1")
@@ -61,7 +61,9 @@ class Side(StrEnum):
 _AROUND = (Side.V0, Side.U1, Side.V1, Side.U0)
 
 
-def _readonly(a: NDArray) -> NDArray:
+def readonly(a: NDArray) -> NDArray:
+    """``a`` as a contiguous read-only array: itself when it already is one, else a copy
+    whose view cannot be made writeable again."""
     a = np.ascontiguousarray(a)
     if a.flags.writeable:
         a = a.copy()
@@ -106,8 +108,8 @@ class SurfacePoints:
         if not np.isfinite(bary).all():
             bad = int(np.flatnonzero(~np.isfinite(bary).all(axis=1))[0])
             raise InputError(f"SurfacePoints.bary is not finite at point {bad}")
-        object.__setattr__(self, "face", _readonly(face.astype(np.int64, copy=False)))
-        object.__setattr__(self, "bary", _readonly(bary))
+        object.__setattr__(self, "face", readonly(face.astype(np.int64, copy=False)))
+        object.__setattr__(self, "bary", readonly(bary))
 
     @classmethod
     def owned(cls, face: NDArray[np.int64], bary: NDArray[np.float64]) -> SurfacePoints:

@@ -418,6 +418,27 @@ def refine_on_scan(
     jumps to it); the grid's own points, on the scan already, keep their places.
     Interpolating alone would cut the scan's detail between the grid's points; the scan
     has it.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        The scan (its triangle tree is built once and kept).
+    surface : BSplineSurface
+        The patch's spline, whose normals decide which way the scan must face.
+    grid : (h, w, 3) float64
+        The patch's spring grid, points at ``(i / (h - 1), j / (w - 1))``.
+    shape : (int, int)
+        The finer resolution ``(h', w')``, at least ``(h, w)``.
+
+    Returns
+    -------
+    (h', w', 3) float64
+        Points at ``(i / (h' - 1), j / (w' - 1))``, model units.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 7.1 (the displacement map as the scan over the spline)
+       and sec. 8.2 (equal texel counts along shared boundaries).
     """
     X = _filtered(np.asarray(grid, dtype=np.float64), shape)
     cp = mesh.closest_points(X.reshape(-1, 3))

@@ -24,13 +24,15 @@ from meshfit.displacement import DisplacementMap, reconstruct
 from meshfit.errors import InputError
 from meshfit.export._common import as_maps, as_shapes, as_surfaces, grid_faces
 from meshfit.stitch import Network, network_from_grids, texel_shapes
-from meshfit.types import Side
+from meshfit.types import Side, readonly
 
-__all__ = ["UDIM_COLUMNS", "PatchMesh", "patch_mesh", "spline_network", "udim"]
+__all__ = ["UDIM_COLUMNS", "UDIM_FIRST", "PatchMesh", "patch_mesh", "spline_network", "udim"]
 
 #: tiles per row of the UDIM texture layout: patch p lives in tile column ``p % UDIM_COLUMNS``,
 #: row ``p // UDIM_COLUMNS`` (the UDIM convention's 10)
 UDIM_COLUMNS = 10
+#: the UDIM number of patch 0's tile; patch ``p`` is tile ``UDIM_FIRST + p``
+UDIM_FIRST = 1001
 
 #: grid nodes per batch of the vertex-normal sums (bounds their temporary arrays)
 _NORMAL_BATCH = 1 << 20
@@ -51,22 +53,14 @@ def udim(p: int) -> int:
     Returns
     -------
     int
-        ``1001 + (p % UDIM_COLUMNS) + UDIM_COLUMNS * (p // UDIM_COLUMNS)``, the number a
-        ``<UDIM>`` token in an image name stands for.
+        ``UDIM_FIRST + p`` (the tile's column ``p % UDIM_COLUMNS`` and row
+        ``p // UDIM_COLUMNS`` give ``1001 + column + 10 row``), the number a ``<UDIM>``
+        token in an image name stands for.
     """
     p = int(p)
     if p < 0:
         raise InputError(f"patch index must be >= 0, got {p}")
-    return 1001 + p % UDIM_COLUMNS + UDIM_COLUMNS * (p // UDIM_COLUMNS)
-
-
-def _readonly(a, dtype) -> NDArray:
-    """``a`` as a contiguous read-only array of ``dtype``: itself when it already is one."""
-    a = np.ascontiguousarray(a, dtype=dtype)
-    if a.flags.writeable:
-        a = a.copy()
-        a.flags.writeable = False
-    return a
+    return UDIM_FIRST + p
 
 
 _FIELDS = {
@@ -121,7 +115,8 @@ class PatchMesh:
 
     def __post_init__(self) -> None:
         for name, dtype in _FIELDS.items():
-            object.__setattr__(self, name, _readonly(getattr(self, name), dtype))
+            value = np.asarray(getattr(self, name), dtype=dtype)
+            object.__setattr__(self, name, readonly(value))
         object.__setattr__(self, "shapes", tuple((int(h), int(w)) for h, w in self.shapes))
         n, m = len(self.vertices), len(self.faces)
         want = {

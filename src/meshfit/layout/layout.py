@@ -13,7 +13,7 @@ from numpy.typing import ArrayLike, NDArray
 from meshfit import tol
 from meshfit.errors import LayoutError
 from meshfit.mesh import Mesh
-from meshfit.types import SurfaceCurve, SurfacePoints, _readonly
+from meshfit.types import SurfaceCurve, SurfacePoints, readonly
 
 __all__ = ["Layout", "layout_from_curves", "mesh_fingerprint"]
 
@@ -112,7 +112,7 @@ class Layout:
         )
         if creases.shape != (len(curves),):
             raise LayoutError(f"creases has {creases.size} entries for {len(curves)} curves")
-        object.__setattr__(self, "creases", _readonly(creases))
+        object.__setattr__(self, "creases", readonly(creases))
         ends = np.asarray(self.curve_ends, dtype=np.int64).reshape(-1, 2)
         pc = np.asarray(self.patch_curves, dtype=np.int64)
         pr = np.asarray(self.patch_reversed, dtype=bool)
@@ -135,9 +135,9 @@ class Layout:
         for p in range(pc.shape[0]):
             _check_patch_sides(p, pc, pr, ends, nk)
         object.__setattr__(self, "curves", curves)
-        object.__setattr__(self, "curve_ends", _readonly(ends))
-        object.__setattr__(self, "patch_curves", _readonly(pc))
-        object.__setattr__(self, "patch_reversed", _readonly(pr))
+        object.__setattr__(self, "curve_ends", readonly(ends))
+        object.__setattr__(self, "patch_curves", readonly(pc))
+        object.__setattr__(self, "patch_reversed", readonly(pr))
         object.__setattr__(self, "features", features)
 
     @property

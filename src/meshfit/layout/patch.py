@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 
 from meshfit.errors import InputError
 from meshfit.mesh import Mesh
-from meshfit.types import SurfaceCurve, SurfacePoints, _readonly
+from meshfit.types import SurfaceCurve, SurfacePoints, readonly
 
 __all__ = [
     "BULGY",
@@ -111,7 +111,7 @@ class Patch:
             raise InputError(f"patch {self.index}: needs 4 corners, got {corners.shape[0]}")
         if len(self.sides) != 4:
             raise InputError(f"patch {self.index}: needs 4 sides, got {len(self.sides)}")
-        sides = tuple(_readonly(np.asarray(s, dtype=np.int64).reshape(-1)) for s in self.sides)
+        sides = tuple(readonly(np.asarray(s, dtype=np.int64).reshape(-1)) for s in self.sides)
         for s, chain in enumerate(sides):
             if chain.shape[0] < 2 or chain[0] != corners[s] or chain[-1] != corners[(s + 1) % 4]:
                 raise InputError(
@@ -124,10 +124,10 @@ class Patch:
                 f"patch {self.index}: {len(self.features)} feature curves but "
                 f"{len(self.feature_sides)} feature_sides entries"
             )
-        object.__setattr__(self, "corners", _readonly(corners))
+        object.__setattr__(self, "corners", readonly(corners))
         object.__setattr__(self, "sides", sides)
         object.__setattr__(
-            self, "face_parent", _readonly(np.asarray(self.face_parent, dtype=np.int64))
+            self, "face_parent", readonly(np.asarray(self.face_parent, dtype=np.int64))
         )
 
     @cached_property
@@ -164,7 +164,7 @@ class Patch:
             den = np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1)
             cos = np.einsum("ij,ij->i", a, b) / np.where(den > 0, den, 1.0)
             out[k] = float(np.degrees(np.arccos(np.clip(cos[den > 0], -1.0, 1.0))).sum())
-        return _readonly(out)
+        return readonly(out)
 
     @property
     def boundary(self) -> NDArray[np.int64]:

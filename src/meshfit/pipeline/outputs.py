@@ -35,6 +35,7 @@ import numpy as np
 
 from meshfit._atomic import write_bytes
 from meshfit.errors import InputError
+from meshfit.export.weld import UDIM_FIRST, udim
 from meshfit.pipeline.store import PIPELINE_FORMAT, sha_file, write_json
 
 __all__ = [
@@ -63,8 +64,6 @@ MANIFEST_FORMAT = 1
 
 #: the stage cache's folder inside a fit folder
 CACHE = ".meshfit"
-#: the first UDIM tile: patch ``p`` is tile ``UDIM_FIRST + p``
-UDIM_FIRST = 1001
 #: extensions of the tessellated and CAD deliverables, by format
 #: (the USD stage in the binary crate format: a text layer of a fine mesh is several times
 #: larger and slower to read)
@@ -94,7 +93,7 @@ def output_stem(name: str | None) -> str:
 
 def map_file(stem: str, kind: str, patch: int, ext: str) -> str:
     """The map image of ``patch``: ``maps/<stem>_<kind>.<udim>.<ext>``."""
-    return f"maps/{stem}_{kind}.{UDIM_FIRST + patch}.{ext}"
+    return f"maps/{stem}_{kind}.{udim(patch)}.{ext}"
 
 
 def map_patch(name: str, kind: str) -> int | None:
@@ -257,20 +256,25 @@ def _write_format(job: _Export, fmt: str, images: list[str]) -> list[str]:
     elif fmt == "ply":
         export.export_ply(target, surfaces, displacements=maps, network=network)
     elif fmt == "obj":
-        spline = job.out / f"{job.stem}_spline.obj"
-        objs: dict[str | os.PathLike, Any] = {spline: None}
+        displaced, spline, mtl = _obj_files(job.stem)
+        objs: dict[str | os.PathLike, Any] = {job.out / spline: None}
         if maps is not None:
-            objs = {job.out / f"{job.stem}.obj": maps, **objs}
+            objs = {job.out / displaced: maps, **objs}
         # the spline's texture coordinates address the maps' texels: it is displaced by them
         shapes = [d.shape[:2] for d in job.maps]
         mats = images if (maps is not None and images) else None
         export.export_objs(objs, surfaces, names=names, shape=shapes, network=network,
                            materials=mats)  # fmt: skip
         files = [Path(p).name for p in objs]
-        return files + ([f"{job.stem}_spline.mtl"] if mats else [])
+        return files + ([mtl] if mats else [])
     else:
         raise InputError(f"unknown output format {fmt!r}")
     return [target.name]
+
+
+def _obj_files(stem: str) -> tuple[str, str, str]:
+    """The ``obj`` format's files: the displaced mesh, the spline mesh and its material."""
+    return f"{stem}.obj", f"{stem}_spline.obj", f"{stem}_spline.mtl"
 
 
 def planned_files(stem: str, formats: Sequence[str], maps: Sequence = ()) -> list[str]:
@@ -282,7 +286,7 @@ def planned_files(stem: str, formats: Sequence[str], maps: Sequence = ()) -> lis
             ext = "exr" if fmt == "usd" else fmt
             files += [map_file(stem, maps[0].kind, p, ext) for p in range(len(maps))]
         if fmt == "obj":
-            files += [f"{stem}.obj", f"{stem}_spline.obj", f"{stem}_spline.mtl"]
+            files += _obj_files(stem)
         elif fmt in DELIVERABLES:
             files.append(f"{stem}{DELIVERABLES[fmt]}")
     return files

@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from meshfit._kernels import springs as _k
-from meshfit.types import SurfacePoints, _readonly
+from meshfit.types import SurfacePoints, readonly
 
 __all__ = ["ANCHOR", "BOUNDARY", "CURVE", "FREE", "SpringMesh", "grid_triangles"]
 
@@ -59,7 +59,7 @@ class SpringMesh:
 
     def __post_init__(self) -> None:
         for name in ("kind", "xyz", "u_lines", "v_lines"):
-            object.__setattr__(self, name, _readonly(np.asarray(getattr(self, name))))
+            object.__setattr__(self, name, readonly(np.asarray(getattr(self, name))))
 
     @property
     def shape(self) -> tuple[int, int]:
