@@ -418,3 +418,33 @@ def test_slivers_on_a_proxy_are_retried_like_on_the_mesh(monkeypatch):
     _same_layout(
         auto_layout(mesh, LayoutOptions(seed=3, proxy_faces=1000, protrusions=False)), each[-1]
     )
+
+
+def test_only_the_relaxed_curves_at_fault_are_put_back():
+    """A relaxed network with one curve run over another keeps every other curve relaxed:
+    the two curves at fault go back to their unrelaxed paths, and the network cuts the
+    mesh into its patches."""
+    from meshfit.layout.auto import _keep_relaxed, _relax_all
+    from meshfit.layout.cube import cube_layout
+    from meshfit.types import SurfaceCurve
+
+    mesh = icosphere(3)
+    layout = cube_layout(mesh, frame=np.eye(3))
+    plain = list(layout.curves)
+    relaxed = _relax_all(mesh, plain, 30)
+    moved = [i for i in range(len(plain)) if len(relaxed[i]) != len(plain[i])]
+    assert moved  # the relaxation changed curves, so keeping them is observable
+    bad = list(relaxed)
+    # curve 7 relaxed "onto" curve 0: its inner points are curve 0's
+    bad[7] = SurfaceCurve(plain[0].points, False, "boundary")
+    quads = [
+        list(zip(c.tolist(), r.tolist(), strict=True))
+        for c, r in zip(layout.patch_curves, layout.patch_reversed, strict=True)
+    ]
+    out = _keep_relaxed(mesh, layout.corners, plain, bad, layout.curve_ends, quads)
+    assert out is not None
+    assert np.array_equal(out.curves[7].points.face, plain[7].points.face)
+    kept = [i for i in moved if i != 7]
+    assert all(np.array_equal(out.curves[i].points.face, relaxed[i].points.face) for i in kept)
+    # where the unrelaxed network has the fault too, nothing mends it
+    assert _keep_relaxed(mesh, layout.corners, bad, bad, layout.curve_ends, quads) is None

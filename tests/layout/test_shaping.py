@@ -98,8 +98,8 @@ def test_the_default_60_patch_layout_is_not_shaped():
 
 @pytest.mark.slow
 def test_shaped_layouts_of_many_patches_have_no_slivers_and_fold_far_less(monkeypatch):
-    # spot with 96 patches: unshaped, 12 patches with a bulge under 0.2 (a fifth of the area
-    # of a square with their perimeter), the thinnest 0.014, and 242 folded spring cells;
+    # spot with 96 patches: unshaped, patches with a bulge under 0.2 (a fifth of the area of
+    # a square with their perimeter), the thinnest 0.026, and 93 folded spring cells;
     # shaped, the thinnest 0.24 (one base rotation each: the layout's retries of rotations
     # with slivers are not what is measured here)
     import meshfit.layout.auto as auto
@@ -115,6 +115,6 @@ def test_shaped_layouts_of_many_patches_have_no_slivers_and_fold_far_less(monkey
             folded += res.metrics[-1]["folded"]
         out[shape] = (min(p.bulge for p in patches), folded)
     (thin_before, folds_before), (thin, folds) = out[False], out[None]
-    assert thin_before < 0.05 and folds_before > 100  # the unshaped base gives slivers here
+    assert thin_before < 0.05 and folds_before > 50  # the unshaped base gives slivers here
     assert thin > 0.15
     assert folds <= folds_before / 10

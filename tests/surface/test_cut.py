@@ -452,3 +452,20 @@ def test_network_cut_rejects_meeting_curves():
         cut_mesh_network(mesh, [*curves, curves[0]], layout.corners, np.vstack([ends, ends[:1]]))
     with pytest.raises(InputError, match="corner index out of range"):
         cut_mesh_network(mesh, curves[:1], layout.corners, [[0, 999]])
+
+
+def test_network_meetings_names_every_curve_at_fault():
+    from meshfit.surface.cut import cut_mesh_network, network_meetings
+
+    mesh, layout = _sphere_network()
+    curves = list(layout.curves)
+    ends = layout.curve_ends
+    assert network_meetings(mesh, curves, layout.corners, ends) == set()
+    # curves 0 and 5 doubled: all four are named at once, where the cut names the first
+    doubled = [*curves, curves[0], curves[5]]
+    twice = np.vstack([ends, ends[[0, 5]]])
+    assert network_meetings(mesh, doubled, layout.corners, twice) == {0, 5, 48, 49}
+    with pytest.raises(CutError, match="curve 48 crosses or touches curve 0"):
+        cut_mesh_network(mesh, doubled, layout.corners, twice)
+    with pytest.raises(InputError, match="corner index out of range"):
+        network_meetings(mesh, curves[:1], layout.corners, [[0, 999]])

@@ -24,8 +24,9 @@ The result is an ordinary :class:`meshfit.layout.Layout`: it can be saved, edite
 re-used.
 4. Each traced curve is relaxed as a surface snake with fixed ends (a tight, evenly sampled
    curve on the surface instead of the image of an arc, which follows the parameterization's
-   distortion); if the relaxed network no longer cuts the mesh into disks the traced curves
-   are kept. One kernel relaxes all curves, each curve on its own thread.
+   distortion); a relaxed curve that meets another away from the corners is put back as
+   it was traced (only the curves at fault; if that does not mend the network, all traced
+   curves are kept). One kernel relaxes all curves, each curve on its own thread.
 5. A dense mesh (more than ``PROXY_RATIO * PROXY_FACES`` faces) goes through steps 1-4 on a
    coarse proxy (:func:`meshfit.shrinkwrap.proxy.simplify_mesh`, vertices a subset of the
    input's); corners and curve points are carried to their closest points on the mesh, the
@@ -100,8 +101,11 @@ FINE_RELAX_ITERATIONS = 50
 #: densely where the sphere map squeezes the surface; 5: the degrees of a base mesh with
 #: split edges balanced by flips; 6: another rotation of the base mesh tried where a patch
 #: is a sliver; 7: meshes of any other topology laid out by :mod:`meshfit.layout.regions`;
-#: 8: a mesh with a protrusion a quad would hold, or whose curves cross, goes there too)
-AUTO_LAYOUT_REVISION = 8
+#: 8: a mesh with a protrusion a quad would hold, or whose curves cross, goes there too;
+#: 9: only the relaxed curves that meet another are put back, not the whole network)
+AUTO_LAYOUT_REVISION = 9
+#: rounds of putting back relaxed curves that meet another (`_keep_relaxed`)
+UNRELAX_ROUNDS = 8
 #: ``shape=None`` of `auto_layout` shapes base meshes of more than this many triangles. The
 #: bisections that take the relaxed icosahedron beyond 20 triangles leave cells of equal area
 #: that are slivers where the sphere map stretches, whose spring grids fold, and at the
@@ -643,7 +647,6 @@ def _layout_on_mesh(mesh: Mesh, smap, n_faces: int, tries: _Tries) -> Layout:
     """The sphere route on ``mesh`` itself with the sphere map ``smap``: the first layout
     without slivers, else the one with the fewest (the last LayoutError where none is a
     layout)."""
-    from meshfit.layout.extract import check_layout_topology
 
     t = tries
     iters = t.iters
@@ -655,11 +658,8 @@ def _layout_on_mesh(mesh: Mesh, smap, n_faces: int, tries: _Tries) -> Layout:
         traced = layout_from_curves(mesh, corners, curves, ends, quads)
         out = None
         if t.relax:
-            try:
-                out = layout_from_curves(mesh, corners, t.relaxed(mesh, curves, iters), ends, quads)
-                check_layout_topology(mesh, out)
-            except MeshfitError:
-                out = None
+            relaxed = t.relaxed(mesh, curves, iters)
+            out = _keep_relaxed(mesh, corners, curves, relaxed, ends, quads)
         if out is None:
             try:
                 out = _checked(mesh, traced, len(t.seeds))
@@ -1030,6 +1030,52 @@ def _relax_all(mesh: Mesh, curves: list[SurfaceCurve], iterations: int) -> list[
     args = _relax_inputs(mesh, curves)
     face, bary, _ = _kb.relax_many(**args, iterations=int(iterations))
     return _relaxed_curves(mesh, curves, args["start"], face, bary)
+
+
+def _keep_relaxed(
+    mesh: Mesh,
+    corners: SurfacePoints,
+    plain: list[SurfaceCurve],
+    relaxed: list[SurfaceCurve],
+    ends: NDArray[np.int64],
+    quads,
+    creases: NDArray[np.bool_] | None = None,
+) -> Layout | None:
+    """The layout of the relaxed curves, with each relaxed curve that meets another away
+    from the corners put back as it was before relaxing (``plain``, a network that cuts the
+    mesh into disks), or None when no such mix does.
+
+    A snake pulled tight can slide across a neighbour near a shared corner; putting back
+    only the curves at fault keeps every other curve relaxed (one fault would otherwise
+    cost the whole network its relaxation). Each round puts back at least one curve, and
+    at most `UNRELAX_ROUNDS` rounds run.
+    """
+    from meshfit.layout.extract import check_layout_topology
+    from meshfit.surface.cut import network_meetings
+
+    def layout(curves: list[SurfaceCurve]) -> Layout | None:
+        try:
+            out = layout_from_curves(mesh, corners, curves, ends, quads, creases=creases)
+            check_layout_topology(mesh, out)
+        except MeshfitError:
+            return None
+        return out
+
+    first = layout(relaxed)
+    if first is not None:
+        return first
+    cur = list(relaxed)
+    for _ in range(UNRELAX_ROUNDS):
+        try:
+            bad = network_meetings(mesh, cur, corners, ends)
+        except MeshfitError:
+            return None
+        back = [i for i in bad if cur[i] is not plain[i]]
+        if not bad or not back:
+            break
+        for i in back:
+            cur[i] = plain[i]
+    return layout(cur)
 
 
 def _relaxed_curves(

@@ -20,15 +20,19 @@ Method
    its boundary runs along the mesh boundary. Points where three cells meet, or where two
    meet on the mesh boundary, are corners; a cell with fewer than three gets more at even
    arc length (a cell that is a whole disk-shaped component, a cap surrounded by one cell).
+   Both sides of a crease share its corners, so before clipping the cells' ends on one
+   side of a crease are moved onto nearby ends on the other side: an end on one side only
+   is a corner with a straight angle across the crease.
 4. **Quads.** Each side of a cell is halved at its arc-length mid-point; the cell is mapped
    onto a convex polygon inscribed in the unit circle (Tutte's embedding with mean value
    weights, a bijection for a disk: Floater 2003) and its centre, the image of the origin,
    is joined to the mid-points by the images of straight radii, which cannot cross. A
    k-sided cell gives k quads (corner, mid-point, centre, mid-point), as one Catmull-Clark
    step splits a polygon.
-5. Interior curves are relaxed as surface snakes with fixed ends; if the relaxed network
-   no longer cuts the mesh into disks, the unrelaxed one is kept. Curves on the mesh
-   boundary are not moved.
+5. Interior curves are relaxed as surface snakes with fixed ends; a relaxed curve that
+   meets another away from the corners is put back as it was (only those curves: the
+   jagged cell boundaries left elsewhere would give patches reflex corners). Curves on the
+   mesh boundary are not moved.
 
 Why this route: it needs no global parameterization, so it works for every genus, open
 meshes and several components alike, and its tests (disk, normal cone) say directly why a
@@ -49,7 +53,7 @@ from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
 from meshfit._kernels.locate2d import walk_locate
-from meshfit.errors import InputError, LayoutError, MeshfitError
+from meshfit.errors import InputError, LayoutError
 from meshfit.layout.layout import Layout, layout_from_curves
 from meshfit.mesh import Mesh
 from meshfit.mesh.topology import boundary_loops, corner_fans, edge_table, face_neighbors
@@ -76,6 +80,9 @@ NORMAL_CONE = 90.0
 CREASE_ANGLE = 40.0
 #: shortest chain of sharp edges kept as a crease, share of the bbox diagonal
 CREASE_MIN_LENGTH = 0.05
+#: two cells' ends on the two sides of a crease closer than this share of a regular
+#: hexagonal cell's side (of the mean cell area) are moved together (`_align_crease_cuts`)
+CREASE_ALIGN = 0.5
 #: the creases are used only when all of them together are at least this long, share of
 #: the bbox diagonal: creases that shape the part (a machined or modelled edge runs round
 #: it), not the short sharp ridges a scan leaves, whose quads would be slivers
@@ -325,6 +332,108 @@ def _cells(mesh: Mesh, n_cells: int, max_cells: int):
         f"(the cell round vertex {int(seeds[bad])} is not one): give a layout file, or "
         "a larger --crease-angle where the mesh has many short creases"
     )
+
+
+@dataclass
+class _Rims:
+    """The boundary loops of the cut-open mesh as runs of edges, each edge with its twin
+    (the same input edge seen from the crease's other side) and whether the cells differ
+    at its ends."""
+
+    loops: list[NDArray[np.int64]]
+    cut: list[NDArray[np.bool_]]  # per loop position i: the edge loop[i] -> loop[i + 1]
+    seg: list[NDArray[np.float64]]  # its length
+    twin: dict[tuple[int, int], tuple[int, int]]
+    order: list[tuple[int, int]]  # the positions with a cut, by input edge
+
+    def lone(self, li: int, i: int) -> bool:
+        """An end of cells on this side of a crease edge only."""
+        t = self.twin.get((li, i))
+        return t is not None and bool(self.cut[li][i]) and not self.cut[t[0]][t[1]]
+
+
+def _rims(mesh: Mesh, label: NDArray[np.int64], parent, orig: Mesh) -> _Rims:
+    loops = [np.asarray(lp, dtype=np.int64) for lp in mesh.boundary_loops]
+    nv_o = np.int64(max(orig.n_vertices, 1))
+    where: dict[int, list[tuple[int, int]]] = {}
+    cut, seg, keyed = [], [], []
+    for li, lp in enumerate(loops):
+        nxt = np.roll(lp, -1)
+        pe = np.sort(np.stack([parent[lp], parent[nxt]], 1), axis=1)
+        oe = np.searchsorted(orig.edge_keys, pe[:, 0] * nv_o + pe[:, 1]).tolist()
+        cut.append(label[lp] != label[nxt])
+        seg.append(np.linalg.norm(mesh.vertices[nxt] - mesh.vertices[lp], axis=1))
+        for i, e in enumerate(oe):
+            where.setdefault(e, []).append((li, i))
+            if cut[-1][i]:
+                keyed.append((e, li, i))
+    twin: dict[tuple[int, int], tuple[int, int]] = {}
+    for pair in where.values():
+        if len(pair) == 2:
+            twin[pair[0]], twin[pair[1]] = pair[1], pair[0]
+    return _Rims(loops, cut, seg, twin, [(li, i) for _, li, i in sorted(keyed)])
+
+
+def _nearest_lone(rims: _Rims, li: int, i: int, reach: float, stop) -> int:
+    """Position of the nearest end on loop ``li`` from position ``i``, looking either way up
+    to the first end, ``reach`` away, a vertex in ``stop`` or a position without a twin,
+    if it is lone; -1 if there is none."""
+    lp, n, seg = rims.loops[li], rims.loops[li].size, rims.seg[li]
+    best, best_d = -1, np.inf
+    for step in (1, -1):
+        j, d = i, 0.0
+        while True:
+            passed = lp[(j + 1) % n] if step == 1 else lp[j]
+            d += 0.5 * (seg[j] + seg[(j + step) % n])
+            j = (j + step) % n
+            if d > reach or stop[passed] or (li, j) not in rims.twin or j == i:
+                break
+            if rims.cut[li][j]:
+                if rims.lone(li, j) and d < best_d:
+                    best, best_d = j, d
+                break
+    return best
+
+
+def _align_crease_cuts(
+    mesh: Mesh, label: NDArray[np.int64], parent, orig: Mesh, corner_vertices, k: int
+) -> NDArray[np.int64]:
+    """Labels of ``mesh`` (the input cut open along its creases) with the cells' ends on
+    each side of a crease moved onto the other side's where the two are within
+    `CREASE_ALIGN` of a cell side.
+
+    Both sides of a crease share its corners, so where a cell boundary meets the crease on
+    one side only, the cell across it gets a corner in the middle of a straight side (a
+    straight angle, whose quads are triangles and whose grids fold). Each such end is
+    paired with the nearest unpaired end on the other side along the same crease (up to
+    the next end either way, not past a crease corner) and that side's crease vertices in
+    between change cell. Where that would leave a cell that is no disk, the labels are
+    returned unchanged. Ends that find no partner keep their corner on both sides.
+    """
+    rims = _rims(mesh, label, parent, orig)
+    if not rims.order:
+        return label
+    stop = np.isin(parent, np.asarray(corner_vertices, dtype=np.int64))
+    area = float(mesh.face_areas.sum())
+    reach = CREASE_ALIGN * np.sqrt(2.0 * area / max(k, 1) / (3.0 * np.sqrt(3.0)))
+    lab = label.copy()
+    for li, i in rims.order:
+        if not rims.lone(li, i):
+            continue
+        l2, i2 = rims.twin[(li, i)]
+        j = _nearest_lone(rims, l2, i2, reach, stop)
+        if j < 0:
+            continue
+        lp, n = rims.loops[l2], rims.loops[l2].size
+        # the vertices between the two ends take the cell beyond the end that moves
+        if (j - i2) % n < (i2 - j) % n:  # ahead: i2 + 1 .. j change
+            lab[lp[(i2 + 1 + np.arange((j - i2) % n)) % n]] = lab[lp[(j + 1) % n]]
+        else:  # behind: j + 1 .. i2 change
+            lab[lp[(j + 1 + np.arange((i2 - j) % n)) % n]] = lab[lp[j]]
+        rims.cut[l2][j], rims.cut[l2][i2] = False, True
+    if np.array_equal(_euler_per_cell(mesh, lab, k), _euler_per_cell(mesh, label, k)):
+        return lab
+    return label
 
 
 # ----------------------------------------------------------------------------- clipping
@@ -1108,7 +1217,7 @@ def region_layout(
        (mean value coordinates).
     """
     from meshfit.curves.base import densify_curves
-    from meshfit.layout.auto import _relax_all
+    from meshfit.layout.auto import _keep_relaxed, _relax_all
     from meshfit.layout.extract import check_layout_topology
 
     most = mesh.n_faces // MIN_FACES_PER_PATCH
@@ -1140,6 +1249,8 @@ def region_layout(
         work, parent = mesh, np.arange(mesh.n_vertices, dtype=np.int64)
         corner_vertices = np.zeros(0, dtype=np.int64)
     seeds, label, added, rounds = _cells(work, n_cells, max_cells)
+    if sharp.any():
+        label = _align_crease_cuts(work, label, parent, mesh, corner_vertices, seeds.size)
     clip = _clip(work, label, parent, mesh)
     if sharp.any():
         clip = _crease_nodes(clip, work, label, parent, mesh, corner_vertices)
@@ -1158,10 +1269,8 @@ def region_layout(
     relaxed = list(surface_curves)
     for i, c in zip(inner.tolist(), moved, strict=True):
         relaxed[i] = c
-    try:
-        out = layout_from_curves(mesh, corners, relaxed, ends, quads, creases=crease)
-        check_layout_topology(mesh, out)
-        return out
-    except MeshfitError:
+    out = _keep_relaxed(mesh, corners, surface_curves, relaxed, ends, quads, crease)
+    if out is None:
         check_layout_topology(mesh, plain)
         return plain
+    return out

@@ -45,7 +45,7 @@ from meshfit.mesh import Mesh
 from meshfit.surface.paths import vertex_points
 from meshfit.types import SurfaceCurve, SurfacePoints
 
-__all__ = ["CutResult", "NetworkCutResult", "cut_mesh", "cut_mesh_network"]
+__all__ = ["CutResult", "NetworkCutResult", "cut_mesh", "cut_mesh_network", "network_meetings"]
 
 
 @dataclass(frozen=True)
@@ -662,69 +662,10 @@ def network_cut_arrays(
     .. [1] Krishnamurthy 2000, sec. 1.3, fig. 1.2 (patch boundaries) and sec. 8.1.3 (patches
        sharing boundary curves and corners).
     """
-    corners = as_surface_points(mesh, corners, name="corners")
-    ends = np.asarray(ends, dtype=np.int64).reshape(-1, 2)
-    if ends.shape[0] != len(curves):
-        raise InputError(f"ends has {ends.shape[0]} rows for {len(curves)} curves")
-    nc = len(corners)
-    if ends.size and (ends.min() < 0 or ends.max() >= nc):
-        i = int(np.flatnonzero((ends < 0).any(axis=1) | (ends >= nc).any(axis=1))[0])
-        raise InputError(f"curve {i}: corner index out of range 0..{nc - 1}: {ends[i].tolist()}")
     # the mesh's own vertices as face points, made on a thread while the curves go in
     with _no_gc(), ThreadPoolExecutor(max_workers=1) as pool:
         base = pool.submit(vertex_points, mesh, np.arange(mesh.n_vertices))
-        n_points = sum(len(c.points if isinstance(c, SurfaceCurve) else c) for c in curves)
-        cutter = _Cutter(mesh, n_points)
-        cutter.route_fans = True
-        merge = tol.length(mesh, tol.CUT_CORNER_MERGE)
-        corner_cp: list[_CutPoint] = []
-        corner_v = np.empty(nc, dtype=np.int64)
-        for c in range(nc):
-            cp = _classify(cutter, int(corners.face[c]), corners.bary[c], c)
-            if cp.vertex < 0:  # a corner within CUT_CORNER_MERGE of a vertex is that vertex
-                fv = cutter.face(cp.face)
-                dv = [_norm(_sub(cutter.xyz(u), cp.xyz)) for u in fv]
-                k = int(np.argmin(dv))
-                if dv[k] < merge:
-                    cp = _vertex_point(cutter, fv[k], c)
-            v = cutter.insert(cp, cp.face)
-            if v < cutter.nv0:
-                cp = _vertex_point(cutter, v, c)
-            else:
-                cp = _CutPoint(cp.face, cp.bary, v, cp.faces, cutter.xyz(v), c)
-            corner_v[c] = v
-            corner_cp.append(cp)
-            cutter.mark_on_path(v)
-        if len(set(corner_v.tolist())) < nc:
-            a, b = _first_repeat(corner_v)
-            raise CutError(f"corners {a} and {b} fall on the same point")
-        raw: list[list[int]] = []
-        for i, curve in enumerate(curves):
-            pts = curve.points if isinstance(curve, SurfaceCurve) else curve
-            pts = as_surface_points(mesh, pts, name=f"curve {i}")
-            if len(pts) < 2:
-                raise InputError(f"curve {i}: needs at least 2 points, got {len(pts)}")
-            # points at (within CUT_CORNER_MERGE of) an end corner are that corner
-            xyz = mesh.xyz(pts)
-            first, last = corner_cp[ends[i, 0]], corner_cp[ends[i, 1]]
-            d0 = np.linalg.norm(xyz - np.asarray(first.xyz), axis=1)
-            d1 = np.linalg.norm(xyz - np.asarray(last.xyz), axis=1)
-            inner = np.flatnonzero((d0 > merge) & (d1 > merge))
-            inner = inner[(inner > 0) & (inner < len(pts) - 1)]
-            CI, CF = _classify_all(cutter, pts.face[inner], pts.bary[inner])
-            (i0, f0), (i1, f1) = _record(cutter, first), _record(cutter, last)
-            CI = np.concatenate([[i0], CI, [i1]]).astype(np.int64)
-            CF = np.concatenate([[f0], CF, [f1]])
-            try:
-                raw.append(cutter.cut_curve(CI, CF, False))
-            except CutError as exc:
-                raise CutError(f"curve {i}: {exc}") from None
-        paths = []
-        for i, path in enumerate(raw):
-            path = _drop_loops(_drop_spikes(_expand(cutter, path, False), False))
-            if len(path) < 2:
-                raise CutError(f"curve {i} collapses to a single vertex: nothing to cut")
-            paths.append(path)
+        cutter, corner_v, paths, _ = _network_paths(mesh, curves, corners, ends, strict=True)
         _check_meetings(paths, corner_v, ends)
         cutter.cut = _cut_edges(paths, False)
         vertices, faces, face_parent, src, parent, colors = _refined(cutter, mesh, base.result())
@@ -748,6 +689,82 @@ def network_cut_arrays(
         )
 
 
+def _network_paths(mesh: Mesh, curves, corners, ends, *, strict: bool):
+    """The corners inserted into a cutter and every curve cut in as a vertex path.
+
+    Returns ``(cutter, corner_v, paths, failed)``: ``failed`` holds the curves that could
+    not be cut in (their paths are placeholders); with ``strict`` the first such curve
+    raises a CutError instead.
+    """
+    corners = as_surface_points(mesh, corners, name="corners")
+    ends = np.asarray(ends, dtype=np.int64).reshape(-1, 2)
+    if ends.shape[0] != len(curves):
+        raise InputError(f"ends has {ends.shape[0]} rows for {len(curves)} curves")
+    nc = len(corners)
+    if ends.size and (ends.min() < 0 or ends.max() >= nc):
+        i = int(np.flatnonzero((ends < 0).any(axis=1) | (ends >= nc).any(axis=1))[0])
+        raise InputError(f"curve {i}: corner index out of range 0..{nc - 1}: {ends[i].tolist()}")
+    failed: set[int] = set()
+    n_points = sum(len(c.points if isinstance(c, SurfaceCurve) else c) for c in curves)
+    cutter = _Cutter(mesh, n_points)
+    cutter.route_fans = True
+    merge = tol.length(mesh, tol.CUT_CORNER_MERGE)
+    corner_cp: list[_CutPoint] = []
+    corner_v = np.empty(nc, dtype=np.int64)
+    for c in range(nc):
+        cp = _classify(cutter, int(corners.face[c]), corners.bary[c], c)
+        if cp.vertex < 0:  # a corner within CUT_CORNER_MERGE of a vertex is that vertex
+            fv = cutter.face(cp.face)
+            dv = [_norm(_sub(cutter.xyz(u), cp.xyz)) for u in fv]
+            k = int(np.argmin(dv))
+            if dv[k] < merge:
+                cp = _vertex_point(cutter, fv[k], c)
+        v = cutter.insert(cp, cp.face)
+        if v < cutter.nv0:
+            cp = _vertex_point(cutter, v, c)
+        else:
+            cp = _CutPoint(cp.face, cp.bary, v, cp.faces, cutter.xyz(v), c)
+        corner_v[c] = v
+        corner_cp.append(cp)
+        cutter.mark_on_path(v)
+    if len(set(corner_v.tolist())) < nc:
+        a, b = _first_repeat(corner_v)
+        raise CutError(f"corners {a} and {b} fall on the same point")
+    raw: list[list[int]] = []
+    for i, curve in enumerate(curves):
+        pts = curve.points if isinstance(curve, SurfaceCurve) else curve
+        pts = as_surface_points(mesh, pts, name=f"curve {i}")
+        if len(pts) < 2:
+            raise InputError(f"curve {i}: needs at least 2 points, got {len(pts)}")
+        # points at (within CUT_CORNER_MERGE of) an end corner are that corner
+        xyz = mesh.xyz(pts)
+        first, last = corner_cp[ends[i, 0]], corner_cp[ends[i, 1]]
+        d0 = np.linalg.norm(xyz - np.asarray(first.xyz), axis=1)
+        d1 = np.linalg.norm(xyz - np.asarray(last.xyz), axis=1)
+        inner = np.flatnonzero((d0 > merge) & (d1 > merge))
+        inner = inner[(inner > 0) & (inner < len(pts) - 1)]
+        CI, CF = _classify_all(cutter, pts.face[inner], pts.bary[inner])
+        (i0, f0), (i1, f1) = _record(cutter, first), _record(cutter, last)
+        CI = np.concatenate([[i0], CI, [i1]]).astype(np.int64)
+        CF = np.concatenate([[f0], CF, [f1]])
+        try:
+            raw.append(cutter.cut_curve(CI, CF, False))
+        except CutError as exc:
+            if strict:
+                raise CutError(f"curve {i}: {exc}") from None
+            failed.add(i)
+            raw.append([])
+    paths = []
+    for i, path in enumerate(raw):
+        path = [] if i in failed else _drop_loops(_drop_spikes(_expand(cutter, path, False), False))
+        if len(path) < 2 and i not in failed:
+            if strict:
+                raise CutError(f"curve {i} collapses to a single vertex: nothing to cut")
+            failed.add(i)
+        paths.append(path)
+    return cutter, corner_v, paths, failed
+
+
 def _drop_loops(path: list[int]) -> list[int]:
     """Cut out closed detours ``v ... v`` of an open path (left where a walk curled round and
     came back to a vertex it had passed), so each vertex appears once."""
@@ -761,6 +778,49 @@ def _first_repeat(a: NDArray[np.int64]) -> tuple[int, int]:
             return seen[v], i
         seen[v] = i
     return -1, -1  # pragma: no cover
+
+
+def network_meetings(
+    mesh: Mesh,
+    curves: list[SurfacePoints | SurfaceCurve],
+    corners: SurfacePoints,
+    ends: NDArray[np.int64],
+) -> set[int]:
+    """The curves of a network that :func:`cut_mesh_network` would refuse, all at once.
+
+    A curve is named when it touches itself or another curve away from its end corners
+    (both curves are named), passes through a corner, or cannot be cut in at all. An empty
+    set: every curve goes in and they meet only at their end corners (whether the pieces
+    are the patches a layout wants is checked by
+    :func:`meshfit.layout.check_layout_topology`). For callers that repair a network curve
+    by curve instead of stopping at the first fault.
+
+    Raises
+    ------
+    CutError, InputError
+        Corners that fall on one point; bad face points or corner indices.
+    """
+    with _no_gc():
+        _, corner_v, paths, failed = _network_paths(mesh, curves, corners, ends, strict=False)
+    out = set(failed)
+    owner: dict[int, int] = {}
+    corners_at = set(corner_v.tolist())
+    for i, path in enumerate(paths):
+        if i in failed:
+            continue
+        last = len(path) - 1
+        for k, v in enumerate(path):
+            if k in (0, last):
+                continue
+            if v in corners_at:
+                out.add(i)
+                continue
+            j = owner.get(v)
+            if j is None:
+                owner[v] = i
+            else:  # (j == i: the curve touches itself)
+                out.update((i, j))
+    return out
 
 
 def _check_meetings(paths: list[list[int]], corner_v: NDArray[np.int64], ends: NDArray) -> None:
