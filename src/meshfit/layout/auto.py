@@ -647,7 +647,6 @@ def _layout_on_mesh(mesh: Mesh, smap, n_faces: int, tries: _Tries) -> Layout:
     """The sphere route on ``mesh`` itself with the sphere map ``smap``: the first layout
     without slivers, else the one with the fewest (the last LayoutError where none is a
     layout)."""
-
     t = tries
     iters = t.iters
     failed: LayoutError | None = None
@@ -1071,7 +1070,7 @@ def _keep_relaxed(
         except MeshfitError:
             return None
         back = [i for i in bad if cur[i] is not plain[i]]
-        if not bad or not back:
+        if not back:
             break
         for i in back:
             cur[i] = plain[i]

@@ -353,14 +353,13 @@ class _Rims:
 
 
 def _rims(mesh: Mesh, label: NDArray[np.int64], parent, orig: Mesh) -> _Rims:
+    """The :class:`_Rims` of ``mesh`` (the input ``orig`` cut open) under ``label``."""
     loops = [np.asarray(lp, dtype=np.int64) for lp in mesh.boundary_loops]
-    nv_o = np.int64(max(orig.n_vertices, 1))
     where: dict[int, list[tuple[int, int]]] = {}
     cut, seg, keyed = [], [], []
     for li, lp in enumerate(loops):
         nxt = np.roll(lp, -1)
-        pe = np.sort(np.stack([parent[lp], parent[nxt]], 1), axis=1)
-        oe = np.searchsorted(orig.edge_keys, pe[:, 0] * nv_o + pe[:, 1]).tolist()
+        oe = _orig_edge_index(orig, parent[lp], parent[nxt]).tolist()
         cut.append(label[lp] != label[nxt])
         seg.append(np.linalg.norm(mesh.vertices[nxt] - mesh.vertices[lp], axis=1))
         for i, e in enumerate(oe):
@@ -554,8 +553,13 @@ def _orig_edges(mesh: Mesh, parent, orig: Mesh) -> NDArray[np.int64]:
     """Index in ``orig.edges`` of every edge of ``mesh`` (``orig`` cut open)."""
     if mesh is orig:
         return np.arange(mesh.edges.shape[0], dtype=np.int64)
-    pe = np.sort(parent[mesh.edges], axis=1)
-    keys = pe[:, 0] * np.int64(max(orig.n_vertices, 1)) + pe[:, 1]
+    return _orig_edge_index(orig, parent[mesh.edges[:, 0]], parent[mesh.edges[:, 1]])
+
+
+def _orig_edge_index(orig: Mesh, a: NDArray[np.int64], b: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Index in ``orig.edges`` of the edges ``a[i] - b[i]`` (input vertices, either order)."""
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    keys = lo * np.int64(max(orig.n_vertices, 1)) + hi
     return np.searchsorted(orig.edge_keys, keys).astype(np.int64)
 
 

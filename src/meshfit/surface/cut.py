@@ -666,7 +666,7 @@ def network_cut_arrays(
     with _no_gc(), ThreadPoolExecutor(max_workers=1) as pool:
         base = pool.submit(vertex_points, mesh, np.arange(mesh.n_vertices))
         cutter, corner_v, paths, _ = _network_paths(mesh, curves, corners, ends, strict=True)
-        _check_meetings(paths, corner_v, ends)
+        _check_meetings(paths, corner_v)
         cutter.cut = _cut_edges(paths, False)
         vertices, faces, face_parent, src, parent, colors = _refined(cutter, mesh, base.result())
         copy_of = np.arange(vertices.shape[0], dtype=np.int64)
@@ -689,26 +689,10 @@ def network_cut_arrays(
         )
 
 
-def _network_paths(mesh: Mesh, curves, corners, ends, *, strict: bool):
-    """The corners inserted into a cutter and every curve cut in as a vertex path.
-
-    Returns ``(cutter, corner_v, paths, failed)``: ``failed`` holds the curves that could
-    not be cut in (their paths are placeholders); with ``strict`` the first such curve
-    raises a CutError instead.
-    """
-    corners = as_surface_points(mesh, corners, name="corners")
-    ends = np.asarray(ends, dtype=np.int64).reshape(-1, 2)
-    if ends.shape[0] != len(curves):
-        raise InputError(f"ends has {ends.shape[0]} rows for {len(curves)} curves")
+def _insert_corners(cutter: _Cutter, corners: SurfacePoints, merge: float):
+    """Insert the corners into ``cutter`` (one within ``merge`` of a mesh vertex is that
+    vertex); their cutter vertices and cut points."""
     nc = len(corners)
-    if ends.size and (ends.min() < 0 or ends.max() >= nc):
-        i = int(np.flatnonzero((ends < 0).any(axis=1) | (ends >= nc).any(axis=1))[0])
-        raise InputError(f"curve {i}: corner index out of range 0..{nc - 1}: {ends[i].tolist()}")
-    failed: set[int] = set()
-    n_points = sum(len(c.points if isinstance(c, SurfaceCurve) else c) for c in curves)
-    cutter = _Cutter(mesh, n_points)
-    cutter.route_fans = True
-    merge = tol.length(mesh, tol.CUT_CORNER_MERGE)
     corner_cp: list[_CutPoint] = []
     corner_v = np.empty(nc, dtype=np.int64)
     for c in range(nc):
@@ -730,6 +714,30 @@ def _network_paths(mesh: Mesh, curves, corners, ends, *, strict: bool):
     if len(set(corner_v.tolist())) < nc:
         a, b = _first_repeat(corner_v)
         raise CutError(f"corners {a} and {b} fall on the same point")
+    return corner_v, corner_cp
+
+
+def _network_paths(mesh: Mesh, curves, corners, ends, *, strict: bool):
+    """The corners inserted into a cutter and every curve cut in as a vertex path.
+
+    Returns ``(cutter, corner_v, paths, failed)``: ``failed`` holds the curves that could
+    not be cut in (their paths are placeholders); with ``strict`` the first such curve
+    raises a CutError instead.
+    """
+    corners = as_surface_points(mesh, corners, name="corners")
+    ends = np.asarray(ends, dtype=np.int64).reshape(-1, 2)
+    if ends.shape[0] != len(curves):
+        raise InputError(f"ends has {ends.shape[0]} rows for {len(curves)} curves")
+    nc = len(corners)
+    if ends.size and (ends.min() < 0 or ends.max() >= nc):
+        i = int(np.flatnonzero((ends < 0).any(axis=1) | (ends >= nc).any(axis=1))[0])
+        raise InputError(f"curve {i}: corner index out of range 0..{nc - 1}: {ends[i].tolist()}")
+    failed: set[int] = set()
+    n_points = sum(len(c.points if isinstance(c, SurfaceCurve) else c) for c in curves)
+    cutter = _Cutter(mesh, n_points)
+    cutter.route_fans = True
+    merge = tol.length(mesh, tol.CUT_CORNER_MERGE)
+    corner_v, corner_cp = _insert_corners(cutter, corners, merge)
     raw: list[list[int]] = []
     for i, curve in enumerate(curves):
         pts = curve.points if isinstance(curve, SurfaceCurve) else curve
@@ -754,13 +762,15 @@ def _network_paths(mesh: Mesh, curves, corners, ends, *, strict: bool):
                 raise CutError(f"curve {i}: {exc}") from None
             failed.add(i)
             raw.append([])
-    paths = []
+    paths: list[list[int]] = []
     for i, path in enumerate(raw):
-        path = [] if i in failed else _drop_loops(_drop_spikes(_expand(cutter, path, False), False))
-        if len(path) < 2 and i not in failed:
-            if strict:
-                raise CutError(f"curve {i} collapses to a single vertex: nothing to cut")
-            failed.add(i)
+        if i not in failed:
+            path = _drop_loops(_drop_spikes(_expand(cutter, path, False), False))
+            if len(path) < 2:
+                if strict:
+                    raise CutError(f"curve {i} collapses to a single vertex: nothing to cut")
+                failed.add(i)
+                path = []
         paths.append(path)
     return cutter, corner_v, paths, failed
 
@@ -795,56 +805,69 @@ def network_meetings(
     :func:`meshfit.layout.check_layout_topology`). For callers that repair a network curve
     by curve instead of stopping at the first fault.
 
+    Parameters
+    ----------
+    mesh : Mesh
+    curves : list of SurfacePoints or SurfaceCurve
+        ``nk`` open curves, as for :func:`cut_mesh_network`.
+    corners : SurfacePoints
+        ``nc`` corner points.
+    ends : (nk, 2) int64
+        Corner index at the start and end of each curve.
+
+    Returns
+    -------
+    set of int
+        Indices into ``curves``.
+
     Raises
     ------
     CutError, InputError
         Corners that fall on one point; bad face points or corner indices.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 1.3, fig. 1.2 (curves meet only at patch corners).
     """
     with _no_gc():
         _, corner_v, paths, failed = _network_paths(mesh, curves, corners, ends, strict=False)
     out = set(failed)
+    for i, _, _, _, j in _meetings(paths, corner_v):
+        out.update((i,) if j is None else (i, j))
+    return out
+
+
+def _meetings(paths: list[list[int]], corner_v: NDArray[np.int64]):
+    """Every place a path meets a corner or a path (itself included) away from its own
+    ends, in path order: ``(curve, point, vertex, corner or None, other curve or None)``."""
     owner: dict[int, int] = {}
-    corners_at = set(corner_v.tolist())
+    corner_of = {int(v): c for c, v in enumerate(corner_v.tolist())}
     for i, path in enumerate(paths):
-        if i in failed:
-            continue
-        last = len(path) - 1
-        for k, v in enumerate(path):
-            if k in (0, last):
-                continue
-            if v in corners_at:
-                out.add(i)
+        for k in range(1, len(path) - 1):
+            v = path[k]
+            if v in corner_of:
+                yield i, k, v, corner_of[v], None
                 continue
             j = owner.get(v)
             if j is None:
                 owner[v] = i
             else:  # (j == i: the curve touches itself)
-                out.update((i, j))
-    return out
+                yield i, k, v, None, j
 
 
-def _check_meetings(paths: list[list[int]], corner_v: NDArray[np.int64], ends: NDArray) -> None:
-    """Raise when a curve touches itself or another curve away from its own end corners."""
-    owner: dict[int, int] = {}
-    corner_of = {int(v): c for c, v in enumerate(corner_v.tolist())}
-    for i, path in enumerate(paths):
-        own_ends = {path[0], path[-1]}
-        for k, v in enumerate(path):
-            if v in own_ends and k in (0, len(path) - 1):
-                continue
-            if v in corner_of:
-                raise CutError(
-                    f"curve {i} passes through corner {corner_of[v]} (point {k} of its path): "
-                    "curves may meet only at their end corners"
-                )
-            j = owner.get(v)
-            if j is not None:
-                what = "touches itself" if j == i else f"crosses or touches curve {j}"
-                raise CutError(
-                    f"curve {i} {what} away from the corners, at cut vertex {v} "
-                    f"(point {k} of its path)"
-                )
-            owner[v] = i
+def _check_meetings(paths: list[list[int]], corner_v: NDArray[np.int64]) -> None:
+    """Raise at the first place a curve touches itself or another curve away from its own
+    end corners."""
+    for i, k, v, c, j in _meetings(paths, corner_v):
+        if c is not None:
+            raise CutError(
+                f"curve {i} passes through corner {c} (point {k} of its path): "
+                "curves may meet only at their end corners"
+            )
+        what = "touches itself" if j == i else f"crosses or touches curve {j}"
+        raise CutError(
+            f"curve {i} {what} away from the corners, at cut vertex {v} (point {k} of its path)"
+        )
 
 
 def _split_along(cutter: _Cutter, faces: NDArray[np.int64], nv: int, path: list[int], closed: bool):
