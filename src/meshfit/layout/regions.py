@@ -28,7 +28,12 @@ Method
    weights, a bijection for a disk: Floater 2003) and its centre, the image of the origin,
    is joined to the mid-points by the images of straight radii, which cannot cross. A
    k-sided cell gives k quads (corner, mid-point, centre, mid-point), as one Catmull-Clark
-   step splits a polygon.
+   step splits a polygon. A side much shorter than the sides at its two ends (four seeds
+   nearly on a circle) is merged away first: its mid-point becomes the one corner of the
+   four cells, reached by chords through the two cells that shared it (images of
+   segments in their disc maps), so no quad has a side a fraction of its others' length
+   and a sliver at its centre. Should the merged network not cut the mesh into disks, the
+   cells are split without merging.
 5. Interior curves are relaxed as surface snakes with fixed ends; a relaxed curve that
    meets another away from the corners is put back as it was (only those curves: the
    jagged cell boundaries left elsewhere would give patches reflex corners). Curves on the
@@ -53,7 +58,7 @@ from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
 from meshfit._kernels.locate2d import walk_locate
-from meshfit.errors import InputError, LayoutError
+from meshfit.errors import InputError, LayoutError, MeshfitError
 from meshfit.layout.layout import Layout, layout_from_curves
 from meshfit.mesh import Mesh
 from meshfit.mesh.topology import boundary_loops, corner_fans, edge_table, face_neighbors
@@ -91,6 +96,9 @@ CREASE_MIN_TOTAL = 1.0
 #: the fewest patches of a cell (three) at `MIN_FACES_PER_PATCH` faces (about two faces a
 #: vertex)
 CONE_MIN_VERTICES = 3 * 16
+#: a cell side shorter than this share of the median of the four sides at its ends is
+#: merged away, its two corners made one (`_short_sides`)
+SHORT_SIDE = 0.3
 #: rounds of seed insertion at most (each round adds a seed to every cell that fails)
 MAX_ROUNDS = 40
 #: fewest input faces per patch (more patches are refused: a spring grid needs faces)
@@ -1072,49 +1080,227 @@ def _crossing(clip: _Clip, cell: _Cell, loc: _Locator, ta: int, tc: int, qa, qc)
     return int(clip.tri_face[cell.tris[ta]]), (1.0 - s) * gb[k0] + s * gb[k1]
 
 
-def _assemble(mesh: Mesh, clip: _Clip, cells: list[_Cell], corner: NDArray[np.bool_]):
+@dataclass(frozen=True)
+class _Merge:
+    """A short side ``s`` (between cells ``a`` and ``b``) whose two end corners become one
+    at its mid-point; ``cut[t]``: for each other side ``t`` at those ends, the index in
+    ``stretches[t].ids`` where the curve leaves ``t`` for a chord through ``a`` or ``b``."""
+
+    s: int
+    a: int
+    b: int
+    cut: dict[int, int]
+
+
+def _stretch_length(clip: _Clip, st: _Stretch) -> float:
+    return float(_arc(clip.xyz, st.ids, False)[-1])
+
+
+def _short_sides(clip: _Clip, stretches: list[_Stretch], sides) -> list[_Merge]:
+    """Sides shorter than `SHORT_SIDE` times the median of the four sides at their ends,
+    whose two ends (three cells each, all sides inside the mesh) become one corner where
+    four cells meet.
+
+    Two corners joined by a short side give the quads of both cells along it a side a
+    fraction of the others' length and a sliver at the cell's centre, whose grids fold; a
+    Voronoi diagram has such sides wherever four seeds lie nearly on a circle. Each cell
+    keeps at least three sides, the four cells are distinct, and no corner takes part in
+    two merges.
+    """
+    canon = clip.canon
+    at: dict[int, list[int]] = {}
+    cells_of: dict[int, list[int]] = {}
+    for ci, cs in enumerate(sides):
+        for s, _, _ in cs:
+            cells_of.setdefault(s, []).append(ci)
+    for s, st in enumerate(stretches):
+        for v in (int(canon[st.ids[0]]), int(canon[st.ids[-1]])):
+            at.setdefault(v, []).append(s)
+    length = [_stretch_length(clip, st) for st in stretches]
+    n_sides = [len(cs) for cs in sides]
+    used: set[int] = set()
+    out: list[_Merge] = []
+    for s in sorted(range(len(stretches)), key=lambda i: length[i]):
+        st = stretches[s]
+        ends = (int(canon[st.ids[0]]), int(canon[st.ids[-1]]))
+        if st.on_border or st.uses != 2 or ends[0] == ends[1] or used & set(ends):
+            continue
+        if any(len(at[v]) != 3 for v in ends):
+            continue
+        others = [t for v in ends for t in at[v] if t != s]
+        if len(set(others)) != 4 or any(stretches[t].on_border for t in others):
+            continue
+        if length[s] >= SHORT_SIDE * float(np.median([length[t] for t in others])):
+            continue
+        a, b = cells_of[s]
+        if a == b or n_sides[a] < 4 or n_sides[b] < 4:
+            continue
+        thirds = [
+            next((c for t in at[v] if t != s for c in cells_of[t] if c not in (a, b)), -1)
+            for v in ends
+        ]
+        if thirds[0] < 0 or thirds[0] == thirds[1]:
+            continue
+        cut = {
+            t: _cut_index(clip, stretches[t], v, length[s] / 2.0)
+            for v in ends
+            for t in at[v]
+            if t != s
+        }
+        if min(cut.values()) < 0:
+            continue
+        used.update(ends)
+        n_sides[a] -= 1
+        n_sides[b] -= 1
+        out.append(_Merge(s, a, b, cut))
+    return out
+
+
+def _cut_index(clip: _Clip, st: _Stretch, end: int, dist: float) -> int:
+    """Index in ``st.ids`` about ``dist`` along the stretch from its end at canonical point
+    ``end``, strictly between that end and the stretch's mid-point; -1 if there is none."""
+    arc = _arc(clip.xyz, st.ids, False)
+    last = st.ids.size - 1
+    mid_after = st.mid_seg + 1  # the first index past the mid-point (or at it, mid_t = 1)
+    if int(clip.canon[st.ids[0]]) == end:
+        lo, hi = 1, st.mid_seg
+        target = arc[0] + dist
+    else:
+        lo, hi = mid_after + (1 if st.mid_t == 1.0 else 0), last - 1
+        target = arc[-1] - dist
+    if lo > hi:
+        return -1
+    idx = np.arange(lo, hi + 1)
+    return int(idx[np.argmin(np.abs(arc[idx] - target))])
+
+
+def _loop_pos(cell: _Cell, st: _Stretch, rev: bool, a: int, q: int) -> int:
+    """Position in ``cell.loop`` of ``st.ids[q]``, for the cell's side ``(st, rev, a)``."""
+    last = st.ids.size - 1
+    return (a + (last - q if rev else q)) % cell.loop.size
+
+
+def _mid_uv(cell: _Cell, uv, loop_local, st: _Stretch, rev: bool, a: int):
+    """Disc point of a stretch's mid-point in a cell's map."""
+    pu = uv[loop_local[_loop_pos(cell, st, rev, a, st.mid_seg)]]
+    pw = uv[loop_local[_loop_pos(cell, st, rev, a, st.mid_seg + 1)]]
+    return (1.0 - st.mid_t) * pu + st.mid_t * pw
+
+
+def _disc_starts(sides: list[tuple[int, bool, int]], merged) -> list[int]:
+    """The sides' first loop positions for the disc map, a merged side joined to the side
+    after it (to the one before it when it is the last)."""
+    starts = [a for _, _, a in sides]
+    drop = set()
+    for m, (s, _, _) in enumerate(sides):
+        if s in merged:
+            drop.add(m + 1 if m + 1 < len(sides) else m)
+    return [a for m, a in enumerate(starts) if m not in drop]
+
+
+def _chords(mesh: Mesh, clip: _Clip, cells, stretches, merges, entry, maps, points) -> dict:
+    """Per side ``t`` at a merged corner: ``(p, faces, barys)``, the face points of the
+    chord from the merged corner to ``stretches[t].ids[p]`` through the cell that had the
+    short side (``points``: the corner points so far and each stretch's mid-point index)."""
+    cf, cb, mid_index = points
+    out: dict[int, list] = {}
+    for m in merges:
+        st_s = stretches[m.s]
+        for t, p in m.cut.items():
+            x = m.a if (m.a, t) in entry else m.b
+            uv, loc, loop_local = maps[x]
+            start = _mid_uv(cells[x], uv, loop_local, st_s, *entry[x, m.s])
+            st_t = stretches[t]
+            end = uv[loop_local[_loop_pos(cells[x], st_t, *entry[x, t], p)]]
+            f, bary = _radius(mesh, clip, cells[x], loc, start, end)
+            f, bary = list(f), list(bary)
+            f[0], bary[0] = cf[mid_index[m.s]], cb[mid_index[m.s]]
+            f[-1], bary[-1] = clip.src_face[st_t.ids[p]], clip.src_bary[st_t.ids[p]]
+            out.setdefault(t, []).append((p, f, bary))
+    return out
+
+
+def _halves(clip: _Clip, st: _Stretch, mid, chords) -> tuple[tuple[list, list], ...]:
+    """The face points of a stretch's two halves (corner to mid-point, mid-point to corner);
+    an end at a merged corner is cut at the chord's point and the chord leads on."""
+    f, b = mid
+    lo, hi = 0, st.ids.size  # the stretch's ids the halves keep
+    head: tuple[list, list] = ([], [])  # chord points before ids[lo] ...
+    tail: tuple[list, list] = ([], [])  # ... and after ids[hi - 1]
+    for p, fc, bc in chords:
+        if p <= st.mid_seg:
+            lo, head = p, (fc[:-1], bc[:-1])
+        else:
+            hi, tail = p + 1, (fc[::-1][1:], bc[::-1][1:])
+    ids = st.ids[lo : st.mid_seg + 1]
+    first = ([*head[0], *clip.src_face[ids], f], [*head[1], *clip.src_bary[ids], b])
+    # (a mid-point at the vertex ids[mid_seg + 1] replaces it in the second half)
+    ids = st.ids[st.mid_seg + 1 + int(st.mid_t == 1.0) : hi]
+    second = ([f, *clip.src_face[ids], *tail[0]], [b, *clip.src_bary[ids], *tail[1]])
+    return first, second
+
+
+def _assemble(
+    mesh: Mesh, clip: _Clip, cells: list[_Cell], corner: NDArray[np.bool_], merge: bool = True
+):
     """Corners, curves, curve ends, patches, and per curve whether it lies on the mesh
     boundary or along a crease (neither is moved by the relaxation) and whether it is a
-    crease."""
+    crease. With ``merge``, short sides are merged away (`_short_sides`): their mid-point
+    is the corner of the four cells, and each other side at their ends reaches it by a
+    chord through the cell that had the short side (the image of a segment in its disc
+    map, which no radius crosses)."""
     stretches, sides = _stretches(clip, cells, corner)
-    corner_ids = np.flatnonzero(corner)
+    merges = _short_sides(clip, stretches, sides) if merge else []
+    merged = {m.s: m for m in merges}
+    canon = clip.canon
+    keep = corner.copy()
+    for m in merges:
+        keep[canon[stretches[m.s].ids[[0, -1]]]] = False
+    corner_ids = np.flatnonzero(keep)
     c_index = np.full(corner.size, -1, dtype=np.int64)
     c_index[corner_ids] = np.arange(corner_ids.size)
     rep = np.full(corner.size, -1, dtype=np.int64)  # a clipped vertex of each canonical point
-    rep[clip.canon[::-1]] = np.arange(clip.canon.size)[::-1]
+    rep[canon[::-1]] = np.arange(canon.size)[::-1]
     cf = list(clip.src_face[rep[corner_ids]])
     cb = list(clip.src_bary[rep[corner_ids]])
     curves: list[SurfacePoints] = []
     ends: list[tuple[int, int]] = []
     fixed: list[bool] = []
     crease: list[bool] = []
-    halves: list[tuple[int, int]] = []
     owner: dict[int, int] = {}
+    entry: dict[tuple[int, int], tuple[bool, int]] = {}  # (cell, stretch) -> (rev, start)
     for ci, cs in enumerate(sides):
-        for s, rev, _ in cs:
+        for s, rev, a in cs:
+            entry[ci, s] = (rev, a)
             if not rev:
                 owner.setdefault(s, ci)
 
-    def pts(ids: NDArray[np.int64]):
-        return list(clip.src_face[ids]), list(clip.src_bary[ids])
-
     mid_index = []
     for s, st in enumerate(stretches):
-        cell = cells[owner[s]]
         u, w = int(st.ids[st.mid_seg]), int(st.ids[st.mid_seg + 1])
-        f, b = _segment_point(clip, cell, u, w, st.mid_t)
+        f, b = _segment_point(clip, cells[owner[s]], u, w, st.mid_t)
         mid_index.append(len(cf))
         cf.append(f)
         cb.append(b)
-        ff, bb = pts(st.ids[: st.mid_seg + 1])
-        first = ([*ff, f], [*bb, b])
-        # (a mid-point at the vertex ids[mid_seg + 1] replaces it in the second half)
-        ff, bb = pts(st.ids[st.mid_seg + 1 + int(st.mid_t == 1.0) :])
-        second = ([f, *ff], [b, *bb])
-        a_c = int(c_index[clip.canon[st.ids[0]]])
-        b_c = int(c_index[clip.canon[st.ids[-1]]])
+    for m in merges:
+        c_index[canon[stretches[m.s].ids[[0, -1]]]] = mid_index[m.s]
+
+    maps = []
+    for ci, cell in enumerate(cells):
+        uv, T = _disc_map(clip, cell, _disc_starts(sides[ci], merged))
+        maps.append((uv, _Locator(uv, T), np.searchsorted(cell.verts, cell.loop)))
+
+    chords = _chords(mesh, clip, cells, stretches, merges, entry, maps, (cf, cb, mid_index))
+    halves: list[tuple[int, int]] = []
+    for s, st in enumerate(stretches):
+        if s in merged:
+            halves.append((-1, -1))
+            continue
+        first, second = _halves(clip, st, (cf[mid_index[s]], cb[mid_index[s]]), chords.get(s, []))
+        a_c = int(c_index[canon[st.ids[0]]])
+        b_c = int(c_index[canon[st.ids[-1]]])
         h0 = len(curves)
-        for (fs, bs), e in ((first, (a_c, mid_index[-1])), (second, (mid_index[-1], b_c))):
+        for (fs, bs), e in ((first, (a_c, mid_index[s])), (second, (mid_index[s], b_c))):
             curves.append(SurfacePoints(np.asarray(fs), np.asarray(bs)))
             ends.append(e)
             fixed.append(st.on_border)
@@ -1123,8 +1309,8 @@ def _assemble(mesh: Mesh, clip: _Clip, cells: list[_Cell], corner: NDArray[np.bo
 
     patches: list[list[tuple[int, bool]]] = []
     for ci, cell in enumerate(cells):
-        uv, T = _disc_map(clip, cell, [a for _, _, a in sides[ci]])
-        loc = _Locator(uv, T)
+        uv, loc, loop_local = maps[ci]
+        T = loc.T
         # the centre: the centroid of the sub-triangle holding the disc's centre, inside an
         # input face (a centre on an edge would start the radii on it)
         tloc, _ = loc.locate(np.zeros((1, 2)))
@@ -1133,17 +1319,10 @@ def _assemble(mesh: Mesh, clip: _Clip, cells: list[_Cell], corner: NDArray[np.bo
         centre = len(cf)
         cf.append(int(f0[0]))
         cb.append(b0[0])
-        loop_local = np.searchsorted(cell.verts, cell.loop)
-        n_loop = cell.loop.size
+        mine = [(s, rev, a) for s, rev, a in sides[ci] if s not in merged]
         spokes = []
-        for s, rev, a in sides[ci]:
-            st = stretches[s]
-            last = st.ids.size - 1
-            ju = a + (last - st.mid_seg if rev else st.mid_seg)
-            jw = a + (last - st.mid_seg - 1 if rev else st.mid_seg + 1)
-            pu = uv[loop_local[ju % n_loop]]
-            pw = uv[loop_local[jw % n_loop]]
-            end = (1.0 - st.mid_t) * pu + st.mid_t * pw
+        for s, rev, a in mine:
+            end = _mid_uv(cell, uv, loop_local, stretches[s], rev, a)
             f, bary = _radius(mesh, clip, cell, loc, start, end)
             f = f.copy()
             bary = bary.copy()
@@ -1153,10 +1332,9 @@ def _assemble(mesh: Mesh, clip: _Clip, cells: list[_Cell], corner: NDArray[np.bo
             ends.append((centre, mid_index[s]))
             fixed.append(False)
             crease.append(False)
-        k = len(sides[ci])
-        for i in range(k):
-            s_i, r_i, _ = sides[ci][i]
-            s_p, r_p, _ = sides[ci][i - 1]
+        for i in range(len(mine)):
+            s_i, r_i, _ = mine[i]
+            s_p, r_p, _ = mine[i - 1]
             first_half = (halves[s_i][1], True) if r_i else (halves[s_i][0], False)
             second_half = (halves[s_p][0], True) if r_p else (halves[s_p][1], False)
             patches.append([first_half, (spokes[i], True), (spokes[i - 1], False), second_half])
@@ -1220,10 +1398,6 @@ def region_layout(
     .. [2] Du, Faber & Gunzburger 1999 (centroidal Voronoi tessellations); Floater 2003
        (mean value coordinates).
     """
-    from meshfit.curves.base import densify_curves
-    from meshfit.layout.auto import _keep_relaxed, _relax_all
-    from meshfit.layout.extract import check_layout_topology
-
     most = mesh.n_faces // MIN_FACES_PER_PATCH
     # (the default asks a small mesh for no more patches than it has faces for)
     want = min(DEFAULT_PATCHES, max(most, 1)) if patches is None else int(patches)
@@ -1260,21 +1434,33 @@ def region_layout(
         clip = _crease_nodes(clip, work, label, parent, mesh, corner_vertices)
     cells = _cell_loops(clip, seeds.size)
     corner = _corners(clip, cells)
-    corners, curves, ends, quads, fixed, crease = _assemble(work, clip, cells, corner)
     if report is not None:
         report.append(CellReport(int(seeds.size), added, int(mesh.n_components), rounds))
+    try:
+        return _from_cells(mesh, work, clip, cells, corner, True, relax, relax_iterations)
+    except MeshfitError:  # a merged corner's chords did not cut the mesh into disks
+        return _from_cells(mesh, work, clip, cells, corner, False, relax, relax_iterations)
+
+
+def _from_cells(
+    mesh: Mesh, work: Mesh, clip: _Clip, cells, corner, merge: bool, relax: bool, iterations
+) -> Layout:
+    """The layout of the clipped cells (`_assemble`), its interior curves relaxed."""
+    from meshfit.curves.base import densify_curves
+    from meshfit.layout.auto import _keep_relaxed, _relax_all
+    from meshfit.layout.extract import check_layout_topology
+
+    corners, curves, ends, quads, fixed, crease = _assemble(work, clip, cells, corner, merge)
     surface_curves = densify_curves(mesh, [SurfaceCurve(c, False, "boundary") for c in curves])
     plain = layout_from_curves(mesh, corners, surface_curves, ends, quads, creases=crease)
-    if not relax:
-        check_layout_topology(mesh, plain)
-        return plain
-    inner = np.flatnonzero(~fixed)
-    moved = _relax_all(mesh, [surface_curves[i] for i in inner], int(relax_iterations))
-    relaxed = list(surface_curves)
-    for i, c in zip(inner.tolist(), moved, strict=True):
-        relaxed[i] = c
-    out = _keep_relaxed(mesh, corners, surface_curves, relaxed, ends, quads, crease)
-    if out is None:
-        check_layout_topology(mesh, plain)
-        return plain
-    return out
+    if relax:
+        inner = np.flatnonzero(~fixed)
+        moved = _relax_all(mesh, [surface_curves[i] for i in inner], int(iterations))
+        relaxed = list(surface_curves)
+        for i, c in zip(inner.tolist(), moved, strict=True):
+            relaxed[i] = c
+        out = _keep_relaxed(mesh, corners, surface_curves, relaxed, ends, quads, crease)
+        if out is not None:
+            return out
+    check_layout_topology(mesh, plain)
+    return plain
