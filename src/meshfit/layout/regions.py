@@ -1139,7 +1139,7 @@ def _short_sides(clip: _Clip, stretches: list[_Stretch], sides) -> list[_Merge]:
             next((c for t in at[v] if t != s for c in cells_of[t] if c not in (a, b)), -1)
             for v in ends
         ]
-        if thirds[0] < 0 or thirds[0] == thirds[1]:
+        if min(thirds) < 0 or thirds[0] == thirds[1]:
             continue
         cut = {
             t: _cut_index(clip, stretches[t], v, length[s] / 2.0)
