@@ -1241,16 +1241,23 @@ def _halves(clip: _Clip, st: _Stretch, mid, chords) -> tuple[tuple[list, list], 
 
 
 def _assemble(
-    mesh: Mesh, clip: _Clip, cells: list[_Cell], corner: NDArray[np.bool_], merge: bool = True
+    mesh: Mesh,
+    clip: _Clip,
+    cells: list[_Cell],
+    corner: NDArray[np.bool_],
+    merge: dict | None = None,
 ):
     """Corners, curves, curve ends, patches, and per curve whether it lies on the mesh
     boundary or along a crease (neither is moved by the relaxation) and whether it is a
-    crease. With ``merge``, short sides are merged away (`_short_sides`): their mid-point
+    crease. With ``merge`` (a dict: the count goes into it as ``"merges"``), short sides
+    are merged away (`_short_sides`): their mid-point
     is the corner of the four cells, and each other side at their ends reaches it by a
     chord through the cell that had the short side (the image of a segment in its disc
     map, which no radius crosses)."""
     stretches, sides = _stretches(clip, cells, corner)
-    merges = _short_sides(clip, stretches, sides) if merge else []
+    merges = _short_sides(clip, stretches, sides) if merge is not None else []
+    if merge is not None:
+        merge["merges"] = len(merges)
     merged = {m.s: m for m in merges}
     canon = clip.canon
     keep = corner.copy()
@@ -1436,16 +1443,20 @@ def region_layout(
     corner = _corners(clip, cells)
     if report is not None:
         report.append(CellReport(int(seeds.size), added, int(mesh.n_components), rounds))
+    merged: dict = {}
     try:
-        return _from_cells(mesh, work, clip, cells, corner, True, relax, relax_iterations)
+        return _from_cells(mesh, work, clip, cells, corner, merged, relax, relax_iterations)
     except MeshfitError:  # a merged corner's chords did not cut the mesh into disks
-        return _from_cells(mesh, work, clip, cells, corner, False, relax, relax_iterations)
+        if merged.get("merges", 1) == 0:
+            raise
+        return _from_cells(mesh, work, clip, cells, corner, None, relax, relax_iterations)
 
 
 def _from_cells(
-    mesh: Mesh, work: Mesh, clip: _Clip, cells, corner, merge: bool, relax: bool, iterations
+    mesh: Mesh, work: Mesh, clip: _Clip, cells, corner, merge: dict | None, relax: bool, iterations
 ) -> Layout:
-    """The layout of the clipped cells (`_assemble`), its interior curves relaxed."""
+    """The layout of the clipped cells (`_assemble`), its interior curves relaxed; short
+    sides merged unless ``merge`` is None (their count goes into it as ``"merges"``)."""
     from meshfit.curves.base import densify_curves
     from meshfit.layout.auto import _keep_relaxed, _relax_all
     from meshfit.layout.extract import check_layout_topology
