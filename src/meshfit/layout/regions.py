@@ -33,7 +33,11 @@ Method
    four cells, reached by chords through the two cells that shared it (images of
    segments in their disc maps), so no quad has a side a fraction of its others' length
    and a sliver at its centre. Should the merged network not cut the mesh into disks, the
-   cells are split without merging.
+   cells are split without merging. A corner at a crease where the cell's angle is
+   straight or reflex (an end of the cells across that found no partner, or a boundary
+   leaving the crease at a glancing angle) would be a quad corner of about 180 degrees:
+   a chord of the disc map joins it to the cell's most nearly opposite corner, and each
+   part is split into quads about the centre of a disc map of its own.
 5. Interior curves are relaxed as surface snakes with fixed ends; a relaxed curve that
    meets another away from the corners is put back as it was (only those curves: the
    jagged cell boundaries left elsewhere would give patches reflex corners). Curves on the
@@ -48,7 +52,8 @@ measures better (see :func:`meshfit.layout.auto.auto_layout` and the layout benc
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import itertools
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -99,6 +104,13 @@ CONE_MIN_VERTICES = 3 * 16
 #: a cell side shorter than this share of the median of the four sides at its ends is
 #: merged away, its two corners made one (`_short_sides`)
 SHORT_SIDE = 0.3
+#: a cell's corner on a crease that turns by less than 180 minus this many degrees on the
+#: cell's side (an end of the cells across only) is joined by a chord to the opposite corner
+STRAIGHT_CORNER = 150.0
+#: a corner's angle is measured between chords this share of the shorter side long
+CORNER_REACH = 0.25
+#: samples of a chord for its arc-length mid-point
+CHORD_SAMPLES = 33
 #: rounds of seed insertion at most (each round adds a seed to every cell that fails)
 MAX_ROUNDS = 40
 #: fewest input faces per patch (more patches are refused: a spring grid needs faces)
@@ -1240,6 +1252,384 @@ def _halves(clip: _Clip, st: _Stretch, mid, chords) -> tuple[tuple[list, list], 
     return first, second
 
 
+@dataclass
+class _Net:
+    """The layout under construction: corner points, curves with their ends and flags
+    (fixed: not relaxed; crease), and patches as four (curve, reversed) sides."""
+
+    cf: list
+    cb: list
+    curves: list
+    ends: list
+    fixed: list
+    crease: list
+    patches: list
+
+    def point(self, f: int, b) -> int:
+        self.cf.append(int(f))
+        self.cb.append(b)
+        return len(self.cf) - 1
+
+    def curve(self, f, b, start: int, end: int) -> int:
+        """An interior curve from corner ``start`` to ``end`` (its end points made exactly
+        theirs)."""
+        f, b = np.asarray(f, dtype=np.int64).copy(), np.asarray(b, dtype=np.float64).copy()
+        f[0], b[0] = self.cf[start], self.cb[start]
+        f[-1], b[-1] = self.cf[end], self.cb[end]
+        self.curves.append(SurfacePoints(f, b))
+        self.ends.append((start, end))
+        self.fixed.append(False)
+        self.crease.append(False)
+        return len(self.curves) - 1
+
+
+@dataclass
+class _Side:
+    """A side of a polygon to split into quads: its halves as (curve, reversed), from its
+    first corner to its mid-point and on to its last corner; the mid-point (corner index,
+    disc point); the first corner (corner index, vertex of the disc map, disc point);
+    whether the polygon's angle at the first corner is straight (`_straight`) and whether a
+    chord ends there."""
+
+    first: tuple[int, bool]
+    second: tuple[int, bool]
+    mid: int
+    mid_uv: NDArray[np.float64]
+    start: int
+    start_v: int
+    start_uv: NDArray[np.float64]
+    straight: bool = False
+    chorded: bool = False  # a chord ends at the first corner
+
+
+@dataclass
+class _Domain:
+    """A cell or a part of one with its disc map: ``clip`` and ``cell`` hold its
+    sub-triangles (for a part, local ones cut from its parent's), ``loc`` their disc map."""
+
+    clip: _Clip
+    cell: _Cell
+    loc: _Locator
+
+
+def _ring(clip: _Clip, cell: _Cell, stretches, mine, disc, index) -> list[_Side]:
+    """The cell's sides (``mine``: (stretch, reversed, start) in loop order) as `_Side`."""
+    uv, _, loop_local = disc
+    c_index, mid_index, halves = index
+    out = []
+    for s, rev, a in mine:
+        h = halves[s]
+        out.append(
+            _Side(
+                (h[1], True) if rev else (h[0], False),
+                (h[0], True) if rev else (h[1], False),
+                mid_index[s],
+                _mid_uv(cell, uv, loop_local, stretches[s], rev, a),
+                int(c_index[clip.canon[cell.loop[a]]]),
+                int(loop_local[a]),
+                uv[loop_local[a]],
+            )
+        )
+    return out
+
+
+def _straight(mesh: Mesh, clip: _Clip, cell: _Cell, stretches, mine, i: int) -> bool:
+    """Whether the cell's corner before side ``i`` is at a crease and turns by less than
+    ``180 - STRAIGHT_CORNER`` degrees (or back: a reflex angle) on the cell's side.
+
+    Cells on the two sides of a crease are grown apart, so a cell may have a corner in the
+    middle of a straight crease side (an end of the cells across that found no partner on
+    this side) or a boundary that leaves the crease at a glancing angle. Elsewhere the
+    cells' corners are Voronoi junctions, whose angles are left as they are."""
+    if not any(
+        stretches[t].on_border and stretches[t].uses == 2 for t in (mine[i][0], mine[i - 1][0])
+    ):
+        return False
+    return _corner_angle(mesh, clip, cell, [a for _, _, a in mine], i) >= STRAIGHT_CORNER
+
+
+def _corner_angle(mesh: Mesh, clip: _Clip, cell: _Cell, starts: list[int], i: int) -> float:
+    """The cell's angle (degrees, 0 to 360) at its corner ``starts[i]`` (a loop position):
+    between the chords to the points `CORNER_REACH` of the shorter side along each side,
+    about the normal of the cell's faces at the corner."""
+    loop, n = cell.loop, cell.loop.size
+    a, k = starts[i], len(starts)
+    nxt, prv = starts[(i + 1) % k], starts[i - 1]
+    fwd = loop[(a + np.arange((nxt - a - 1) % n + 1) + 1) % n]  # a + 1 .. next corner
+    bwd = loop[(a - np.arange((a - prv - 1) % n + 1) - 1) % n]  # a - 1 .. previous corner
+    x0 = clip.xyz[loop[a]]
+
+    def along(ids):
+        p = clip.xyz[ids]
+        arc = np.cumsum(np.linalg.norm(np.diff(np.vstack([x0, p]), axis=0), axis=1))
+        return p, arc
+
+    pf, af = along(fwd)
+    pb, ab = along(bwd)
+    reach = CORNER_REACH * min(af[-1], ab[-1])
+    d_out = pf[min(int(np.searchsorted(af, reach)), pf.shape[0] - 1)] - x0
+    d_in = pb[min(int(np.searchsorted(ab, reach)), pb.shape[0] - 1)] - x0
+    touch = cell.tris[(clip.tri[cell.tris] == loop[a]).any(axis=1)]
+    nrm = mesh.face_normals[clip.tri_face[touch]].sum(axis=0)
+    ang = np.arctan2(
+        float(nrm @ np.cross(d_out, d_in)) / max(np.linalg.norm(nrm), 1e-300), float(d_out @ d_in)
+    )
+    return float(np.degrees(ang) % 360.0)
+
+
+def _split_straight(mesh: Mesh, dom: _Domain, ring: list[_Side], net) -> list:
+    """The cell's polygon cut by chords until no part has a straight corner: its parts as
+    (domain, sides).
+
+    A straight corner (a cell end across a crease that found no partner on this side, or a
+    cell boundary leaving another at a glancing angle) would be a quad's corner of about
+    180 degrees, a triangle whose grid folds. A chord of the disc map from it to the corner
+    most nearly opposite (`_chord_ends`) makes it a corner of two parts, and each part gets
+    a disc map of its own (`_halve`), so its radii leave its centre evenly. Chords and radii
+    are images of segments in convex disc polygons, so none crosses another."""
+    todo, out = [(dom, list(ring))], []
+    while todo:
+        dom, poly = todo.pop()
+        cut = _chord_ends([sd.straight for sd in poly], [sd.chorded for sd in poly])
+        halves = _halve(mesh, dom, poly, cut, net) if cut is not None else None
+        if halves is None:
+            out.append((dom, poly))
+        else:
+            todo += halves
+    return out
+
+
+def _parts(flags: list[tuple[bool, bool]], j: int, p: int) -> tuple[list, list]:
+    """The (straight, chorded) flags of the two parts of a polygon cut by the chord
+    ``j -> p`` (the chord is the last side of each; its ends are chorded)."""
+    n = len(flags)
+    fore = [flags[(p + t) % n] for t in range((j - p) % n)] + [(False, True)]
+    aft = [flags[(j + t) % n] for t in range((p - j) % n)] + [(False, True)]
+    fore[0] = aft[0] = (False, True)
+    return fore, aft
+
+
+def _chord_ends(straight: list[bool], chorded: list[bool]) -> tuple[int, int] | None:
+    """The chord that cuts a polygon with straight corners (flags per corner), or None.
+
+    From the first straight corner to the corner most nearly opposite (another straight
+    one at half a step's advantage), never a neighbour (each part keeps three corners) nor
+    a corner a chord already ends at (two chords from one corner run side by side), and
+    only where both parts can be cut on until no straight corner is left."""
+    n = len(straight)
+    flags = list(zip(straight, chorded, strict=True))
+    for j in (j for j in range(n) if straight[j]):
+        far = [d for d in range(2, n - 1) if not chorded[(j + d) % n]]
+        far.sort(key=lambda d: abs(d - n / 2.0) - 0.5 * straight[(j + d) % n])
+        for d in far:
+            p = (j + d) % n
+            if all(_clears(part) for part in _parts(flags, j, p)):
+                return j, p
+    return None
+
+
+def _clears(flags: list[tuple[bool, bool]]) -> bool:
+    """Whether `_chord_ends` cuts a polygon down to parts without straight corners."""
+    straight = [f[0] for f in flags]
+    return not any(straight) or _chord_ends(straight, [f[1] for f in flags]) is not None
+
+
+def _halve(mesh: Mesh, dom: _Domain, poly: list[_Side], cut, net):
+    """The two parts of ``poly`` cut by the chord between its corners ``cut = (j, p)``, each
+    as (domain with its own disc map, sides); None where the chord crosses no sub-triangle
+    edge (no point for its mid-point)."""
+    j, p = cut
+    n = len(poly)
+    ua, ub = poly[j].start_uv, poly[p].start_uv
+    pieces = _cut_triangles(dom, ua, ub)
+    if pieces is None:
+        return None
+    (Vuv, Vxyz, tris, tface, tbary), on_line, ts = pieces
+    # the chord's mid-point: the vertex on it nearest half its length
+    order = on_line[np.argsort(ts)]
+    if order.size < 3:
+        return None
+    arc = _arc(Vxyz, order, False)
+    k = 1 + int(np.argmin(np.abs(arc[1:-1] - arc[-1] / 2.0)))
+    mv = int(order[k])
+    hit = np.flatnonzero((tris == mv).any(axis=1))[0]
+    corner = int(np.flatnonzero(tris[hit] == mv)[0])
+    mid = net.point(int(tface[hit]), tbary[hit, corner])
+    mid_uv = Vuv[mv]
+    h0 = net.curve(*_radius(mesh, dom.clip, dom.cell, dom.loc, ua, mid_uv), poly[j].start, mid)
+    h1 = net.curve(*_radius(mesh, dom.clip, dom.cell, dom.loc, mid_uv, ub), mid, poly[p].start)
+    # (the chord's vertices lie on it exactly: the parts are told apart by the others)
+    d = ub - ua
+    side = d[0] * (Vuv[:, 1] - ua[1]) - d[1] * (Vuv[:, 0] - ua[0])
+    side[on_line] = 0.0
+    tri_side = side[tris].sum(axis=1)
+    fore = [poly[(p + t) % n] for t in range((j - p) % n)]
+    fore.append(_Side((h0, False), (h1, False), mid, mid_uv, poly[j].start, -1, ua, False, True))
+    aft = [poly[(j + t) % n] for t in range((p - j) % n)]
+    aft.append(_Side((h1, True), (h0, True), mid, mid_uv, poly[p].start, -1, ub, False, True))
+    fore[0] = replace(fore[0], straight=False, chorded=True)
+    aft[0] = replace(aft[0], straight=False, chorded=True)
+    starts_v = {poly[j].start: poly[j].start_v, poly[p].start: poly[p].start_v}
+    out = []
+    # (the disc maps run counter-clockwise: the corners after the chord's start lie on its
+    # right)
+    for sides, keep in ((aft, tri_side < 0), (fore, tri_side > 0)):
+        part = _part(dom, sides, starts_v, (Vuv, Vxyz, tris[keep], tface[keep], tbary[keep]))
+        if part is None:
+            return None
+        out.append(part)
+    return out
+
+
+def _cut_triangles(dom: _Domain, ua, ub):
+    """The domain's sub-triangles cut along the disc segment ``ua -> ub``: vertices (disc
+    point, 3-d point; the domain's first, then one per crossed edge), triangles with their
+    input faces and corner barycentrics; the vertices on the segment and their parameters
+    along it. None where no edge is crossed."""
+    uv, T = dom.loc.uv, dom.loc.T
+    face = dom.clip.tri_face[dom.cell.tris]
+    bary = dom.clip.tri_bary[dom.cell.tris]
+    xyz = dom.clip.xyz[dom.cell.verts]
+    d = ub - ua
+    side = d[0] * (uv[:, 1] - ua[1]) - d[1] * (uv[:, 0] - ua[0])
+    side[np.abs(side) <= 1e-12 * float(d @ d)] = 0.0
+    new_uv, new_xyz, key = [], [], {}
+    tris, tface, tbary = [], [], []
+    for t in range(T.shape[0]):
+        tv, ts_ = T[t], side[T[t]]
+        if (ts_ >= 0).all() or (ts_ <= 0).all():
+            tris.append(tv)
+            tface.append(face[t])
+            tbary.append(bary[t])
+            continue
+        ring_v, ring_b = [], []
+        for k in range(3):
+            a, b = int(tv[k]), int(tv[(k + 1) % 3])
+            ring_v.append(a)
+            ring_b.append(bary[t, k])
+            if ts_[k] * ts_[(k + 1) % 3] < 0:
+                s = ts_[k] / (ts_[k] - ts_[(k + 1) % 3])
+                e = (min(a, b), max(a, b))
+                if e not in key:
+                    key[e] = uv.shape[0] + len(new_uv)
+                    new_uv.append(uv[a] + s * (uv[b] - uv[a]))
+                    new_xyz.append(xyz[a] + s * (xyz[b] - xyz[a]))
+                ring_v.append(key[e])
+                ring_b.append(bary[t, k] + s * (bary[t, (k + 1) % 3] - bary[t, k]))
+        for sign in (1.0, -1.0):  # each side's polygon, fanned
+            sel = [i for i, v in enumerate(ring_v) if v >= uv.shape[0] or sign * side[v] >= 0]
+            for i in range(1, len(sel) - 1):
+                q = (sel[0], sel[i], sel[i + 1])
+                tris.append(np.asarray([ring_v[x] for x in q]))
+                tface.append(face[t])
+                tbary.append(np.stack([ring_b[x] for x in q]))
+    if not new_uv:
+        return None
+    Vuv = np.vstack([uv, np.asarray(new_uv)])
+    Vxyz = np.vstack([xyz, np.asarray(new_xyz)])
+    on = np.concatenate([np.flatnonzero(side == 0.0), uv.shape[0] + np.arange(len(new_uv))])
+    ts = ((Vuv[on] - ua) @ d) / float(d @ d)
+    inside = (ts >= 0.0) & (ts <= 1.0)
+    return (
+        (Vuv, Vxyz, np.asarray(tris, dtype=np.int64), np.asarray(tface), np.asarray(tbary)),
+        on[inside],
+        ts[inside],
+    )
+
+
+def _part(dom: _Domain, sides: list[_Side], starts_v: dict, pieces):
+    """One part of a cut domain as (domain, sides): its triangles re-indexed, its own disc
+    map with an equal arc per side, the sides' corners and mid-points carried into it;
+    None where the part is not one disk."""
+    Vuv, Vxyz, tris, tface, tbary = pieces
+    verts, inv = np.unique(tris.reshape(-1), return_inverse=True)
+    local = inv.reshape(-1, 3).astype(np.int64)
+    loops = boundary_loops(local, edge_table(local, verts.size))
+    if len(loops) != 1:
+        return None
+    m = verts.size
+    clip = _Clip(
+        local,
+        np.zeros(local.shape[0], dtype=np.int64),
+        tface,
+        tbary,
+        np.zeros(m, dtype=np.int64),
+        np.zeros((m, 3)),
+        Vxyz[verts],
+        np.zeros(m, dtype=bool),
+        np.zeros(m, dtype=np.int64),
+    )
+    old = _Locator(Vuv[verts], local)  # the parent's disc points of the part
+    corner_v = []
+    for sd in sides:
+        v = sd.start_v if sd.start_v >= 0 else starts_v[sd.start]
+        corner_v.append(int(np.searchsorted(verts, v)))
+    loop = np.asarray(loops[0], dtype=np.int64)
+    pos = [int(np.flatnonzero(loop == v)[0]) for v in corner_v]
+    loop = np.roll(loop, -pos[0])
+    starts = [(q - pos[0]) % loop.size for q in pos]
+    if any(b <= a for a, b in itertools.pairwise(starts)):
+        return None
+    cell = _Cell(np.arange(local.shape[0]), np.arange(m), loop)
+    uv, T = _disc_map(clip, cell, starts)
+    loc = _Locator(uv, T)
+
+    def carry(q):
+        t, b = old.locate(np.asarray(q, dtype=np.float64)[None])
+        return b[0] @ uv[T[t[0]]]
+
+    moved = [
+        replace(sd, mid_uv=carry(sd.mid_uv), start_v=int(cell.loop[st]), start_uv=uv[loop[st]])
+        for sd, st in zip(sides, starts, strict=True)
+    ]
+    return _Domain(clip, cell, loc), moved
+
+
+def _quads(mesh: Mesh, dom: _Domain, poly: list[_Side], net) -> None:
+    """One quad per corner of a polygon (corner, mid-point, centre, mid-point), its centre
+    the image of its disc map's centre, joined to the sides' mid-points by images of
+    radii."""
+    loc = dom.loc
+    # the centroid of the sub-triangle holding it, inside an input face (a centre on an
+    # edge would start the radii on it)
+    tloc, _ = loc.locate(np.zeros((1, 2)))
+    start = loc.uv[loc.T[tloc[0]]].mean(axis=0)
+    f0, b0 = _face_points(dom.clip, dom.cell, tloc, np.full((1, 3), 1.0 / 3.0))
+    c = net.point(int(f0[0]), b0[0])
+    spokes = [
+        net.curve(*_radius(mesh, dom.clip, dom.cell, loc, start, sd.mid_uv), c, sd.mid)
+        for sd in poly
+    ]
+    for i in range(len(poly)):
+        net.patches.append(
+            [poly[i].first, (spokes[i], True), (spokes[i - 1], False), poly[i - 1].second]
+        )
+
+
+def _side_halves(clip: _Clip, stretches, merged, chords, index, net: _Net) -> list:
+    """Each stretch's two halves as curves of ``net`` (fixed along the mesh boundary and the
+    creases), ``(-1, -1)`` for a merged one."""
+    c_index, mid_index = index
+    canon = clip.canon
+    halves: list[tuple[int, int]] = []
+    for s, st in enumerate(stretches):
+        if s in merged:
+            halves.append((-1, -1))
+            continue
+        mid = (net.cf[mid_index[s]], net.cb[mid_index[s]])
+        first, second = _halves(clip, st, mid, chords.get(s, []))
+        a_c = int(c_index[canon[st.ids[0]]])
+        b_c = int(c_index[canon[st.ids[-1]]])
+        h0 = len(net.curves)
+        for (fs, bs), e in ((first, (a_c, mid_index[s])), (second, (mid_index[s], b_c))):
+            net.curves.append(SurfacePoints(np.asarray(fs), np.asarray(bs)))
+            net.ends.append(e)
+            net.fixed.append(st.on_border)
+            net.crease.append(st.on_border and st.uses == 2)
+        halves.append((h0, h0 + 1))
+    return halves
+
+
 def _assemble(
     mesh: Mesh,
     clip: _Clip,
@@ -1298,53 +1688,17 @@ def _assemble(
         maps.append((uv, _Locator(uv, T), np.searchsorted(cell.verts, cell.loop)))
 
     chords = _chords(mesh, clip, cells, stretches, merges, entry, maps, (cf, cb, mid_index))
-    halves: list[tuple[int, int]] = []
-    for s, st in enumerate(stretches):
-        if s in merged:
-            halves.append((-1, -1))
-            continue
-        first, second = _halves(clip, st, (cf[mid_index[s]], cb[mid_index[s]]), chords.get(s, []))
-        a_c = int(c_index[canon[st.ids[0]]])
-        b_c = int(c_index[canon[st.ids[-1]]])
-        h0 = len(curves)
-        for (fs, bs), e in ((first, (a_c, mid_index[s])), (second, (mid_index[s], b_c))):
-            curves.append(SurfacePoints(np.asarray(fs), np.asarray(bs)))
-            ends.append(e)
-            fixed.append(st.on_border)
-            crease.append(st.on_border and st.uses == 2)
-        halves.append((h0, h0 + 1))
-
     patches: list[list[tuple[int, bool]]] = []
+    net = _Net(cf, cb, curves, ends, fixed, crease, patches)
+    halves = _side_halves(clip, stretches, merged, chords, (c_index, mid_index), net)
     for ci, cell in enumerate(cells):
-        uv, loc, loop_local = maps[ci]
-        T = loc.T
-        # the centre: the centroid of the sub-triangle holding the disc's centre, inside an
-        # input face (a centre on an edge would start the radii on it)
-        tloc, _ = loc.locate(np.zeros((1, 2)))
-        start = uv[T[tloc[0]]].mean(axis=0)
-        f0, b0 = _face_points(clip, cell, tloc, np.full((1, 3), 1.0 / 3.0))
-        centre = len(cf)
-        cf.append(int(f0[0]))
-        cb.append(b0[0])
         mine = [(s, rev, a) for s, rev, a in sides[ci] if s not in merged]
-        spokes = []
-        for s, rev, a in mine:
-            end = _mid_uv(cell, uv, loop_local, stretches[s], rev, a)
-            f, bary = _radius(mesh, clip, cell, loc, start, end)
-            f = f.copy()
-            bary = bary.copy()
-            f[-1], bary[-1] = cf[mid_index[s]], cb[mid_index[s]]
-            spokes.append(len(curves))
-            curves.append(SurfacePoints(f, bary))
-            ends.append((centre, mid_index[s]))
-            fixed.append(False)
-            crease.append(False)
-        for i in range(len(mine)):
-            s_i, r_i, _ = mine[i]
-            s_p, r_p, _ = mine[i - 1]
-            first_half = (halves[s_i][1], True) if r_i else (halves[s_i][0], False)
-            second_half = (halves[s_p][0], True) if r_p else (halves[s_p][1], False)
-            patches.append([first_half, (spokes[i], True), (spokes[i - 1], False), second_half])
+        ring = _ring(clip, cell, stretches, mine, maps[ci], (c_index, mid_index, halves))
+        if len(mine) == len(sides[ci]):  # (a cell with a merged side keeps its corners)
+            for i in range(len(mine)):
+                ring[i].straight = _straight(mesh, clip, cell, stretches, mine, i)
+        for dom, poly in _split_straight(mesh, _Domain(clip, cell, maps[ci][1]), ring, net):
+            _quads(mesh, dom, poly, net)
     corners = SurfacePoints(np.asarray(cf, dtype=np.int64), np.asarray(cb, dtype=np.float64))
     return (
         corners,
