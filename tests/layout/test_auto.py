@@ -448,3 +448,22 @@ def test_only_the_relaxed_curves_at_fault_are_put_back():
     assert all(np.array_equal(out.curves[i].points.face, relaxed[i].points.face) for i in kept)
     # where the unrelaxed network has the fault too, nothing mends it
     assert _keep_relaxed(mesh, layout.corners, bad, bad, layout.curve_ends, quads) is None
+
+
+def test_curves_put_back_are_checked_with_their_patches_first():
+    """After a curve is put back, the next round cuts only it, the curves of its patches
+    and the curves at its corners: on a cube layout, the 3 others of each of its 2
+    patches and the curves at its two corners (the whole network is looked at once more
+    before the layout is made)."""
+    from meshfit.layout.auto import _neighbourhoods
+    from meshfit.layout.cube import cube_layout
+
+    layout = cube_layout(icosphere(3), frame=np.eye(3))
+    quads = [[(int(c), False) for c in row] for row in layout.patch_curves]
+    near = _neighbourhoods(layout.curve_ends, quads, len(layout.curves))
+    for i, hood in enumerate(near):
+        patches = {int(c) for row in layout.patch_curves if i in row for c in row}
+        ends = layout.curve_ends[i]
+        at = {j for j, e in enumerate(layout.curve_ends.tolist()) if set(e) & set(ends.tolist())}
+        assert hood == patches | at | {i}
+        assert i in hood and len(hood) < len(layout.curves)

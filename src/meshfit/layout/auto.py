@@ -1047,7 +1047,9 @@ def _keep_relaxed(
     A snake pulled tight can slide across a neighbour near a shared corner; putting back
     only the curves at fault keeps every other curve relaxed (one fault would otherwise
     cost the whole network its relaxation). Each round puts back at least one curve, and
-    at most `UNRELAX_ROUNDS` rounds run.
+    at most `UNRELAX_ROUNDS` rounds run. After the first, a round looks only at the curves
+    of the patches of those just put back and at their corners (a cut of a few curves,
+    not of the network); the last look is at the whole network.
     """
     from meshfit.layout.extract import check_layout_topology
     from meshfit.surface.cut import network_meetings
@@ -1064,17 +1066,44 @@ def _keep_relaxed(
     if first is not None:
         return first
     cur = list(relaxed)
-    for _ in range(UNRELAX_ROUNDS):
+    near = _neighbourhoods(ends, quads, len(cur))
+    check = list(range(len(cur)))  # the curves whose meetings are looked for
+    rounds = 0
+    while True:
         try:
-            bad = network_meetings(mesh, cur, corners, ends)
+            found = network_meetings(mesh, [cur[i] for i in check], corners, ends[check])
         except MeshfitError:
             return None
-        back = [i for i in bad if cur[i] is not plain[i]]
+        back = [check[k] for k in found if cur[check[k]] is not plain[check[k]]]
         if not back:
+            if len(check) == len(cur):
+                break
+            # (a put-back curve may also meet one beyond its patches: a full check)
+            check = list(range(len(cur)))
+            continue
+        rounds += 1
+        if rounds > UNRELAX_ROUNDS:
             break
         for i in back:
             cur[i] = plain[i]
+        # a curve put back meets only curves it did not meet relaxed, most likely those
+        # of its patches and at its corners: they are looked at first
+        check = sorted(set().union(*(near[i] for i in back)))
     return layout(cur)
+
+
+def _neighbourhoods(ends: NDArray[np.int64], quads, n: int) -> list[set[int]]:
+    """Per curve, itself and the curves of its patches and at its end corners."""
+    at: dict[int, set[int]] = {}
+    for i, (a, b) in enumerate(np.asarray(ends, dtype=np.int64).tolist()):
+        at.setdefault(a, set()).add(i)
+        at.setdefault(b, set()).add(i)
+    out = [{i} | at[int(ends[i][0])] | at[int(ends[i][1])] for i in range(n)]
+    for q in quads:
+        sides = {int(c) for c, _ in q}
+        for c in sides:
+            out[c] |= sides
+    return out
 
 
 def _relaxed_curves(
