@@ -32,12 +32,12 @@ Method
    nearly on a circle) is merged away first: its mid-point becomes the one corner of the
    four cells, reached by chords through the two cells that shared it (images of
    segments in their disc maps), so no quad has a side a fraction of its others' length
-   and a sliver at its centre. Should the merged network not cut the mesh into disks, the
-   cells are split without merging. A corner at a crease where the cell's angle is
-   straight or reflex (an end of the cells across that found no partner, or a boundary
-   leaving the crease at a glancing angle) would be a quad corner of about 180 degrees:
-   a chord of the disc map joins it to the cell's most nearly opposite corner, and each
-   part is split into quads about the centre of a disc map of its own.
+   and a sliver at its centre. A corner at a crease where the cell's angle is straight or
+   reflex (an end of the cells across that found no partner, or a boundary leaving the
+   crease at a glancing angle) would be a quad corner of about 180 degrees: a chord of
+   the disc map joins it to the cell's most nearly opposite corner, and each part is
+   split into quads about the centre of a disc map of its own. Should the merged corners'
+   or the chords' curves not cut the mesh into disks, the cells are split as they are.
 5. Interior curves are relaxed as surface snakes with fixed ends; a relaxed curve that
    meets another away from the corners is put back as it was (only those curves: the
    jagged cell boundaries left elsewhere would give patches reflex corners). Curves on the
@@ -1635,19 +1635,20 @@ def _assemble(
     clip: _Clip,
     cells: list[_Cell],
     corner: NDArray[np.bool_],
-    merge: dict | None = None,
+    made: dict | None = None,
 ):
     """Corners, curves, curve ends, patches, and per curve whether it lies on the mesh
     boundary or along a crease (neither is moved by the relaxation) and whether it is a
-    crease. With ``merge`` (a dict: the count goes into it as ``"merges"``), short sides
-    are merged away (`_short_sides`): their mid-point
-    is the corner of the four cells, and each other side at their ends reaches it by a
-    chord through the cell that had the short side (the image of a segment in its disc
-    map, which no radius crosses)."""
+    crease.
+
+    With ``made`` (a dict: the counts go into it as ``"merges"`` and ``"chords"``), short
+    sides are merged away (`_short_sides`): their mid-point is the corner of the four
+    cells, and each other side at their ends reaches it by a chord through the cell that
+    had the short side (the image of a segment in its disc map, which no radius crosses);
+    and straight corners at creases are joined to opposite corners (`_split_straight`).
+    With None the cells are split as they are."""
     stretches, sides = _stretches(clip, cells, corner)
-    merges = _short_sides(clip, stretches, sides) if merge is not None else []
-    if merge is not None:
-        merge["merges"] = len(merges)
+    merges = _short_sides(clip, stretches, sides) if made is not None else []
     merged = {m.s: m for m in merges}
     canon = clip.canon
     keep = corner.copy()
@@ -1691,14 +1692,20 @@ def _assemble(
     patches: list[list[tuple[int, bool]]] = []
     net = _Net(cf, cb, curves, ends, fixed, crease, patches)
     halves = _side_halves(clip, stretches, merged, chords, (c_index, mid_index), net)
+    n_chords = 0
     for ci, cell in enumerate(cells):
         mine = [(s, rev, a) for s, rev, a in sides[ci] if s not in merged]
         ring = _ring(clip, cell, stretches, mine, maps[ci], (c_index, mid_index, halves))
-        if len(mine) == len(sides[ci]):  # (a cell with a merged side keeps its corners)
+        # (a cell with a merged side keeps its corners)
+        if made is not None and len(mine) == len(sides[ci]):
             for i in range(len(mine)):
                 ring[i].straight = _straight(mesh, clip, cell, stretches, mine, i)
-        for dom, poly in _split_straight(mesh, _Domain(clip, cell, maps[ci][1]), ring, net):
+        parts = _split_straight(mesh, _Domain(clip, cell, maps[ci][1]), ring, net)
+        n_chords += len(parts) - 1
+        for dom, poly in parts:
             _quads(mesh, dom, poly, net)
+    if made is not None:
+        made.update(merges=len(merges), chords=n_chords)
     corners = SurfacePoints(np.asarray(cf, dtype=np.int64), np.asarray(cb, dtype=np.float64))
     return (
         corners,
@@ -1797,25 +1804,26 @@ def region_layout(
     corner = _corners(clip, cells)
     if report is not None:
         report.append(CellReport(int(seeds.size), added, int(mesh.n_components), rounds))
-    merged: dict = {}
+    made: dict = {}
     try:
-        return _from_cells(mesh, work, clip, cells, corner, merged, relax, relax_iterations)
-    except MeshfitError:  # a merged corner's chords did not cut the mesh into disks
-        if merged.get("merges", 1) == 0:
+        return _from_cells(mesh, work, clip, cells, corner, made, relax, relax_iterations)
+    except MeshfitError:  # a merged corner's or a chord's curves did not cut into disks
+        if not made.get("merges", 1) and not made.get("chords", 1):
             raise
         return _from_cells(mesh, work, clip, cells, corner, None, relax, relax_iterations)
 
 
 def _from_cells(
-    mesh: Mesh, work: Mesh, clip: _Clip, cells, corner, merge: dict | None, relax: bool, iterations
+    mesh: Mesh, work: Mesh, clip: _Clip, cells, corner, made: dict | None, relax: bool, iterations
 ) -> Layout:
     """The layout of the clipped cells (`_assemble`), its interior curves relaxed; short
-    sides merged unless ``merge`` is None (their count goes into it as ``"merges"``)."""
+    sides merged and straight corners at creases joined by chords unless ``made`` is None
+    (their counts go into it)."""
     from meshfit.curves.base import densify_curves
     from meshfit.layout.auto import _keep_relaxed, _relax_all
     from meshfit.layout.extract import check_layout_topology
 
-    corners, curves, ends, quads, fixed, crease = _assemble(work, clip, cells, corner, merge)
+    corners, curves, ends, quads, fixed, crease = _assemble(work, clip, cells, corner, made)
     surface_curves = densify_curves(mesh, [SurfaceCurve(c, False, "boundary") for c in curves])
     plain = layout_from_curves(mesh, corners, surface_curves, ends, quads, creases=crease)
     if relax:
