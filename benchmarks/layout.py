@@ -2,7 +2,8 @@
 
 For every mesh in ``../shared/data/meshes`` and generated closed shapes of genus 0 to 5
 (tori in a row blended by a smooth minimum, ``tests/shapes.py``; genus 0: a rounded cube)
-and a closed genus-0 body with eight long arms (``shapes.spiky``),
+a closed genus-0 body with eight long arms (``shapes.spiky``) and two parts with sharp
+edges (a cube, and a slab with three round through holes: genus 3),
 with no options (the fit's defaults, the meshes loaded with the default repair):
 
 - ours: :func:`meshfit.layout.auto.auto_layout` (which route it took, the layout's time),
@@ -205,6 +206,7 @@ def main() -> None:
     ap.add_argument("--genus", nargs="*", type=int, default=[0, 1, 2, 3, 4, 5])
     ap.add_argument("--no-peer", action="store_true")
     ap.add_argument("--no-spiky", dest="spiky", action="store_false")
+    ap.add_argument("--no-creased", dest="creased", action="store_false")
     args = ap.parse_args()
     rows = []
     for name in args.meshes:
@@ -215,6 +217,10 @@ def main() -> None:
         # a closed genus-0 body with eight long arms: the shape that sent the sphere route's
         # protrusion moves into minutes; now the region route takes it
         rows.append(run_one("spiky8", shapes.spiky(8), not args.no_peer))
+    if args.creased:
+        # parts with sharp edges: the creases lie on patch boundaries (C0 across them)
+        rows.append(run_one("sharp_cube", shapes.cube(), not args.no_peer))
+        rows.append(run_one("slab_genus3", shapes.box_with_holes(3), not args.no_peer))
     ok = [r for r in rows if r.get("success")]
     peer_ok = [r for r in ok if "peer" in r and "failure" not in r["peer"]]
     summary = {
