@@ -14,7 +14,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from meshfit import __version__, errors
-from meshfit._cliargs import CLI_REPAIR_HINT, add_repair_option
+from meshfit._cliargs import CLI_REPAIR_HINT, add_repair_option, refuse_own_input
 from meshfit._cliout import EXIT_ERROR, EXIT_OK, print_json, print_table
 from meshfit._malloc import tune_malloc
 
@@ -145,6 +145,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        refuse_own_input(args)
         return int(args.func(args))
     except errors.MeshfitError as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__

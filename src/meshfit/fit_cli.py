@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from meshfit._cliargs import add_repair_option
+from meshfit._cliargs import add_repair_option, own_inputs
 from meshfit._progress import stage_progress
 from meshfit.errors import InputError
 
@@ -378,6 +378,7 @@ def add_commands(sub) -> None:
         help="close small holes (at most 1000 boundary edges each) before the layout; "
         "without it an open mesh is laid out as it is, the holes' rims on patch boundaries",
     )
+    own_inputs(p, ("mesh", "layout"), ("out",))
     p.set_defaults(func=fit)
 
     p = sub.add_parser(
@@ -395,6 +396,7 @@ def add_commands(sub) -> None:
         "--out", default=None, help="write the rebuilt fit here (default: in the fit folder)"
     )
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    own_inputs(p, ("mesh",), ("out",))
     p.set_defaults(func=cmd_rebuild)
 
     p = sub.add_parser("batch", help="fit every mesh matching a glob on a Dask cluster")

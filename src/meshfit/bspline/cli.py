@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from meshfit._cliargs import own_inputs
 from meshfit.errors import InputError
 
 __all__ = ["add_commands", "cmd_fit", "load_grid"]
@@ -186,4 +187,5 @@ def add_commands(sub) -> None:
         help=f"comma-separated exports: {', '.join(_FORMATS)} (default none)",
     )
     p.add_argument("--json", action="store_true", help="print JSON instead of tables")
+    own_inputs(p, ("grids",), ("out",))
     p.set_defaults(func=cmd_fit)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from meshfit._cliargs import add_repair_option
+from meshfit._cliargs import add_repair_option, own_inputs
 
 __all__ = ["add_commands", "cmd_layout"]
 
@@ -38,6 +38,7 @@ def add_commands(sub) -> None:
     )
     p.add_argument("--out", help="where --smooth writes the smoothed layout (.json)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    own_inputs(p, ("mesh", "layout"), ("out",))
     p.set_defaults(func=cmd_layout)
 
 

@@ -9,6 +9,7 @@ import tempfile
 from pathlib import Path
 
 from meshfit import errors
+from meshfit._cliargs import own_inputs
 
 __all__ = ["add_commands"]
 
@@ -246,6 +247,7 @@ def add_commands(sub) -> None:
     p = sub.add_parser("wrap", help="subdivision-connectivity remesh by shrink wrapping")
     _wrap_args(p)
     p.add_argument("--out", help="folder for M0..Mm (.ply), wrap.mfsw and metrics.json")
+    own_inputs(p, ("mesh",), ("out",))
     p.set_defaults(func=cmd_wrap)
 
     s = sub.add_parser("stream", help="progressive transmission streams")
@@ -256,6 +258,7 @@ def add_commands(sub) -> None:
     e.add_argument("--scheme", choices=("loop", "butterfly"), default="loop")
     e.add_argument("--packet-size", type=int, default=1024, help="coefficients per packet")
     e.add_argument("--float64", action="store_true", help="store float64 coefficients")
+    own_inputs(e, ("mesh",), ("output",))
     e.set_defaults(func=cmd_encode)
 
     d = ssub.add_parser("decode", help="reconstruct a mesh from a stream")
@@ -270,4 +273,5 @@ def add_commands(sub) -> None:
         "transmission order, whole packets only (default: 1)",
     )
     d.add_argument("--json", action="store_true", help="print JSON")
+    own_inputs(d, ("stream",), ("output",))
     d.set_defaults(func=cmd_decode)

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from meshfit._cliargs import add_repair_option
+from meshfit._cliargs import add_repair_option, own_inputs
 
 __all__ = ["add_commands", "cmd_springs", "save_spring_mesh"]
 
@@ -349,4 +349,5 @@ def add_commands(sub) -> None:
     )
     p.add_argument("--out", default=None, help="folder for one .npz and .ply per patch")
     p.add_argument("--json", action="store_true", help="print JSON instead of tables")
+    own_inputs(p, ("mesh", "layout"), ("out",))
     p.set_defaults(func=cmd_springs)
