@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from meshfit._atomic import write_text
+from meshfit._jsonio import read_json
 from meshfit.errors import InputError, LayoutError
 from meshfit.layout.layout import Layout, check_layout, mesh_fingerprint
 from meshfit.mesh import Mesh
@@ -153,12 +154,7 @@ def layout_from_json(text: str, *, source: str = "layout") -> Layout:
         Malformed JSON (with line and column), an unknown version, a missing or mistyped key
         (named by its path, e.g. ``curves[3].face``), sides that do not join end to end.
     """
-    try:
-        doc = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise LayoutError(
-            f"{source}: malformed JSON at line {exc.lineno}, column {exc.colno}: {exc.msg}"
-        ) from None
+    doc = read_json(text, source=source, error=LayoutError)
     if not isinstance(doc, dict) or "meshfit_layout" not in doc:
         raise LayoutError(f"{source}: not a meshfit layout file (no 'meshfit_layout' key)")
     version = doc["meshfit_layout"]

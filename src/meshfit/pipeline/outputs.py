@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from meshfit._atomic import write_bytes
+from meshfit._jsonio import read_json_file
 from meshfit.errors import InputError
 from meshfit.export.weld import UDIM_FIRST, udim
 from meshfit.pipeline.store import PIPELINE_FORMAT, sha_file, write_json
@@ -146,7 +147,7 @@ def read_manifest(folder: Path) -> dict[str, dict[str, str]]:
     if not path.is_file():
         return {}
     try:
-        data = json.loads(path.read_text())
+        data = read_json_file(path, error=ValueError)
         files = data["files"]
         if not isinstance(files, dict) or not all(
             isinstance(k, str) and isinstance(v.get("sha256"), str) for k, v in files.items()

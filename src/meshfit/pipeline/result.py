@@ -10,7 +10,6 @@ and ``summary.json``; :func:`load_fit` reads them back bit for bit.
 
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -20,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from meshfit._atomic import write_text
+from meshfit._jsonio import read_json_file
 from meshfit.bspline import BSplineSurface
 from meshfit.displacement import DisplacementMap
 from meshfit.errors import InputError
@@ -303,7 +303,7 @@ def load_fit(
     if not (out / "fit.json").is_file() or not (out / "fit.npz").is_file():
         raise InputError(f"{out}: no fit here (fit.json and fit.npz; run meshfit fit first)")
     try:
-        meta = json.loads((out / "fit.json").read_text())
+        meta = read_json_file(out / "fit.json", error=ValueError)
         version = meta["meshfit_fit"]
     except (ValueError, KeyError, TypeError):
         raise InputError(f"{out / 'fit.json'}: not a meshfit fit file") from None
@@ -316,7 +316,7 @@ def load_fit(
     layout = layout_from_json((out / "layout.json").read_text(), source=str(out / "layout.json"))
     options = FitOptions.from_json(meta["options"])
     kinds = meta["kinds"]
-    summary = json.loads((out / "summary.json").read_text())
+    summary = read_json_file(out / "summary.json")
     patches = [
         PatchFit(
             p,

@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from meshfit import _atomic, tol
+from meshfit._jsonio import read_json_file
 from meshfit.curves import (
     SnakeOptions,
     SpaceCurve,
@@ -1002,9 +1003,10 @@ class Session:
         mesh = self._need_mesh()
         p = Path(path)
         try:
-            doc = json.loads(p.read_text())
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise InputError(f"{p}: not a readable session file ({exc})") from None
+            doc = read_json_file(p)
+        except (OSError, InputError) as exc:
+            why = str(exc).removeprefix(f"{p}: ")
+            raise InputError(f"{p}: not a readable session file ({why})") from None
         if not isinstance(doc, dict) or doc.get("meshfit_ui_session") not in READ_VERSIONS:
             versions = " or ".join(map(str, READ_VERSIONS))
             raise InputError(f"{p}: not a meshfit session file of version {versions}")
