@@ -250,8 +250,8 @@ def test_a_level_past_the_point_limit_is_refused(plane, monkeypatch):
     # would exhaust the memory (spot's test layout at level 9: 25 million points a patch)
     from meshfit.springs import resample as rs
 
-    with pytest.raises(InputError, match=r"level 12 gives patch 0 .* ask for level 7 or less"):
-        resample_patch(plane, SpringOptions(level=12, metrics=False))  # 16 x 8 intervals at level 0
+    with pytest.raises(InputError, match=r"level 9 gives patch 0 .* ask for level 7 or less"):
+        resample_patch(plane, SpringOptions(level=9, metrics=False))  # 16 x 8 intervals at level 0
     # the limit is the grid's: a lower one refuses lower levels, and max_points lowers the
     # level to fit instead of refusing
     monkeypatch.setattr(rs, "LEVEL_MAX_POINTS", 1000)

@@ -84,6 +84,8 @@ SPHERE_MAX_ASPECT = 10.0
 #: (whose grids fold): whether curves cross or a patch along a protrusion is a sliver
 #: depends on the rotation, and another one often has neither
 SEED_TRIES = 3
+#: largest base-rotation seed (the tries take the next seeds; a seed is 32 bits)
+MAX_SEED = 2**32 - 1 - SEED_TRIES
 #: default face count of the coarse proxy a dense mesh is laid out on (``auto_layout``)
 PROXY_FACES = 25_000
 #: a mesh is laid out on a proxy when it has more than this many times ``proxy_faces`` faces
@@ -420,6 +422,9 @@ class LayoutOptions:
             raise InputError(f"proxy_faces must be >= 20, got {self.proxy_faces}")
         if int(self.relax_iterations) < 0:
             raise InputError(f"relax_iterations must be >= 0, got {self.relax_iterations}")
+        s = self.seed
+        if isinstance(s, bool) or not isinstance(s, (int, np.integer)) or not 0 <= s <= MAX_SEED:
+            raise InputError(f"seed must be a whole number from 0 to {MAX_SEED}, got {s!r}")
 
 
 def auto_layout(

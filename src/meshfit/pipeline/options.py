@@ -18,8 +18,9 @@ import numpy as np
 
 from meshfit._threads import n_workers
 from meshfit.errors import InputError
-from meshfit.layout.auto import LayoutOptions
+from meshfit.layout.auto import MAX_SEED, LayoutOptions
 from meshfit.springs import SpringOptions
+from meshfit.springs.resample import check_spring_options
 
 __all__ = [
     "FORMATS",
@@ -202,6 +203,8 @@ class FitOptions:
         seed = self.layout_seed
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
             raise InputError(f"layout_seed must be a whole number >= 0, got {seed!r}")
+        if seed > MAX_SEED:
+            raise InputError(f"layout_seed must be at most {MAX_SEED}, got {seed}")
         object.__setattr__(self, "layout_seed", int(seed))
         if not 0.0 <= float(self.drop_components_below) < 1.0:
             raise InputError(
@@ -223,6 +226,7 @@ class FitOptions:
         from meshfit.export.units import unit
 
         object.__setattr__(self, "units", unit(self.units).name)
+        check_spring_options(self.springs)  # (the spring stage's values, before any work)
         axis = str(self.up_axis).lower()
         if axis not in ("auto", "y", "z"):
             raise InputError(f"up_axis must be 'auto', 'y' or 'z', got {self.up_axis!r}")

@@ -748,7 +748,34 @@ def _checked_options(options: SpringOptions | None) -> SpringOptions:
         raise InputError(f"init_intervals must be >= 1, got {o.init_intervals}")
     if o.tolerance is not None:
         _check_tolerance(o)
+    _check_level(o)
     return o
+
+
+def check_spring_options(options: SpringOptions) -> SpringOptions:
+    """``options`` once its values pass the checks :func:`resample_patch` makes before any
+    patch (for callers that validate every option before any work); raises InputError
+    naming the first bad one."""
+    return _checked_options(options)
+
+
+def _check_level(o: SpringOptions) -> None:
+    """``level`` a non-negative integer that does not give even a one-cell level-0 grid more
+    than `LEVEL_MAX_POINTS` points (without ``max_points``); ``max_points`` at least 4."""
+    level, most = o.level, o.max_points
+    if level is not None:
+        if isinstance(level, bool) or int(level) != level or level < 0:
+            raise InputError(f"level must be a non-negative integer, got {level!r}")
+        if most is None and (2 ** int(level) + 1) ** 2 > LEVEL_MAX_POINTS:
+            top = 0
+            while (2 ** (top + 1) + 1) ** 2 <= LEVEL_MAX_POINTS:
+                top += 1
+            raise InputError(
+                f"level {level} gives every patch more than {LEVEL_MAX_POINTS:,} grid points: "
+                f"ask for level {top} or less"
+            )
+    if most is not None and (isinstance(most, bool) or int(most) != most or most < 4):
+        raise InputError(f"max_points must be an integer >= 4, got {most!r}")
 
 
 def _check_tolerance(o: SpringOptions) -> None:
