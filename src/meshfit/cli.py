@@ -8,7 +8,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
+import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -139,11 +141,31 @@ def _os_error(exc: OSError) -> str:
     return f"{path}: {reason}"
 
 
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, taken like Ctrl-C: the work stops where it is, files are left whole."""
+
+
+def _terminate(signum, frame) -> None:
+    raise _Terminated
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the exit code (0 ok, 2 bad input)."""
+    """Entry point; returns the exit code (0 ok, 2 bad input, 130 interrupted, 143
+    terminated)."""
     tune_malloc()
     parser = build_parser()
     args = parser.parse_args(argv)
+    main_thread = threading.current_thread() is threading.main_thread()
+    before = signal.signal(signal.SIGTERM, _terminate) if main_thread else None
+    try:
+        return _run(args)
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, before)
+
+
+def _run(args: argparse.Namespace) -> int:
+    """The command, its failures as one line each and an exit code."""
     try:
         refuse_own_input(args)
         return int(args.func(args))
@@ -167,6 +189,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             "on a larger machine\n"
         )
         return EXIT_ERROR
+    except _Terminated:
+        sys.stderr.write("meshfit: terminated\n")
+        return 143
     except KeyboardInterrupt:
         sys.stderr.write("meshfit: interrupted\n")
         return 130
