@@ -798,3 +798,41 @@ def test_round_trip_keeps_connectivity(tmp_path, suffix):
     assert back.n_vertices == spot.n_vertices  # STL corners are joined again
     assert back.genus == 0 and back.is_closed
     assert_allclose(back.area, spot.area, rtol=1e-6)
+
+
+_PLY_HEAD = (
+    "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+    "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+)
+
+
+@pytest.mark.parametrize("index", ["1.5", "1e0", "1.0"])
+def test_ascii_ply_face_indices_must_be_whole_numbers(tmp_path, index):
+    """A fractional index is refused, never truncated into another mesh."""
+    from meshfit.errors import MeshFileError
+    from meshfit.mesh import read_mesh_arrays
+
+    p = tmp_path / "f.ply"
+    p.write_text(_PLY_HEAD + f"0 0 0\n1 0 0\n0 1 0\n3 0 {index} 2\n")
+    with pytest.raises(MeshFileError, match=rf"face 0: vertex index '{index}' is not a whole"):
+        read_mesh_arrays(p)
+    # fractional coordinates are fine, whole indices too
+    p.write_text(_PLY_HEAD + "0.5 0 0\n1 0 0e0\n0 1 0\n3 0 1 2\n")
+    assert read_mesh_arrays(p).faces.tolist() == [[0, 1, 2]]
+
+
+def test_a_truncated_binary_stl_whose_header_says_solid_is_not_empty(tmp_path):
+    """A binary STL may start its 80-byte header with "solid"; cut short, it is a
+    truncated file, not an empty ASCII one (a UTF-8 name keeps an ASCII STL text)."""
+    import struct
+
+    from meshfit.errors import MeshFileError
+    from meshfit.mesh import read_mesh_arrays
+
+    tri = b"\x00" * 12 + struct.pack("<9f", 0, 0, 0, 1, 0, 0, 0, 1, 0) + b"\x00\x00"
+    p = tmp_path / "t.stl"
+    p.write_bytes(b"solid made by a CAD tool".ljust(80, b" ") + struct.pack("<I", 10) + tri * 3)
+    with pytest.raises(MeshFileError, match="declares 10 triangles"):
+        read_mesh_arrays(p)
+    p.write_text("solid Würfel\nendsolid Würfel\n", encoding="utf-8")
+    assert read_mesh_arrays(p).faces.shape == (0, 3)

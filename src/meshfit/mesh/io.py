@@ -108,6 +108,24 @@ def _ply_header(path: Path) -> _PlyHeader | None:
     return _PlyHeader(elements, length, fmt)
 
 
+def _check_whole_indices(path: Path, rows: list[str], first_list: int) -> None:
+    """MeshFileError naming the first ASCII PLY face whose vertex indices are not whole
+    numbers (a reader would truncate 1.5 to 1: another mesh, silently)."""
+    if not re.search(r"[.eE]", "\n".join(rows)):
+        return
+    for i, ln in enumerate(rows):
+        tokens = ln.split()
+        try:
+            n = int(tokens[first_list])
+        except (IndexError, ValueError):
+            continue  # (the corner counts are checked apart)
+        for t in tokens[first_list + 1 : first_list + 1 + n]:
+            if not t.lstrip("+-").isdigit():
+                raise errors.MeshFileError(
+                    f"{path}: face {i}: vertex index {t!r} is not a whole number"
+                )
+
+
 def _ply_ascii_scan(path: Path, header: _PlyHeader) -> int:
     """Check the data lines of an ASCII PLY against its header; return how many faces have
     more than three corners.
@@ -151,6 +169,7 @@ def _ply_ascii_scan(path: Path, header: _PlyHeader) -> int:
             except (IndexError, ValueError):
                 sizes = np.zeros(0, dtype=np.int64)  # malformed: left to the reader
             _check_corner_counts(path, sizes)
+            _check_whole_indices(path, rows, first_list)
             polygons = int((sizes > 3).sum())
         row += count
     return polygons
@@ -557,8 +576,11 @@ def _stl_check(path: Path) -> RawMesh | None:
     n = int(np.frombuffer(head[80:84], dtype="<u4")[0]) if size >= 84 else -1
     if n >= 0 and size == 84 + 50 * n:  # a consistent binary STL
         return RawMesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), None, []) if n == 0 else None
-    if head[:5].lower() == b"solid":  # ASCII STL
-        if b"facet" not in path.read_bytes():
+    data = path.read_bytes() if head[:5].lower() == b"solid" else b""
+    # an ASCII STL is text (a name may be UTF-8); a binary one whose header starts with
+    # "solid" has control bytes in its numbers
+    if data and not re.search(rb"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]", data[80:]):
+        if b"facet" not in data:
             return RawMesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), None, [])
         return None
     if n < 0:
