@@ -809,12 +809,11 @@ _PLY_HEAD = (
 @pytest.mark.parametrize("index", ["1.5", "1e0", "1.0"])
 def test_ascii_ply_face_indices_must_be_whole_numbers(tmp_path, index):
     """A fractional index is refused, never truncated into another mesh."""
-    from meshfit.errors import MeshFileError
-    from meshfit.mesh import read_mesh_arrays
-
     p = tmp_path / "f.ply"
     p.write_text(_PLY_HEAD + f"0 0 0\n1 0 0\n0 1 0\n3 0 {index} 2\n")
-    with pytest.raises(MeshFileError, match=rf"face 0: vertex index '{index}' is not a whole"):
+    with pytest.raises(
+        errors.MeshFileError, match=rf"face 0: vertex index '{index}' is not a whole"
+    ):
         read_mesh_arrays(p)
     # fractional coordinates are fine, whole indices too
     p.write_text(_PLY_HEAD + "0.5 0 0\n1 0 0e0\n0 1 0\n3 0 1 2\n")
@@ -824,15 +823,10 @@ def test_ascii_ply_face_indices_must_be_whole_numbers(tmp_path, index):
 def test_a_truncated_binary_stl_whose_header_says_solid_is_not_empty(tmp_path):
     """A binary STL may start its 80-byte header with "solid"; cut short, it is a
     truncated file, not an empty ASCII one (a UTF-8 name keeps an ASCII STL text)."""
-    import struct
-
-    from meshfit.errors import MeshFileError
-    from meshfit.mesh import read_mesh_arrays
-
     tri = b"\x00" * 12 + struct.pack("<9f", 0, 0, 0, 1, 0, 0, 0, 1, 0) + b"\x00\x00"
     p = tmp_path / "t.stl"
     p.write_bytes(b"solid made by a CAD tool".ljust(80, b" ") + struct.pack("<I", 10) + tri * 3)
-    with pytest.raises(MeshFileError, match="declares 10 triangles"):
+    with pytest.raises(errors.MeshFileError, match="declares 10 triangles"):
         read_mesh_arrays(p)
     p.write_text("solid Würfel\nendsolid Würfel\n", encoding="utf-8")
     assert read_mesh_arrays(p).faces.shape == (0, 3)
