@@ -78,12 +78,29 @@ def test_restart_resumes_the_autosave(tmp_path):
         again.stop()
 
 
-def test_a_foreign_autosave_is_not_overwritten(tmp_path, capsys):
-    (tmp_path / "spot.session.json").write_text('{"meshfit_ui_session": 1, "mesh": {}}')
+@pytest.mark.parametrize(
+    "text",
+    [
+        '{"meshfit_ui_session": 1, "mesh": {}}',  # another mesh's
+        "{not json",
+        '{"meshfit_ui_session": 2, "mesh": []}',
+    ],
+)
+def test_an_autosave_that_cannot_be_resumed_is_moved_aside(tmp_path, capsys, text):
+    """A damaged, hand-edited or foreign session file is never overwritten: it is renamed
+    beside itself, the app says so and starts a new session."""
+    (tmp_path / "spot.session.json").write_text(text)
     argv = ["ui", str(mesh_path("spot")), "--port", "0", "--workdir", str(tmp_path)]
-    assert main(argv) == 2
-    assert "not overwriting it" in capsys.readouterr().err
-    assert (tmp_path / "spot.session.json").read_text().startswith('{"meshfit_ui_session": 1,')
+    app = build_app(build_parser().parse_args(argv))
+    try:
+        assert not app.session.curves and not app.session.can_undo
+        moved = tmp_path / "spot.session.unreadable-1.json"
+        assert moved.read_text() == text
+        out = capsys.readouterr().out
+        assert f"moved it to {moved.name} and started a new session" in out
+        assert sum("moved it to" in ln for ln in out.splitlines()) == 1
+    finally:
+        app.stop()
 
 
 def test_restart_of_an_empty_session_resumes_it(tmp_path):

@@ -492,3 +492,53 @@ def test_status_measures_how_each_region_tapers():
     worst = max(st.regions, key=lambda r: r.taper)
     assert "tapered" in _region_text(worst) and st.as_dict()["regions"][0]["taper"] >= 1.0
     assert _region_text(min(st.regions, key=lambda r: r.taper)) == "patch"
+
+
+def _mutations(doc, draw):
+    """A copy of the JSON ``doc`` with one value somewhere replaced by another type, one key
+    dropped, or a list cut."""
+    import copy
+
+    from hypothesis import strategies as st
+
+    out = copy.deepcopy(doc)
+    node = out
+    for _ in range(draw(st.integers(0, 4))):
+        kids = list(node.items()) if isinstance(node, dict) else list(enumerate(node))
+        kids = [(k, v) for k, v in kids if isinstance(v, (dict, list)) and v]
+        if not kids:
+            break
+        node = draw(st.sampled_from(kids))[1]
+    keys = list(node) if isinstance(node, dict) else list(range(len(node)))
+    if not keys:
+        return out
+    key = draw(st.sampled_from(keys))
+    op = draw(st.sampled_from(["type", "drop", "cut"]))
+    if op == "type":
+        node[key] = draw(st.sampled_from([None, True, -1, 2**40, 0.5, "x", [], {}, [[1]]]))
+    elif op == "drop" and isinstance(node, dict):
+        del node[key]
+    elif isinstance(node[key], (list, str)):
+        node[key] = node[key][: len(node[key]) // 2]
+    return out
+
+
+def test_damaged_session_files_raise_only_input_errors(painted, spot, tmp_path):
+    """Random damage to a valid session file (a key dropped, a value of another type, a
+    list cut short, anywhere in it): it restores or raises InputError, nothing else."""
+    from hypothesis import HealthCheck, given, settings
+    from hypothesis import strategies as st
+
+    doc = json.loads(_copy(painted).to_json())
+    bad = tmp_path / "bad.json"
+
+    @settings(max_examples=200, deadline=None, suppress_health_check=list(HealthCheck))
+    @given(data=st.data())
+    def run(data):
+        bad.write_text(json.dumps(_mutations(doc, data.draw)))
+        try:
+            Session(spot).restore(bad)
+        except InputError:
+            pass
+
+    run()

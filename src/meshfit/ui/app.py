@@ -658,6 +658,9 @@ class App:
             self._clear("/preview/springs")
             self._clear("/preview/spline")
             self.say(f"opened {mesh.name}: {mesh.n_vertices} vertices, {mesh.n_faces} faces")
+            if self.session.set_aside is not None:
+                moved, why = self.session.set_aside
+                self.say(f"{why}: moved it to {moved.name} and started a new session")
 
 
 def _region_text(r) -> str:

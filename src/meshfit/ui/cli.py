@@ -74,6 +74,9 @@ def build_app(args: argparse.Namespace):
     policy.allow(autosave)
     session = Session(mesh)
     restored = mesh is not None and session.resume_autosave(autosave)
+    if session.set_aside is not None:
+        moved, why = session.set_aside
+        print(f"meshfit ui: {why}: moved it to {moved.name} and started a new session")
     if not restored:
         session.autosave_path = autosave
     if args.layout:

@@ -264,6 +264,8 @@ class Session:
     ) -> None:
         self.mesh: Mesh | None = None
         self.autosave_path = None if autosave is None else Path(autosave)
+        #: (where a session file that could not be resumed was moved, why), or None
+        self.set_aside: tuple[Path, str] | None = None
         self.spacing = spacing
         self.max_history = int(max_history)
         self.color = ColorAttraction()
@@ -346,23 +348,22 @@ class Session:
         """Autosave to ``path`` from now on, first restoring it when it holds a session of the
         open mesh (the state a crash left); returns whether it was restored.
 
-        Raises
-        ------
-        meshfit.errors.InputError
-            The file exists but is no session of this mesh: it is not overwritten.
+        A file there that is no valid session of this mesh (damaged, hand-edited, another
+        mesh's) is never overwritten: it is renamed beside itself
+        (``<name>.unreadable-<n>.json``, the first free n) and the session starts fresh;
+        ``set_aside`` then holds ``(new path, reason)`` for the message to the user.
         """
         path = Path(path)
         self.flush()
         self.autosave_path = None
+        self.set_aside = None
         restored = False
         if path.exists():
             try:
                 self.restore(path)
+                restored = True
             except InputError as exc:
-                raise InputError(
-                    f"{exc}; not overwriting it: name another autosave file or remove it"
-                ) from None
-            restored = True
+                self.set_aside = (_move_aside(path), str(exc))
         self.autosave_path = path
         return restored
 
@@ -1010,8 +1011,19 @@ class Session:
         if not isinstance(doc, dict) or doc.get("meshfit_ui_session") not in READ_VERSIONS:
             versions = " or ".join(map(str, READ_VERSIONS))
             raise InputError(f"{p}: not a meshfit session file of version {versions}")
-        if doc.get("mesh", {}).get("fingerprint") != self._fingerprint:
+        meta = doc.get("mesh")
+        if not isinstance(meta, dict) or meta.get("fingerprint") != self._fingerprint:
             raise InputError(f"{p}: the session was saved for another mesh")
+        try:
+            state = self._parse_session(doc, p, mesh)
+        except (KeyError, TypeError, AttributeError, ValueError, IndexError, OverflowError) as e:
+            what = f"{type(e).__name__}: {e}" if str(e) else type(e).__name__
+            raise InputError(f"{p}: not a valid session file ({what})") from None
+        self._commit(state)
+
+    def _parse_session(self, doc: dict, p: Path, mesh: Mesh) -> SessionState:
+        """The state a session document holds (InputError, or the Python errors of a key
+        missing or of a wrong type, which :meth:`restore` turns into one)."""
         corners = _sp_from_json(doc["corners"], f"{p}: corners")
         curves = []
         for i, c in enumerate(doc.get("curves", [])):
@@ -1042,7 +1054,16 @@ class Session:
                 s.get("start_corner"),
                 tuple(_sp_from_json(q, f"{p}: stroke piece") for q in s.get("pieces", [])),
             )
-        self._commit(SessionState(corners, tuple(curves), stroke))
+        return SessionState(corners, tuple(curves), stroke)
+
+
+def _move_aside(path: Path) -> Path:
+    """Rename ``path`` to the first free ``<stem>.unreadable-<n><suffix>`` beside it."""
+    n = 1
+    while (to := path.with_name(f"{path.stem}.unreadable-{n}{path.suffix}")).exists():
+        n += 1
+    path.rename(to)
+    return to
 
 
 def _check_on_mesh(mesh: Mesh, sp: SurfacePoints, where: str) -> None:
