@@ -1,6 +1,7 @@
 import json
 
 import numpy as np
+import pytest
 
 from meshfit.cli import main
 from meshfit.mesh import load_mesh
@@ -50,7 +51,7 @@ def test_wrap_sphere_aspect_bound(capsys):
     assert sm["max_aspect"] <= 12.0  # measured 20 without the bound
     assert any("aspect bound 12" in n for n in sm["notes"])
     assert main([*argv, "--sphere-max-aspect", "0.5"]) == 2
-    assert "--sphere-max-aspect must be >= 1" in capsys.readouterr().err
+    assert "--sphere-max-aspect must be a finite number >= 1" in capsys.readouterr().err
     assert main([*argv, "--base-faces", "12"]) == 2
     assert "--base-faces must be at least 20" in capsys.readouterr().err
     too_fine = ["wrap", str(mesh_path("spot")), "--levels", "12"]
@@ -110,6 +111,43 @@ def test_wrap_sphere_stretch(capsys):
     assert sm["flips"] == 0
     assert any("2 rounds of stretch reweighting" in n for n in sm["notes"])
     assert main([*argv, "--sphere-stretch", "-1"]) == 2
-    assert "--sphere-stretch must be >= 0" in capsys.readouterr().err
+    assert "--sphere-stretch must be in 0..100" in capsys.readouterr().err
     assert main([*argv, "--sphere-stretch", "2", "--sphere-method", "voxel"]) == 2
     assert "not with --sphere-method voxel" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "extra, match",
+    [
+        (["--sphere-max-aspect", "nan"], "--sphere-max-aspect must be a finite number"),
+        (["--sphere-max-aspect", "inf"], "--sphere-max-aspect must be a finite number"),
+        (["--sphere-stretch", "1000000"], "--sphere-stretch must be in 0..100"),
+    ],
+)
+def test_wrap_options_out_of_range_are_refused_at_once(extra, match, capsys):
+    assert main(["wrap", str(mesh_path("spot")), "--levels", "1", *extra]) == 2
+    assert match in capsys.readouterr().err
+
+
+def _closed(tmp_path, name, mesh):
+    path = tmp_path / f"{name}.ply"
+    mesh.export(path)
+    return str(path)
+
+
+def test_the_smallest_closed_meshes_are_wrapped_or_refused_clearly(tmp_path, capsys):
+    """A tetrahedron (4 faces) has fewer faces than the smallest base mesh: refused with
+    the reason; a box and a hexagonal prism are wrapped."""
+    import trimesh
+
+    tet = trimesh.Trimesh(
+        [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]
+    )
+    assert main(["wrap", _closed(tmp_path, "tet", tet), "--levels", "2"]) == 2
+    assert "has 4 faces: a wrap's base mesh" in capsys.readouterr().err
+    for name, mesh in [
+        ("box", trimesh.creation.box()),
+        ("prism", trimesh.creation.cylinder(radius=1.0, height=1.0, sections=6)),
+    ]:
+        assert main(["wrap", _closed(tmp_path, name, mesh), "--levels", "2", "--json"]) == 0
+        capsys.readouterr()

@@ -268,6 +268,7 @@ def _equalize(s, faces, area, alpha):
         np.minimum.at(emin, faces[:, (k + 1) % 3], el)
     tr = np.trace(m, axis1=1, axis2=2)
     m += (s[:, :, None] * s[:, None, :] + 1e-6 * np.eye(3)) * tr[:, None, None]
+    m[tr <= 0.0] = np.eye(3)  # (no gradient at the vertex, b is 0 there: it stays)
     d = -np.linalg.solve(m, b[:, :, None])[:, :, 0] * alpha
     ln = np.linalg.norm(d, axis=1)
     cap = 0.25 * emin

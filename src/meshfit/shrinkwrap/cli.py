@@ -10,6 +10,7 @@ from pathlib import Path
 
 from meshfit import errors
 from meshfit._cliargs import own_inputs
+from meshfit.shrinkwrap.sphere import MAX_STRETCH_ITERATIONS
 
 __all__ = ["add_commands"]
 
@@ -66,12 +67,15 @@ def _wrap(args: argparse.Namespace):
         raise errors.InputError(
             f"--base-faces must be at least 20 (an icosahedron), got {args.base_faces}"
         )
-    if args.sphere_max_aspect is not None and args.sphere_max_aspect < 1.0:
+    a = args.sphere_max_aspect
+    if a is not None and not 1.0 <= a < float("inf"):  # (NaN fails too)
         raise errors.InputError(
-            f"--sphere-max-aspect must be >= 1 (equilateral), got {args.sphere_max_aspect}"
+            f"--sphere-max-aspect must be a finite number >= 1 (equilateral), got {a}"
         )
-    if args.sphere_stretch < 0:
-        raise errors.InputError(f"--sphere-stretch must be >= 0, got {args.sphere_stretch}")
+    if not 0 <= args.sphere_stretch <= MAX_STRETCH_ITERATIONS:
+        raise errors.InputError(
+            f"--sphere-stretch must be in 0..{MAX_STRETCH_ITERATIONS}, got {args.sphere_stretch}"
+        )
     if args.sphere_stretch and args.sphere_method != "tutte":
         raise errors.InputError(
             "--sphere-stretch reweights the tutte map: not with --sphere-method voxel"

@@ -375,6 +375,12 @@ def _tutte_disk(v, faces, boundary, bpos, n, w=None, scale=None) -> NDArray[np.f
     return uv
 
 
+#: most rounds of stretch-minimizing reweighting: each solves both disks again, and a few
+#: rounds give protrusions their share; the weights' ratios grow each round, and far more
+#: rounds would drive some to zero
+MAX_STRETCH_ITERATIONS = 100
+
+
 def _tutte_sphere(mesh: Mesh, stretch_iterations: int = 0) -> NDArray[np.float64]:
     """Two-disk embedding: split into halves of equal area, embed both in the unit disk
     with the same boundary positions (arc length on the circle), lift one to each
@@ -625,6 +631,10 @@ def sphere_map(
     """
     check_genus0(mesh)
     _check_method(method, stretch_iterations)
+    if max_aspect is not None and not 1.0 <= float(max_aspect) < np.inf:  # (NaN fails too)
+        raise errors.InputError(
+            f"max_aspect must be a finite number >= 1 (equilateral), got {max_aspect}"
+        )
     notes: list[str] = []
     s = _voxel_points(mesh, progress, notes) if method == "voxel" else None
     used = "tutte" if s is None else "voxel"
@@ -656,8 +666,10 @@ def _check_method(method: str, stretch_iterations) -> None:
         raise errors.InputError(
             f"stretch_iterations must be a whole number, got {stretch_iterations!r}"
         )
-    if stretch_iterations < 0:
-        raise errors.InputError(f"stretch_iterations must be >= 0, got {stretch_iterations}")
+    if not 0 <= stretch_iterations <= MAX_STRETCH_ITERATIONS:
+        raise errors.InputError(
+            f"stretch_iterations must be in 0..{MAX_STRETCH_ITERATIONS}, got {stretch_iterations}"
+        )
     if stretch_iterations and method != "tutte":
         raise errors.InputError(
             "stretch_iterations reweights the 'tutte' map: not with method='voxel'"

@@ -474,7 +474,13 @@ def shrink_wrap(
     clean_rounds = o.clean_rounds
     if levels < 0:
         raise errors.InputError(f"levels must be >= 0, got {levels}")
-    _check_level_faces(min(n for _, n in STARTS.values()), levels, fewest=True)
+    fewest = min(n for _, n in STARTS.values())
+    if smap is None and base is None and mesh.n_faces < fewest:
+        raise errors.InputError(
+            f"{mesh.name or 'the mesh'} has {mesh.n_faces} faces: a wrap's base mesh is a "
+            f"simplification of it with at least {fewest} (an octahedron); subdivide it first"
+        )
+    _check_level_faces(fewest, levels, fewest=True)
     if not 0 < alpha <= 1:
         raise errors.InputError(f"alpha must be in (0, 1], got {alpha}")
     if count_weight < 0:
