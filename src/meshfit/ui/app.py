@@ -68,6 +68,9 @@ class App:
     ) -> None:
         import viser
 
+        from meshfit.ui import guard
+
+        guard.install()  # (requests from other origins are refused at the handshake)
         self.session = session
         self.policy = policy
         self.lock = threading.RLock()

@@ -1,0 +1,73 @@
+"""The app answers only its own origin: a web page elsewhere cannot open its websocket or
+read its pages, and a name pointed at 127.0.0.1 (DNS rebinding) is not its address."""
+
+from __future__ import annotations
+
+import urllib.error
+import urllib.request
+
+import pytest
+import viser
+import websockets.sync.client as ws_client
+
+from meshfit.cli import build_parser
+from meshfit.ui.cli import build_app
+from meshfit.ui.guard import allowed
+from tests.conftest import mesh_path
+
+
+@pytest.fixture(scope="module")
+def app(tmp_path_factory):
+    work = tmp_path_factory.mktemp("guard")
+    argv = ["ui", str(mesh_path("spot")), "--port", "0", "--workdir", str(work)]
+    a = build_app(build_parser().parse_args(argv))
+    yield a
+    a.stop()
+
+
+def _connect(port: int, origin: str | None):
+    return ws_client.connect(
+        f"ws://127.0.0.1:{port}",
+        origin=origin,
+        subprotocols=[f"viser-v{viser.__version__}"],
+        open_timeout=10,
+    )
+
+
+def test_a_websocket_from_another_origin_is_refused(app):
+    with pytest.raises(Exception, match="HTTP 403"):
+        _connect(app.port, "http://evil.example.com")
+    with pytest.raises(Exception, match="HTTP 403"):
+        _connect(app.port, f"http://localhost:{app.port + 1}")
+    # the app's own page, and a local program that sends no Origin, are let in
+    for origin in (f"http://127.0.0.1:{app.port}", None):
+        _connect(app.port, origin).close()
+
+
+def test_a_host_that_is_not_the_app_is_refused(app):
+    def status(host: str) -> int:
+        req = urllib.request.Request(f"http://127.0.0.1:{app.port}/", headers={"Host": host})
+        try:
+            return urllib.request.urlopen(req, timeout=10).status
+        except urllib.error.HTTPError as exc:
+            return exc.code
+
+    assert status("evil.example.com") == 403
+    assert status(f"evil.example.com:{app.port}") == 403
+    assert status(f"localhost:{app.port}") == 200
+
+
+@pytest.mark.parametrize(
+    "headers, loopback, ok",
+    [
+        ({"Host": "127.0.0.1:8080"}, True, True),
+        ({"Host": "[::1]:8080", "Origin": "http://[::1]:8080"}, True, True),
+        ({"Host": "10.0.0.5:8080", "Origin": "http://10.0.0.5:8080"}, False, True),
+        ({"Host": "10.0.0.5:8080"}, True, False),
+        ({"Host": "127.0.0.1:8081"}, True, False),
+        ({"Host": "10.0.0.5:8080", "Origin": "http://evil.example.com"}, False, False),
+        ({"Host": "127.0.0.1:8080", "Origin": "null"}, True, False),
+    ],
+)
+def test_the_rule(headers, loopback, ok):
+    assert (allowed(headers, 8080, loopback) is None) == ok
