@@ -71,3 +71,37 @@ def test_a_host_that_is_not_the_app_is_refused(app):
 )
 def test_the_rule(headers, loopback, ok):
     assert (allowed(headers, 8080, loopback) is None) == ok
+
+
+def test_an_upload_over_the_cap_is_refused_as_its_bytes_arrive(tmp_path):
+    """Declared over the cap, an upload is never buffered; declared under it, its buffer is
+    dropped at the part that passes the cap (a client may lie about the size), so no more
+    than the cap is ever held for it."""
+    import asyncio
+
+    from viser._messages import FileTransferPart, FileTransferStartUpload
+
+    argv = ["ui", str(mesh_path("spot")), "--port", "0", "--workdir", str(tmp_path)]
+    a = build_app(build_parser().parse_args([*argv, "--max-upload-mb", "1"]))
+    try:
+        gui = a.server.gui
+        uuid = a.gui_upload._impl.uuid
+        iface = gui._websock_interface
+
+        def send(m):
+            asyncio.run(iface._handle_incoming_message(0, m))
+
+        send(FileTransferStartUpload(uuid, "t1", "big.ply", "*/*", 300, 300 * 1024 * 1024))
+        assert "t1" not in gui._current_file_upload_states
+        assert "refused" in a.messages[-1] and "big.ply" in a.messages[-1]
+        chunk = b"x" * (256 * 1024)
+        send(FileTransferStartUpload(uuid, "t2", "liar.ply", "*/*", 10, 1000))
+        held = []
+        for i in range(10):
+            send(FileTransferPart(uuid, "t2", i, chunk))
+            state = gui._current_file_upload_states.get("t2")
+            held.append(0 if state is None else state["transferred_bytes"])
+        assert max(held) <= 1024 * 1024 and held[-1] == 0
+        assert "refused" in a.messages[-1] and "liar.ply" in a.messages[-1]
+    finally:
+        a.stop()

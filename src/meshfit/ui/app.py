@@ -80,6 +80,7 @@ class App:
         # request is refused on the server too (its handler looks the method up at call time)
         self.server.gui.configure_theme(show_share_button=False)
         self.server.request_share_url = self._refuse_share  # type: ignore[method-assign]
+        self._cap_uploads()
         self.messages: list[str] = []
         self.selected: int | None = None
         self.edit_point: int | None = None
@@ -109,6 +110,43 @@ class App:
     @property
     def port(self) -> int:
         return int(self.server.get_port())
+
+    def _cap_uploads(self) -> None:
+        """Refuse an upload as its bytes arrive, not once it is whole in memory: one that
+        declares more than the policy's cap is never buffered, and one whose parts pass the
+        cap (a client that declared less) has its buffer dropped at the part that does.
+
+        viser assembles uploads from parts in its GUI handlers; these two are put in front
+        of them (through the server's public handler registry)."""
+        from viser import _messages
+
+        gui = self.server.gui
+        iface = gui._websock_interface
+        start, part = gui._handle_file_transfer_start, gui._handle_file_transfer_part
+        states = gui._current_file_upload_states
+        cap = self.policy.max_upload
+
+        def refuse(name: str, size: int) -> None:
+            self.say(f"**refused:** upload {name!r} is over {size:,} bytes; the limit is {cap:,}")
+
+        def capped_start(client_id, message) -> None:
+            if message.size_bytes > cap:
+                refuse(message.filename, message.size_bytes)
+                return
+            start(client_id, message)
+
+        def capped_part(client_id, message) -> None:
+            state = states.get(message.transfer_uuid)
+            if state is not None and state["transferred_bytes"] + len(message.content) > cap:
+                states.pop(message.transfer_uuid, None)
+                refuse(state["filename"], cap)
+                return
+            part(client_id, message)
+
+        iface.unregister_handler(_messages.FileTransferStartUpload, start)
+        iface.unregister_handler(_messages.FileTransferPart, part)
+        iface.register_handler(_messages.FileTransferStartUpload, capped_start)
+        iface.register_handler(_messages.FileTransferPart, capped_part)
 
     def _refuse_share(self, verbose: bool = True) -> None:
         self.say("**refused:** sharing through a public tunnel is turned off in meshfit ui")
