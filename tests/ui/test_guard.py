@@ -105,3 +105,42 @@ def test_an_upload_over_the_cap_is_refused_as_its_bytes_arrive(tmp_path):
         assert "refused" in a.messages[-1] and "liar.ply" in a.messages[-1]
     finally:
         a.stop()
+
+
+def test_bound_beyond_loopback_the_app_asks_for_its_token(tmp_path):
+    """On 0.0.0.0 the printed address carries a per-run token; the page's response sets it
+    as a cookie, which then lets the page's assets and its websocket in; without it every
+    request is refused."""
+    from meshfit.ui.guard import COOKIE
+
+    argv = ["ui", str(mesh_path("spot")), "--port", "0", "--workdir", str(tmp_path)]
+    a = build_app(build_parser().parse_args([*argv, "--host", "0.0.0.0"]))
+    try:
+        token = a.token
+        assert token and a.url("0.0.0.0").endswith(f"/?token={token}")
+        base = f"http://127.0.0.1:{a.port}"
+
+        def get(path: str, headers=None):
+            req = urllib.request.Request(base + path, headers=headers or {})
+            try:
+                with urllib.request.urlopen(req, timeout=10) as r:
+                    return r.status, r.headers.get("Set-Cookie", "")
+            except urllib.error.HTTPError as exc:
+                return exc.code, ""
+
+        assert get("/")[0] == 403
+        assert get("/?token=wrong")[0] == 403
+        status, cookie = get(f"/?token={token}")
+        assert status == 200 and cookie.startswith(f"{COOKIE}={token};") and "HttpOnly" in cookie
+        assert get("/", {"Cookie": f"{COOKIE}={token}"})[0] == 200
+        with pytest.raises(Exception, match="HTTP 403"):
+            _connect(a.port, base)
+        ws_client.connect(
+            f"ws://127.0.0.1:{a.port}",
+            origin=base,
+            additional_headers={"Cookie": f"{COOKIE}={token}"},
+            subprotocols=[f"viser-v{viser.__version__}"],
+            open_timeout=10,
+        ).close()
+    finally:
+        a.stop()

@@ -71,6 +71,8 @@ class App:
         from meshfit.ui import guard
 
         guard.install()  # (requests from other origins are refused at the handshake)
+        #: the per-run token an app bound beyond loopback asks for (None on loopback)
+        self.token = None if host in guard.LOOPBACK_HOSTS else guard.new_token()
         self.session = session
         self.policy = policy
         self.lock = threading.RLock()
@@ -110,6 +112,11 @@ class App:
     @property
     def port(self) -> int:
         return int(self.server.get_port())
+
+    def url(self, host: str) -> str:
+        """The address to open (with the token where the app asks for one)."""
+        shown = f"[{host}]" if ":" in host else host
+        return f"http://{shown}:{self.port}/" + (f"?token={self.token}" if self.token else "")
 
     def _cap_uploads(self) -> None:
         """Refuse an upload as its bytes arrive, not once it is whole in memory: one that

@@ -95,7 +95,7 @@ def cmd_ui(args: argparse.Namespace) -> int:
             f"meshfit: warning: listening on {args.host}: other machines can reach the app\n"
         )
     app = build_app(args)
-    print(f"meshfit ui: http://{args.host}:{app.port}/  (Ctrl-C to stop)", flush=True)
+    print(f"meshfit ui: {app.url(args.host)}  (Ctrl-C to stop)", flush=True)
     try:
         while True:
             time.sleep(1.0)
