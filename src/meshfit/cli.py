@@ -12,6 +12,7 @@ import signal
 import sys
 import threading
 import time
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -165,6 +166,33 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
+    """The command with Python's warnings (numpy's floating-point ones, a library's
+    deprecations) caught and shown as one line each, once, after it."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            return _command(args)
+        finally:
+            _show_warnings(caught)
+
+
+#: most distinct warnings shown after a command
+SHOWN_WARNINGS = 5
+
+
+def _show_warnings(caught: list) -> None:
+    seen: dict[str, int] = {}
+    for w in caught:
+        text = f"{w.category.__name__}: {str(w.message).splitlines()[0] if str(w.message) else ''}"
+        seen[text] = seen.get(text, 0) + 1
+    for text, n in list(seen.items())[:SHOWN_WARNINGS]:
+        times = f" ({n} times)" if n > 1 else ""
+        sys.stderr.write(f"meshfit: warning: {text}{times}\n")
+    if len(seen) > SHOWN_WARNINGS:
+        sys.stderr.write(f"meshfit: warning: {len(seen) - SHOWN_WARNINGS} more kinds\n")
+
+
+def _command(args: argparse.Namespace) -> int:
     """The command, its failures as one line each and an exit code."""
     try:
         refuse_own_input(args)
