@@ -139,3 +139,106 @@ def test_any_subset_in_any_order_decodes_like_the_sorted_subset(scheme, data):
     a, _ = decode_stream(stream, [stream.packets[i] for i in sorted(keep)])
     b, _ = decode_stream(stream, [stream.packets[i] for i in order])
     assert np.array_equal(a, b)
+
+
+def _v1_bytes(stream: Stream) -> bytes:
+    """The version-1 layout (no file length, no checksums), as older meshfit wrote it."""
+    import struct
+
+    from meshfit.shrinkwrap.subdivision import SCHEMES
+
+    hdr = struct.pack(
+        "<4sHBBHHIII",
+        b"MFSW",
+        1,
+        SCHEMES.index(stream.scheme),
+        stream.value_bytes,
+        stream.levels,
+        0,
+        len(stream.base_vertices),
+        len(stream.base_faces),
+        len(stream.packets),
+    )
+    parts = [hdr, stream.base_vertices.astype("<f8").tobytes()]
+    parts.append(stream.base_faces.astype("<u4").tobytes())
+    for p in stream.packets:
+        parts.append(struct.pack("<2sBBII", b"PK", p.level, 0, p.start, len(p.values)))
+        parts.append(np.asarray(p.values, dtype="<f4").tobytes())
+    return b"".join(parts)
+
+
+def _with_crc(data: bytearray, lo: int, hi: int) -> None:
+    import struct
+    import zlib
+
+    data[hi : hi + 4] = struct.pack("<I", zlib.crc32(bytes(data[lo:hi])))
+
+
+def test_every_flipped_bit_is_found():
+    """Version 2 covers every byte with a checksum or a size check: a flipped bit anywhere
+    is a StreamError, never another mesh."""
+    data = _STREAMS["loop"].to_bytes()
+    rng = np.random.default_rng(0)
+    for pos in sorted(set(rng.integers(0, len(data), 300).tolist()) | {0, 6, 30, len(data) - 1}):
+        bad = bytearray(data)
+        bad[pos] ^= 1 << int(rng.integers(0, 8))
+        with pytest.raises(errors.StreamError):
+            Stream.from_bytes(bytes(bad))
+
+
+def test_hostile_headers_and_bases_are_refused_before_any_work():
+    import struct
+    import time
+
+    stream = _STREAMS["loop"]
+    data = bytearray(stream.to_bytes())
+    # 13 levels over the 20 base faces: 1.3 billion faces; refused at the header
+    many = bytearray(data)
+    struct.pack_into("<H", many, 8, 13)
+    _with_crc(many, 0, 32)
+    t = time.perf_counter()
+    with pytest.raises(errors.StreamError, match="at most 8,000,000 are decoded"):
+        Stream.from_bytes(bytes(many))
+    assert time.perf_counter() - t < 5.0
+    # zeroed base faces (checksums made to match): a clear error, not a traceback
+    zero = bytearray(data)
+    n0, nf0 = len(stream.base_vertices), len(stream.base_faces)
+    lo = 36 + 24 * n0
+    zero[lo : lo + 12 * nf0] = bytes(12 * nf0)
+    _with_crc(zero, 36, lo + 12 * nf0)
+    with pytest.raises(errors.StreamError, match="base face 0 repeats a corner"):
+        Stream.from_bytes(bytes(zero))
+    # more packets than the file can hold
+    more = bytearray(data)
+    struct.pack_into("<I", more, 20, 10**9)
+    _with_crc(more, 0, 32)
+    with pytest.raises(errors.StreamError, match="need at least"):
+        Stream.from_bytes(bytes(more))
+
+
+def test_version_1_streams_are_still_read():
+    stream = _STREAMS["butterfly"]
+    old = Stream.from_bytes(_v1_bytes(stream))
+    assert old.levels == stream.levels and old.n_coefficients == stream.n_coefficients
+    x, _ = decode_stream(old)
+    y, _ = decode_stream(stream)
+    assert np.abs(x - y).max() < 1e-6
+
+
+@settings(max_examples=300, deadline=None)
+@given(data=st.data())
+def test_damaged_streams_raise_only_stream_errors(data):
+    raw = bytearray(_STREAMS["loop"].to_bytes())
+    for _ in range(data.draw(st.integers(1, 6))):
+        i = data.draw(st.integers(0, len(raw) - 1))
+        op = data.draw(st.sampled_from(["set", "cut", "dup"]))
+        if op == "set":
+            raw[i] = data.draw(st.integers(0, 255))
+        elif op == "cut":
+            del raw[i : i + data.draw(st.integers(1, 200))]
+        else:
+            raw[i:i] = raw[i : i + data.draw(st.integers(1, 200))]
+    try:
+        Stream.from_bytes(bytes(raw))
+    except errors.StreamError:
+        pass

@@ -5,10 +5,10 @@ subdivision rule (Loop or Butterfly) and corrected by per-vertex detail coeffici
 of coefficients are indexed on their own (level and vertex range), so any subset, in any
 order, decodes: a vertex whose coefficient has not arrived sits at its predicted position.
 
-Binary format, version 1 (little endian)::
+Binary format, version 2 (little endian)::
 
     header   magic  b"MFSW"            4 bytes
-             version          u16      = 1
+             version          u16      = 2
              scheme           u8       0 = loop, 1 = butterfly (modified: Zorin's rules at
                                        vertices of valence != 6)
              value bytes      u8       4 (float32) or 8 (float64) per coefficient component
@@ -17,14 +17,24 @@ Binary format, version 1 (little endian)::
              base vertices    u32      n0
              base faces       u32      nf0
              packets          u32      number of packets that follow
+             file bytes       u64      length of the whole file
+             header CRC       u32      CRC-32 of the header's bytes before it
     base     vertices         f8[n0, 3]
              faces            u32[nf0, 3]
+             base CRC         u32      CRC-32 of the base's vertices and faces
     packet   marker b"PK"              2 bytes (repeated for every packet)
              level            u8       1..m
              reserved         u8       0
              start            u32      first vertex index of the level
              count            u32      number of coefficients
              values           f4|f8[count, 3]
+             packet CRC       u32      CRC-32 of the packet's bytes before it
+
+A reader checks the header (magic, version, sizes against the file's length, the finest
+level against `meshfit.shrinkwrap.wrap.WRAP_MAX_FACES`) before it allocates anything, the
+base mesh (indices in range, three distinct corners a face, every edge in two faces) and
+every checksum: a flipped bit is a StreamError naming where, never another mesh. Version
+1 (no file length, no checksums) is still read.
 
 Level ``i`` has ``n_i = n_{i-1} + 3 nf_{i-1} / 2`` vertices, numbered as in
 :func:`meshfit.shrinkwrap._topo.subdivide`. Loop packets cover vertices ``[0, n_i)`` of their
@@ -38,6 +48,7 @@ from __future__ import annotations
 import os
 import struct
 import tempfile
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -60,9 +71,11 @@ __all__ = [
 ]
 
 MAGIC = b"MFSW"
-VERSION = 1
+VERSION = 2
 _HEADER = struct.Struct("<4sHBBHHIII")
+_HEADER2 = struct.Struct("<4sHBBHHIIIQ")  # + the header CRC (u32)
 _PACKET = struct.Struct("<2sBBII")
+_CRC = struct.Struct("<I")
 
 
 @dataclass(frozen=True)
@@ -109,8 +122,19 @@ class Stream:
         return int(sum(len(p.values) for p in self.packets))
 
     def to_bytes(self) -> bytes:
-        """Serialise in the documented version-1 format."""
-        hdr = _HEADER.pack(
+        """Serialise in the documented version-2 format."""
+        base = (
+            np.ascontiguousarray(self.base_vertices, dtype="<f8").tobytes()
+            + np.ascontiguousarray(self.base_faces, dtype="<u4").tobytes()
+        )
+        dt = "<f4" if self.value_bytes == 4 else "<f8"
+        packets = []
+        for p in self.packets:
+            body = _PACKET.pack(b"PK", p.level, 0, p.start, len(p.values))
+            body += np.ascontiguousarray(p.values, dtype=dt).tobytes()
+            packets.append(body + _CRC.pack(zlib.crc32(body)))
+        size = _HEADER2.size + _CRC.size + len(base) + _CRC.size + sum(len(b) for b in packets)
+        hdr = _HEADER2.pack(
             MAGIC,
             VERSION,
             SCHEMES.index(self.scheme),
@@ -120,40 +144,54 @@ class Stream:
             len(self.base_vertices),
             len(self.base_faces),
             len(self.packets),
+            size,
         )
-        parts = [
-            hdr,
-            np.ascontiguousarray(self.base_vertices, dtype="<f8").tobytes(),
-            np.ascontiguousarray(self.base_faces, dtype="<u4").tobytes(),
-        ]
-        dt = "<f4" if self.value_bytes == 4 else "<f8"
-        for p in self.packets:
-            parts.append(_PACKET.pack(b"PK", p.level, 0, p.start, len(p.values)))
-            parts.append(np.ascontiguousarray(p.values, dtype=dt).tobytes())
-        return b"".join(parts)
+        return b"".join(
+            [hdr, _CRC.pack(zlib.crc32(hdr)), base, _CRC.pack(zlib.crc32(base)), *packets]
+        )
 
     @classmethod
     def from_bytes(cls, data: bytes, *, where: str = "stream") -> Stream:
-        """Parse a version-1 stream; raises :class:`meshfit.errors.StreamError`."""
+        """Parse a version-2 (or version-1) stream, every size and checksum checked before
+        anything is allocated or decoded; raises :class:`meshfit.errors.StreamError`."""
         if len(data) < _HEADER.size:
             raise errors.StreamError(f"{where}: truncated header ({len(data)} bytes)")
-        magic, ver, scheme, vb, levels, _, n0, nf0, npk = _HEADER.unpack_from(data, 0)
+        magic, ver = struct.unpack_from("<4sH", data, 0)
         if magic != MAGIC:
             raise errors.StreamError(f"{where}: not a meshfit wrap stream (magic {magic!r})")
-        if ver != VERSION:
-            raise errors.StreamError(f"{where}: unsupported stream version {ver} (reads 1)")
+        if ver not in (1, VERSION):
+            raise errors.StreamError(
+                f"{where}: unsupported stream version {ver} (reads 1 and {VERSION})"
+            )
+        v2 = ver == VERSION
+        crc = _check_crc if v2 else _no_crc
+        if v2:
+            if len(data) < _HEADER2.size + _CRC.size:
+                raise errors.StreamError(f"{where}: truncated header ({len(data)} bytes)")
+            *fields, size = _HEADER2.unpack_from(data, 0)
+            crc(data, 0, _HEADER2.size, f"{where}: header")
+            if size != len(data):
+                raise errors.StreamError(
+                    f"{where}: the header says {size} bytes, the file has {len(data)}"
+                    + (" (truncated)" if len(data) < size else "")
+                )
+            off = _HEADER2.size + _CRC.size
+        else:
+            fields = list(_HEADER.unpack_from(data, 0))
+            off = _HEADER.size
+        _, _, scheme, vb, levels, _, n0, nf0, npk = fields
         if scheme >= len(SCHEMES) or vb not in (4, 8):
             raise errors.StreamError(f"{where}: bad scheme {scheme} or value size {vb}")
-        off = _HEADER.size
-        need = off + 24 * n0 + 12 * nf0
-        if len(data) < need:
+        _check_sizes(where, levels, n0, nf0, npk, len(data) - off, vb, v2)
+        need = 24 * n0 + 12 * nf0
+        if len(data) < off + need + (_CRC.size if v2 else 0):
             raise errors.StreamError(f"{where}: truncated base mesh")
+        crc(data, off, off + need, f"{where}: base mesh")
         bv = np.frombuffer(data, "<f8", 3 * n0, off).reshape(n0, 3).astype(np.float64)
         off += 24 * n0
         bf = np.frombuffer(data, "<u4", 3 * nf0, off).reshape(nf0, 3).astype(np.int64)
-        off += 12 * nf0
-        if bf.size and bf.max() >= n0:
-            raise errors.StreamError(f"{where}: base face index {int(bf.max())} >= {n0}")
+        off += 12 * nf0 + (_CRC.size if v2 else 0)
+        _check_base(where, bv, bf)
         dt = "<f4" if vb == 4 else "<f8"
         packets = []
         for k in range(npk):
@@ -162,13 +200,69 @@ class Stream:
             mk, lev, _, start, cnt = _PACKET.unpack_from(data, off)
             if mk != b"PK":
                 raise errors.StreamError(f"{where}: packet {k} at byte {off}: bad marker {mk!r}")
-            off += _PACKET.size
-            if len(data) < off + 3 * vb * cnt:
+            end = off + _PACKET.size + 3 * vb * cnt
+            if len(data) < end + (_CRC.size if v2 else 0):
                 raise errors.StreamError(f"{where}: packet {k} is truncated")
-            vals = np.frombuffer(data, dt, 3 * cnt, off).reshape(cnt, 3).copy()
-            off += 3 * vb * cnt
+            crc(data, off, end, f"{where}: packet {k} at byte {off}")
+            vals = np.frombuffer(data, dt, 3 * cnt, off + _PACKET.size).reshape(cnt, 3).copy()
+            if not np.isfinite(vals).all():
+                raise errors.StreamError(f"{where}: packet {k}: coefficients that are not finite")
+            off = end + (_CRC.size if v2 else 0)
             packets.append(Packet(int(lev), int(start), vals))
+        if v2 and off != len(data):
+            raise errors.StreamError(f"{where}: {len(data) - off} bytes after the last packet")
         return cls(SCHEMES[scheme], int(levels), bv, bf, packets, int(vb))
+
+
+def _check_crc(data: bytes, lo: int, hi: int, what: str) -> None:
+    """StreamError when the CRC-32 stored after ``data[lo:hi]`` is not that of those bytes."""
+    (stored,) = _CRC.unpack_from(data, hi)
+    if zlib.crc32(memoryview(data)[lo:hi]) != stored:
+        raise errors.StreamError(f"{what}: checksum mismatch (the file is damaged)")
+
+
+def _no_crc(data: bytes, lo: int, hi: int, what: str) -> None:
+    """(version 1 has no checksums)"""
+
+
+def _check_sizes(where: str, levels, n0, nf0, npk, room: int, vb: int, v2: bool) -> None:
+    """StreamError, before any allocation, for counts the file cannot hold or whose finest
+    level would exceed `WRAP_MAX_FACES` (the memory a decode takes follows from it)."""
+    from meshfit.shrinkwrap.wrap import WRAP_MAX_FACES
+
+    if nf0 < 4 or n0 < 4 or nf0 % 2:
+        raise errors.StreamError(f"{where}: a base mesh of {n0} vertices and {nf0} faces")
+    if nf0 * 4**levels > WRAP_MAX_FACES:
+        raise errors.StreamError(
+            f"{where}: {levels} levels over {nf0} base faces make {nf0 * 4**levels:,} faces; "
+            f"at most {WRAP_MAX_FACES:,} are decoded"
+        )
+    least = 24 * n0 + 12 * nf0 + npk * (_PACKET.size + (_CRC.size if v2 else 0))
+    if least > room:
+        raise errors.StreamError(
+            f"{where}: the header's counts need at least {least:,} bytes after it, the file "
+            f"has {room:,} (truncated or damaged)"
+        )
+
+
+def _check_base(where: str, bv: NDArray, bf: NDArray) -> None:
+    """StreamError unless the base mesh is a closed manifold of finite points: indices in
+    range, three distinct corners a face, every edge in exactly two faces."""
+    if not np.isfinite(bv).all():
+        raise errors.StreamError(f"{where}: base vertices that are not finite")
+    if bf.max() >= len(bv):
+        raise errors.StreamError(f"{where}: base face index {int(bf.max())} >= {len(bv)}")
+    bad = (bf[:, 0] == bf[:, 1]) | (bf[:, 1] == bf[:, 2]) | (bf[:, 2] == bf[:, 0])
+    if bad.any():
+        raise errors.StreamError(
+            f"{where}: base face {int(np.flatnonzero(bad)[0])} repeats a corner"
+        )
+    e = np.sort(np.concatenate([bf[:, [0, 1]], bf[:, [1, 2]], bf[:, [2, 0]]]), axis=1)
+    _, count = np.unique(e, axis=0, return_counts=True)
+    if (count != 2).any():
+        raise errors.StreamError(
+            f"{where}: the base mesh is not closed (an edge in {int(count[count != 2][0])} faces)"
+        )
 
 
 def encode_stream(
