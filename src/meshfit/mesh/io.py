@@ -438,7 +438,7 @@ def _read_obj(path: Path) -> RawMesh:
     )
     try:
         idx = np.array([t for r in frows for t in r], dtype=np.int64)
-    except ValueError:
+    except (ValueError, OverflowError):
         k = next(k for k, r in enumerate(frows) if not _ints(r))
         raise errors.MeshFileError(
             f"{path}: line {_obj_line(text, _OBJ_F, k)}: face {k} has a "
@@ -475,11 +475,12 @@ def _floats(tokens: list[str]) -> bool:
 
 
 def _ints(tokens: list[str]) -> bool:
+    """Whether every token is a whole number within the int64 range."""
     try:
-        [int(t.split("/", 1)[0]) for t in tokens]
+        values = [int(t.split("/", 1)[0]) for t in tokens]
     except ValueError:
         return False
-    return True
+    return all(-(2**63) <= v < 2**63 for v in values)
 
 
 def _count(n: int, what: str) -> str:
@@ -518,6 +519,11 @@ def _read_off(path: Path) -> RawMesh:
             f"{path}: truncated OFF: header declares {nv} vertices, the "
             f"file ends in vertex {done} ({done} complete)"
         )
+    short = next((k for k, (_, w) in enumerate(vrows) if len(w) < 3), None)
+    if short is not None:
+        raise errors.MeshFileError(
+            f"{path}: line {vrows[short][0]}: vertex {short} has fewer than 3 coordinates"
+        )
     try:
         vertices = np.array([w[:3] for _, w in vrows], dtype=np.float64).reshape(nv, 3)
     except ValueError:
@@ -527,7 +533,7 @@ def _read_off(path: Path) -> RawMesh:
         ) from None
     try:
         sizes = np.array([w[0] for _, w in frows], dtype=np.int64)
-    except ValueError:
+    except (ValueError, OverflowError):
         k = next(k for k, (_, w) in enumerate(frows) if not _ints(w[:1]))
         raise errors.MeshFileError(
             f"{path}: line {frows[k][0]}: face {k} does not start with its corner count"
@@ -540,12 +546,18 @@ def _read_off(path: Path) -> RawMesh:
             f"ends in face {done} ({done} complete)"
         )
     _check_corner_counts(path, sizes, line=lambda k: frows[k][0])
+    short = next((k for k, ok in enumerate(complete) if not ok), None)
+    if short is not None:
+        raise errors.MeshFileError(
+            f"{path}: line {frows[short][0]}: face {short} has fewer vertex indices than its "
+            f"count {int(sizes[short])}"
+        )
     try:
         flat = np.array(
             [t for (_, w), n in zip(frows, sizes.tolist(), strict=True) for t in w[1 : 1 + n]],
             dtype=np.int64,
         )
-    except ValueError:
+    except (ValueError, OverflowError):
         k = next(k for k, (_, w) in enumerate(frows) if not _ints(w[1 : 1 + int(sizes[k])]))
         raise errors.MeshFileError(
             f"{path}: line {frows[k][0]}: face {k} has a non-integer vertex index"
