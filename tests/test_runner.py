@@ -120,3 +120,24 @@ def test_lazy_values_are_made_once_and_only_when_read():
     assert "w" in ctx and made == []
     assert ctx["w"] == 42 and ctx["w"] == 42
     assert made == [1]
+
+
+@pytest.mark.parametrize("damage", ["{not json", "", '{"y": 1}'])
+def test_a_damaged_cache_is_made_again(tmp_path, damage):
+    """A stage file that cannot be read (truncated, edited, of another shape) counts as
+    missing: the stage runs again and writes it anew; the result is the same."""
+    _Double.runs = _Then.runs = 0
+    first = Runner(tmp_path, resume=False).run([_Double(), _Then()], _ctx())
+    (cache,) = tmp_path.glob("double-*.json")
+    cache.write_text(damage)
+
+    class _Strict(_Double):
+        def load(self, ctx, path):
+            value = json.loads(path.read_text())
+            ctx["y"] = value + 0  # (a dict read where a number was written: TypeError)
+            return True
+
+    again = Runner(tmp_path, resume=True).run([_Strict(), _Then()], _ctx())
+    assert again["z"] == first["z"]
+    assert not again.info["double"]["cached"]
+    assert json.loads(cache.read_text()) == first["y"]

@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from meshfit._atomic import write_text
+from meshfit._jsonio import read_json_file
 from meshfit.errors import InputError, MeshfitError
 
 __all__ = ["fit_one", "run_batch"]
@@ -193,8 +194,10 @@ def run_batch(  # noqa: C901 (one run per mesh, its retries and its record; to s
         done = out / path.stem / "done.json"
         if done.is_file():
             try:
-                rec = json.loads(done.read_text())
+                rec = read_json_file(done, error=ValueError)
             except ValueError:
+                rec = {}
+            if not isinstance(rec, dict):
                 rec = {}
             if rec.get("key") == key and rec.get("status") == "done":
                 results[path.name] = {**rec, "status": "skipped"}

@@ -168,7 +168,7 @@ class Runner:
         if missing:
             raise RuntimeError(f"stage {stage.name} runs before its inputs {missing} exist")
         path = self.path(stage, key)
-        cached = path is not None and self.saved(stage, key) and stage.load(ctx, path)
+        cached = path is not None and self.saved(stage, key) and _loaded(stage, ctx, path)
         if not cached:
             stage.run(ctx)
             if path is not None:
@@ -211,3 +211,14 @@ class Runner:
         for f in pending:
             f.result()  # re-raises a background stage's error
         return ctx
+
+
+def _loaded(stage, ctx, path: Path) -> bool:
+    """Whether the stage's cache at ``path`` was read; a damaged one (truncated, edited,
+    another format) counts as missing: the stage runs again and writes it anew."""
+    from meshfit.errors import MeshfitError
+
+    try:
+        return bool(stage.load(ctx, path))
+    except (MeshfitError, ValueError, KeyError, TypeError, IndexError, OSError, EOFError):
+        return False

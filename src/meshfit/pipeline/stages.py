@@ -9,7 +9,6 @@ its own; the continuity logic lives in :mod:`meshfit.stitch`, the error figures 
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -18,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from meshfit._jsonio import read_json_file
 from meshfit.errors import InputError, LayoutError
 from meshfit.mesh import Mesh
 from meshfit.mesh.locate import grid_tree
@@ -580,7 +580,7 @@ class Errors(Stage):
         write_json(path, ctx["errors"])
 
     def load(self, ctx: Context, path: Path) -> bool:
-        ctx["errors"] = json.loads(path.read_text())
+        ctx["errors"] = read_json_file(path)
         dist = path.with_suffix(".npz")
         ctx["spline_distance"] = load_npz(dist)["spline_to_input"] if dist.is_file() else None
         return True
@@ -639,7 +639,7 @@ class Exports(Stage):
         write_json(path, record)
 
     def load(self, ctx: Context, path: Path) -> bool:
-        record = json.loads(path.read_text())
+        record = read_json_file(path)
         for f, h in record["sha256"].items():
             if not (self.out / f).is_file() or sha_file(self.out / f) != h:
                 return False
@@ -677,7 +677,7 @@ class Report(Stage):
         return [size, str(self.blender)]
 
     def load(self, ctx: Context, path: Path) -> bool:
-        rec = json.loads(path.read_text())
+        rec = read_json_file(path)
         self.images_ok = all((self.out / f).is_file() for f in rec["images"])
         if self.images_ok:
             ctx["summary"].setdefault("notes", []).extend(rec.get("notes", []))
