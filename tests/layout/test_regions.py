@@ -342,3 +342,13 @@ def test_straight_corners_at_creases_are_joined_by_chords(tmp_path_factory, monk
     assert chords.n_patches > plain.n_patches
     s = fit(mesh, options=FitOptions(formats=(), report=False)).summary
     assert max(a for p in s["patches"] for a in p["corner_angles"]) > 170.0
+
+
+def test_a_mesh_too_small_for_one_patch_is_refused_with_the_reason():
+    tet = Mesh(
+        np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float),
+        np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]),
+        name="tet",
+    )
+    with pytest.raises(InputError, match="tet has 4 faces: an automatic layout needs at least"):
+        auto_layout(tet)

@@ -1771,6 +1771,12 @@ def region_layout(
     want = min(DEFAULT_PATCHES, max(most, 1)) if patches is None else int(patches)
     if want < 1:
         raise InputError(f"patches must be >= 1, got {patches}")
+    if most == 0:
+        raise InputError(
+            f"{mesh.name or 'the mesh'} has {mesh.n_faces} faces: an automatic layout needs "
+            f"at least {MIN_FACES_PER_PATCH} faces a patch; subdivide it first, or give a "
+            "layout file"
+        )
     if want > most:
         raise InputError(
             f"{want} patches on {mesh.name or 'the mesh'} ({mesh.n_faces} faces): an "
