@@ -243,9 +243,11 @@ def test_inside_out_sphere_is_noted_and_turned(tmp_path, capsys):
     data = json.loads(out)
     assert data["repaired"] is True
     assert "inside out: 1 component" in data["repair"]
-    rc, out, _err = info(capsys, str(p), "--json", "--no-repair")
-    assert rc == 0
+    # the strict path does not take it: valid, but a fit of it would face the wrong way
+    rc, out, err = info(capsys, str(p), "--json", "--no-repair")
+    assert rc == 2
     assert json.loads(out)["repaired"] is False
+    assert "1 closed component inside out" in err and "run without --no-repair" in err
 
 
 def test_repair_of_a_valid_mesh_changes_nothing(capsys):
@@ -269,3 +271,18 @@ def test_info_on_a_missing_file_and_bad_arguments(tmp_path, capsys):
         cli.main(["--version"])
     assert exc.value.code == 0
     assert capsys.readouterr().out.strip() == f"meshfit {__version__}"
+
+
+def test_every_command_that_fits_refuses_an_inside_out_mesh_strictly(tmp_path, capsys):
+    """--no-repair refuses an inside-out closed mesh before any file is written; the same
+    sphere right side out passes."""
+    from meshfit.cli import main
+
+    sphere = shapes.icosphere(3)
+    p = _write_obj(tmp_path / "inside.obj", sphere.vertices, np.asarray(sphere.faces)[:, ::-1])
+    assert main(["fit", "--no-repair", str(p), "--out", str(tmp_path / "f")]) == 2
+    assert "inside out" in capsys.readouterr().err
+    assert not (tmp_path / "f").exists()
+    right = _write_obj(tmp_path / "right.obj", sphere.vertices, np.asarray(sphere.faces))
+    rc, _out, _err = info(capsys, str(right), "--no-repair")
+    assert rc == 0

@@ -40,6 +40,7 @@ def cmd_info(args: argparse.Namespace) -> int:
     """Statistics and validation findings of one mesh file."""
     from meshfit.mesh import Mesh, find_problems, read_mesh_arrays
     from meshfit.mesh.measures import mesh_statistics, raw_statistics
+    from meshfit.mesh.validate import inside_out_finding
 
     t0 = time.perf_counter()
     raw = read_mesh_arrays(args.mesh)
@@ -48,6 +49,9 @@ def cmd_info(args: argparse.Namespace) -> int:
     try:  # a valid mesh is validated once, by its constructor
         mesh = Mesh(raw.vertices, raw.faces, raw.vertex_colors, name=name)
         findings = []
+        inverted = None if args.repair else inside_out_finding(mesh.vertices, mesh.faces)
+        if inverted is not None:  # valid, but the strict path does not take it
+            findings, mesh = [inverted], None
         if args.repair:  # valid, but perhaps inside out
             fixed = Mesh.from_arrays(
                 raw.vertices, raw.faces, raw.vertex_colors, name=name, repair=True

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from meshfit._cliargs import add_repair_option, own_inputs
+from meshfit._cliargs import add_repair_option, load_cli_mesh, own_inputs
 from meshfit._progress import stage_progress
 from meshfit.errors import InputError
 
@@ -93,11 +93,10 @@ def _short_summary(summary: dict) -> dict:
 def cmd_fit(args: argparse.Namespace) -> int:
     """Fit B-spline patches with displacement maps to one mesh."""
     from meshfit._cliout import EXIT_OK, print_json, print_table
-    from meshfit.mesh import load_mesh
     from meshfit.pipeline import fit
 
     options = _options(args)
-    mesh = load_mesh(args.mesh, repair=args.repair)
+    mesh = load_cli_mesh(args.mesh, args.repair)
     if args.fill_holes and not mesh.is_closed:
         from meshfit.shrinkwrap import fill_holes
 

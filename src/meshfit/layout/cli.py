@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from meshfit._cliargs import add_repair_option, own_inputs
+from meshfit._cliargs import add_repair_option, load_cli_mesh, own_inputs
 
 __all__ = ["add_commands", "cmd_layout"]
 
@@ -46,9 +46,8 @@ def cmd_layout(args: argparse.Namespace) -> int:
     from meshfit._cliout import print_json, print_table
     from meshfit.layout import extract_patches, load_layout
     from meshfit.layout.patch import patch_notes, shape_figures
-    from meshfit.mesh import load_mesh
 
-    mesh = load_mesh(args.mesh, repair=args.repair)
+    mesh = load_cli_mesh(args.mesh, args.repair)
     t0 = time.perf_counter()
     layout = load_layout(args.layout, mesh, check_topology=False)
     load_s = time.perf_counter() - t0

@@ -22,6 +22,7 @@ __all__ = [
     "RepairReport",
     "clean_edge_table",
     "find_problems",
+    "inside_out_finding",
     "raise_first",
     "repair_arrays",
 ]
@@ -533,6 +534,32 @@ def _split_fans(faces: NDArray[np.int64], nv: int) -> tuple[NDArray[np.int64], N
     new_id[extra] = nv + np.arange(extra.size)
     parent = np.concatenate([np.arange(nv), fan_vertex[extra]]).astype(np.int64)
     return new_id[fan].reshape(-1, 3), parent
+
+
+def inside_out_finding(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> Finding | None:
+    """The closed components of a valid mesh that are inside out (negative signed volume:
+    their normals point inwards), as a repairable Finding, or None.
+
+    Not one of :func:`find_problems`' findings (such a mesh is valid and every kernel works
+    on it); the strict command line path reports it, since a fit of it faces the wrong way.
+    """
+    if faces.shape[0] == 0:
+        return None
+    inside = _inside_out(vertices, faces)
+    if not inside.any():
+        return None
+    table = topology.edge_table(faces, vertices.shape[0])
+    _, comp = topology.face_components(faces.shape[0], topology.face_neighbors(faces, table))
+    n = int(np.unique(comp[inside]).size)
+    first = int(np.flatnonzero(inside)[0])
+    return Finding(
+        "inside_out",
+        f"{plural(n, 'closed component')} inside out: the normals point inwards (negative "
+        f"signed volume; first: face {first})",
+        (first,),
+        n,
+        True,
+    )
 
 
 def _inside_out(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> NDArray[np.bool_]:

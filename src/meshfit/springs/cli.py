@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from meshfit._cliargs import add_repair_option, own_inputs
+from meshfit._cliargs import add_repair_option, load_cli_mesh, own_inputs
 
 __all__ = ["add_commands", "cmd_springs", "save_spring_mesh"]
 
@@ -69,12 +69,11 @@ def cmd_springs(args: argparse.Namespace) -> int:
     from meshfit._threads import map_threads, n_workers
     from meshfit.layout import extract_patches, load_layout
     from meshfit.layout.patch import shape_figures
-    from meshfit.mesh import load_mesh
     from meshfit.springs import SpringOptions, resample_patch, spring_metrics
     from meshfit.springs.metrics import out_of_bounds
 
     t0 = time.perf_counter()
-    mesh = load_mesh(args.mesh, repair=args.repair)
+    mesh = load_cli_mesh(args.mesh, args.repair)
     layout = load_layout(args.layout, mesh)
     t_load = time.perf_counter() - t0
     t = time.perf_counter()

@@ -7,7 +7,7 @@ import sys
 import time
 from pathlib import Path
 
-from meshfit._cliargs import add_repair_option
+from meshfit._cliargs import add_repair_option, load_cli_mesh
 from meshfit.errors import InputError
 
 __all__ = ["add_commands", "build_app", "cmd_ui"]
@@ -52,7 +52,6 @@ def add_commands(sub) -> None:
 
 def build_app(args: argparse.Namespace):
     """The :class:`meshfit.ui.app.App` for parsed ``meshfit ui`` arguments (started)."""
-    from meshfit.mesh import load_mesh
     from meshfit.ui.app import App
     from meshfit.ui.files import FilePolicy
     from meshfit.ui.state import Session
@@ -68,7 +67,7 @@ def build_app(args: argparse.Namespace):
     mesh = None
     if args.mesh:
         policy.allow(args.mesh)
-        mesh = load_mesh(args.mesh, repair=args.repair)
+        mesh = load_cli_mesh(args.mesh, args.repair)
     stem = Path(args.mesh).stem if args.mesh else "untitled"
     autosave = Path(args.autosave) if args.autosave else policy.workdir / f"{stem}.session.json"
     policy.allow(autosave)
