@@ -34,7 +34,17 @@ SRC = Path(__file__).resolve().parents[1] / "src"
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("_kernels",),
     # private helpers and the shared vocabulary
-    ("errors", "types", "tol", "_validate", "_words", "_unionfind", "_atomic", "_malloc"),
+    (
+        "errors",
+        "types",
+        "tol",
+        "_validate",
+        "_words",
+        "_unionfind",
+        "_atomic",
+        "_malloc",
+        "_jsonio",
+    ),
     ("_version",),
     ("_threads", "_progress", "_cliargs", "_cliout"),
     ("mesh",),

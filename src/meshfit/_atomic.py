@@ -12,7 +12,7 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-__all__ = ["atomic_write", "write_bytes", "write_text"]
+__all__ = ["atomic_write", "remove_pending", "write_bytes", "write_text"]
 
 
 def _umask() -> int:
@@ -41,6 +41,7 @@ def atomic_write(path: str | os.PathLike, write: Callable[[str], object]) -> Pat
     folder = path.parent if str(path.parent) else Path(".")
     fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{path.stem}.", suffix=path.suffix)
     os.close(fd)
+    _PENDING.add(tmp)
     try:
         write(tmp)
         os.chmod(tmp, 0o666 & ~_umask())
@@ -49,7 +50,24 @@ def atomic_write(path: str | os.PathLike, write: Callable[[str], object]) -> Pat
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+    finally:
+        _PENDING.discard(tmp)
     return path
+
+
+#: temporary files of writes under way (removed by `remove_pending` when the process is
+#: ended before they are renamed)
+_PENDING: set[str] = set()
+
+
+def remove_pending() -> None:
+    """Remove the temporary files of the writes under way (for a process about to end
+    without unwinding, as on SIGTERM)."""
+    for tmp in list(_PENDING):
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
 
 
 def write_bytes(path: str | os.PathLike, data: bytes) -> Path:

@@ -68,23 +68,3 @@ def _same_file(a: Path, b: Path) -> bool:
     except OSError:
         pass
     return a.resolve() == b.resolve()
-
-
-def load_cli_mesh(path, repair: bool):
-    """``load_mesh(path, repair=repair)`` as the command line reads a mesh: on the strict
-    path (``--no-repair``) an inside-out closed component is refused too (a repair turns it
-    right side out, with a note), so no command fits a surface facing the wrong way."""
-    from meshfit.errors import MeshValidationError
-    from meshfit.mesh import load_mesh
-    from meshfit.mesh.validate import REPAIR_HINT, inside_out_finding
-
-    mesh = load_mesh(path, repair=repair)
-    if not repair:
-        found = inside_out_finding(mesh.vertices, mesh.faces)
-        if found is not None:
-            raise MeshValidationError(
-                f"{Path(path).name}: {found.message}{REPAIR_HINT}",
-                first=found.first,
-                count=found.count,
-            )
-    return mesh

@@ -146,17 +146,27 @@ def _os_error(exc: OSError) -> str:
     return f"{path}: {reason}"
 
 
-class _Terminated(KeyboardInterrupt):
-    """SIGTERM, taken like Ctrl-C: the work stops where it is, files are left whole."""
-
-
 def _terminate(signum, frame) -> None:
-    raise _Terminated
+    """SIGTERM: end the process now, with one line and exit code 143.
+
+    Raising an exception instead (as Ctrl-C does) is not safe here: inside a ctypes
+    callback, as during a kernel's JIT compilation, Python swallows it and the library goes
+    on in a broken state. Every output is written under a temporary name and renamed when
+    whole (:mod:`meshfit._atomic`), so ending here leaves no half-written file; the
+    temporary files of writes under way are removed first."""
+    from meshfit._atomic import remove_pending
+
+    remove_pending()
+    try:
+        sys.stderr.write("meshfit: terminated\n")
+        sys.stderr.flush()
+    finally:
+        os._exit(143)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the exit code (0 ok, 2 bad input, 130 interrupted, 143
-    terminated)."""
+    """Entry point; returns the exit code (0 ok, 2 bad input, 130 interrupted; SIGTERM ends
+    the process with 143)."""
     tune_malloc()
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -221,9 +231,6 @@ def _command(args: argparse.Namespace) -> int:
             "on a larger machine\n"
         )
         return EXIT_ERROR
-    except _Terminated:
-        sys.stderr.write("meshfit: terminated\n")
-        return 143
     except KeyboardInterrupt:
         sys.stderr.write("meshfit: interrupted\n")
         return 130

@@ -5,9 +5,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from meshfit._cliargs import add_repair_option, load_cli_mesh, own_inputs
+from meshfit._cliargs import add_repair_option, own_inputs
 from meshfit._progress import stage_progress
 from meshfit.errors import InputError
+from meshfit.mesh.io import load_cli_mesh
 
 __all__ = ["add_commands", "cmd_batch", "cmd_fit", "parse_controls", "stage_progress"]
 

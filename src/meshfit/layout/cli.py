@@ -6,7 +6,8 @@ from __future__ import annotations
 import argparse
 import time
 
-from meshfit._cliargs import add_repair_option, load_cli_mesh, own_inputs
+from meshfit._cliargs import add_repair_option, own_inputs
+from meshfit.mesh.io import load_cli_mesh
 
 __all__ = ["add_commands", "cmd_layout"]
 

@@ -22,7 +22,7 @@ from meshfit import errors
 from meshfit._atomic import write_bytes
 from meshfit.mesh.core import Mesh
 
-__all__ = ["FORMATS", "RawMesh", "load_mesh", "read_mesh_arrays", "save_mesh"]
+__all__ = ["FORMATS", "RawMesh", "load_cli_mesh", "load_mesh", "read_mesh_arrays", "save_mesh"]
 
 #: file suffixes meshfit reads and writes
 FORMATS = (".ply", ".obj", ".stl", ".off", ".glb", ".gltf")
@@ -838,3 +838,21 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike) -> Path:
     tm = trimesh.Trimesh(mesh.vertices, mesh.faces, vertex_colors=mesh.vertex_colors, process=False)
     data = tm.export(file_type=suffix[1:])
     return write_bytes(p, data if isinstance(data, bytes) else data.encode())
+
+
+def load_cli_mesh(path: str | os.PathLike, repair: bool) -> Mesh:
+    """:func:`load_mesh` as the command line reads a mesh: on the strict path
+    (``--no-repair``) an inside-out closed component is refused too (a repair turns it right
+    side out, with a note), so no command fits a surface facing the wrong way."""
+    from meshfit.mesh.validate import REPAIR_HINT, inside_out_finding
+
+    mesh = load_mesh(path, repair=repair)
+    if not repair:
+        found = inside_out_finding(mesh.vertices, mesh.faces)
+        if found is not None:
+            raise errors.MeshValidationError(
+                f"{Path(path).name}: {found.message}{REPAIR_HINT}",
+                first=found.first,
+                count=found.count,
+            )
+    return mesh

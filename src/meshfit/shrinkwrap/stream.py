@@ -47,7 +47,6 @@ from __future__ import annotations
 
 import os
 import struct
-import tempfile
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
@@ -56,6 +55,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from meshfit import errors
+from meshfit._atomic import write_bytes
 from meshfit.shrinkwrap.subdivision import SCHEMES, level_faces, level_sizes, subdivide_step
 
 __all__ = [
@@ -402,15 +402,7 @@ def reconstruction_errors(
 
 def write_stream(stream: Stream, path: str | os.PathLike) -> None:
     """Write atomically (temporary name in the same folder, then rename)."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent or ".", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(stream.to_bytes())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_bytes(path, stream.to_bytes())
 
 
 def read_stream(path: str | os.PathLike) -> Stream:

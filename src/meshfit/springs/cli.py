@@ -10,7 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from meshfit._cliargs import add_repair_option, load_cli_mesh, own_inputs
+from meshfit._cliargs import add_repair_option, own_inputs
+from meshfit.mesh.io import load_cli_mesh
 
 __all__ = ["add_commands", "cmd_springs", "save_spring_mesh"]
 

@@ -7,8 +7,9 @@ import sys
 import time
 from pathlib import Path
 
-from meshfit._cliargs import add_repair_option, load_cli_mesh
+from meshfit._cliargs import add_repair_option
 from meshfit.errors import InputError
+from meshfit.mesh.io import load_cli_mesh
 
 __all__ = ["add_commands", "build_app", "cmd_ui"]
 
