@@ -37,8 +37,18 @@ def layout_text() -> str:
     ],
 )
 def test_hostile_json_is_one_clear_error(text, what):
-    with pytest.raises(InputError, match=what) as exc:
-        read_json(text, source="f.json")
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        with pytest.raises(InputError, match=what) as exc:
+            read_json(text, source="f.json")
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    # (a refusal costs a few copies of the text, not a parse tree: 100,000 brackets took
+    # the parser into a RecursionError before)
+    assert peak < 16 * len(text) + (1 << 20)
     assert str(exc.value).startswith("f.json: ")
 
 
