@@ -48,3 +48,18 @@ def test_the_command_line_writes_nothing_for_a_bad_option(tmp_path, extra, capsy
     assert main(["fit", str(mesh), "--out", str(tmp_path / "out"), *extra]) == 2
     assert capsys.readouterr().err.count("\n") == 1
     assert [p.name for p in tmp_path.iterdir()] == ["s.ply"]
+
+
+def test_a_control_class_the_layout_has_not_is_refused_before_the_spring_meshes(tmp_path):
+    """The classes follow from the layout's network alone: a chosen class beyond them is
+    refused as soon as the layout is made, before any spring mesh (it was refused after
+    all of them)."""
+    from meshfit.pipeline import fit
+
+    from .shapes import icosphere
+
+    out = tmp_path / "fit"
+    options = FitOptions(class_controls={999: 8}, formats=(), report=False)
+    with pytest.raises(InputError, match="class 999 does not exist"):
+        fit(icosphere(3), options=options, out=out)
+    assert not [p for p in out.rglob("*") if "springs" in p.name]

@@ -136,6 +136,7 @@ class Layout(Stage):
 
     def run(self, ctx: Context) -> None:
         ctx["layout"] = self.make()
+        _check_classes(ctx)  # (before the spring meshes, not after them)
 
     def save(self, ctx: Context, path: Path) -> None:
         from meshfit.layout import save_layout
@@ -273,6 +274,32 @@ class Springs(Stage):
         return {"patch_tasks": self.patch_map is not None}
 
 
+def _refuse_classes(chosen, n_cls: int) -> None:
+    """InputError naming the first chosen control class the layout does not have."""
+    for c, _ in chosen:
+        if c >= n_cls:
+            raise InputError(
+                f"class_controls: class {c} does not exist (the layout's patches have "
+                f"{n_cls} equal-count classes, 0..{n_cls - 1}; see summary['control_classes'])"
+            )
+
+
+def _check_classes(ctx: Context) -> None:
+    """The chosen control classes exist in the layout just made: the classes follow from
+    its network alone, so a wrong one is refused before any spring mesh is made."""
+    o = ctx.options.spline
+    if not o.class_controls:
+        return
+    from meshfit.stitch import control_classes
+    from meshfit.stitch.layout import layout_network
+
+    lay = ctx["layout"]
+    creases = lay.creases if o.continuity == "auto" else None
+    net = layout_network(lay, "C0" if o.continuity == "C0" else "G1", creases)
+    n_cls = len(control_classes(net, default=[o.controls] * lay.n_patches).counts)
+    _refuse_classes(o.class_controls, n_cls)
+
+
 def _controls(ctx: Context) -> None:
     """Control counts per patch, equal along shared curves; the classes and their notes."""
     from meshfit.stitch import control_classes
@@ -283,12 +310,7 @@ def _controls(ctx: Context) -> None:
     n = len(shapes)
     plain = control_classes(net, default=[o.controls] * n, grid_shapes=shapes)
     n_cls = len(plain.counts)
-    for c, _ in o.class_controls:
-        if c >= n_cls:
-            raise InputError(
-                f"class_controls: class {c} does not exist (the layout's patches have "
-                f"{n_cls} equal-count classes, 0..{n_cls - 1}; see summary['control_classes'])"
-            )
+    _refuse_classes(o.class_controls, n_cls)
     chosen = dict(o.class_controls)
     cc = control_classes(net, default=[o.controls] * n, counts=chosen, grid_shapes=shapes)
     cap = np.full(n_cls, np.iinfo(np.int64).max)
