@@ -352,3 +352,16 @@ def test_a_mesh_too_small_for_one_patch_is_refused_with_the_reason():
     )
     with pytest.raises(InputError, match="tet has 4 faces: an automatic layout needs at least"):
         auto_layout(tet)
+
+
+def test_the_chord_search_has_a_budget():
+    """A cell of many straight corners that cannot all be cleared: the search looks at no
+    more than `CHORD_SEARCH` parts (it was exponential in the cell's sides), and still
+    returns a chord."""
+    from meshfit.layout import regions as R
+
+    n = 32
+    flags = tuple((k < n - 2, False) for k in range(n))
+    memo: dict = {}
+    assert R._chord_search(flags, memo, [R.CHORD_SEARCH]) is not None
+    assert len(memo) <= R.CHORD_SEARCH + n

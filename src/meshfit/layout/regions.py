@@ -109,8 +109,8 @@ SHORT_SIDE = 0.3
 STRAIGHT_CORNER = 150.0
 #: a corner's angle is measured between chords this share of the shorter side long
 CORNER_REACH = 0.25
-#: samples of a chord for its arc-length mid-point
-CHORD_SAMPLES = 33
+#: parts of a cell the chord search looks at before it looks one chord ahead only
+CHORD_SEARCH = 2_000
 #: rounds of seed insertion at most (each round adds a seed to every cell that fails)
 MAX_ROUNDS = 40
 #: fewest input faces per patch (more patches are refused: a spring grid needs faces)
@@ -1415,23 +1415,44 @@ def _chord_ends(straight: list[bool], chorded: list[bool]) -> tuple[int, int] | 
     From the first straight corner to the corner most nearly opposite (another straight
     one at half a step's advantage), never a neighbour (each part keeps three corners) nor
     a corner a chord already ends at (two chords from one corner run side by side), and
-    only where both parts can be cut on until no straight corner is left."""
-    n = len(straight)
-    flags = list(zip(straight, chorded, strict=True))
-    for j in (j for j in range(n) if straight[j]):
-        far = [d for d in range(2, n - 1) if not chorded[(j + d) % n]]
-        far.sort(key=lambda d: abs(d - n / 2.0) - 0.5 * straight[(j + d) % n])
+    only where both parts can be cut on until no straight corner is left: an exact search
+    over the parts for up to `CHORD_SEARCH` of them, then a look one chord ahead (a cell
+    of many straight corners would otherwise cost a search exponential in its sides)."""
+    flags = tuple(zip(straight, chorded, strict=True))
+    return _chord_search(flags, {}, [CHORD_SEARCH])
+
+
+def _chord_search(flags, memo: dict, budget: list[int]) -> tuple[int, int] | None:
+    if flags in memo:
+        return memo[flags]
+    budget[0] -= 1
+    n = len(flags)
+    out = None
+    for j in (j for j in range(n) if flags[j][0]):
+        far = [d for d in range(2, n - 1) if not flags[(j + d) % n][1]]
+        far.sort(key=lambda d: abs(d - n / 2.0) - 0.5 * flags[(j + d) % n][0])
         for d in far:
             p = (j + d) % n
-            if all(_clears(part) for part in _parts(flags, j, p)):
-                return j, p
-    return None
+            if all(_clears(part, memo, budget) for part in _parts(list(flags), j, p)):
+                out = (j, p)
+                break
+        if out is not None:
+            break
+    memo[flags] = out
+    return out
 
 
-def _clears(flags: list[tuple[bool, bool]]) -> bool:
-    """Whether `_chord_ends` cuts a polygon down to parts without straight corners."""
-    straight = [f[0] for f in flags]
-    return not any(straight) or _chord_ends(straight, [f[1] for f in flags]) is not None
+def _clears(flags: list[tuple[bool, bool]], memo: dict, budget: list[int]) -> bool:
+    """Whether a part can be cut down to parts without straight corners: by the search
+    while its budget lasts, else whether each straight corner has a corner to reach."""
+    n = len(flags)
+    if not any(f[0] for f in flags):
+        return True
+    if budget[0] > 0:
+        return _chord_search(tuple(flags), memo, budget) is not None
+    return all(
+        any(not flags[(j + d) % n][1] for d in range(2, n - 1)) for j in range(n) if flags[j][0]
+    )
 
 
 def _halve(mesh: Mesh, dom: _Domain, poly: list[_Side], cut, net):

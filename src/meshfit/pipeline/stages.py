@@ -291,13 +291,21 @@ def _check_classes(ctx: Context) -> None:
     if not o.class_controls:
         return
     from meshfit.stitch import control_classes
+
+    n = ctx["layout"].n_patches
+    n_cls = len(control_classes(_layout_network(ctx), default=[o.controls] * n).counts)
+    _refuse_classes(o.class_controls, n_cls)
+
+
+def _layout_network(ctx: Context):
+    """The continuity network of the fit's layout: C0 or G1 everywhere, or with continuity
+    ``"auto"`` C0 across its crease curves and G1 elsewhere."""
     from meshfit.stitch.layout import layout_network
 
     lay = ctx["layout"]
-    creases = lay.creases if o.continuity == "auto" else None
-    net = layout_network(lay, "C0" if o.continuity == "C0" else "G1", creases)
-    n_cls = len(control_classes(net, default=[o.controls] * lay.n_patches).counts)
-    _refuse_classes(o.class_controls, n_cls)
+    cont = ctx.options.spline.continuity
+    creases = lay.creases if cont == "auto" else None
+    return layout_network(lay, "C0" if cont == "C0" else "G1", creases)
 
 
 def _controls(ctx: Context) -> None:
@@ -359,12 +367,7 @@ class Fit(Stage):
         return ctx.options.spline
 
     def _network(self, ctx: Context) -> None:
-        from meshfit.stitch.layout import layout_network
-
-        lay = ctx["layout"]
-        cont = ctx.options.spline.continuity
-        creases = lay.creases if cont == "auto" else None
-        ctx["network"] = layout_network(lay, "C0" if cont == "C0" else "G1", creases)
+        ctx["network"] = _layout_network(ctx)
         _controls(ctx)
 
     def run(self, ctx: Context) -> None:

@@ -123,8 +123,10 @@ class App:
         declares more than the policy's cap is never buffered, and one whose parts pass the
         cap (a client that declared less) has its buffer dropped at the part that does.
 
-        viser assembles uploads from parts in its GUI handlers; these two are put in front
-        of them (through the server's public handler registry)."""
+        viser assembles uploads from parts in its GUI handlers; these two take their place
+        in the server's handler registry and call them. They reach viser's private names
+        (its upload handlers and transfer states), so tests/ui/test_guard.py holds the cap
+        on the installed viser: a release that renames them fails there."""
         from viser import _messages
 
         gui = self.server.gui
