@@ -15,6 +15,7 @@ from meshfit.errors import InputError, LayoutError, MeshfitError
 from meshfit.layout import layout_from_json, layout_to_json
 from meshfit.layout.cube import cube_layout
 
+from .fuzz import damaged
 from .shapes import icosphere
 
 
@@ -80,21 +81,8 @@ def test_layout_files_with_hostile_json_raise_layout_errors(layout_text):
 def test_mutated_layout_files_raise_only_meshfit_errors(layout_text, data):
     """Random byte edits, cuts and splices of a valid layout file: it parses or raises a
     MeshfitError, nothing else."""
-    raw = bytearray(layout_text.encode())
-    for _ in range(data.draw(st.integers(1, 8))):
-        i = data.draw(st.integers(0, len(raw) - 1))
-        op = data.draw(st.sampled_from(["set", "cut", "dup", "digit"]))
-        if op == "set":
-            raw[i] = data.draw(st.integers(0, 255))
-        elif op == "cut":
-            del raw[i : i + data.draw(st.integers(1, 64))]
-        elif op == "dup":
-            raw[i:i] = raw[i : i + data.draw(st.integers(1, 64))]
-        else:
-            raw[i:i] = b"9" * data.draw(st.integers(1, 40))
-        if not raw:
-            raw = bytearray(b"{")
+    raw = damaged(data, layout_text.encode(), edits=8, span=64)
     try:
-        layout_from_json(bytes(raw).decode("utf-8", "replace"))
+        layout_from_json(raw.decode("utf-8", "replace"))
     except MeshfitError:
         pass

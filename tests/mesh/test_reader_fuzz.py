@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 from meshfit.errors import MeshfitError
 from meshfit.mesh import load_mesh, save_mesh
 
+from ..fuzz import damaged
 from ..shapes import icosphere
 
 FORMATS = (".ply", ".obj", ".off", ".stl", ".glb")
@@ -45,20 +46,8 @@ def test_damaged_files_raise_only_meshfit_errors(valid, suffix, tmp_path_factory
     )
     @given(data=st.data())
     def run(data):
-        raw = bytearray(original)
-        for _ in range(data.draw(st.integers(1, 6))):
-            i = data.draw(st.integers(0, max(len(raw) - 1, 0)))
-            op = data.draw(st.sampled_from(["set", "cut", "dup", "digits"]))
-            if op == "set" and raw:
-                raw[i] = data.draw(st.integers(0, 255))
-            elif op == "cut":
-                del raw[i : i + data.draw(st.integers(1, 300))]
-            elif op == "dup":
-                raw[i:i] = raw[i : i + data.draw(st.integers(1, 300))]
-            else:
-                raw[i:i] = data.draw(st.sampled_from([b"9" * 30, b"-1", b"nan", b"1e308", b"\n"]))
         path = folder / f"f{suffix}"
-        path.write_bytes(bytes(raw))
+        path.write_bytes(damaged(data, original, span=300))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # (a reader may warn; what is asked is no crash)
             try:

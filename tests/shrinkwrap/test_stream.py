@@ -20,6 +20,7 @@ from meshfit.shrinkwrap import (
 from meshfit.shrinkwrap.subdivision import level_sizes
 
 from ..conftest import real_mesh
+from ..fuzz import damaged
 from .conftest import wrap
 
 LEVELS = 4
@@ -243,19 +244,10 @@ def test_version_1_streams_are_still_read():
 @settings(max_examples=300, deadline=None)
 @given(data=st.data())
 def test_damaged_streams_raise_only_stream_errors(data):
-    raw = bytearray(_STREAMS["loop"].to_bytes())
-    for _ in range(data.draw(st.integers(1, 6))):
-        i = data.draw(st.integers(0, len(raw) - 1))
-        op = data.draw(st.sampled_from(["set", "cut", "dup"]))
-        if op == "set":
-            raw[i] = data.draw(st.integers(0, 255))
-        elif op == "cut":
-            del raw[i : i + data.draw(st.integers(1, 200))]
-        else:
-            raw[i:i] = raw[i : i + data.draw(st.integers(1, 200))]
+    raw = damaged(data, _STREAMS["loop"].to_bytes())
     # (whatever the damage, reading takes little more than the file itself)
     with _peak_below(64 * len(raw) + (1 << 20)):
         try:
-            Stream.from_bytes(bytes(raw))
+            Stream.from_bytes(raw)
         except errors.StreamError:
             pass

@@ -843,7 +843,27 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike) -> Path:
 def load_cli_mesh(path: str | os.PathLike, repair: bool) -> Mesh:
     """:func:`load_mesh` as the command line reads a mesh: on the strict path
     (``--no-repair``) an inside-out closed component is refused too (a repair turns it right
-    side out, with a note), so no command fits a surface facing the wrong way."""
+    side out, with a note), so no command fits a surface facing the wrong way.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        A mesh file (:data:`FORMATS`).
+    repair : bool
+        ``repair`` of :func:`load_mesh`.
+
+    Returns
+    -------
+    Mesh
+
+    Raises
+    ------
+    meshfit.errors.MeshValidationError
+        As :func:`load_mesh`; without ``repair`` also a closed component whose signed
+        volume is negative (named by its first face, with the repair hint).
+    meshfit.errors.MeshFileError
+        As :func:`load_mesh`.
+    """
     from meshfit.mesh.validate import REPAIR_HINT, inside_out_finding
 
     mesh = load_mesh(path, repair=repair)

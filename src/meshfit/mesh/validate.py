@@ -542,6 +542,18 @@ def inside_out_finding(vertices: NDArray[np.float64], faces: NDArray[np.int64]) 
 
     Not one of :func:`find_problems`' findings (such a mesh is valid and every kernel works
     on it); the strict command line path reports it, since a fit of it faces the wrong way.
+
+    Parameters
+    ----------
+    vertices : (nv, 3) float64
+    faces : (nf, 3) int64
+        A valid mesh's arrays.
+
+    Returns
+    -------
+    Finding or None
+        Kind ``"inside_out"``, ``first`` the first face of such a component, ``count`` the
+        number of such components; repairable.
     """
     if faces.shape[0] == 0:
         return None

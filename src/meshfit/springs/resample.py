@@ -754,8 +754,24 @@ def _checked_options(options: SpringOptions | None) -> SpringOptions:
 
 def check_spring_options(options: SpringOptions) -> SpringOptions:
     """``options`` once its values pass the checks :func:`resample_patch` makes before any
-    patch (for callers that validate every option before any work); raises InputError
-    naming the first bad one."""
+    patch (for callers that validate every option before any work).
+
+    Parameters
+    ----------
+    options : SpringOptions
+
+    Returns
+    -------
+    SpringOptions
+        ``options`` itself.
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        Naming the first bad value: a weight or a mode out of range, a negative or
+        fractional ``level``, a ``level`` whose grids would pass `LEVEL_MAX_POINTS` even for
+        a one-cell patch, ``max_points`` below 4.
+    """
     return _checked_options(options)
 
 
