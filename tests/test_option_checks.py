@@ -52,8 +52,8 @@ def test_the_command_line_writes_nothing_for_a_bad_option(tmp_path, extra, capsy
 
 def test_a_control_class_the_layout_has_not_is_refused_before_the_spring_meshes(tmp_path):
     """The classes follow from the layout's network alone: a chosen class beyond them is
-    refused as soon as the layout is made, before any spring mesh (it was refused after
-    all of them)."""
+    refused as soon as the layout is made, before any spring mesh or file (it was
+    refused after all of them)."""
     from meshfit.pipeline import fit
 
     from .shapes import icosphere
@@ -62,4 +62,17 @@ def test_a_control_class_the_layout_has_not_is_refused_before_the_spring_meshes(
     options = FitOptions(class_controls={999: 8}, formats=(), report=False)
     with pytest.raises(InputError, match="class 999 does not exist"):
         fit(icosphere(3), options=options, out=out)
-    assert not [p for p in out.rglob("*") if "springs" in p.name]
+    assert not out.exists()  # nothing written, not even the folders it made
+
+
+def test_a_refused_fit_keeps_the_folders_that_were_there(tmp_path):
+    from meshfit.pipeline import fit
+
+    from .shapes import icosphere
+
+    out = tmp_path / "fit"
+    out.mkdir()
+    options = FitOptions(class_controls={999: 8}, formats=(), report=False)
+    with pytest.raises(InputError):
+        fit(icosphere(3), options=options, out=out)
+    assert out.is_dir() and not any(out.iterdir())

@@ -726,7 +726,7 @@ def test_save_mesh_round_trip_with_colors(tmp_path, spot):
     assert_array_equal(back.vertex_colors, spot.vertex_colors)
 
 
-@pytest.mark.parametrize("suffix", [".ply", ".obj", ".off", ".stl"])
+@pytest.mark.parametrize("suffix", [".ply", ".obj", ".off", ".stl", ".glb", ".gltf"])
 def test_save_mesh_formats_round_trip(tmp_path, suffix):
     mesh = real_mesh("spot")
     p = save_mesh(mesh, tmp_path / f"s{suffix}")

@@ -606,6 +606,56 @@ def _stl_check(path: Path) -> RawMesh | None:
     )
 
 
+def _glb_check(path: Path) -> None:
+    """Binary glTF sanity before trimesh reads it: the header's length is the file's and
+    every chunk fits in what is left (trimesh allocates a chunk's claimed length before
+    reading it); the JSON chunk obeys the URI rule of `_gltf_check`."""
+    raw = path.read_bytes()
+    size = len(raw)
+    if size < 20 or raw[:4] != b"glTF":
+        raise errors.MeshFileError(f"{path}: not a GLB file (no 'glTF' header)")
+    length = int(np.frombuffer(raw[8:12], dtype="<u4")[0])
+    if length != size:
+        raise errors.MeshFileError(
+            f"{path}: truncated or corrupt GLB: the header declares {length} bytes, the "
+            f"file holds {size}"
+        )
+    pos, first = 12, True
+    while pos + 8 <= size:
+        n = int(np.frombuffer(raw[pos : pos + 4], dtype="<u4")[0])
+        if n > size - pos - 8:
+            raise errors.MeshFileError(
+                f"{path}: truncated or corrupt GLB: a chunk at byte {pos} declares {n} "
+                f"bytes, {size - pos - 8} follow it"
+            )
+        if first:
+            _gltf_refs(path, raw[pos + 8 : pos + 8 + n])
+        pos, first = pos + 8 + n, False
+
+
+def _gltf_refs(path: Path, text: bytes) -> None:
+    """A glTF's buffers and images name only data URIs or files beside it: no absolute
+    path, no ``..``, no URL scheme (meshfit reads only the files the user names and what
+    sits next to them)."""
+    from meshfit._jsonio import read_json
+
+    doc = read_json(text, source=str(path), error=errors.MeshFileError)
+    if not isinstance(doc, dict):
+        raise errors.MeshFileError(f"{path}: the glTF JSON is not an object")
+    for kind in ("buffers", "images"):
+        items = doc.get(kind, [])
+        for i, item in enumerate(items if isinstance(items, list) else []):
+            uri = item.get("uri") if isinstance(item, dict) else None
+            if not isinstance(uri, str) or uri.startswith("data:"):
+                continue
+            parts = Path(uri).parts
+            if Path(uri).is_absolute() or ".." in parts or re.match(r"^[A-Za-z][\w+.-]*:", uri):
+                raise errors.MeshFileError(
+                    f"{path}: {kind}[{i}] refers to {uri[:80]!r}; a glTF may refer only "
+                    "to data URIs and files in its own folder"
+                )
+
+
 def _to_single(loaded, path: Path, notes: list[str]):
     import trimesh
 
@@ -667,6 +717,10 @@ def read_mesh_arrays(path: str | os.PathLike) -> RawMesh:
         empty = _stl_check(p)
         if empty is not None:
             return empty
+    if suffix == ".glb":
+        _glb_check(p)
+    elif suffix == ".gltf":
+        _gltf_refs(p, p.read_bytes())
     notes: list[str] = []
     header = _ply_header(p) if suffix == ".ply" else None
     polys = 0
@@ -836,7 +890,11 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike) -> Path:
             f"{p}: unsupported format {suffix!r}; use one of {', '.join(FORMATS)}"
         )
     tm = trimesh.Trimesh(mesh.vertices, mesh.faces, vertex_colors=mesh.vertex_colors, process=False)
-    data = tm.export(file_type=suffix[1:])
+    # a glTF carries its buffer inside, as a data URI: one file, as with every format
+    extra = {"embed_buffers": True} if suffix == ".gltf" else {}
+    data = tm.export(file_type=suffix[1:], **extra)
+    if isinstance(data, dict):  # (trimesh names the glTF's one file "model.gltf")
+        (data,) = data.values()
     return write_bytes(p, data if isinstance(data, bytes) else data.encode())
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import time
 from collections.abc import Callable
@@ -83,8 +84,27 @@ def fit(
     """
     options = options or FitOptions()
     folder = None if out is None else Path(out)
-    if folder is not None:
-        folder.mkdir(parents=True, exist_ok=True)
+    made = _made_folders(folder)
+    try:
+        return _fit(mesh, layout, options, folder, resume, progress, patch_map)
+    except BaseException:
+        for d in made:  # a refused or failed run leaves no empty folders of its own
+            with contextlib.suppress(OSError):
+                d.rmdir()  # (only an empty one goes)
+        raise
+
+
+def _made_folders(folder: Path | None) -> list[Path]:
+    """Create ``folder`` and its stage cache; return the folders this call created,
+    innermost first."""
+    if folder is None:
+        return []
+    todo = [p for p in (folder / CACHE, folder, *folder.parents) if not p.exists()]
+    (folder / CACHE).mkdir(parents=True, exist_ok=True)
+    return todo
+
+
+def _fit(mesh, layout, options: FitOptions, folder: Path | None, resume: bool, progress, patch_map):
     t_all = time.perf_counter()
     ctx = Context(options, n_workers(options.workers), progress)
     ctx["input"] = mesh
