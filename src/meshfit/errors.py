@@ -74,6 +74,10 @@ class NonFiniteError(MeshValidationError):
     kind = "non_finite"
 
 
+class CoordinateRangeError(MeshValidationError):
+    kind = "coordinate_range"
+
+
 class IndexRangeError(MeshValidationError):
     kind = "index_range"
 

@@ -18,6 +18,9 @@ BARY_EPS = 1e-12
 WALK_EPS = 1e-12
 #: a face whose area is below this, times bbox_diagonal**2, is degenerate
 DEGENERATE_AREA = 1e-14
+#: largest coordinate magnitude a mesh may have (absolute, not relative): squared cross
+#: products of its edges (fourth powers of lengths) stay finite in float64 (1e308)
+MAX_COORDINATE = 1e75
 #: a point this close to the surface, times bbox_diagonal, is on it
 ON_SURFACE = 1e-9
 #: attraction stops when a step is shorter than this, times the mean edge length

@@ -29,6 +29,7 @@ SQUARE_F = np.array([[0, 1, 2], [0, 2, 3]])
 KINDS = {
     "empty",
     "non_finite",
+    "coordinate_range",
     "index_range",
     "non_manifold_edge",
     "non_manifold_vertex",
@@ -160,6 +161,19 @@ def test_infinite_coordinates_give_no_numpy_warning():
     v = np.vstack([SQUARE_V, [[np.inf, -np.inf, 1]]])
     f = np.vstack([SQUARE_F, [[1, 0, 4]]])
     assert kinds(find_problems(v, f)) == ["non_finite"]
+
+
+@pytest.mark.parametrize("big", [1e76, -1e200, 1e308])
+def test_coordinates_whose_distances_overflow_are_refused_without_a_warning(big):
+    v = np.vstack([SQUARE_V, [[0, big, 1]]])
+    f = np.vstack([SQUARE_F, [[1, 0, 4]]])
+    (found,) = find_problems(v, f)
+    assert (found.kind, found.first, found.repairable) == ("coordinate_range", (4,), False)
+    with pytest.raises(errors.CoordinateRangeError, match=r"vertex 4 .*scale the mesh down"):
+        Mesh.from_arrays(v, f, repair=True)
+    # the bound's edge: a mesh just inside it is valid, and its squared distances finite
+    inside = np.vstack([SQUARE_V * 1e75, [[0, 1e75, 1]]])
+    assert find_problems(inside, f) == []
 
 
 def test_duplicate_faces_same_and_opposite_winding():

@@ -80,6 +80,7 @@ _ERRORS: dict[str, type[errors.MeshValidationError]] = {
     for c in (
         errors.EmptyMeshError,
         errors.NonFiniteError,
+        errors.CoordinateRangeError,
         errors.IndexRangeError,
         errors.DegenerateFaceError,
         errors.DuplicateFaceError,
@@ -187,7 +188,7 @@ def clean_edge_table(
         return None
     v = np.ascontiguousarray(vertices, dtype=np.float64)
     f = np.ascontiguousarray(faces, dtype=np.int64)
-    if not _kt.simple_ok(v, f):
+    if not _kt.simple_ok(v, f) or np.abs(v).max() > tol.MAX_COORDINATE:
         return None
     diag = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
     floor = _area2_limit(diag) * (1.0 + _AREA_MARGIN)
@@ -208,8 +209,9 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
     Returns
     -------
     list of Finding
-        In a fixed order, most serious first: empty, non-finite, index range, non-manifold
-        edges, non-manifold vertices, degenerate, duplicate, unreferenced, orientation.
+        In a fixed order, most serious first: empty, non-finite, coordinate range, index
+        range, non-manifold edges, non-manifold vertices, degenerate, duplicate,
+        unreferenced, orientation.
         Topological checks are skipped while indices are out of range.
     """
     out: list[Finding] = []
@@ -230,6 +232,22 @@ def find_problems(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> li
                 True,
             )
         )
+    with np.errstate(invalid="ignore"):
+        huge = ~bad_v & (np.abs(vertices).max(axis=1) > tol.MAX_COORDINATE)
+    if huge.any():
+        idx = np.flatnonzero(huge)
+        out.append(
+            Finding(
+                "coordinate_range",
+                f"{plural(idx.size, 'vertex')} with coordinates beyond +-{tol.MAX_COORDINATE:g}"
+                f" (first: vertex {idx[0]} = {vertices[idx[0]].tolist()}): distances between "
+                "them overflow; scale the mesh down",
+                (int(idx[0]),),
+                int(idx.size),
+                False,
+            )
+        )
+        return out
     bad_f = ((faces < 0) | (faces >= nv)).any(axis=1)
     if bad_f.any():
         idx = np.flatnonzero(bad_f)
@@ -660,7 +678,7 @@ def repair_arrays(
     """
     findings = find_problems(vertices, faces)
     fatal = [f for f in findings if not f.repairable]
-    if fatal and fatal[0].kind in ("empty", "index_range"):
+    if fatal and fatal[0].kind in ("empty", "coordinate_range", "index_range"):
         raise_first(fatal)
     nf = faces.shape[0]
     if not findings and not _inside_out(vertices, faces).any():

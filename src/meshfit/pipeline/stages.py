@@ -120,7 +120,8 @@ class Layout(Stage):
             )
         path = Path(self.layout)
         if not path.is_file():
-            raise LayoutError(f"{path}: no such layout file")
+            what = "not a file" if path.exists() else "no such layout file"
+            raise LayoutError(f"{path}: {what}")
         digest = hashlib.sha256(path.read_bytes()).hexdigest()
         return digest, lambda: load_layout(path, mesh)
 
