@@ -15,7 +15,7 @@ from meshfit.errors import InputError, LayoutError, MeshfitError
 from meshfit.layout import layout_from_json, layout_to_json
 from meshfit.layout.cube import cube_layout
 
-from .fuzz import damaged
+from .fuzz import damaged, peak_within
 from .shapes import icosphere
 
 
@@ -82,7 +82,15 @@ def test_mutated_layout_files_raise_only_meshfit_errors(layout_text, data):
     """Random byte edits, cuts and splices of a valid layout file: it parses or raises a
     MeshfitError, nothing else."""
     raw = damaged(data, layout_text.encode(), edits=8, span=64)
-    try:
+    with peak_within(len(raw)):
+        try:
+            layout_from_json(raw.decode("utf-8", "replace"))
+        except MeshfitError:
+            pass
+
+
+@settings(max_examples=100, deadline=None)
+@given(raw=st.binary(max_size=4096))
+def test_random_bytes_as_a_layout_file_raise_only_meshfit_errors(raw):
+    with peak_within(len(raw)), pytest.raises(MeshfitError):
         layout_from_json(raw.decode("utf-8", "replace"))
-    except MeshfitError:
-        pass

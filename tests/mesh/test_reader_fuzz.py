@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import os
 import struct
-import tracemalloc
 import warnings
 
 import pytest
@@ -17,34 +16,23 @@ from hypothesis import strategies as st
 from meshfit.errors import MeshfitError
 from meshfit.mesh import load_mesh, save_mesh
 
-from ..fuzz import damaged
+from ..fuzz import damaged, peak_within
 from ..shapes import icosphere
 
 FORMATS = (".ply", ".obj", ".off", ".stl", ".glb", ".gltf")
 #: mutations of each format's file (a fixed-seed run: the same ones every time)
 EXAMPLES = int(os.environ.get("MESHFIT_FUZZ_EXAMPLES", "400"))
-#: the most a reader may allocate for a file of n bytes: what its arrays and trimesh's
-#: parse of them take, never what a header claims
-BUDGET_FIXED = 4 * 2**20
-BUDGET_PER_BYTE = 200
 
 
 def _read_within_budget(path) -> None:
     """Read ``path`` as the command line does; only a meshfit error may come out, and the
     traced peak stays within the budget for its size."""
-    budget = BUDGET_FIXED + BUDGET_PER_BYTE * path.stat().st_size
-    tracemalloc.start()
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # (a reader may warn; what is asked is no crash)
-            try:
-                load_mesh(path, repair=True)
-            except MeshfitError:
-                pass
-        peak = tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
-    assert peak <= budget, f"{path.name}: {peak} bytes allocated, {budget} allowed"
+    with peak_within(path.stat().st_size), warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # (a reader may warn; what is asked is no crash)
+        try:
+            load_mesh(path, repair=True)
+        except MeshfitError:
+            pass
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,6 @@
-import contextlib
+"""Progressive streams: any subset of packets in any order decodes, and a damaged or hostile
+file (flipped bits, random bytes, headers claiming more than it holds) is one StreamError
+within an allocation budget."""
 
 import numpy as np
 import pytest
@@ -20,7 +22,7 @@ from meshfit.shrinkwrap import (
 from meshfit.shrinkwrap.subdivision import level_sizes
 
 from ..conftest import real_mesh
-from ..fuzz import damaged
+from ..fuzz import damaged, peak_within
 from .conftest import wrap
 
 LEVELS = 4
@@ -189,21 +191,6 @@ def test_every_flipped_bit_is_found():
             Stream.from_bytes(bytes(bad))
 
 
-@contextlib.contextmanager
-def _peak_below(budget: int):
-    """Assert that the block's peak traced allocation (numpy's included) stays below
-    ``budget`` bytes."""
-    import tracemalloc
-
-    tracemalloc.start()
-    try:
-        yield
-        peak = tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
-    assert peak < budget, f"peak {peak:,} bytes, budget {budget:,}"
-
-
 def test_hostile_headers_and_bases_are_refused_before_any_work():
     import struct
 
@@ -213,7 +200,7 @@ def test_hostile_headers_and_bases_are_refused_before_any_work():
     many = bytearray(data)
     struct.pack_into("<H", many, 8, 13)
     _with_crc(many, 0, 32)
-    with _peak_below(1 << 20):  # refused from the header: nothing is allocated for it
+    with peak_within(0, fixed=1 << 20):  # refused from the header: nothing is allocated for it
         with pytest.raises(errors.StreamError, match="at most 8,000,000 are decoded"):
             Stream.from_bytes(bytes(many))
     # zeroed base faces (checksums made to match): a clear error, not a traceback
@@ -246,8 +233,15 @@ def test_version_1_streams_are_still_read():
 def test_damaged_streams_raise_only_stream_errors(data):
     raw = damaged(data, _STREAMS["loop"].to_bytes())
     # (whatever the damage, reading takes little more than the file itself)
-    with _peak_below(64 * len(raw) + (1 << 20)):
+    with peak_within(len(raw), per_byte=64):
         try:
             Stream.from_bytes(raw)
         except errors.StreamError:
             pass
+
+
+@settings(max_examples=100, deadline=None)
+@given(raw=st.binary(max_size=4096))
+def test_random_bytes_raise_only_stream_errors(raw):
+    with peak_within(len(raw), per_byte=64), pytest.raises(errors.StreamError):
+        Stream.from_bytes(raw)

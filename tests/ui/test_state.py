@@ -18,6 +18,7 @@ from meshfit.types import SurfacePoints
 from meshfit.ui.picking import pick_point
 from meshfit.ui.state import SESSION_VERSION, Session, _sp_from_json
 from tests.conftest import analytic_mesh, real_mesh
+from tests.fuzz import peak_within
 from tests.ui.helpers import SPOT_LAYOUT, click_ray, paint_quad, side_picks
 
 
@@ -536,9 +537,26 @@ def test_damaged_session_files_raise_only_input_errors(painted, spot, tmp_path):
     @given(data=st.data())
     def run(data):
         bad.write_text(json.dumps(_mutations(doc, data.draw)))
-        try:
+        with peak_within(bad.stat().st_size):
+            try:
+                Session(spot).restore(bad)
+            except InputError:
+                pass
+
+    run()
+
+
+def test_random_bytes_as_a_session_file_raise_only_input_errors(spot, tmp_path):
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    bad = tmp_path / "bad.json"
+
+    @settings(max_examples=100, deadline=None)
+    @given(raw=st.binary(max_size=4096))
+    def run(raw):
+        bad.write_bytes(raw)
+        with peak_within(len(raw)), pytest.raises(InputError):
             Session(spot).restore(bad)
-        except InputError:
-            pass
 
     run()
