@@ -284,6 +284,31 @@ def test_matched_map_shapes(spot_fit, tmp_path):
     assert fine < coarse
 
 
+def test_matched_shapes_beyond_the_texel_budget_fall_back_to_native(
+    spot_fit, tmp_path, monkeypatch
+):
+    """Where equal counts along shared curves would multiply the texels past the budget,
+    the maps keep their grids' shapes, the run says so, and everything after the maps
+    (stitch, summary, a resumed run, a rebuild) follows that choice."""
+    from meshfit.pipeline import stages
+
+    mesh, out, native = spot_fit
+    grid = [tuple(p["shape"]) for p in native["patches"]]
+    copy = tmp_path / "budget"
+    shutil.copytree(out, copy)
+    opts = dataclasses.replace(OPTIONS, map_shapes="matched")
+    monkeypatch.setattr(stages, "MATCH_BUDGET", 1)  # (matching always adds texels here)
+    runs = [run_fit(mesh, copy, layout=LAYOUT, options=opts, resume=True) for _ in range(2)]
+    for s in runs:
+        assert [tuple(p["map_shape"]) for p in s["patches"]] == grid
+        assert s["options"]["map_shapes"] == "native"
+        assert any("maps kept at their spring grids' resolutions" in n for n in s["notes"])
+        assert s["seams"]["displaced_gap_max"] <= tol.STITCH_GAP
+    assert runs[1]["stages"]["displacement"]["cached"]  # resumed: the same choice
+    rebuilt = load_fit(copy).rebuild()
+    assert [p.displacement.values.shape[:2] for p in rebuilt.patches] == grid
+
+
 def test_control_classes_and_chosen_counts(spot_fit, tmp_path):
     mesh, out, first = spot_fit
     classes = first["control_classes"]

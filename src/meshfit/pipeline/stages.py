@@ -442,13 +442,10 @@ class Displacement(Stage):
 
     def run(self, ctx: Context) -> None:
         from meshfit.displacement import displacement_map, refine_on_scan
-        from meshfit.stitch import texel_shapes
 
+        shapes = _settle_map_shapes(ctx)
         self._early(ctx)
         surfaces, grids, kind = ctx["surfaces"], ctx["grids"], ctx.options.maps.kind
-        shapes = [g.shape[:2] for g in grids]
-        if ctx.options.maps.shapes == "matched":
-            shapes = texel_shapes(ctx["network"], shapes)
         mesh = ctx["mesh"]
 
         def one(p: int):
@@ -476,8 +473,43 @@ class Displacement(Stage):
         save_npz(path, {f"map_{p}": d.values for p, d in enumerate(ctx["maps"])})
 
     def load(self, ctx: Context, path: Path) -> bool:
+        _settle_map_shapes(ctx)  # (the same choice as when the maps were made)
         ctx["maps"] = _load_maps(path, ctx["layout"].n_patches, ctx.options.maps.kind)
         return True
+
+
+#: matched map shapes may take at most this many times the spring grids' texels: a class
+#: takes its largest member's count, so where rows of patches differ much in length (thin
+#: strips beside wide patches) matching multiplies texels, and the memory of every later
+#: stage, for no detail the scan has
+MATCH_BUDGET = 8
+
+
+def _settle_map_shapes(ctx: Context) -> list[tuple[int, int]]:
+    """The maps' shapes: matched (equal counts along shared curves) when asked and within
+    `MATCH_BUDGET`; otherwise the spring grids' own, with a note, and the run's options say
+    ``map_shapes="native"`` from here on (the stitch, the summary and a rebuild follow)."""
+    from dataclasses import replace
+
+    from meshfit.stitch import texel_shapes
+
+    native = [tuple(g.shape[:2]) for g in ctx["grids"]]
+    if ctx.options.maps.shapes != "matched":
+        return native
+    matched = texel_shapes(ctx["network"], native)
+    a = sum(h * w for h, w in native)
+    b = sum(h * w for h, w in matched)
+    if b <= MATCH_BUDGET * a:
+        return matched
+    ctx.notes.append(
+        f"maps kept at their spring grids' resolutions ({a:,} texels): equal texel counts "
+        f"along shared curves would take {b:,} ({b / a:.0f} times, {MATCH_BUDGET} allowed), "
+        "as rows of patches of very different lengths share one count; the exported "
+        "meshes meet at their seams, but a renderer tessellating the maps at another rate "
+        "may open them"
+    )
+    ctx.options = replace(ctx.options, map_shapes="native")
+    return native
 
 
 def _load_maps(path: Path, n: int, kind: str) -> list:
