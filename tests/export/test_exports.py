@@ -156,6 +156,28 @@ def test_objs_share_their_topology_text(network, tmp_path):
     assert [x for x in s if x.startswith("vt ")] != [x for x in s1 if x.startswith("vt ")]
 
 
+@pytest.mark.parametrize("rows", [1, 7])
+def test_objs_written_in_chunks_are_the_same_bytes(network, tmp_path, monkeypatch, rows):
+    """The files are written `ROWS` lines at a time, the second one's shared lines copied
+    from the first: any chunk size gives the same bytes."""
+    from meshfit.export import export_objs
+    from meshfit.export import mesh as obj
+
+    surfaces, disps, _ = network
+    shapes = [disps[0].shape, (5, 11), (6, 6)]
+    mats = ["m0.png", "m1.png", "m2.png"]
+
+    def write(folder):
+        folder.mkdir()
+        outs = {folder / "d.obj": disps, folder / "s.obj": None}
+        return [p.read_bytes() for p in export_objs(outs, surfaces, shape=shapes, materials=mats)]
+
+    whole = write(tmp_path / "whole")
+    monkeypatch.setattr(obj, "ROWS", rows)
+    assert write(tmp_path / "chunks") == whole
+    assert b"usemtl patch_0" in whole[1] and b"usemtl" not in whole[0]
+
+
 def test_gltf_round_trip(network, tmp_path):
     surfaces, disps, _ = network
     path = export_gltf(tmp_path / "net.glb", surfaces, displacements=disps, shape=(12, 10))

@@ -14,6 +14,7 @@ from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 from meshfit.bspline import BSplineSurface
 from meshfit.displacement import DisplacementMap
@@ -54,22 +55,84 @@ def _patch_ranges(pm: PatchMesh) -> np.ndarray:
     return np.searchsorted(pm.face_patch, np.arange(pm.n_patches + 1))
 
 
-def _uv_lines(UV) -> list[str]:
+#: rows formatted and written at a time: an OBJ of millions of vertices is never held as
+#: text (its lines as Python strings took several times the file's size)
+ROWS = 1 << 16
+
+
+def _write_rows(fh, fmt: str, cols: NDArray) -> None:
+    """``fmt.format(*row)`` for each row of ``cols (k, m)``, one line each, `ROWS` at a
+    time (Python floats and ints format faster than numpy scalars: the same text)."""
+    for a in range(0, len(cols), ROWS):
+        chunk = cols[a : a + ROWS].T.tolist()
+        fh.write("".join(map((fmt + "\n").format, *chunk)))
+
+
+def _write_uv(fh, UV: NDArray) -> None:
     """``vt`` lines of ``UV (k, 2)``: each distinct coordinate formatted once (a grid has
     few), the same text as formatting every pair."""
     u, iu = np.unique(UV[:, 0], return_inverse=True)
     v, iv = np.unique(UV[:, 1], return_inverse=True)
-    su = [f"vt {x:.17g} " for x in u.tolist()]
-    sv = [f"{x:.17g}" for x in v.tolist()]
-    return [su[i] + sv[j] for i, j in zip(iu.ravel().tolist(), iv.ravel().tolist(), strict=True)]
+    su = np.array([f"vt {x:.17g} " for x in u.tolist()], dtype=object)
+    sv = np.array([f"{x:.17g}\n" for x in v.tolist()], dtype=object)
+    iu, iv = iu.ravel(), iv.ravel()
+    for a in range(0, len(iu), ROWS):
+        fh.write("".join(su[iu[a : a + ROWS]] + sv[iv[a : a + ROWS]]))
 
 
-def _face_lines(pm: PatchMesh) -> list[list[str]]:
-    """``f v/vt/vn`` lines (1-based) of each patch."""
-    cols = np.hstack([pm.faces + 1, pm.face_uv + 1]).T.tolist()
-    lines = list(map("f {0}/{3}/{0} {1}/{4}/{1} {2}/{5}/{2}".format, *cols))
-    r = _patch_ranges(pm).tolist()
-    return [lines[a:b] for a, b in pairwise(r)]
+def _write_obj(fh, pm: PatchMesh, names: list[str], mtl: str | None, shared) -> dict:
+    """The text of one OBJ file into ``fh``; returns the byte ranges of its ``vt`` lines and
+    of each patch's face lines. ``shared`` (the ranges and path of a file already written
+    with the same texture coordinates and faces) is copied from there, not formatted
+    again."""
+    fh.write("# meshfit: welded tessellation of B-spline patches; vt = UDIM coordinates\n")
+    if mtl is not None:
+        fh.write(f"mtllib {mtl}\n")
+    _write_rows(fh, "v {:.17g} {:.17g} {:.17g}", pm.vertices)
+    src = None if shared is None else open(shared["path"], "rb")
+    try:
+        ranges: dict = {"faces": []}
+        fh.flush()
+        a = fh.buffer.tell()
+        if src:
+            _copy(src, shared["vt"], fh)
+        else:
+            _write_uv(fh, pm.uv)
+        fh.flush()
+        ranges["vt"] = (a, fh.buffer.tell())
+        _write_rows(fh, "vn {:.9g} {:.9g} {:.9g}", pm.normals)
+        cols = np.hstack([pm.faces + 1, pm.face_uv + 1])
+        r = _patch_ranges(pm).tolist()
+        for p, (name, (f0, f1)) in enumerate(zip(names, pairwise(r), strict=True)):
+            fh.write(f"g {name}\n")
+            if mtl is not None:
+                fh.write(f"usemtl {name}\n")
+            fh.flush()
+            a = fh.buffer.tell()
+            if src:
+                _copy(src, shared["faces"][p], fh)
+            else:
+                _write_rows(fh, "f {0}/{3}/{0} {1}/{4}/{1} {2}/{5}/{2}", cols[f0:f1])
+            fh.flush()
+            ranges["faces"].append((a, fh.buffer.tell()))
+    finally:
+        if src:
+            src.close()
+    return ranges
+
+
+def _copy(src, span: tuple[int, int], fh) -> None:
+    """Bytes ``[a, b)`` of the open binary file ``src`` into the text file ``fh``."""
+    fh.flush()
+    a, b = span
+    src.seek(a)
+    while a < b:
+        block = src.read(min(b - a, 1 << 22))
+        if not block:
+            raise OSError(f"{src.name} is shorter than it was written")
+        fh.buffer.write(block)
+        a += len(block)
+    fh.buffer.flush()
 
 
 def _as_materials(materials: Sequence[str] | None, n: int) -> list[str] | None:
@@ -196,46 +259,33 @@ def export_objs(
     names_ = as_names(names, len(surfaces))
     mats = _as_materials(materials, len(surfaces))
     meshes = _patch_meshes(list(outputs.values()), surfaces, shape, network, scale)
-    texts: list[tuple[PatchMesh, list[str], list[list[str]]]] = []
+    written: list[tuple[PatchMesh, dict]] = []  # (mesh, ranges and path) of each file
     out = []
     for (path, displacements), pm in zip(outputs.items(), meshes, strict=True):
         shared = next(
             (
-                t
-                for t in texts
-                if np.array_equal(t[0].faces, pm.faces)
-                and np.array_equal(t[0].face_uv, pm.face_uv)
-                and np.array_equal(t[0].uv, pm.uv)
+                w
+                for m, w in written
+                if np.array_equal(m.faces, pm.faces)
+                and np.array_equal(m.face_uv, pm.face_uv)
+                and np.array_equal(m.uv, pm.uv)
             ),
             None,
         )
-        if shared is None:
-            shared = (pm, _uv_lines(pm.uv), _face_lines(pm))
-            texts.append(shared)
-        _, vt, faces = shared
         path = Path(path)
-        lines = ["# meshfit: welded tessellation of B-spline patches; vt = UDIM coordinates"]
         # the maps complete a spline-only file; a displaced file holds the detail already
-        with_mtl = mats is not None and displacements is None
-        if with_mtl:
-            mtl = path.with_suffix(".mtl")
-            _write_mtl(mtl, names_, mats)
-            lines.append(f"mtllib {mtl.name}")
-        # Python floats format faster than numpy scalars (the same text)
-        lines.extend(map("v {:.17g} {:.17g} {:.17g}".format, *pm.vertices.T.tolist()))
-        lines.extend(vt)
-        lines.extend(map("vn {:.9g} {:.9g} {:.9g}".format, *pm.normals.T.tolist()))
-        for name, patch_faces in zip(names_, faces, strict=True):
-            lines.append(f"g {name}")
-            if with_mtl:
-                lines.append(f"usemtl {name}")
-            lines.extend(patch_faces)
+        mtl = None
+        if mats is not None and displacements is None:
+            mtl = path.with_suffix(".mtl").name
+            _write_mtl(path.with_suffix(".mtl"), names_, mats)
+        ranges: dict = {}
 
-        def write(tmp: str, lines=lines) -> None:
+        def write(tmp: str, pm=pm, mtl=mtl, shared=shared, ranges=ranges) -> None:
             with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
-                fh.write("\n".join(lines) + "\n")
+                ranges.update(_write_obj(fh, pm, names_, mtl, shared))
 
         out.append(atomic_write(path, write))
+        written.append((pm, {**ranges, "path": path}))
     return out
 
 
