@@ -118,6 +118,19 @@ def box_with_holes(holes: int = 3, *, segments: int = 24) -> Mesh:
     return _from_manifold(slab.refine_to_length(0.06), f"slab{holes}")
 
 
+def cad_part(split: int = 2) -> Mesh:
+    """A genus-2 machined part as a CAD program tessellates it: a block with two round
+    through holes and a round boss, the boolean's own triangles (fans of needles across the
+    flat faces, strips along the cylinders) with every edge split into ``split`` pieces."""
+    import manifold3d as m3
+
+    block = m3.Manifold.cube([4.0, 2.0, 1.0], center=True)
+    block -= m3.Manifold.cylinder(3.0, 0.4, 0.4, 48, center=True).translate([-1.0, 0, 0])
+    block -= m3.Manifold.cylinder(3.0, 0.3, 0.3, 48, center=True).translate([1.2, 0, 0])
+    block += m3.Manifold.cylinder(0.8, 0.5, 0.5, 48).translate([0.2, 0, 0.5])
+    return _from_manifold(block.refine(split) if split > 1 else block, "cad_part")
+
+
 def cube(*, rounded: float = 0.0, n: int = 12) -> Mesh:
     """Closed cube of side 2, ``n`` x ``n`` quads a face (each split in two); with
     ``rounded`` > 0 its edges and corners are rounded with that radius (the points pushed
