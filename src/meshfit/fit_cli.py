@@ -62,6 +62,7 @@ def _options(args: argparse.Namespace):
         layout_seed=args.layout_seed,
         crease_angle=None if args.crease_angle == 0 else args.crease_angle,
         drop_components_below=args.drop_components,
+        remesh=args.remesh,
         spring_level=args.level,
         spring_rescue=not args.no_rescue,
         spring_follow_folds=args.follow_folds,
@@ -231,6 +232,14 @@ def _common(p: argparse.ArgumentParser) -> None:
         metavar="SHARE",
         help="drop the mesh's components below this share of its area, e.g. 0.01 "
         "(default: none; the summary names those below 1%% either way)",
+    )
+    p.add_argument(
+        "--remesh",
+        choices=("auto", "on", "off"),
+        default="auto",
+        help="fit an even remesh of the input with the automatic layout: auto where needle "
+        "triangles cover over a tenth of its area, as a CAD program tessellates (default: "
+        "%(default)s)",
     )
     p.add_argument(
         "--crease-angle",

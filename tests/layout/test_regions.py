@@ -8,7 +8,7 @@ from functools import cache
 import numpy as np
 import pytest
 
-from meshfit.errors import InputError, LayoutError
+from meshfit.errors import InputError
 from meshfit.layout import extract_patches
 from meshfit.layout.auto import auto_layout
 from meshfit.layout.regions import crease_corners, crease_edges, region_layout
@@ -80,11 +80,10 @@ KNOWN_FOLDS = {
 
 
 KNOWN_FOLDS["cad_part"] = (
-    "26 folded spring cells in 13 patches: the part's own CAD triangles are needles (a "
-    "longest edge over 8 times its height on 40-90% of a CAD part's area, at most 3% on "
-    "every scan and other test shape here), and the cells grown over them have corners of "
-    "1 to 20 degrees on flat faces (a 152K-face version: 99 folds; remeshed into even "
-    "triangles, 1; its edges split shorter, still needles, 1,258)"
+    "7 folded spring cells in 3 patches, on the even remesh the fit makes of this CAD "
+    "tessellation (its needle triangles gave 26 in 13 patches; a 152K-face version 99 folds, "
+    "1 after an even remesh, and 1,258 with its edges split shorter, still needles): one "
+    "patch turns back 180 degrees at a corner beside a hole's rim"
 )
 
 
@@ -103,7 +102,8 @@ def test_every_kind_of_mesh_fits_within_the_bounds(name, tmp_path_factory):
     s = _fit(name, str(tmp_path_factory.mktemp(name)))
     d = s["errors"]["displaced"]
     assert d["rms"] <= DISPLACED_RMS
-    assert d["hausdorff"] <= DISPLACED_HAUSDORFF
+    # against the input: through the even remesh where the fit worked on one
+    assert d["hausdorff"] + s["mesh"].get("remeshed", {}).get("distance", 0) <= DISPLACED_HAUSDORFF
     assert s["seams"]["spline_normal_jump_inner_max_deg"] <= SMOOTH_SEAM_DEG
     # the summary says which route laid it out
     assert s["layout"]["route"] in ("sphere", "regions", "sphere -> regions")
@@ -375,15 +375,3 @@ def test_the_chord_search_has_a_budget():
     memo: dict = {}
     assert R._chord_search(flags, memo, [R.CHORD_SEARCH]) is not None
     assert len(memo) <= R.CHORD_SEARCH + n
-
-
-@pytest.mark.xfail(
-    strict=True,
-    raises=LayoutError,
-    reason="a CAD program's own tessellation of a genus-2 part (596 faces, fans of needles) "
-    "is refused: the cells cannot all be made disks within the 37 patches its faces allow",
-)
-def test_a_cad_programs_own_tessellation_is_laid_out():
-    from meshfit.layout.auto import LayoutOptions
-
-    assert auto_layout(shapes.cad_part(split=1), LayoutOptions()).n_patches > 0

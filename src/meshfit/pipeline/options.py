@@ -78,6 +78,13 @@ class FitOptions:
     drop_components_below : float
         Drop the mesh's components below this share of its area before the layout
         (default 0: none; the notes name those below 1% either way).
+    remesh : {"auto", "on", "off"}
+        Fit an even remesh of the input (:func:`meshfit.layout.even.even_remesh`: its
+        creases kept, every vertex on the input) with the automatic layout: ``"auto"``
+        (default) where needle triangles cover more than a tenth of its area (a CAD
+        program's tessellation, whose cells fold; the notes say so and how far the remesh
+        is from the input), ``"on"`` always, ``"off"`` never. A layout file is always laid
+        on the input as it is.
     crease_angle : float, optional
         ``crease_angle`` of :func:`meshfit.layout.auto.auto_layout`: chains of edges
         sharper than this many degrees become patch boundaries, C0 with continuity
@@ -147,6 +154,7 @@ class FitOptions:
     layout_seed: int = 0
     crease_angle: float | None = 40.0
     drop_components_below: float = 0.0
+    remesh: str = "auto"
     spring_level: int | None = None
     spring_max_points: int | None = None
     spring_rescue: bool = True
@@ -212,6 +220,10 @@ class FitOptions:
                 f"{self.drop_components_below!r}"
             )
         object.__setattr__(self, "drop_components_below", float(self.drop_components_below))
+        remesh = str(self.remesh).lower()
+        if remesh not in ("auto", "on", "off"):
+            raise InputError(f"remesh must be 'auto', 'on' or 'off', got {self.remesh!r}")
+        object.__setattr__(self, "remesh", remesh)
         if self.crease_angle is not None:
             a = float(self.crease_angle)
             if not 0.0 < a < 180.0:

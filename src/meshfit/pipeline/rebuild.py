@@ -19,6 +19,14 @@ if TYPE_CHECKING:
     from meshfit.pipeline.result import FitResult
 
 
+def _remeshed(mesh: Mesh, result: FitResult) -> Mesh:
+    """The even remesh the fit worked on, made again from its input (the same mesh for the
+    same input and crease angle)."""
+    from meshfit.layout.even import even_remesh
+
+    return even_remesh(mesh, result.options.crease_angle).mesh
+
+
 def rebuild(result: FitResult, mesh: Mesh | None) -> FitResult:
     """``result`` with its maps' seams closed again and its seams and errors measured again
     (errors only where ``mesh``, the input, is given); see :meth:`FitResult.rebuild`."""
@@ -40,6 +48,8 @@ def rebuild(result: FitResult, mesh: Mesh | None) -> FitResult:
         row["displacement_max"] = float(np.abs(m.values).max() / diag)
         patches.append(replace(p, displacement=m, errors=row))
     if mesh is not None:
+        if mesh_hash(mesh) != summary["mesh"]["sha256"] and "remeshed" in summary["mesh"]:
+            mesh = _remeshed(mesh, result)
         if mesh_hash(mesh) != summary["mesh"]["sha256"]:
             raise InputError("rebuild: the mesh given is not the fit's input (its hash differs)")
         Vd, Fd = measure.soup(displaced)

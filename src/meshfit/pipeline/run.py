@@ -116,7 +116,8 @@ def _fit(mesh, layout, options: FitOptions, folder: Path | None, resume: bool, p
             name = getattr(mesh, "name", None)
         refuse_foreign(folder, planned_files(output_stem(name), options.formats))
     runner = Runner(None if folder is None else folder / CACHE, resume)
-    runner.run([Validate()], ctx)
+    automatic = layout is None or (isinstance(layout, str) and layout == "auto")
+    runner.run([Validate(automatic)], ctx)
     runner.run(fit_stages(layout, patch_map, folder), ctx)
     ctx.info = {k: ctx.info[k] for k in STAGES if k in ctx.info}  # the stage order
     summary = _summary(ctx)
@@ -168,6 +169,7 @@ def _summary(ctx: Context) -> dict[str, Any]:
             "faces": int(mesh.n_faces),
             "bbox_diagonal": diag,
             "sha256": ctx["mesh_hash"],
+            **({"remeshed": ctx["remesh"]} if "remesh" in ctx else {}),
         },
         "options": asdict(ctx.options),
         "layout": {"source": ctx["layout_source"], **ctx["layout_report"]},

@@ -60,6 +60,9 @@ class Validate(Stage):
     outputs = ("mesh", "diag", "mesh_hash")
     suffix = None
 
+    def __init__(self, automatic: bool = True) -> None:
+        self.automatic = automatic  # the layout is the automatic one (an even remesh may do)
+
     def key(self, ctx: Context) -> str:
         return ""
 
@@ -76,11 +79,39 @@ class Validate(Stage):
         if mesh.repairs is not None and mesh.repairs.changed():
             ctx.notes.append(f"the input was {mesh.repairs.summary()}")
         mesh = small_components(mesh, ctx.options.drop_components_below, ctx.notes)
+        if self.automatic:
+            mesh = _even(ctx, mesh)
         ctx["mesh"] = mesh
         ctx["diag"] = float(mesh.bbox_diagonal)
         pool = ThreadPoolExecutor(max_workers=1)  # hashlib releases the GIL
         ctx["mesh_hash"] = pool.submit(mesh_hash, mesh)
         pool.shutdown(wait=False)
+
+
+def _even(ctx: Context, mesh: Mesh) -> Mesh:
+    """The mesh the fit works on: with ``remesh`` "on", or "auto" and needles over
+    `NEEDLE_SHARE` of the area, its even remesh (the notes say so); else ``mesh``."""
+    from meshfit.errors import MeshfitError
+    from meshfit.layout.even import NEEDLE_SHARE, even_remesh, needle_share
+
+    o = ctx.options
+    if o.remesh == "off":
+        return mesh
+    share = needle_share(mesh)
+    if o.remesh == "auto" and share <= NEEDLE_SHARE:
+        return mesh
+    try:
+        even = even_remesh(mesh, o.crease_angle)
+    except MeshfitError as exc:
+        ctx.notes.append(f"the input could not be remeshed evenly ({exc}): fitted as it is")
+        return mesh
+    ctx["remesh"] = even.to_dict()
+    ctx.notes.append(
+        f"{share:.0%} of the input's area is in needle triangles (as a CAD program "
+        f"tessellates): fitted to an even remesh of it ({even.mesh.n_faces:,} faces, within "
+        f"{even.distance:.3%} of the diagonal of the input; remesh off fits the input as it is)"
+    )
+    return even.mesh
 
 
 class Layout(Stage):

@@ -1,0 +1,121 @@
+"""The even remesh of needle-triangle inputs: who gets it, what it keeps (topology, creases,
+boundary, the surface within a small distance) and how the fit uses it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from meshfit.errors import InputError
+from meshfit.layout.even import NEEDLE_SHARE, even_remesh, needle_share
+from meshfit.layout.regions import crease_edges
+from meshfit.pipeline import FitOptions, fit
+
+from .. import shapes
+from ..conftest import real_mesh
+
+#: largest distance between a remesh and its input allowed here, share of the diagonal: a
+#: fifth of the displaced Hausdorff bound (chords of the remesh across curved faces)
+REMESH_DISTANCE = 1e-3
+
+
+@pytest.fixture(scope="module")
+def raw_cad():
+    return shapes.cad_part(split=1)  # the boolean's own triangles: 596 faces
+
+
+@pytest.fixture(scope="module")
+def raw_even(raw_cad):
+    return even_remesh(raw_cad)
+
+
+def test_needle_share_tells_a_cad_tessellation_from_scans_and_even_meshes(raw_cad):
+    assert needle_share(raw_cad) > 3 * NEEDLE_SHARE
+    for mesh in (real_mesh("spot"), real_mesh("bunny"), shapes.icosphere(3), shapes.cube()):
+        assert needle_share(mesh) < NEEDLE_SHARE / 3
+
+
+def test_the_remesh_is_even_and_keeps_the_topology_and_the_surface(raw_cad, raw_even):
+    out = raw_even.mesh
+    assert needle_share(out) < NEEDLE_SHARE / 10
+    assert out.n_faces >= 20_000  # a few hundred CAD triangles are too few for a layout
+    assert (out.euler_characteristic, out.n_components) == (raw_cad.euler_characteristic, 1)
+    assert raw_even.distance <= REMESH_DISTANCE
+    # every vertex of the remesh is on the input (projected back), to rounding
+    d = raw_cad.closest_points(out.vertices).distance
+    assert d.max() <= raw_even.distance * raw_cad.bbox_diagonal + 1e-12
+
+
+def test_the_creases_stay_edges_of_the_remesh(raw_cad, raw_even):
+    """The remesh's crease edges lie on the input's crease lines, and cover them: the layout
+    finds the same creases on it."""
+    out = raw_even.mesh
+    mine, theirs = crease_edges(raw_cad), crease_edges(out)
+    a = raw_cad.vertices[raw_cad.edges[mine]]
+    b = out.vertices[out.edges[theirs]]
+    length = lambda e: float(np.linalg.norm(e[:, 1] - e[:, 0], axis=1).sum())  # noqa: E731
+    assert length(b) == pytest.approx(length(a), rel=1e-3)
+    # each remesh crease edge's mid-point is on an input crease line, within the remesh's
+    # distance (an edge may cut a corner of the input's polygon of a round crease)
+    mid = b.mean(axis=1)
+    p, q = a[:, 0], a[:, 1]
+    t = np.einsum("mij,ij->mi", mid[:, None] - p[None], q - p) / ((q - p) ** 2).sum(1)
+    foot = p[None] + np.clip(t, 0, 1)[..., None] * (q - p)[None]
+    near = np.linalg.norm(mid[:, None] - foot, axis=2).min(1)
+    assert near.max() <= raw_even.distance * raw_cad.bbox_diagonal
+
+
+def test_an_open_mesh_keeps_its_boundary():
+    disk = shapes.disk()
+    out = even_remesh(disk).mesh
+    assert len(out.boundary_loops) == len(disk.boundary_loops) == 1
+    assert out.euler_characteristic == disk.euler_characteristic
+
+
+def test_the_remesh_is_the_same_every_time(raw_cad, raw_even):
+    again = even_remesh(raw_cad)
+    assert np.array_equal(again.mesh.vertices, raw_even.mesh.vertices)
+    assert np.array_equal(again.mesh.faces, raw_even.mesh.faces)
+
+
+def test_a_cad_programs_own_tessellation_fits_through_the_remesh(raw_cad, tmp_path):
+    """It was refused ("could not make every cell a disk"); now the fit remeshes it, says so,
+    and the errors against the input stay within the bounds through the remesh's distance."""
+    from meshfit import load_fit
+
+    from .test_regions import DISPLACED_HAUSDORFF, DISPLACED_RMS
+
+    out = tmp_path / "fit"
+    result = fit(raw_cad, options=FitOptions(formats=(), report=False), out=out)
+    s = result.summary
+    remeshed = s["mesh"]["remeshed"]
+    assert s["mesh"]["faces"] == remeshed["faces"] >= 20_000
+    assert any("needle triangles" in n and "even remesh" in n for n in s["notes"])
+    d = s["errors"]["displaced"]
+    assert d["rms"] <= DISPLACED_RMS
+    assert d["hausdorff"] + remeshed["distance"] <= DISPLACED_HAUSDORFF
+    # a rebuild given the input makes the same remesh and measures against it
+    again = load_fit(out).rebuild(raw_cad)
+    assert again.summary["errors"]["displaced"]["hausdorff"] == pytest.approx(d["hausdorff"])
+
+
+@pytest.mark.parametrize("remesh", ["off", "layout file"])
+def test_the_input_is_kept_when_asked_or_when_a_layout_is_given(raw_cad, remesh):
+    if remesh == "off":
+        with pytest.raises(Exception, match="could not make every cell a disk"):
+            fit(raw_cad, options=FitOptions(formats=(), report=False, remesh="off"))
+        return
+    from meshfit.layout.cube import cube_layout
+
+    sphere = shapes.icosphere(3)
+    layout = cube_layout(sphere, frame=np.eye(3))
+    s = fit(sphere, layout, options=FitOptions(formats=(), report=False, remesh="on")).summary
+    assert "remeshed" not in s["mesh"] and s["mesh"]["faces"] == sphere.n_faces
+
+
+def test_remesh_on_remeshes_an_even_mesh_too():
+    sphere = shapes.icosphere(3)
+    s = fit(sphere, options=FitOptions(formats=(), report=False, remesh="on")).summary
+    assert s["mesh"]["remeshed"]["faces"] == s["mesh"]["faces"] != sphere.n_faces
+    with pytest.raises(InputError, match="remesh must be"):
+        FitOptions(remesh="sometimes")
