@@ -90,13 +90,18 @@ def test_a_cad_programs_own_tessellation_fits_through_the_remesh(raw_cad, tmp_pa
     s = result.summary
     remeshed = s["mesh"]["remeshed"]
     assert s["mesh"]["faces"] == remeshed["faces"] >= 20_000
-    assert any("needle triangles" in n and "even remesh" in n for n in s["notes"])
+    assert any("needle triangles" in n and "remeshed evenly" in n for n in s["notes"])
     d = s["errors"]["displaced"]
     assert d["rms"] <= DISPLACED_RMS
     assert d["hausdorff"] + remeshed["distance"] <= DISPLACED_HAUSDORFF
     # a rebuild given the input makes the same remesh and measures against it
     again = load_fit(out).rebuild(raw_cad)
     assert again.summary["errors"]["displaced"]["hausdorff"] == pytest.approx(d["hausdorff"])
+    # the fit's own layout file, given again with the input, is laid on the same remesh
+    reused = fit(raw_cad, out / "layout.json", options=FitOptions(formats=(), report=False))
+    assert reused.summary["mesh"]["faces"] == remeshed["faces"]
+    assert any("layout was made on its even remesh" in n for n in reused.summary["notes"])
+    assert reused.summary["errors"]["displaced"]["hausdorff"] == pytest.approx(d["hausdorff"])
 
 
 @pytest.mark.parametrize("remesh", ["off", "layout file"])

@@ -117,7 +117,7 @@ def _fit(mesh, layout, options: FitOptions, folder: Path | None, resume: bool, p
         refuse_foreign(folder, planned_files(output_stem(name), options.formats))
     runner = Runner(None if folder is None else folder / CACHE, resume)
     automatic = layout is None or (isinstance(layout, str) and layout == "auto")
-    runner.run([Validate(automatic)], ctx)
+    runner.run([Validate(automatic, None if automatic else _fingerprint(layout))], ctx)
     runner.run(fit_stages(layout, patch_map, folder), ctx)
     ctx.info = {k: ctx.info[k] for k in STAGES if k in ctx.info}  # the stage order
     summary = _summary(ctx)
@@ -138,6 +138,23 @@ def _fit(mesh, layout, options: FitOptions, folder: Path | None, resume: bool, p
         images = ctx["report"]["images"] if options.report else []
         _manifest(folder, result.summary, images, listed)
     return result
+
+
+def _fingerprint(layout: Any) -> str | None:
+    """The fingerprint of the mesh a given layout (object or file) was made for; None
+    where it cannot be read (the layout stage then says why)."""
+    from meshfit._jsonio import read_json_file
+    from meshfit.errors import MeshfitError
+
+    if hasattr(layout, "fingerprint"):
+        return str(layout.fingerprint)
+    try:
+        doc = read_json_file(Path(layout))
+    except (MeshfitError, OSError, TypeError):
+        return None
+    mesh = doc.get("mesh") if isinstance(doc, dict) else None
+    fp = mesh.get("sha256") if isinstance(mesh, dict) else None
+    return fp if isinstance(fp, str) else None
 
 
 def _summary(ctx: Context) -> dict[str, Any]:

@@ -60,8 +60,9 @@ class Validate(Stage):
     outputs = ("mesh", "diag", "mesh_hash")
     suffix = None
 
-    def __init__(self, automatic: bool = True) -> None:
+    def __init__(self, automatic: bool = True, fingerprint: str | None = None) -> None:
         self.automatic = automatic  # the layout is the automatic one (an even remesh may do)
+        self.fingerprint = fingerprint  # of the mesh a given layout was made for
 
     def key(self, ctx: Context) -> str:
         return ""
@@ -79,8 +80,8 @@ class Validate(Stage):
         if mesh.repairs is not None and mesh.repairs.changed():
             ctx.notes.append(f"the input was {mesh.repairs.summary()}")
         mesh = small_components(mesh, ctx.options.drop_components_below, ctx.notes)
-        if self.automatic:
-            mesh = _even(ctx, mesh)
+        if self.automatic or self.fingerprint is not None:
+            mesh = _even(ctx, mesh, None if self.automatic else self.fingerprint)
         ctx["mesh"] = mesh
         ctx["diag"] = float(mesh.bbox_diagonal)
         pool = ThreadPoolExecutor(max_workers=1)  # hashlib releases the GIL
@@ -88,14 +89,17 @@ class Validate(Stage):
         pool.shutdown(wait=False)
 
 
-def _even(ctx: Context, mesh: Mesh) -> Mesh:
+def _even(ctx: Context, mesh: Mesh, fingerprint: str | None) -> Mesh:
     """The mesh the fit works on: with ``remesh`` "on", or "auto" and needles over
-    `NEEDLE_SHARE` of the area, its even remesh (the notes say so); else ``mesh``."""
+    `NEEDLE_SHARE` of the area, its even remesh (the notes say so); else ``mesh``. With a
+    layout's ``fingerprint`` (a layout given), the remesh only if the layout was made on it
+    (a fit's own ``layout.json`` used again); a layout of the input keeps the input."""
     from meshfit.errors import MeshfitError
     from meshfit.layout.even import NEEDLE_SHARE, even_remesh, needle_share
+    from meshfit.layout.layout import mesh_fingerprint
 
     o = ctx.options
-    if o.remesh == "off":
+    if o.remesh == "off" or (fingerprint is not None and mesh_fingerprint(mesh) == fingerprint):
         return mesh
     share = needle_share(mesh)
     if o.remesh == "auto" and share <= NEEDLE_SHARE:
@@ -103,13 +107,21 @@ def _even(ctx: Context, mesh: Mesh) -> Mesh:
     try:
         even = even_remesh(mesh, o.crease_angle)
     except MeshfitError as exc:
-        ctx.notes.append(f"the input could not be remeshed evenly ({exc}): fitted as it is")
+        if fingerprint is None:
+            ctx.notes.append(f"the input could not be remeshed evenly ({exc}): fitted as it is")
         return mesh
+    if fingerprint is not None and mesh_fingerprint(even.mesh) != fingerprint:
+        return mesh  # (a layout of another mesh: the layout stage says so)
     ctx["remesh"] = even.to_dict()
+    why = (
+        "the layout was made on its even remesh"
+        if fingerprint is not None
+        else f"{share:.0%} of its area is in needle triangles (as a CAD program tessellates)"
+    )
     ctx.notes.append(
-        f"{share:.0%} of the input's area is in needle triangles (as a CAD program "
-        f"tessellates): fitted to an even remesh of it ({even.mesh.n_faces:,} faces, within "
-        f"{even.distance:.3%} of the diagonal of the input; remesh off fits the input as it is)"
+        f"the input was remeshed evenly ({even.mesh.n_faces:,} faces, within "
+        f"{even.distance:.3%} of the diagonal of the input), as {why}; remesh off fits the "
+        "input as it is"
     )
     return even.mesh
 
