@@ -245,3 +245,26 @@ def test_damaged_streams_raise_only_stream_errors(data):
 def test_random_bytes_raise_only_stream_errors(raw):
     with peak_within(len(raw), per_byte=64), pytest.raises(errors.StreamError):
         Stream.from_bytes(raw)
+
+
+@pytest.mark.parametrize("scheme", ["loop", "butterfly"])
+@pytest.mark.parametrize("levels", [3, 5])
+def test_a_decode_is_refused_when_its_estimate_exceeds_the_free_memory(monkeypatch, scheme, levels):
+    """The estimate covers what the decode holds (tracemalloc's peak, numpy's arrays
+    included) and is refused, before any work, above the memory the machine has free."""
+    import tracemalloc
+    from dataclasses import replace
+
+    from meshfit.shrinkwrap import stream as sm
+
+    s = replace(_STREAMS[scheme], levels=levels)  # (levels past 3 have no packets: predicted)
+    need = sm.decode_bytes(len(s.base_faces), len(s.base_vertices), s.levels)
+    tracemalloc.start()
+    decode_stream(s)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak <= need <= 4 * peak
+    monkeypatch.setattr(sm, "_free_bytes", lambda: need - 1)
+    with pytest.raises(errors.StreamError, match="decode a coarser level"):
+        decode_stream(s)
+    decode_stream(s, level=s.levels - 1)  # a coarser level fits

@@ -34,7 +34,9 @@ A reader checks the header (magic, version, sizes against the file's length, the
 level against `meshfit.shrinkwrap.wrap.WRAP_MAX_FACES`) before it allocates anything, the
 base mesh (indices in range, three distinct corners a face, every edge in two faces) and
 every checksum: a flipped bit is a StreamError naming where, never another mesh. Version
-1 (no file length, no checksums) is still read.
+1 (no file length, no checksums) is still read. Before it decodes, :func:`decode_stream`
+estimates the bytes the decode holds (:func:`decode_bytes`) and refuses a level that would
+not fit in the memory the machine has free.
 
 Level ``i`` has ``n_i = n_{i-1} + 3 nf_{i-1} / 2`` vertices, numbered as in
 :func:`meshfit.shrinkwrap._topo.subdivide`. Loop packets cover vertices ``[0, n_i)`` of their
@@ -63,6 +65,7 @@ __all__ = [
     "VERSION",
     "Packet",
     "Stream",
+    "decode_bytes",
     "decode_stream",
     "encode_stream",
     "read_stream",
@@ -72,6 +75,9 @@ __all__ = [
 
 MAGIC = b"MFSW"
 VERSION = 2
+#: bytes a subdivision step holds at its peak per face it splits (edge tables, sorts, the
+#: new positions), an upper bound of what tracemalloc measures for either scheme
+STEP_BYTES_PER_FACE = 640
 _HEADER = struct.Struct("<4sHBBHHIII")
 _HEADER2 = struct.Struct("<4sHBBHHIIIQ")  # + the header CRC (u32)
 _PACKET = struct.Struct("<2sBBII")
@@ -355,6 +361,12 @@ def decode_stream(
     m = stream.levels if level is None else int(level)
     if not 0 <= m <= stream.levels:
         raise errors.InputError(f"level must be in [0, {stream.levels}], got {level}")
+    need, free = decode_bytes(len(stream.base_faces), len(stream.base_vertices), m), _free_bytes()
+    if free is not None and need > free:
+        raise errors.StreamError(
+            f"decoding level {m} needs about {need / 2**30:.1f} GiB, the machine has "
+            f"{free / 2**30:.1f} GiB free: decode a coarser level (--level)"
+        )
     pk = stream.packets if packets is None else packets
     sizes = level_sizes(stream.base_faces, len(stream.base_vertices), stream.levels)
     fl = level_faces(stream.base_faces, len(stream.base_vertices), m)
@@ -374,6 +386,34 @@ def decode_stream(
         x, _ = subdivide_step(x, fl[i - 1], stream.scheme)
         x += details[i]
     return x, fl[m]
+
+
+def decode_bytes(n_base_faces: int, n_base: int, level: int) -> int:
+    """The bytes :func:`decode_stream` holds at its peak to decode ``level`` of a stream
+    whose base mesh has ``n_base`` vertices and ``n_base_faces`` faces: the faces of every
+    level (int64) and a detail array a level (float64), with the temporaries of the last
+    subdivision step (its edge tables and sorts, `STEP_BYTES_PER_FACE` a face it splits)."""
+    nf, ne, n, total = n_base_faces, 3 * n_base_faces // 2, n_base, 24 * (n_base_faces + n_base)
+    step = 0
+    for _ in range(level):
+        step = STEP_BYTES_PER_FACE * nf
+        n, nf = n + ne, 4 * nf
+        ne = 3 * nf // 2
+        total += 24 * (nf + n)
+    return total + max(step, 3 * 24 * n) + (1 << 16)  # (+ the arrays' own headers)
+
+
+def _free_bytes() -> int | None:
+    """The memory available to a new allocation (MemAvailable of /proc/meminfo), or None
+    where the system does not say."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        return None
+    return None
 
 
 def reconstruction_errors(
