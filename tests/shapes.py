@@ -131,6 +131,17 @@ def cad_part(split: int = 2) -> Mesh:
     return _from_manifold(block.refine(split) if split > 1 else block, "cad_part")
 
 
+def joined_solids() -> Mesh:
+    """Two solids joined as a modeller's boolean union tessellates them: a sphere and a
+    leaning cone, whose seam turns by 30 to 100 degrees round it (the boolean's own
+    triangles, needles along the seam)."""
+    import manifold3d as m3
+
+    body = m3.Manifold.sphere(1.0, 64)
+    leg = m3.Manifold.cylinder(1.8, 0.28, 0.2, 40).rotate([180, 0, 0]).translate([0.45, 0, -0.6])
+    return _from_manifold(body + leg, "joined_solids")
+
+
 def cube(*, rounded: float = 0.0, n: int = 12) -> Mesh:
     """Closed cube of side 2, ``n`` x ``n`` quads a face (each split in two); with
     ``rounded`` > 0 its edges and corners are rounded with that radius (the points pushed

@@ -182,3 +182,17 @@ def test_task_keys_name_the_output_folder(tmp_path):
     assert a != _task_key(mesh, tmp_path / "one" / "cow", "k", 1)
     assert a != _task_key(mesh, tmp_path / "one" / "cow", "other", None)
     assert a.startswith("meshfit-fit-cow-")
+
+
+def test_a_glob_takes_only_mesh_files_and_names_colliding_stems(tmp_path):
+    """A glob over a folder of other files finds no mesh (nothing is written); two meshes
+    whose outputs would share a folder are both named."""
+    (tmp_path / "notes.txt").write_text("not a mesh")
+    (tmp_path / "sub.ply").mkdir()  # a folder with a mesh suffix is not a mesh file
+    with pytest.raises(Exception, match=r"no mesh file \(\.ply.*matches"):
+        run_batch(str(tmp_path / "*"), tmp_path / "out", quiet=True)
+    shutil.copy(mesh_path("spot"), tmp_path / "spot.ply")
+    shutil.copy(mesh_path("spot"), tmp_path / "spot.obj")
+    with pytest.raises(Exception, match=r"spot\.obj and .*spot\.ply have the same file name"):
+        run_batch(str(tmp_path / "*"), tmp_path / "out", quiet=True)
+    assert not (tmp_path / "out").exists()

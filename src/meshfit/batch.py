@@ -170,14 +170,27 @@ def run_batch(  # noqa: C901 (one run per mesh, its retries and its record; to s
         Written to ``out/batch.json``: ``meshes``, ``done``, ``skipped``, ``failed`` and
         ``results`` per mesh file name (status, error, seconds, errors of the fit).
     """
+    from meshfit.mesh.io import FORMATS
     from meshfit.pipeline import FitOptions
 
-    files = sorted(pattern) if isinstance(pattern, list) else sorted(_glob.glob(str(pattern)))
+    if isinstance(pattern, list):
+        files = sorted(pattern)
+    else:  # a glob's matches of the formats meshfit reads (a folder's other files are left)
+        files = sorted(
+            f
+            for f in _glob.glob(str(pattern))
+            if Path(f).suffix.lower() in FORMATS and Path(f).is_file()
+        )
     if not files:
-        raise InputError(f"no mesh file matches {pattern!r}")
-    stems = [Path(f).stem for f in files]
-    if len(set(stems)) != len(stems):
-        raise InputError("two input meshes have the same file name stem; outputs would collide")
+        raise InputError(f"no mesh file ({', '.join(FORMATS)}) matches {pattern!r}")
+    seen: dict[str, str] = {}
+    for f in files:
+        if Path(f).stem in seen:
+            raise InputError(
+                f"{seen[Path(f).stem]} and {f} have the same file name stem; their output "
+                "folders would collide"
+            )
+        seen[Path(f).stem] = f
     if options is None:
         options = FitOptions(workers=1)
     elif options.workers is None:

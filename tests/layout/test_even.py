@@ -65,6 +65,16 @@ def test_the_creases_stay_edges_of_the_remesh(raw_cad, raw_even):
     assert near.max() <= raw_even.distance * raw_cad.bbox_diagonal
 
 
+def test_a_seam_whose_turn_dips_below_the_crease_angle_is_kept():
+    """Where two solids meet, the seam's turn changes round it: the layout's creases drop
+    it whole (pruned of dangling ends where it dips), the remesh keeps every sharp edge and
+    stays near the seam."""
+    joined = shapes.joined_solids()
+    assert needle_share(joined) > NEEDLE_SHARE
+    assert not crease_edges(joined).any()  # (the layout does not follow this seam)
+    assert even_remesh(joined).distance <= REMESH_DISTANCE
+
+
 def test_an_open_mesh_keeps_its_boundary():
     disk = shapes.disk()
     out = even_remesh(disk).mesh

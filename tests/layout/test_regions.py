@@ -34,6 +34,7 @@ GENERATED = {
     "double_torus": lambda: shapes.tori(2, edge=0.12),
     "genus3_solid": lambda: shapes.box_with_holes(3),
     "cad_part": shapes.cad_part,
+    "joined_solids": shapes.joined_solids,
     "open_cylinder": shapes.cylinder,
     "disk": shapes.disk,
     "hemisphere": lambda: shapes.hemisphere(5),

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from meshfit.errors import MeshfitError
-from meshfit.layout.regions import CREASE_ANGLE, crease_edges
+from meshfit.layout.regions import CREASE_ANGLE, sharp_edges
 from meshfit.mesh import Mesh
 
 __all__ = ["EvenRemesh", "even_remesh", "needle_share"]
@@ -35,6 +35,12 @@ NEEDLE_SHARE = 0.1
 #: fewest faces of the remesh: the default layout's cells need hundreds of faces each, and a
 #: CAD program's tessellation may have a few hundred in all
 MIN_FACES = 20_000
+#: edges of the input turning by more than this share of the crease angle stay edges of the
+#: remesh, each on its own: where two solids meet, the turn of their seam changes round it
+#: and dips below the crease angle in places, and a seam smoothed over there leaves the
+#: remesh far from the input (the layout's creases, chains pruned of dangling ends, would
+#: drop such a seam whole)
+FEATURE_SHARE = 0.75
 #: split, collapse, flip and smoothing rounds of the remesh
 ITERATIONS = 10
 
@@ -90,9 +96,9 @@ def even_remesh(mesh: Mesh, crease_angle: float | None = CREASE_ANGLE) -> EvenRe
     mesh : Mesh
         A valid mesh.
     crease_angle : float or None
-        The creases of :func:`meshfit.layout.regions.crease_edges` at this angle stay edges
-        of the remesh (split along their line, never flipped), so the layout finds them
-        again; None: no creases kept.
+        Edges turning by more than `FEATURE_SHARE` of this angle
+        (:func:`meshfit.layout.regions.sharp_edges`) stay edges of the remesh (split along
+        their line, never flipped), so the layout finds the creases again; None: none kept.
 
     Returns
     -------
@@ -115,7 +121,7 @@ def even_remesh(mesh: Mesh, crease_angle: float | None = CREASE_ANGLE) -> EvenRe
     # equilateral triangles of that total area and count
     count = max(mesh.n_faces, MIN_FACES)
     h = float(np.sqrt(4.0 * area.sum() / (np.sqrt(3.0) * count)))
-    crease = None if crease_angle is None else crease_edges(mesh, crease_angle)
+    crease = None if crease_angle is None else sharp_edges(mesh, FEATURE_SHARE * crease_angle)
     features = None
     if crease is not None and crease.any():
         features = np.array(mesh.edges[crease], dtype=np.int32, order="C")

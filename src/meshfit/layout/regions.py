@@ -657,6 +657,23 @@ def _crease_nodes(clip: _Clip, mesh: Mesh, label, parent, orig: Mesh, corner_ver
 # ----------------------------------------------------------------------------- creases
 
 
+def sharp_edges(mesh: Mesh, angle: float) -> NDArray[np.bool_]:
+    """Interior edges (over ``mesh.edges``) whose two faces' normals differ by more than
+    ``angle`` degrees, each on its own: no chains, lengths or pruning (see
+    :func:`crease_edges` for the creases a layout follows)."""
+    ne = mesh.edges.shape[0]
+    fe = mesh.face_edges.reshape(-1)
+    fid = np.repeat(np.arange(mesh.n_faces), 3)
+    order = np.argsort(fe, kind="stable")
+    first = np.searchsorted(fe[order], np.arange(ne))
+    fa = fid[order][first]
+    fb = fid[order][np.minimum(first + 1, fe.size - 1)]
+    n = mesh.face_normals
+    return (mesh.edge_face_count == 2) & (
+        np.einsum("ij,ij->i", n[fa], n[fb]) < np.cos(np.radians(angle))
+    )
+
+
 def crease_edges(mesh: Mesh, angle: float = CREASE_ANGLE) -> NDArray[np.bool_]:
     """Edges where the surface folds by more than ``angle`` degrees.
 
@@ -678,16 +695,7 @@ def crease_edges(mesh: Mesh, angle: float = CREASE_ANGLE) -> NDArray[np.bool_]:
         itself).
     """
     ne = mesh.edges.shape[0]
-    fe = mesh.face_edges.reshape(-1)
-    fid = np.repeat(np.arange(mesh.n_faces), 3)
-    order = np.argsort(fe, kind="stable")
-    first = np.searchsorted(fe[order], np.arange(ne))
-    fa = fid[order][first]
-    fb = fid[order][np.minimum(first + 1, fe.size - 1)]
-    n = mesh.face_normals
-    sharp = (mesh.edge_face_count == 2) & (
-        np.einsum("ij,ij->i", n[fa], n[fb]) < np.cos(np.radians(angle))
-    )
+    sharp = sharp_edges(mesh, angle)
     if not sharp.any():
         return sharp
     e = mesh.edges[sharp]
