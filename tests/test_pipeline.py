@@ -290,14 +290,14 @@ def test_matched_shapes_beyond_the_texel_budget_fall_back_to_native(
     """Where equal counts along shared curves would multiply the texels past the budget,
     the maps keep their grids' shapes, the run says so, and everything after the maps
     (stitch, summary, a resumed run, a rebuild) follows that choice."""
-    from meshfit.pipeline import stages
+    from meshfit.stitch import network as stitch_network
 
     mesh, out, native = spot_fit
     grid = [tuple(p["shape"]) for p in native["patches"]]
     copy = tmp_path / "budget"
     shutil.copytree(out, copy)
     opts = dataclasses.replace(OPTIONS, map_shapes="matched")
-    monkeypatch.setattr(stages, "MATCH_BUDGET", 1)  # (matching always adds texels here)
+    monkeypatch.setattr(stitch_network, "MATCH_BUDGET", 1)  # (matching always adds texels)
     runs = [run_fit(mesh, copy, layout=LAYOUT, options=opts, resume=True) for _ in range(2)]
     for s in runs:
         assert [tuple(p["map_shape"]) for p in s["patches"]] == grid

@@ -133,6 +133,19 @@ def test_scale_keeps_shared_counts_equal():
             assert na == nb
 
 
+def test_matching_counts_never_multiplies_the_vertices_past_the_budget():
+    """One long strip among small grids: its count spreads over its class (four faces), and
+    the other direction too; the grids are capped within the budget, still watertight."""
+    from meshfit.stitch.network import MATCH_BUDGET
+
+    surfaces, network = cube_sphere()
+    shapes = [(3, 3)] * 5 + [(400, 3)]
+    pm = patch_mesh(surfaces, network=network, shapes=shapes)
+    _assert_closed_manifold(pm.faces)
+    assert sum(h * w for h, w in pm.shapes) <= MATCH_BUDGET * sum(h * w for h, w in shapes)
+    assert max(max(s) for s in pm.shapes) > 3  # the strip still gets more than its peers
+
+
 def test_fit_is_watertight_or_bounded_by_unshared_sides(fitted):
     name, surfaces, maps, network = fitted
     for scale in (1, 2):

@@ -206,6 +206,26 @@ def test_direction_classes_and_texel_shapes():
         texel_shapes(net, [(9, 5), (1, 7), (12, 8)])
 
 
+@pytest.mark.parametrize("budget", [1.0, 1.5, 3.0, 100.0])
+def test_texel_shapes_within_a_budget_keep_equal_counts(budget):
+    """Capped classes: equal counts along shared boundaries (the shapes match themselves),
+    within the budget, and the largest cap that is (one more exceeds it)."""
+    sph = network_from_grids(LAYOUTS["cube_sphere"])
+    native = [(9, 9)] * 4 + [(65, 9), (9, 5)]  # a long strip: its class spans four faces
+    free = texel_shapes(sph, native)
+    capped = texel_shapes(sph, native, budget=budget)
+    area = sum(h * w for h, w in native)
+    assert texel_shapes(sph, capped) == capped
+    assert sum(h * w for h, w in capped) <= budget * area
+    assert (np.array(capped) <= np.array(free)).all()
+    top = max(max(c) for c in capped)
+    if capped != free:  # one more texel on the capped classes would pass the budget
+        more = [tuple(min(f, top + 1) for f in ff) for ff in free]
+        assert sum(h * w for h, w in more) > budget * area
+    with pytest.raises(InputError, match="at least 1"):
+        texel_shapes(sph, native, budget=0.5)
+
+
 def test_matched_maps_close_seams_at_any_resolution():
     grids = cube_sphere(17, resolutions={0: 33})  # face 0 finer: seams of 33 against 17
     net = network_from_grids(grids)

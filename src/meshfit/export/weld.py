@@ -24,6 +24,7 @@ from meshfit.displacement import DisplacementMap, reconstruct
 from meshfit.errors import InputError
 from meshfit.export._common import as_maps, as_shapes, as_surfaces, grid_faces
 from meshfit.stitch import Network, network_from_grids, texel_shapes
+from meshfit.stitch.network import MATCH_BUDGET
 from meshfit.types import Side, readonly
 
 __all__ = ["UDIM_COLUMNS", "UDIM_FIRST", "PatchMesh", "patch_mesh", "spline_network", "udim"]
@@ -283,7 +284,9 @@ def _weld(
         w if w is not None else t if t is not None else (8 * s.shape[0], 8 * s.shape[1])
         for s, w, t in zip(surfaces, want, texels, strict=True)
     ]
-    grids = [(_scaled(h, scale), _scaled(w, scale)) for h, w in texel_shapes(network, base)]
+    # (capped: a network whose rows differ much in length would multiply the vertices)
+    even = texel_shapes(network, base, budget=MATCH_BUDGET)
+    grids = [(_scaled(h, scale), _scaled(w, scale)) for h, w in even]
     offs = np.concatenate([[0], np.cumsum([h * w for h, w in grids])]).astype(np.int64)
     points = np.concatenate(
         [

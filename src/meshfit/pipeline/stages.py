@@ -521,13 +521,6 @@ class Displacement(Stage):
         return True
 
 
-#: matched map shapes may take at most this many times the spring grids' texels: a class
-#: takes its largest member's count, so where rows of patches differ much in length (thin
-#: strips beside wide patches) matching multiplies texels, and the memory of every later
-#: stage, for no detail the scan has
-MATCH_BUDGET = 8
-
-
 def _settle_map_shapes(ctx: Context) -> list[tuple[int, int]]:
     """The maps' shapes: matched (equal counts along shared curves) when asked and within
     `MATCH_BUDGET`; otherwise the spring grids' own, with a note, and the run's options say
@@ -535,6 +528,7 @@ def _settle_map_shapes(ctx: Context) -> list[tuple[int, int]]:
     from dataclasses import replace
 
     from meshfit.stitch import texel_shapes
+    from meshfit.stitch.network import MATCH_BUDGET
 
     native = [tuple(g.shape[:2]) for g in ctx["grids"]]
     if ctx.options.maps.shapes != "matched":

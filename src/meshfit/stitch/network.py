@@ -241,17 +241,31 @@ def direction_classes(network: Network) -> NDArray[np.int64]:
     return np.array(sets.labels(), dtype=np.int64).reshape(n, 2)
 
 
-def texel_shapes(network: Network, shapes: Sequence[tuple[int, int]]) -> list[tuple[int, int]]:
+#: matched shapes may take at most this many times the texels of the shapes they match: a
+#: class takes its largest member's count, so where rows of patches differ much in length
+#: (thin strips beside wide patches) matching multiplies texels, and the memory and time of
+#: everything after, for no detail the scan has
+MATCH_BUDGET = 8
+
+
+def texel_shapes(
+    network: Network, shapes: Sequence[tuple[int, int]], *, budget: float | None = None
+) -> list[tuple[int, int]]:
     """Map resolutions with equal texel counts along every shared boundary.
 
     Each class of :func:`direction_classes` takes the largest count of its members, so no
-    map loses resolution.
+    map loses resolution. With ``budget``, where that would take more than ``budget`` times
+    the texels of ``shapes``, every class's count is capped at the largest count that keeps
+    the total within it: the longest rows get fewer texels than their members had (a mesh
+    tessellated at these shapes is coarser there than the maps), the counts stay equal.
 
     Parameters
     ----------
     network : Network
     shapes : sequence of (int, int)
         Texel counts ``(h, w)`` of each patch's map, at least 2 x 2.
+    budget : float, keyword-only, optional
+        At least 1 (e.g. `MATCH_BUDGET`); default None: no cap.
 
     Returns
     -------
@@ -276,6 +290,20 @@ def texel_shapes(network: Network, shapes: Sequence[tuple[int, int]]) -> list[tu
     labels = direction_classes(network)
     best = np.zeros(int(labels.max()) + 1 if len(labels) else 0, dtype=np.int64)
     np.maximum.at(best, labels.ravel(), shp.ravel())
+    if budget is not None and len(labels):
+        if not budget >= 1:
+            raise InputError(f"budget must be at least 1, got {budget}")
+        allowed = budget * float((shp[:, 0] * shp[:, 1]).sum())
+
+        def total(cap: int) -> float:
+            c = np.minimum(best, cap)
+            return float((c[labels[:, 0]] * c[labels[:, 1]]).sum())
+
+        lo, hi = 2, int(best.max())  # total(2) = 4 per patch, within any budget >= 1
+        while lo < hi:  # the largest cap within the budget (total grows with the cap)
+            mid = (lo + hi + 1) // 2
+            lo, hi = (mid, hi) if total(mid) <= allowed else (lo, mid - 1)
+        best = np.minimum(best, lo)
     return [(int(best[a]), int(best[b])) for a, b in labels]
 
 
