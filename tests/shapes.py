@@ -211,6 +211,24 @@ def two_spheres() -> Mesh:
     return Mesh(v, f, name="two_spheres")
 
 
+def debris(specks: int = 60, flakes: int = 20, *, seed: int = 0) -> Mesh:
+    """A sphere amid ``specks`` tiny closed icosahedra and ``flakes`` lone triangles: the
+    floating bits a raw scan keeps."""
+    rng = np.random.default_rng(seed)
+    body = icosphere(3)
+    ico = icosphere(0, radius=0.01)
+    vs, fs, n = [body.vertices], [body.faces], body.n_vertices
+    for _ in range(specks):
+        vs.append(ico.vertices + rng.uniform(-2.0, 2.0, 3))
+        fs.append(ico.faces + n)
+        n += ico.n_vertices
+    for _ in range(flakes):
+        vs.append(rng.uniform(-2.0, 2.0, 3) + rng.normal(0.0, 0.01, (3, 3)))
+        fs.append(np.array([[n, n + 1, n + 2]]))
+        n += 3
+    return Mesh(np.vstack(vs), np.vstack(fs), name="debris")
+
+
 def dirty_sphere() -> tuple[np.ndarray, np.ndarray]:
     """Arrays of a sphere with a fin (a non-manifold edge), duplicate faces and unreferenced
     vertices: what a raw range-scan merge holds."""

@@ -208,6 +208,19 @@ def test_both_components_get_patches():
     assert owner == {0, 1}
 
 
+def test_many_small_components_each_get_cells_beyond_the_patch_budget():
+    """Specks and lone triangles get a cell or two each without taking cells from the body
+    (a sphere with 60 specks was refused: its cell budget did not grow with them)."""
+    mesh = shapes.debris()
+    lay = region_layout(mesh)
+    patches = extract_patches(mesh, lay)
+    comp = mesh.face_components
+    owner = np.array([int(comp[p.face_parent[0]]) for p in patches])
+    assert set(owner.tolist()) == set(range(mesh.n_components))
+    body = shapes.icosphere(3)
+    assert (owner == 0).sum() == len(extract_patches(body, region_layout(body)))
+
+
 def _asymmetric() -> Mesh:
     t = shapes.tori(1, edge=0.15)
     v = t.vertices.copy()

@@ -296,10 +296,16 @@ def _cone_fails(mesh: Mesh, label: NDArray[np.int64], k: int, vareas):
 
 
 def _cells(mesh: Mesh, n_cells: int, max_cells: int):
-    """Seeds and labels whose cells are disks within the normal cone (or the budget's end)."""
+    """Seeds and labels whose cells are disks within the normal cone (or the budget's end).
+
+    ``n_cells`` are shared out by area; a component too small for its share still gets a
+    seed, and each such seed widens ``max_cells`` by two (a closed component needs at least
+    two cells), so that a mesh with many small components is not refused for their count.
+    """
     graph = _graph(mesh)
     vareas = _vertex_areas(mesh)
     seeds = _initial_seeds(mesh, graph, n_cells)
+    max_cells += 2 * max(0, seeds.size - n_cells)
     seeds = _lloyd(mesh, graph, seeds, LLOYD_STEPS, vareas)
     added = {"disk": 0, "normal_cone": 0}
     rounds = 0
@@ -1815,8 +1821,8 @@ def region_layout(
     genus_term = 0
     if mesh.is_closed:
         genus_term = max(0, 2 * int(mesh.genus))
-    n_cells = max(mesh.n_components, round(want / QUADS_PER_CELL) + 2 - genus_term)
-    # (a cell gives at least three patches)
+    n_cells = max(1, round(want / QUADS_PER_CELL) + 2 - genus_term)
+    # (a cell gives at least three patches; `_cells` adds room for the components)
     max_cells = max(2 * n_cells, mesh.n_faces // (MIN_FACES_PER_PATCH * 3))
     sharp = (
         crease_edges(mesh, crease_angle)
