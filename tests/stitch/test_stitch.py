@@ -267,3 +267,19 @@ def test_valence_two_and_four_corners_are_g1_to_the_end(name):
     assert {len(c) for c in net.corners} <= {1, 2, 4}
     r = seam_report(stitch_surfaces(_fit(grids, net), net), net)
     assert r.angle_corner_deg.max() <= 1e-5  # arccos resolution near 0 is ~1e-6 degree
+
+
+def test_stitching_commutes_with_rigid_motions():
+    """Stitching a moved network gives the stitched network moved (the corner fans are
+    fitted in each corner's own plane, solved once and turned, never tied to the axes)."""
+    grids = LAYOUTS["cube_sphere"]  # valence-3 corners: the fan turn is searched
+    net = network_from_grids(grids)
+    surfaces = _fit(grids, net)
+    q, _ = np.linalg.qr(np.random.default_rng(3).normal(size=(3, 3)))
+    q *= np.sign(np.linalg.det(q))  # a rotation, not a reflection
+    shift = np.array([2.0, -1.0, 0.5])
+    moved = [s.with_control_points(s.control_points @ q.T + shift) for s in surfaces]
+    a = stitch_surfaces(surfaces, net)
+    b = stitch_surfaces(moved, net)
+    for x, y in zip(a, b, strict=True):
+        assert_allclose(y.control_points, x.control_points @ q.T + shift, atol=1e-9)

@@ -203,10 +203,15 @@ def _disk_boundary(
     for loop in loops:
         curve, _ = along.lookup(copy_of[loop])
         curves_seen.update(np.unique(curve[curve >= 0]).tolist())
-    cand = [
-        p for p in range(layout.n_patches) if set(layout.patch_curves[p].tolist()) <= curves_seen
-    ]
-    name = f"patch {cand[0]}" if len(cand) == 1 else f"the region containing face {face}"
+
+    def name() -> str:  # (only for a message: a scan of every patch per region is quadratic)
+        cand = [
+            p
+            for p in range(layout.n_patches)
+            if set(layout.patch_curves[p].tolist()) <= curves_seen
+        ]
+        return f"patch {cand[0]}" if len(cand) == 1 else f"the region containing face {face}"
+
     if not loops:
         raise LayoutError(
             f"face {face} lies in a closed piece of the mesh that no curve bounds: "
@@ -214,13 +219,13 @@ def _disk_boundary(
         )
     if len(loops) != 1:
         raise LayoutError(
-            f"{name} is not a disk: its region has {len(loops)} boundary loops "
+            f"{name()} is not a disk: its region has {len(loops)} boundary loops "
             "(a hole of the mesh inside it, or curves that do not close around it)"
         )
     chi = sub.euler_characteristic
     if chi != 1:
         raise LayoutError(
-            f"{name} is not a disk: Euler characteristic {chi} instead of 1 (a handle inside it)"
+            f"{name()} is not a disk: Euler characteristic {chi} instead of 1 (a handle inside it)"
         )
     return loops[0]
 

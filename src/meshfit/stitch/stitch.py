@@ -264,7 +264,7 @@ def _solve_fan(
     return x
 
 
-def _row2_slots(shapes, keys, spoke_index, boundaries) -> list[tuple[int, ...]]:
+def _row2_slots(shapes, offs, keys, spoke_index, boundaries) -> list[tuple[int, ...]]:
     """The control slots `_flatten_row2` moves at one corner: per shared boundary there with
     at least 6 control points, its row-2 boundary point and both tangent points."""
     out = []
@@ -272,8 +272,8 @@ def _row2_slots(shapes, keys, spoke_index, boundaries) -> list[tuple[int, ...]]:
         if k[0] != "b":
             continue
         b = boundaries[k[1]]
-        ia, ib = _slot_rows(shapes, b, 0)
-        ta, tb = _slot_rows(shapes, b, 1)
+        ia, ib = _slot_rows(shapes, offs, b, 0)
+        ta, tb = _slot_rows(shapes, offs, b, 1)
         n = len(ia)
         if n < 6:
             continue
@@ -427,7 +427,7 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
                 hard.append(row)
     hard = np.array(hard).reshape(-1, nx)
     null = _null_space(hard) if hard.size else None
-    row2 = [] if exact else _row2_slots(shapes, keys, spoke_index, boundaries)
+    row2 = [] if exact else _row2_slots(shapes, offs, keys, spoke_index, boundaries)
     r0 = np.array([(sp, ea, eb) for sp, ea, eb, _ in rows0], dtype=np.int64).reshape(-1, 3)
     r0_lam = np.array([lb for *_, lb in rows0], dtype=np.float64)
     r0_at = np.arange(len(rows0))
@@ -485,26 +485,46 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
     ]
     equal_fan = [] if even is None else [(True, True, *even), (True, False, *even)]
 
+    solved: dict[tuple, NDArray | None] = {}
+
+    def solve(equal: bool, with_row0: bool, angles: dict, fit: float) -> NDArray | None:
+        """The constrained fan of one try at its fitted turn (None where it folds). The
+        constraints, the pull to the flat fan and the fold tests are all invariant under a
+        turn of the plane, so a fan turned by ``rot`` solves to this one turned by ``rot``:
+        it is solved once per try, not once per turn."""
+        key = (equal, with_row0, angles is phi)
+        if key not in solved:
+            s2, d2 = flat_fan(equal, fit, angles)
+            X = None
+            if not _fan_folded(s2, wedges, d2):
+                x0 = np.concatenate([np.array([s2[k] for k in keys]).ravel(), d2.ravel()])
+                pull = soft if with_row0 and not exact else None
+                X = _solve_fan(x0, hard, pull, scale, Z=null).reshape(-1, 2)
+                sp = {k: X[ks[k]] for k in keys}
+                if _fan_folded(sp, wedges, X[nd:], np.sin(0.5 * tol.STITCH_CORNER_MIN_ANGLE)):
+                    X = None
+            solved[key] = X
+        return solved[key]
+
     def place(rot: float, tries) -> NDArray | None:
-        """The control array with the corner rule applied, the fan turned by ``rot`` from
-        its best fit to the old spokes: the first of ``tries`` that folds no corner."""
+        """The corner's control slots (``window``) with the corner rule applied, the fan
+        turned by ``rot`` from its best fit to the old spokes: the first of ``tries`` that
+        folds no corner."""
         for equal, with_row0, angles, fit in tries:
-            s2, d2 = flat_fan(equal, fit + rot, angles)
-            if _fan_folded(s2, wedges, d2):
+            X = solve(equal, with_row0, angles, fit)
+            if X is None:
                 continue
-            x0 = np.concatenate([np.array([s2[k] for k in keys]).ravel(), d2.ravel()])
-            x = _solve_fan(x0, hard, soft if with_row0 and not exact else None, scale, Z=null)
-            X = x.reshape(-1, 2)
+            if rot != 0.0:
+                c, s = np.cos(rot), np.sin(rot)
+                X = X @ np.array([[c, s], [-s, c]])
             sp = {k: X[ks[k]] for k in keys}
-            if _fan_folded(sp, wedges, X[nd:], np.sin(0.5 * tol.STITCH_CORNER_MIN_ANGLE)):
-                continue
-            Q = P.copy()
+            Q = near.copy()
             for k in keys:
-                Q[spoke_index[k]] = c0 + sp[k][0] * x_ax + sp[k][1] * y_ax
+                Q[spoke_at[k]] = c0 + sp[k][0] * x_ax + sp[k][1] * y_ax
             for w, d in zip(wedges, X[nd:], strict=True):
-                Q[w.diag] = c0 + d[0] * x_ax + d[1] * y_ax
+                Q[at(w.diag)] = c0 + d[0] * x_ax + d[1] * y_ax
             if not exact:
-                _flatten_row2(Q, c0, normal, row2)
+                _flatten_row2(Q, c0, normal, row2_at)
             return Q
         return None
 
@@ -547,7 +567,28 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
                 d = a + g * (b - a)
         return seen[best_turn()]
 
-    zone = _corner_zone_jump(surfaces, shapes, offs, keys, spoke_index, boundaries)
+    # every trial works on the slots the corner rule writes and its jump reads only, not on
+    # a copy of the whole network's controls (a copy per trial made stitching quadratic)
+    reads, zone_of = _corner_zone_jump(surfaces, shapes, offs, keys, spoke_index, boundaries)
+    window = np.unique(
+        np.concatenate(
+            [reads.ravel(), *(np.asarray(spoke_index[k]) for k in keys)]
+            + [np.asarray([w.diag]).ravel() for w in wedges]
+            + [np.asarray(sl, dtype=np.int64) for sl in row2]
+        ).astype(np.int64)
+    )
+
+    def at(slots):
+        return np.searchsorted(window, slots)
+
+    near = P[window]
+    spoke_at = {k: at(np.asarray(spoke_index[k])) for k in keys}
+    row2_at = [tuple(at(np.asarray(sl)).tolist()) for sl in row2]
+    reads_at = at(reads)
+
+    def zone(Q: NDArray) -> float:
+        return zone_of(Q[reads_at])
+
     # the fans from the patches' own corner angles, and (at an interior corner) the fan of
     # equal wedges: where row 0 cannot be collinear the one with the smaller corner-zone
     # jump wins (the own fans on a tie), else the equal fan only where every own fan folds
@@ -558,8 +599,7 @@ def _g1_corner(P, shapes, offs, slots, bound_of, boundaries, lam, surfaces, exac
             found = other
     if found is None:
         return False
-    best = found[1]
-    P[:] = best
+    P[window] = found[1]
     return True
 
 
@@ -571,17 +611,18 @@ _FAN_TURN_TOL = 1e-2
 
 
 def _corner_zone_jump(surfaces, shapes, offs, keys, spoke_index, boundaries):
-    """A function of the flat control array: the largest normal angle (radians) between
-    the two patches of every shared boundary at one corner, over the knot span at that
-    corner (the corner zone of :func:`seam_report`), 33 samples. The partials are linear in
-    the control points: their weights are computed once."""
+    """The flat control slots ``IDX`` it reads, and a function of their points
+    (``P[IDX]``): the largest normal angle (radians) between the two patches of every
+    shared boundary at one corner, over the knot span at that corner (the corner zone of
+    :func:`seam_report`), 33 samples. The partials are linear in the control points: their
+    weights are computed once."""
     a4 = np.arange(DEGREE + 1)
     sides = []
     for k in keys:
         if k[0] != "b":
             continue
         b = boundaries[k[1]]
-        ia, ib = _slot_rows(shapes, b, 0)
+        ia, ib = _slot_rows(shapes, offs, b, 0)
         t = np.linspace(0.0, 1.0 / (len(ia) - 3), 33)
         if spoke_index[k][0] not in (ia[1], ib[1]):
             t = 1.0 - t
@@ -603,14 +644,13 @@ def _corner_zone_jump(surfaces, shapes, offs, keys, spoke_index, boundaries):
         sides.append(pair)
 
     if not sides:
-        return lambda Q: 0.0
+        return np.zeros(0, dtype=np.int64), lambda block: 0.0
     # every side's two patches at once: (sides, 2, 33, 4, 4) slots and weights
     IDX = np.array([[idx for idx, _, _ in pair] for pair in sides])
     WU = np.array([[wu for _, wu, _ in pair] for pair in sides])
     WV = np.array([[wv for _, _, wv in pair] for pair in sides])
 
-    def jump(Q: NDArray) -> float:
-        block = Q[IDX]
+    def jump(block: NDArray) -> float:
         du = np.einsum("spnab,spnabc->spnc", WU, block)
         dv = np.einsum("spnab,spnabc->spnc", WV, block)
         n = np.empty(du.shape)  # np.cross's products and differences, without its dispatch
@@ -625,12 +665,12 @@ def _corner_zone_jump(surfaces, shapes, offs, keys, spoke_index, boundaries):
             return 0.0
         return float(np.arccos(np.clip(cos[ok], -1.0, 1.0)).max())
 
-    return jump
+    return IDX, jump
 
 
-def _slot_rows(shapes, b: SharedBoundary, depth: int):
-    """Flat control-slot indices of a boundary's rows on both patches, aligned."""
-    offs = np.concatenate([[0], np.cumsum([mu * mv for mu, mv in shapes])])
+def _slot_rows(shapes, offs, b: SharedBoundary, depth: int):
+    """Flat control-slot indices of a boundary's rows on both patches, aligned (``offs``:
+    each patch's first slot)."""
     ia = side_row(np.arange(shapes[b.a][0] * shapes[b.a][1]).reshape(shapes[b.a]), b.side_a, depth)
     ib = side_row(np.arange(shapes[b.b][0] * shapes[b.b][1]).reshape(shapes[b.b]), b.side_b, depth)
     if b.reversed:
@@ -700,7 +740,7 @@ def stitch_surfaces(surfaces: Sequence[BSplineSurface], network: Network) -> lis
     # 1. C0: union-find over boundary slots
     sets = DisjointSets(P.shape[0])
     for b in network.boundaries:
-        ia, ib = _slot_rows(shapes, b, 0)
+        ia, ib = _slot_rows(shapes, offs, b, 0)
         for x, y in zip(ia, ib, strict=True):
             sets.union(int(x), int(y))
     corner_slot = {}
@@ -728,40 +768,40 @@ def stitch_surfaces(surfaces: Sequence[BSplineSurface], network: Network) -> lis
     lam = {}
     for bi, b in enumerate(network.boundaries):
         if b.continuity == "G1":
-            ia, ib = _slot_rows(shapes, b, 0)
-            ta, tb = _slot_rows(shapes, b, 1)
+            ia, ib = _slot_rows(shapes, offs, b, 0)
+            ta, tb = _slot_rows(shapes, offs, b, 1)
             da = np.linalg.norm(P[ia] - P[ta], axis=1).mean()
             db = np.linalg.norm(P[tb] - P[ib], axis=1).mean()
             lam[bi] = float(da / db) if db > 0 and da > 0 else 1.0
-    exact4 = []
-    for slots in network.corners:
+    exact4 = set()
+    for ci, slots in enumerate(network.corners):
         spokes = _corner_spokes(shapes, offs, slots, bound_of)
         if (
             len(slots) == 4
             and len(spokes) == 4
             and all(len(v) == 2 and bi in lam for bi, v in spokes.items())
         ):
-            exact4.append(slots)
+            exact4.add(ci)
             for bi in spokes:
                 lam[bi] = 1.0
     for bi, b in enumerate(network.boundaries):
         if bi not in lam:
             continue
-        ia, ib = _slot_rows(shapes, b, 0)
-        ta, tb = _slot_rows(shapes, b, 1)
+        ia, ib = _slot_rows(shapes, offs, b, 0)
+        ta, tb = _slot_rows(shapes, offs, b, 1)
         c = (P[ta[1:-1]] + lam[bi] * P[tb[1:-1]]) / (1.0 + lam[bi])
         P[ia[1:-1]] = c
         P[ib[1:-1]] = c
 
     # 3. G1 at corners of valence 2 (network border) and >= 3 (any), never folding a patch
-    for slots in network.corners:
+    for ci, slots in enumerate(network.corners):
         spokes = _corner_spokes(shapes, offs, slots, bound_of)
         if not spokes or any(network.boundaries[bi].continuity != "G1" for bi in spokes):
             continue
         if len(slots) == 2 and len(spokes) == 1 and all(len(v) == 2 for v in spokes.values()):
             _border_corner(P, shapes, offs, slots, bound_of, network.boundaries, lam)
         elif len(slots) >= 2:
-            exact = any(slots == e for e in exact4)
+            exact = ci in exact4
             _g1_corner(P, shapes, offs, slots, bound_of, network.boundaries, lam, surfaces, exact)
     return [
         s.with_control_points(P[offs[k] : offs[k + 1]].reshape(*shapes[k], 3))
