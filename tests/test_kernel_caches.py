@@ -55,3 +55,51 @@ def test_the_package_caches_are_stamped_with_the_current_sources():
     assert folder is not None
     here = Path(kernels.__file__).resolve().parent
     assert (folder / STAMP).read_text() == sources_digest(here)
+
+
+_SIGNATURES = """
+import json, sys
+from numba import typeof
+from numba.core.dispatcher import Dispatcher
+seen = set()
+first_call = Dispatcher._compile_for_args
+def record(self, *args, **kws):  # Python's first call of a kernel with new types
+    f = self.py_func
+    if f.__module__.startswith("meshfit."):
+        seen.add((f.__module__ + "." + f.__qualname__, str(tuple(typeof(a) for a in args))))
+    return first_call(self, *args, **kws)
+Dispatcher._compile_for_args = record
+from meshfit.demo import demo_mesh
+from meshfit.pipeline import FitOptions, fit
+fit(demo_mesh(8000), options=FitOptions(formats=("obj",), report=False), out=sys.argv[1])
+json.dump(sorted(seen), sys.stdout)
+"""
+
+
+def test_a_fit_compiles_no_kernel_twice_for_a_read_only_flag(tmp_path):
+    """numba compiles a kernel once per signature, and an array's read-only flag is part
+    of it: a kernel met with both a mesh's read-only arrays and writable ones compiles
+    twice on a first run. The kernels a whole fit calls from Python (whether their code is
+    then loaded from the cache or compiled) are met with one flag each
+    (:func:`meshfit._kernels.frozen`)."""
+    import json
+    import re
+    import subprocess
+    import sys
+
+    run = subprocess.run(
+        [sys.executable, "-c", _SIGNATURES, str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    pairs = json.loads(run.stdout)
+    by_kernel: dict[str, set[str]] = {}
+    twice = []
+    for name, args in pairs:
+        flagless = re.sub(r"'(C|F|A)', (True|False)", r"'\1'", args)
+        if flagless in by_kernel.setdefault(name, set()):
+            twice.append(name)
+        by_kernel[name].add(flagless)
+    assert len(by_kernel) > 20  # the listener saw the kernels of the whole fit
+    assert twice == []

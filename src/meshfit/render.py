@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from meshfit._atomic import atomic_write
+from meshfit._kernels import frozen
 from meshfit._kernels import render as _k
 from meshfit.errors import InputError
 
@@ -246,9 +247,7 @@ def render(
     depth = np.full((h, w), -np.inf)
     # head light along the view; colours, light and (u, v) gathered per triangle in the kernel
     _k.raster_mesh(
-        V,
-        X,
-        F,
+        *frozen(V, X, F),
         np.ascontiguousarray(R[2]),
         float(AMBIENT),
         shading == "flat",

@@ -14,6 +14,21 @@ import hashlib
 import os
 from pathlib import Path
 
+
+def frozen(*arrays):
+    """Read-only views of arrays a kernel only reads (no copy). numba compiles a kernel once
+    per signature, and a writable and a read-only array of one type are two signatures: a
+    kernel called with both compiles twice on a first run. Callers of kernels that meet
+    both (a mesh's read-only arrays, arrays made on the way) pass their inputs through this.
+    """
+    out = []
+    for a in arrays:
+        v = a.view()
+        v.flags.writeable = False
+        out.append(v)
+    return tuple(out)
+
+
 #: the file beside the caches holding the digest of the sources they were compiled from
 STAMP = "meshfit-kernels.sha256"
 

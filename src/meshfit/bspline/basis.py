@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from meshfit._kernels import bspline as _k
+from meshfit._kernels import frozen
 
 __all__ = ["DEGREE", "basis_local", "basis_matrix", "clamped_knots"]
 
@@ -71,7 +72,7 @@ def basis_local(
     p = int(degree)
     k = U.size - p - 1
     tc = np.ascontiguousarray(np.clip(t.ravel(), U[p], U[k]))
-    return _k.basis_local(tc, U, p, min(int(derivatives), p))
+    return _k.basis_local(*frozen(tc, U), p, min(int(derivatives), p))
 
 
 def basis_matrix(

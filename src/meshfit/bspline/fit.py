@@ -11,6 +11,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from meshfit import tol
 from meshfit._kernels import bspline as _k
+from meshfit._kernels import frozen
 from meshfit.bspline.basis import DEGREE, basis_local, basis_matrix, clamped_knots
 from meshfit.bspline.surface import BSplineSurface
 from meshfit.errors import InputError
@@ -244,7 +245,7 @@ def fit_bspline(
         else:
             cols_free[0 if side == "v0" else -1] = False
     # residual of the pinned part, then least squares over free rows x free columns
-    R = X - _k.grid_eval(fu, Nu, fv, Nv, P)
+    R = X - _k.grid_eval(*frozen(fu, Nu, fv, Nv, P))
     G = _k.gram_sandwich(fu, Nu, fv, Nv, R, mu, mv)[np.ix_(rows_free, cols_free)]
     Bu_f, Bv_f = Bu[:, rows_free], Bv[:, cols_free]
     Pu_f, Mu_f = _k.qr_pinv(np.ascontiguousarray(Bu_f))

@@ -9,6 +9,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from meshfit import tol
 from meshfit._kernels import bspline as _k
+from meshfit._kernels import frozen
 from meshfit.bspline.basis import DEGREE, basis_local, clamped_knots
 from meshfit.errors import InputError
 
@@ -171,7 +172,13 @@ class BSplineSurface:
         P = self.control_points
         out = tuple(
             _k.grid_eval(
-                fu, np.ascontiguousarray(Nu[:, du, :]), fv, np.ascontiguousarray(Nv[:, dv, :]), P
+                *frozen(
+                    fu,
+                    np.ascontiguousarray(Nu[:, du, :]),
+                    fv,
+                    np.ascontiguousarray(Nv[:, dv, :]),
+                    P,
+                )
             )
             for du, dv in pairs
         )

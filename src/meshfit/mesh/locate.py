@@ -111,14 +111,14 @@ def build_tree(
     meshfit.errors.InputError
         ``leaf_size`` below 1.
     """
-    from meshfit._kernels import bvh
+    from meshfit._kernels import bvh, frozen
 
     size = bvh.LEAF_SIZE if leaf_size is None else int(leaf_size)
     if size < 1:
         raise InputError(f"leaf_size must be >= 1, got {leaf_size}")
     order = np.argsort(bvh.morton_codes(vertices, faces), kind="stable")
     order, lo, hi, child, start, stop = bvh.build(vertices, faces, order, size)
-    return TriangleTree(bvh.zero_area(vertices, faces), order, lo, hi, child, start, stop)
+    return TriangleTree(bvh.zero_area(*frozen(vertices, faces)), order, lo, hi, child, start, stop)
 
 
 def grid_tree(
@@ -151,7 +151,7 @@ def grid_tree(
     meshfit.errors.InputError
         No grid, a grid under 2 x 2, or a face count that does not match the shapes.
     """
-    from meshfit._kernels import bvh
+    from meshfit._kernels import bvh, frozen
 
     sh = np.asarray(shapes, dtype=np.int64).reshape(-1, 2)
     if sh.shape[0] == 0 or (sh < 2).any():
@@ -169,8 +169,10 @@ def grid_tree(
         )
     tbase = np.concatenate([[0], np.cumsum(tris)[:-1]]).astype(np.int64)
     centroid = np.add.reduceat(vertices, vbase[:-1], axis=0) / pts[:, None]
-    order, lo, hi, child, start, stop = bvh.build_grids(vertices, faces, sh, tbase, centroid)
-    return TriangleTree(bvh.zero_area(vertices, faces), order, lo, hi, child, start, stop)
+    order, lo, hi, child, start, stop = bvh.build_grids(
+        *frozen(vertices, faces, sh, tbase, centroid)
+    )
+    return TriangleTree(bvh.zero_area(*frozen(vertices, faces)), order, lo, hi, child, start, stop)
 
 
 def triangle_distances(
@@ -216,13 +218,13 @@ def triangle_distances(
     .. [1] Ericson, "Real-Time Collision Detection", 2005, sec. 5.1.5 (closest point on a
        triangle) and ch. 6 (bounding-volume hierarchies).
     """
-    from meshfit._kernels import bvh
+    from meshfit._kernels import bvh, frozen
 
     Q, V, F, tree = _soup_query(points, vertices, faces, tree)
     if Q.shape[0] == 0:
         return np.empty(0), np.empty(0, dtype=np.int64)
-    qorder = np.argsort(bvh.point_morton_codes(Q), kind="stable")
-    sq, face, _ = bvh.closest_points(V, F, *tree, Q, qorder)
+    qorder = np.argsort(bvh.point_morton_codes(*frozen(Q)), kind="stable")
+    sq, face, _ = bvh.closest_points(*frozen(V, F, *tree, Q, qorder))
     return np.sqrt(sq), face
 
 
@@ -266,7 +268,7 @@ def triangles_within(
     .. [1] Ericson, "Real-Time Collision Detection", 2005, ch. 6 (bounding-volume
        hierarchies).
     """
-    from meshfit._kernels import bvh
+    from meshfit._kernels import bvh, frozen
 
     r = float(radius)
     if not (np.isfinite(r) and r >= 0.0):
@@ -274,8 +276,8 @@ def triangles_within(
     Q, V, F, tree = _soup_query(points, vertices, faces, tree)
     if Q.shape[0] == 0:
         return np.zeros(0, dtype=bool)
-    qorder = np.argsort(bvh.point_morton_codes(Q), kind="stable")
-    return bvh.within(V, F, *tree, Q, qorder, r * r)
+    qorder = np.argsort(bvh.point_morton_codes(*frozen(Q)), kind="stable")
+    return bvh.within(*frozen(V, F, *tree, Q, qorder), r * r)
 
 
 def _soup_query(points, vertices, faces, tree):
@@ -381,15 +383,17 @@ def closest_points(mesh: Mesh, xyz: ArrayLike) -> ClosestPoints:
     .. [1] Ericson, "Real-Time Collision Detection", 2005, sec. 5.1.5 (closest point on a
        triangle) and ch. 6 (bounding-volume hierarchies).
     """
-    from meshfit._kernels import bvh
+    from meshfit._kernels import bvh, frozen
 
     q = as_points(xyz, name="xyz")
     if q.shape[0] == 0:
         return ClosestPoints(
             SurfacePoints(np.zeros(0, np.int64), np.zeros((0, 3))), np.zeros(0), np.zeros((0, 3))
         )
-    qorder = np.argsort(bvh.point_morton_codes(q), kind="stable")
-    sq, face, bary = bvh.closest_points(mesh.vertices, mesh.faces, *mesh.triangle_tree, q, qorder)
+    qorder = np.argsort(bvh.point_morton_codes(*frozen(q)), kind="stable")
+    sq, face, bary = bvh.closest_points(
+        *frozen(mesh.vertices, mesh.faces, *mesh.triangle_tree, q, qorder)
+    )
     pts = SurfacePoints(face, bary)
     return ClosestPoints(pts, np.sqrt(sq), mesh.xyz(pts))
 

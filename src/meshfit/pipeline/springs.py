@@ -20,6 +20,7 @@ def spring_patch(patch, options: SpringOptions | None = None):
     level's :func:`meshfit.springs.spring_metrics` (without fidelity) and every level's
     folded cells (the same test, by the fold kernel alone). ``options`` default: the fit's
     (``FitOptions().springs``)."""
+    from meshfit._kernels import frozen
     from meshfit._kernels.springs import folded_cells
     from meshfit.layout.patch import shape_figures
     from meshfit.springs import resample_patch, spring_metrics
@@ -33,7 +34,9 @@ def spring_patch(patch, options: SpringOptions | None = None):
     m = patch.mesh
     fin = spring_metrics(m, res.final, fidelity=False)
     folds = [
-        int(folded_cells(m.vertices, m.faces, s.points.face, s.points.bary, *s.shape).sum())
+        int(
+            folded_cells(*frozen(m.vertices, m.faces, s.points.face, s.points.bary), *s.shape).sum()
+        )
         for s in res.levels[:-1]
     ]
     return res.final.xyz.copy(), {

@@ -11,6 +11,7 @@ from scipy.spatial import ConvexHull
 from scipy.spatial.transform import Rotation
 
 from meshfit import errors
+from meshfit._kernels import frozen
 from meshfit._kernels import shrinkwrap as _k
 from meshfit.mesh import Mesh
 from meshfit.shrinkwrap import _topo
@@ -174,7 +175,7 @@ def cell_areas(
     else:
         fn = _topo.face_neighbors(f)
         steps = 8 * int(np.sqrt(len(f))) + 64
-        cell, _, found = _k.locate_sphere(s, f, fn, start, points, steps)
+        cell, _, found = _k.locate_sphere(*frozen(s, f, fn), start, points, steps)
         if not found.all():
             bad = np.flatnonzero(~found)
             cell[bad], _ = _k.locate_sphere_brute(s, f, points[bad])

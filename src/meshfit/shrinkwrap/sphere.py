@@ -19,6 +19,7 @@ from scipy.sparse.linalg import splu
 from scipy.spatial import cKDTree
 
 from meshfit import errors
+from meshfit._kernels import frozen
 from meshfit._kernels import shrinkwrap as _k
 from meshfit.mesh import Mesh
 from meshfit.types import SurfacePoints
@@ -77,7 +78,9 @@ def spherical_orientation(sphere: NDArray[np.float64], faces: NDArray[np.int64])
     (nf,) float64
     """
     return _k.spherical_dets(
-        np.ascontiguousarray(sphere, dtype=np.float64), np.ascontiguousarray(faces, np.int64)
+        *frozen(
+            np.ascontiguousarray(sphere, dtype=np.float64), np.ascontiguousarray(faces, np.int64)
+        )
     )
 
 
@@ -212,7 +215,9 @@ class SphereMap:
             start = vf[indptr[iv]]
         start = np.ascontiguousarray(start, dtype=np.int64)
         steps = int(_WALK_STEPS_PER_SQRT_FACE * np.sqrt(self.mesh.n_faces)) + 64
-        face, bary, found = _k.locate_sphere(self.sphere, self._faces, self._fn, start, q, steps)
+        face, bary, found = _k.locate_sphere(
+            *frozen(self.sphere, self._faces, self._fn), start, q, steps
+        )
         if not found.all():
             bad = np.flatnonzero(~found)
             f2, b2 = _k.locate_sphere_brute(self.sphere, self._faces, q[bad])

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from meshfit._kernels import frozen
 from meshfit._kernels import springs_aux as _aux
 from meshfit._kernels.springs import chain_points as _chain_points
 from meshfit.mesh import Mesh
@@ -21,7 +22,7 @@ def chain_arc(mesh: Mesh, chain: NDArray[np.int64]) -> NDArray[np.float64]:
         return np.zeros(1)
     if chain.min() < 0 or chain.max() >= mesh.n_vertices:
         raise IndexError("chain_arc: vertex index out of range")
-    return _aux.chain_arc(mesh.vertices, chain)
+    return _aux.chain_arc(*frozen(mesh.vertices, chain))
 
 
 def chain_edge_faces(

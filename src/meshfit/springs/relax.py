@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from meshfit import tol
+from meshfit._kernels import frozen
 from meshfit._kernels import springs as _k
 from meshfit.errors import InputError
 from meshfit.springs.grid import FREE, dilate_grid
@@ -249,7 +250,9 @@ def folded_cells(state: State) -> np.ndarray:
     """(nu - 1, nv - 1) bool: cells with a triangle whose normal points against the surface
     normals at its corners (the `grid_metrics` fold test)."""
     mesh = state.mesh
-    return _k.folded_cells(mesh.vertices, mesh.faces, state.face, state.bary, state.nu, state.nv)
+    return _k.folded_cells(
+        *frozen(mesh.vertices, mesh.faces, state.face, state.bary), state.nu, state.nv
+    )
 
 
 def untangle(

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from meshfit import tol
+from meshfit._kernels import frozen
 from meshfit._kernels import springs as _k
 from meshfit._threads import map_threads, n_workers
 from meshfit.errors import InputError
@@ -473,7 +474,7 @@ def _shape(state: State) -> tuple[int, float, np.ndarray, np.ndarray]:
     col, row, aspect = _line_cvs(
         mesh, state.face, state.bary, (nu, nv), None, None, ends=state._kind()[2:]
     )
-    folded = _k.folded_cells(mesh.vertices, mesh.faces, state.face, state.bary, nu, nv)
+    folded = _k.folded_cells(*frozen(mesh.vertices, mesh.faces, state.face, state.bary), nu, nv)
     return int(folded.sum()), aspect, col, row
 
 
@@ -1329,4 +1330,6 @@ def _folds(mesh: Mesh, res: SpringResult) -> int:
 
     f = res.final
     nu, nv = f.shape
-    return int(folded_cells(mesh.vertices, mesh.faces, f.points.face, f.points.bary, nu, nv).sum())
+    return int(
+        folded_cells(*frozen(mesh.vertices, mesh.faces, f.points.face, f.points.bary), nu, nv).sum()
+    )
