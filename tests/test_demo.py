@@ -121,3 +121,27 @@ def test_readme_quick_start_matches_ci():
     commands = re.findall(r"```bash\n(.*?)\n```", readme, re.S)
     assert commands[0] == "pip install . && meshfit demo"
     assert commands[1] in ci
+
+
+def test_the_display_says_when_kernels_are_compiled(capsys):
+    """A kernel compiled (not loaded from a cache) while a fit's display is open is said
+    once, and counted with its seconds on a line of its own."""
+    from numba import njit
+
+    from meshfit._progress import COMPILING, stage_progress
+
+    @njit  # no cache: compiled here
+    def add_one(x):
+        return x + 1
+
+    with stage_progress() as prog:
+        prog("layout", 0, 1)
+        assert add_one(1) == 2
+        assert add_one(2.5) == 3.5  # a second signature: a second compile
+        prog("layout", 1, 1)
+    assert prog.compiled == 2 and prog.compile_seconds > 0
+    err = capsys.readouterr().err
+    assert err.count(COMPILING[:40]) == 1
+    with stage_progress() as quiet_run:
+        assert add_one(3) == 4  # compiled already: nothing to say
+    assert quiet_run.compiled == 0

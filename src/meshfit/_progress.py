@@ -2,9 +2,23 @@
 
 from __future__ import annotations
 
+import time
+
+#: said once, when the first kernel of a run is compiled rather than loaded from the cache
+COMPILING = (
+    "compiling meshfit's numba kernels for this machine (a first run: a few minutes on two "
+    "cores; they are cached, and later runs skip this)"
+)
+
 
 class stage_progress:
-    """A rich progress display with one bar per pipeline stage (stderr; silent if quiet)."""
+    """A rich progress display with one bar per pipeline stage (stderr; silent if quiet).
+
+    While it is open, numba compiling a kernel (a first run, or a new machine; a kernel
+    loaded from its cache is not compiled) shows as a ``kernels`` line with the count and
+    the seconds spent, and `COMPILING` is printed once: otherwise a first run sits
+    silently in a stage for minutes.
+    """
 
     def __init__(self, quiet: bool = False) -> None:
         from rich.console import Console
@@ -21,15 +35,63 @@ class stage_progress:
             disable=quiet,
         )
         self.tasks: dict[str, int] = {}
+        self.compiled = 0
+        self.compile_seconds = 0.0
+        self._listener = _Compiling(self._compiling)
 
     def __enter__(self):
+        from numba.core import event
+
         self.bar.__enter__()
+        event.register("numba:compile", self._listener)
         return self
 
     def __exit__(self, *exc):
+        from numba.core import event
+
+        event.unregister("numba:compile", self._listener)
         return self.bar.__exit__(*exc)
 
     def __call__(self, stage: str, done: int, total: int) -> None:
         if stage not in self.tasks:
             self.tasks[stage] = self.bar.add_task(stage, total=max(total, 1))
         self.bar.update(self.tasks[stage], completed=done, total=max(total, 1))
+
+    def _compiling(self, seconds: float | None) -> None:
+        """A kernel's compilation began (``seconds`` None) or ended after ``seconds``."""
+        if seconds is None:
+            if self.compiled == 0:
+                self.console.print(COMPILING)
+                self.tasks["kernels"] = self.bar.add_task("kernels", total=None)
+            return
+        self.compiled += 1
+        self.compile_seconds += seconds
+        self.bar.update(
+            self.tasks["kernels"],
+            completed=self.compiled,
+            description=f"kernels ({self.compile_seconds:.0f} s compiling)",
+        )
+
+
+def _Compiling(show):
+    """A numba event listener calling ``show(None)`` when a kernel's compilation begins and
+    ``show(seconds)`` when it ends (the kernels it compiles on the way count as its own)."""
+    from numba.core import event
+
+    class Compiling(event.Listener):
+        def __init__(self) -> None:
+            self.depth = 0
+            self.start = 0.0
+
+        def on_start(self, ev) -> None:
+            if self.depth == 0:
+                self.start = time.perf_counter()
+                show(None)
+            self.depth += 1
+
+        def on_end(self, ev) -> None:
+            self.depth -= 1
+            if self.depth == 0:
+                show(time.perf_counter() - self.start)
+
+    return Compiling()
