@@ -33,12 +33,10 @@ def spring_patch(patch, options: SpringOptions | None = None):
     res = resample_patch(patch, replace(options, metrics=False))
     m = patch.mesh
     fin = spring_metrics(m, res.final, fidelity=False)
-    folds = [
-        int(
-            folded_cells(*frozen(m.vertices, m.faces, s.points.face, s.points.bary), *s.shape).sum()
-        )
-        for s in res.levels[:-1]
-    ]
+    folds = []
+    for s in res.levels[:-1]:
+        v, f, face, bary = frozen(m.vertices, m.faces, s.points.face, s.points.bary)
+        folds.append(int(folded_cells(v, f, face, bary, *s.shape).sum()))
     return res.final.xyz.copy(), {
         "shape": list(res.final.shape),
         "levels": len(res.levels),
