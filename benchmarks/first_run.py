@@ -1,0 +1,94 @@
+"""Benchmark: the first ``meshfit demo`` on a fresh install (kernels compiled) against a later
+run (kernels loaded from the cache).
+
+Usage: ``python benchmarks/first_run.py [--faces 200000]``
+
+Each run is a fresh process of ``meshfit demo``. The first runs with an empty numba cache
+folder (``NUMBA_CACHE_DIR``), as after ``pip install``; the second with the cache the first
+filled: the peer, today's speed once compiled. A listener on numba's compile events sums
+the seconds spent compiling kernels called from Python (their callees count as theirs) and
+counts how often one kernel is compiled for more than one signature. Target (issue 52): the
+first run within 60 s on two cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+from _common import write_result
+
+TARGET_FIRST_RUN = 60.0
+
+_RUN = """
+import json, sys, time
+from collections import Counter
+from numba.core import event
+spent, names, secs, depth, t0, who = [0.0], Counter(), Counter(), [0], [0.0], [""]
+class Compiles(event.Listener):
+    def on_start(self, ev):
+        if depth[0] == 0:
+            t0[0] = time.perf_counter()
+            f = ev.data["dispatcher"].py_func
+            who[0] = f.__module__.rsplit(".", 1)[-1] + "." + f.__qualname__
+            names[who[0]] += 1
+        depth[0] += 1
+    def on_end(self, ev):
+        depth[0] -= 1
+        if depth[0] == 0:
+            spent[0] += time.perf_counter() - t0[0]
+            secs[who[0]] += time.perf_counter() - t0[0]
+event.register("numba:compile", Compiles())
+from meshfit.cli import main
+rc = main(["demo", "--out", sys.argv[1], "--faces", sys.argv[2], "--json"])
+top = [(k, round(v, 1)) for k, v in secs.most_common(8)]
+print(json.dumps({"rc": rc, "compile_s": spent[0], "compiles": sum(names.values()),
+                  "kernels": len(names), "recompiled": sum(1 for n in names.values() if n > 1),
+                  "slowest_s": top}), file=sys.stderr)
+"""
+
+
+def run(faces: int, cache: str, out: str) -> dict:
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+    t = time.perf_counter()
+    p = subprocess.run(
+        [sys.executable, "-c", _RUN, out, str(faces)],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    wall = time.perf_counter() - t
+    info = json.loads(p.stderr.strip().splitlines()[-1])
+    info["wall_s"] = round(wall, 1)
+    info["compile_s"] = round(info["compile_s"], 1)
+    return info
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--faces", type=int, default=200_000)
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        cache = os.path.join(tmp, "numba-cache")
+        first = run(args.faces, cache, os.path.join(tmp, "first"))
+        later = run(args.faces, cache, os.path.join(tmp, "later"))
+    result = {
+        "faces": args.faces,
+        "cpus": os.cpu_count(),
+        "first_run": first,
+        "later_run": later,
+        "first_over_later": round(first["wall_s"] / later["wall_s"], 2),
+        "target_first_run_s": TARGET_FIRST_RUN,
+        "first_over_target": round(first["wall_s"] / TARGET_FIRST_RUN, 2),
+    }
+    write_result("first_run", result)
+
+
+if __name__ == "__main__":
+    main()
