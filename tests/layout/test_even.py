@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from meshfit.errors import InputError
+from meshfit.errors import InputError, MeshfitError
 from meshfit.layout.even import NEEDLE_SHARE, even_remesh, needle_share
 from meshfit.layout.regions import crease_edges
 from meshfit.pipeline import FitOptions, fit
@@ -117,7 +117,9 @@ def test_a_cad_programs_own_tessellation_fits_through_the_remesh(raw_cad, tmp_pa
 @pytest.mark.parametrize("remesh", ["off", "layout file"])
 def test_the_input_is_kept_when_asked_or_when_a_layout_is_given(raw_cad, remesh):
     if remesh == "off":
-        with pytest.raises(Exception, match="could not make every cell a disk"):
+        # the CAD program's needles, kept, cannot be laid out (where the layout gives up
+        # depends on its budgets; that the input was kept is what this checks)
+        with pytest.raises(MeshfitError, match=r"cell|curve"):
             fit(raw_cad, options=FitOptions(formats=(), report=False, remesh="off"))
         return
     from meshfit.layout.cube import cube_layout
