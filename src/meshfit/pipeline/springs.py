@@ -20,10 +20,9 @@ def spring_patch(patch, options: SpringOptions | None = None):
     level's :func:`meshfit.springs.spring_metrics` (without fidelity) and every level's
     folded cells (the same test, by the fold kernel alone). ``options`` default: the fit's
     (``FitOptions().springs``)."""
-    from meshfit._kernels import frozen
-    from meshfit._kernels.springs import folded_cells
     from meshfit.layout.patch import shape_figures
     from meshfit.springs import resample_patch, spring_metrics
+    from meshfit.springs.relax import grid_folds
 
     t = time.perf_counter()
     if options is None:
@@ -33,10 +32,9 @@ def spring_patch(patch, options: SpringOptions | None = None):
     res = resample_patch(patch, replace(options, metrics=False))
     m = patch.mesh
     fin = spring_metrics(m, res.final, fidelity=False)
-    folds = []
-    for s in res.levels[:-1]:
-        v, f, face, bary = frozen(m.vertices, m.faces, s.points.face, s.points.bary)
-        folds.append(int(folded_cells(v, f, face, bary, *s.shape).sum()))
+    folds = [
+        int(grid_folds(m, s.points.face, s.points.bary, *s.shape).sum()) for s in res.levels[:-1]
+    ]
     return res.final.xyz.copy(), {
         "shape": list(res.final.shape),
         "levels": len(res.levels),

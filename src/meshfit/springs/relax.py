@@ -249,10 +249,13 @@ def relax(
 def folded_cells(state: State) -> np.ndarray:
     """(nu - 1, nv - 1) bool: cells with a triangle whose normal points against the surface
     normals at its corners (the `grid_metrics` fold test)."""
-    mesh = state.mesh
-    return _k.folded_cells(
-        *frozen(mesh.vertices, mesh.faces, state.face, state.bary), state.nu, state.nv
-    )
+    return grid_folds(state.mesh, state.face, state.bary, state.nu, state.nv)
+
+
+def grid_folds(mesh, face: np.ndarray, bary: np.ndarray, nu: int, nv: int) -> np.ndarray:
+    """`folded_cells` of a ``nu`` x ``nv`` grid of surface points of ``mesh`` (``face``
+    (nu * nv,) int64, ``bary`` (nu * nv, 3) float64), whatever holds them."""
+    return _k.folded_cells(*frozen(mesh.vertices, mesh.faces, face, bary), nu, nv)
 
 
 def untangle(

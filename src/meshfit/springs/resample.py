@@ -9,7 +9,6 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from meshfit import tol
-from meshfit._kernels import frozen
 from meshfit._kernels import springs as _k
 from meshfit._threads import map_threads, n_workers
 from meshfit.errors import InputError
@@ -23,6 +22,7 @@ from meshfit.springs.relax import (
     Sweeps,
     even_lines_in_map,
     folded_cells,
+    grid_folds,
     relax,
     repair_folds,
     slide_side_points,
@@ -474,7 +474,7 @@ def _shape(state: State) -> tuple[int, float, np.ndarray, np.ndarray]:
     col, row, aspect = _line_cvs(
         mesh, state.face, state.bary, (nu, nv), None, None, ends=state._kind()[2:]
     )
-    folded = _k.folded_cells(*frozen(mesh.vertices, mesh.faces, state.face, state.bary), nu, nv)
+    folded = grid_folds(mesh, state.face, state.bary, nu, nv)
     return int(folded.sum()), aspect, col, row
 
 
@@ -1326,10 +1326,6 @@ def _spacing_and_soup(spring: SpringMesh):
 
 def _folds(mesh: Mesh, res: SpringResult) -> int:
     """Folded cells of a result's final level (the `grid_metrics` test)."""
-    from meshfit._kernels.springs import folded_cells
-
     f = res.final
     nu, nv = f.shape
-    return int(
-        folded_cells(*frozen(mesh.vertices, mesh.faces, f.points.face, f.points.bary), nu, nv).sum()
-    )
+    return int(grid_folds(mesh, f.points.face, f.points.bary, nu, nv).sum())
