@@ -61,43 +61,50 @@ def test_wrap_sphere_aspect_bound(capsys):
 
 def test_stream_encode_decode(tmp_path, capsys):
     s = tmp_path / "spot.mfsw"
-    assert (
-        main(
-            [
-                "stream",
-                "encode",
-                str(mesh_path("spot")),
-                "--levels",
-                "2",
-                "-o",
-                str(s),
-                "--scheme",
-                "butterfly",
-                "--json",
-            ]
-        )
-        == 0
-    )
+    enc = ["stream", "encode", str(mesh_path("spot")), "--levels", "2", "--scheme", "butterfly"]
+    assert main([*enc, "-o", str(s), "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["bytes"] == s.stat().st_size
     full = tmp_path / "full.ply"
     part = tmp_path / "part.ply"
     assert main(["stream", "decode", str(s), "-o", str(full), "--json"]) == 0
-    capsys.readouterr()
-    assert main(["stream", "decode", str(s), "-o", str(part), "--fraction", "0.1"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert got["bytes_used"] == got["bytes"] == info["bytes"]
+    assert main(["stream", "decode", str(s), "-o", str(part), "--fraction", "0.5"]) == 0
     a, b = load_mesh(full), load_mesh(part)
     assert np.array_equal(a.faces, b.faces)
     assert not np.allclose(a.vertices, b.vertices)
-    # a coarser level uses (and counts) only the packets of its levels
-    lvl1 = tmp_path / "l1.ply"
+    # 1% of the bytes is less than the base mesh: the base mesh and what fits beside it
     capsys.readouterr()
+    assert main(["stream", "decode", str(s), "-o", str(part), "--fraction", "0.01", "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert got["faces"] == a.n_faces and got["bytes_used"] < info["bytes"] / 2
+    # --bytes: the first N bytes, as if only they arrived
+    n = info["bytes"] // 3
+    assert main(["stream", "decode", str(s), "-o", str(part), "--bytes", str(n), "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert got["bytes_used"] == n and 0 < got["coefficient_bytes"] < n
+    # a coarser level
+    lvl1 = tmp_path / "l1.ply"
     assert main(["stream", "decode", str(s), "-o", str(lvl1), "--level", "1", "--json"]) == 0
     got = json.loads(capsys.readouterr().out)
     assert got["level"] == 1
     assert got["faces"] == 4 * info["base_faces"] == load_mesh(lvl1).n_faces
-    assert 0 < got["coefficients_used"] < info["coefficients"]
     assert main(["stream", "decode", str(s), "-o", str(lvl1), "--level", "3"]) == 2
     assert "--level must be in [0, 2]" in capsys.readouterr().err
+    # encode --bytes N writes at most N bytes
+    small = tmp_path / "small.mfsw"
+    assert main([*enc, "-o", str(small), "--bytes", str(n), "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert got["bytes"] == small.stat().st_size <= n
+    assert main([*enc, "-o", str(small), "--bytes", "100"]) == 2
+    assert "do not hold the base mesh" in capsys.readouterr().err
+    # a file cut short decodes, with a note saying how much arrived
+    cut = tmp_path / "cut.mfsw"
+    cut.write_bytes(s.read_bytes()[: info["bytes"] // 2])
+    assert main(["stream", "decode", str(cut), "-o", str(part)]) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{info['bytes'] // 2:,} of {info['bytes']:,} bytes" in err
     bad = tmp_path / "bad.mfsw"
     bad.write_bytes(b"nope")
     assert main(["stream", "decode", str(bad), "-o", str(part)]) == 2

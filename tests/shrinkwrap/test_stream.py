@@ -1,6 +1,12 @@
-"""Progressive streams: any subset of packets in any order decodes, and a damaged or hostile
-file (flipped bits, random bytes, headers claiming more than it holds) is one StreamError
-within an allocation budget."""
+"""Progressive streams: any prefix of a file decodes, to an error that falls as bytes grow,
+and a damaged or hostile file (flipped bits, random bytes, headers claiming more than it
+holds) is one StreamError within an allocation budget."""
+
+import itertools
+import math
+import struct
+import tracemalloc
+import zlib
 
 import numpy as np
 import pytest
@@ -16,16 +22,18 @@ from meshfit.shrinkwrap import (
     encode_stream,
     icosahedron,
     read_stream,
+    reconstruction_errors,
     subdivide_step,
     write_stream,
 )
-from meshfit.shrinkwrap.subdivision import level_sizes
+from meshfit.shrinkwrap import stream as sm
+from meshfit.shrinkwrap.subdivision import SCHEMES, level_faces, level_sizes
 
-from ..conftest import real_mesh
 from ..fuzz import damaged, peak_within
 from .conftest import wrap
 
 LEVELS = 4
+HEADER = sm._HEADER.size
 
 
 @pytest.fixture(scope="module")
@@ -40,53 +48,103 @@ def _encode(res, scheme, **kw):
     )
 
 
-@pytest.mark.parametrize("scheme", ["loop", "butterfly"])
+def _diag(x):
+    return float(np.linalg.norm(np.ptp(x, axis=0)))
+
+
+def _rms(x, ref):
+    return float(np.sqrt(np.mean(np.sum((x - ref) ** 2, axis=1))))
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
 def test_full_stream_reconstructs_the_finest_level(spot_wrap, scheme):
-    st = Stream.from_bytes(_encode(spot_wrap, scheme, packet_size=64).to_bytes())
-    x, f = decode_stream(st)
-    diag = real_mesh("spot").bbox_diagonal
-    assert_allclose(x, spot_wrap.levels[-1].vertices, atol=1e-6 * diag)  # float32 details
-    assert np.array_equal(f, spot_wrap.levels[-1].faces)
-    st64 = _encode(spot_wrap, scheme, value_bytes=8)
-    assert_allclose(decode_stream(st64)[0], spot_wrap.levels[-1].vertices, atol=1e-12 * diag)
-
-
-@pytest.mark.parametrize("scheme", ["loop", "butterfly"])
-def test_permuted_packets_decode_identically(spot_wrap, scheme, rng):
-    st = _encode(spot_wrap, scheme, packet_size=50)
-    x, _ = decode_stream(st)
-    perm = rng.permutation(len(st.packets))
-    y, _ = decode_stream(st, [st.packets[i] for i in perm])
-    assert np.array_equal(x, y)
-    # and through the byte format with the packets written in permuted order
-    shuffled = Stream(
-        st.scheme,
-        st.levels,
-        st.base_vertices,
-        st.base_faces,
-        [st.packets[i] for i in perm],
-        st.value_bytes,
-    )
-    z, _ = decode_stream(Stream.from_bytes(shuffled.to_bytes()))
-    assert np.array_equal(x, z)
-
-
-@pytest.mark.parametrize("scheme", ["loop", "butterfly"])
-def test_dropped_packets_degrade_gracefully(spot_wrap, scheme, rng):
-    st = _encode(spot_wrap, scheme, packet_size=50)
+    """Each level's details are quantised to at most 3 `STREAM_PRECISION` of the diagonal
+    (normal component exact to one, the two tangential to two each); Loop's and Butterfly's
+    rules carry a coarser level's error on without growing it much: the finest level is
+    within levels x 3 `STREAM_PRECISION`."""
     ref = spot_wrap.levels[-1].vertices
-    diag = real_mesh("spot").bbox_diagonal
+    s = Stream.from_bytes(_encode(spot_wrap, scheme).to_bytes())
+    x, f = decode_stream(s)
+    tol = 3 * LEVELS * sm.STREAM_PRECISION * _diag(ref)
+    assert np.abs(x - ref).max() <= tol
+    assert np.array_equal(f, spot_wrap.levels[-1].faces)
+    sizes = [len(lv.vertices) for lv in spot_wrap.levels]
+    per_level = sizes[1:] if scheme == "loop" else np.diff(sizes)  # (Loop: every vertex moves)
+    assert s.missing == 0 and s.n_coefficients == sum(per_level)
+    # the base mesh goes at 16 bits within its cube
+    q = s.quant
+    assert np.abs(s.base_vertices - ref[: len(s.base_vertices)]).max() <= q.extent / 2**16
 
-    def err(keep):
-        x, _ = decode_stream(st, [p for p, k in zip(st.packets, keep, strict=True) if k])
-        return float(np.sqrt(np.mean(np.sum((x - ref) ** 2, axis=1)))) / diag
 
-    n = len(st.packets)
-    e0 = err(np.zeros(n, bool))
-    e50 = err(rng.random(n) < 0.5)
-    e90 = err(rng.random(n) < 0.9)
-    assert e0 > e50 > e90 > 0
-    assert e0 < 0.2  # the base mesh alone already gives a coarse approximation
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_a_file_cut_at_every_5_percent_decodes_and_the_error_falls(spot_wrap, scheme):
+    ref = spot_wrap.levels[-1].vertices
+    s = _encode(spot_wrap, scheme)
+    data = s.to_bytes()
+    assert s.min_prefix <= 0.05 * len(data)
+    cut_errs, sent_errs = [], []
+    for k in range(1, 21):
+        n = math.ceil(k * len(data) / 20)
+        cut = Stream.from_bytes(data[:n])  # the first n bytes arrived
+        assert cut.missing == len(data) - n
+        assert s.data.startswith(cut.data)
+        cut_errs.append(_rms(decode_stream(cut)[0], ref))
+        sent = s.truncate(n)  # a whole file of at most n bytes
+        assert len(sent.to_bytes()) == sent.n_bytes <= n
+        sent_errs.append(_rms(decode_stream(sent)[0], ref))
+    for errs in (cut_errs, sent_errs):
+        assert all(b <= a for a, b in itertools.pairwise(errs)), errs
+        assert errs[0] > 10 * errs[-1]
+    assert cut_errs[-1] == sent_errs[-1]  # (the whole file)
+    assert all(a <= b for a, b in zip(sent_errs, cut_errs, strict=True))
+
+
+def test_a_prefix_decode_allocates_no_more_than_the_full_decode(spot_wrap):
+    data = _encode(spot_wrap, "loop").to_bytes()
+
+    def peak(n):
+        s = Stream.from_bytes(data[:n])
+        peaks = []
+        for _ in range(3):  # (the least of three: Python's own objects come and go)
+            tracemalloc.start()
+            decode_stream(s)
+            peaks.append(tracemalloc.get_traced_memory()[1])
+            tracemalloc.stop()
+        return min(peaks)
+
+    full = peak(len(data))
+    for fr in (0.05, 0.3, 0.7):
+        assert peak(int(fr * len(data))) <= full + 1024
+
+
+def test_max_bytes_and_truncate(spot_wrap):
+    s = _encode(spot_wrap, "loop")
+    for n in (s.min_bytes, s.min_bytes + 1, 3000, 10_000, s.n_bytes, 10 * s.n_bytes):
+        cut = _encode(spot_wrap, "loop", max_bytes=n)
+        assert len(cut.to_bytes()) == cut.n_bytes <= n
+        assert s.data.startswith(cut.data)
+        assert n - cut.n_bytes <= 8 or cut.data == s.data  # (a block's CRC at most)
+    with pytest.raises(errors.InputError, match="do not hold the base mesh"):
+        s.truncate(s.min_bytes - 1)
+    base, _ = decode_stream(s.truncate(s.min_bytes), level=0)
+    assert_allclose(base, s.base_vertices)
+
+
+def test_reconstruction_errors_fall_with_the_bytes(spot_wrap):
+    s = _encode(spot_wrap, "butterfly")
+    e = reconstruction_errors(s, spot_wrap.levels[-1].vertices, (0.0, 0.05, 0.2, 1.0))
+    assert e["0%"] > e["5%"] > e["20%"] > e["100%"] > 0
+
+
+def test_coarser_levels_decode_from_a_prefix(spot_wrap):
+    s = _encode(spot_wrap, "loop")
+    cut = Stream.from_bytes(s.to_bytes()[: s.n_bytes // 2])
+    for lv in range(LEVELS + 1):
+        x, f = decode_stream(cut, level=lv)
+        assert np.array_equal(f, spot_wrap.levels[lv].faces)
+        assert len(x) == len(spot_wrap.levels[lv].vertices)
+    with pytest.raises(errors.InputError, match="level must be in"):
+        decode_stream(s, level=LEVELS + 1)
 
 
 def test_butterfly_interpolates_and_loop_smooths():
@@ -101,131 +159,168 @@ def test_butterfly_interpolates_and_loop_smooths():
     assert level_sizes(f, 12, 2) == [12, 42, 162]
 
 
+def _bumpy(levels=3):
+    """A hierarchy over the icosahedron with a bumpy finest level."""
+    v, f = icosahedron()
+    x, ff = v, f
+    for _ in range(levels):
+        x, ff = subdivide_step(x, ff, "butterfly")
+    x = x / np.linalg.norm(x, axis=1, keepdims=True)
+    return x * (1 + 0.1 * np.sin(5 * x[:, :1])), f
+
+
+def _synthetic_stream(scheme, levels=3):
+    x, f = _bumpy(levels)
+    return encode_stream(x, f, 12, levels, scheme=scheme)
+
+
+_STREAMS = {s: _synthetic_stream(s) for s in SCHEMES}
+
+
 def test_stream_file_round_trip_and_errors(spot_wrap, tmp_path):
-    st = _encode(spot_wrap, "loop")
+    s = _encode(spot_wrap, "loop")
     path = tmp_path / "s.mfsw"
-    write_stream(st, path)
+    write_stream(s, path)
     back = read_stream(path)
-    assert back.n_coefficients == st.n_coefficients
+    assert back.data == s.data and back.quant.step == s.quant.step
     data = path.read_bytes()
     with pytest.raises(errors.StreamError, match="magic"):
         Stream.from_bytes(b"XXXX" + data[4:])
     with pytest.raises(errors.StreamError, match="version"):
         Stream.from_bytes(data[:4] + b"\x09\x00" + data[6:])
-    with pytest.raises(errors.StreamError, match="truncated"):
-        Stream.from_bytes(data[: len(data) - 10])
-    with pytest.raises(errors.StreamError, match="exceed level"):
-        decode_stream(st, [Packet(1, 10**6, np.zeros((2, 3)))])
-    with pytest.raises(errors.StreamError, match="level 9"):
-        decode_stream(st, [Packet(9, 0, np.zeros((2, 3)))])
+    with pytest.raises(errors.StreamError, match="truncated header"):
+        Stream.from_bytes(data[: HEADER - 1])
+    with pytest.raises(errors.StreamError, match="base mesh is not complete"):
+        Stream.from_bytes(data[: HEADER + 10])
+    with pytest.raises(errors.StreamError, match="the header says"):
+        Stream.from_bytes(data + b"\0")
 
 
-def _synthetic_stream(scheme):
-    """A 3-level hierarchy over the icosahedron with a bumpy finest level."""
-    v, f = icosahedron()
-    x, ff = v, f
-    for _ in range(3):
-        x, ff = subdivide_step(x, ff, "butterfly")
-    x = x / np.linalg.norm(x, axis=1, keepdims=True)
-    x *= 1 + 0.1 * np.sin(5 * x[:, :1])
-    return encode_stream(x, f, 12, 3, scheme=scheme, packet_size=7)
-
-
-_STREAMS = {s: _synthetic_stream(s) for s in ("loop", "butterfly")}
-
-
-@settings(max_examples=40, deadline=None)
-@given(scheme=st.sampled_from(["loop", "butterfly"]), data=st.data())
-def test_any_subset_in_any_order_decodes_like_the_sorted_subset(scheme, data):
-    stream = _STREAMS[scheme]
-    n = len(stream.packets)
-    keep = data.draw(st.lists(st.integers(0, n - 1), unique=True, max_size=n))
-    order = data.draw(st.permutations(keep))
-    a, _ = decode_stream(stream, [stream.packets[i] for i in sorted(keep)])
-    b, _ = decode_stream(stream, [stream.packets[i] for i in order])
-    assert np.array_equal(a, b)
-
-
-def _v1_bytes(stream: Stream) -> bytes:
-    """The version-1 layout (no file length, no checksums), as older meshfit wrote it."""
-    import struct
-
-    from meshfit.shrinkwrap.subdivision import SCHEMES
-
-    hdr = struct.pack(
-        "<4sHBBHHIII",
-        b"MFSW",
-        1,
-        SCHEMES.index(stream.scheme),
-        stream.value_bytes,
-        stream.levels,
-        0,
-        len(stream.base_vertices),
-        len(stream.base_faces),
-        len(stream.packets),
-    )
-    parts = [hdr, stream.base_vertices.astype("<f8").tobytes()]
-    parts.append(stream.base_faces.astype("<u4").tobytes())
-    for p in stream.packets:
-        parts.append(struct.pack("<2sBBII", b"PK", p.level, 0, p.start, len(p.values)))
-        parts.append(np.asarray(p.values, dtype="<f4").tobytes())
-    return b"".join(parts)
-
-
-def _with_crc(data: bytearray, lo: int, hi: int) -> None:
-    import struct
-    import zlib
-
-    data[hi : hi + 4] = struct.pack("<I", zlib.crc32(bytes(data[lo:hi])))
+def _rewrite_crcs(data: bytearray) -> None:
+    """Checksums made to match the bytes (the header's and every block's)."""
+    struct.pack_into("<I", data, HEADER - 4, zlib.crc32(bytes(data[: HEADER - 4])))
+    (block,) = struct.unpack_from("<I", data, 22)
+    off, k = HEADER, 0
+    while off < len(data):
+        end = min(off + block, len(data) - 4)
+        struct.pack_into("<I", data, end, zlib.crc32(bytes(data[off:end]), k))
+        off, k = end + 4, k + 1
 
 
 def test_every_flipped_bit_is_found():
-    """Version 2 covers every byte with a checksum or a size check: a flipped bit anywhere
-    is a StreamError, never another mesh."""
+    """The header and every block carry a CRC-32: a flipped bit anywhere in a whole file is
+    a StreamError naming the header or the block, never another mesh."""
     data = _STREAMS["loop"].to_bytes()
+    block = _STREAMS["loop"].block_bytes + 4
     rng = np.random.default_rng(0)
-    for pos in sorted(set(rng.integers(0, len(data), 300).tolist()) | {0, 6, 30, len(data) - 1}):
+    picks = set(rng.integers(0, len(data), 300).tolist()) | {0, 6, HEADER - 1, len(data) - 1}
+    for pos in sorted(picks):
         bad = bytearray(data)
         bad[pos] ^= 1 << int(rng.integers(0, 8))
-        with pytest.raises(errors.StreamError):
+        where = "header" if pos < HEADER else f"block {(pos - HEADER) // block}"
+        with pytest.raises(errors.StreamError, match=where if pos >= 6 else "magic|version"):
             Stream.from_bytes(bytes(bad))
 
 
-def test_hostile_headers_and_bases_are_refused_before_any_work():
-    import struct
+def test_flipped_bits_in_the_complete_blocks_of_a_cut_file_are_found():
+    s = _STREAMS["butterfly"]
+    data = s.to_bytes()
+    block = s.block_bytes + 4
+    cut = data[: HEADER + block + block // 2]  # one complete block and part of the next
+    Stream.from_bytes(cut)
+    bad = bytearray(cut)
+    bad[HEADER + block // 2] ^= 4
+    with pytest.raises(errors.StreamError, match="block 0"):
+        Stream.from_bytes(bytes(bad))
+    worse = bytearray(cut)
+    worse[-10] ^= 4  # in the partial block: dropped, not read
+    assert Stream.from_bytes(bytes(worse)).data == Stream.from_bytes(cut).data
 
-    stream = _STREAMS["loop"]
-    data = bytearray(stream.to_bytes())
+
+def test_hostile_headers_and_bases_are_refused_before_any_work():
+    s = _STREAMS["loop"]
+    data = bytearray(s.to_bytes())
     # 13 levels over the 20 base faces: 1.3 billion faces; refused at the header
     many = bytearray(data)
     struct.pack_into("<H", many, 8, 13)
-    _with_crc(many, 0, 32)
+    _rewrite_crcs(many)
     with peak_within(0, fixed=1 << 20):  # refused from the header: nothing is allocated for it
         with pytest.raises(errors.StreamError, match="at most 8,000,000 are decoded"):
             Stream.from_bytes(bytes(many))
     # zeroed base faces (checksums made to match): a clear error, not a traceback
     zero = bytearray(data)
-    n0, nf0 = len(stream.base_vertices), len(stream.base_faces)
-    lo = 36 + 24 * n0
-    zero[lo : lo + 12 * nf0] = bytes(12 * nf0)
-    _with_crc(zero, 36, lo + 12 * nf0)
+    n0, nf0 = len(s.base_vertices), len(s.base_faces)
+    lo = HEADER + 6 * n0
+    zero[lo : lo + 3 * nf0 * 4 // 8] = bytes(3 * nf0 * 4 // 8)
+    _rewrite_crcs(zero)
     with pytest.raises(errors.StreamError, match="base face 0 repeats a corner"):
         Stream.from_bytes(bytes(zero))
-    # more packets than the file can hold
-    more = bytearray(data)
-    struct.pack_into("<I", more, 20, 10**9)
-    _with_crc(more, 0, 32)
-    with pytest.raises(errors.StreamError, match="need at least"):
-        Stream.from_bytes(bytes(more))
+    # a file longer than its header says
+    short = bytearray(data)
+    struct.pack_into("<Q", short, 26, len(data) - 1)
+    _rewrite_crcs(short)
+    with pytest.raises(errors.StreamError, match="the header says"):
+        Stream.from_bytes(bytes(short))
+    # a header claiming more than the file: a cut file, whose blocks are what arrived
+    long = bytearray(data)
+    struct.pack_into("<Q", long, 26, 10**12)
+    _rewrite_crcs(long)
+    assert Stream.from_bytes(bytes(long)).missing == 10**12 - len(data)
+    # quantisation that is not finite
+    nan = bytearray(data)
+    struct.pack_into("<d", nan, 58, float("nan"))
+    _rewrite_crcs(nan)
+    with pytest.raises(errors.StreamError, match="not finite"):
+        Stream.from_bytes(bytes(nan))
 
 
-def test_version_1_streams_are_still_read():
-    stream = _STREAMS["butterfly"]
-    old = Stream.from_bytes(_v1_bytes(stream))
-    assert old.levels == stream.levels and old.n_coefficients == stream.n_coefficients
-    x, _ = decode_stream(old)
-    y, _ = decode_stream(stream)
+def _v1_bytes(x, f, n0, levels, scheme) -> bytes:
+    """The version-1 layout (float32 details against the decoder's prediction, no file
+    length, no checksums), as older meshfit wrote it."""
+    sizes = level_sizes(f, n0, levels)
+    fl = level_faces(f, n0, levels)
+    parts = [
+        struct.pack(
+            "<4sHBBHHIII", b"MFSW", 1, SCHEMES.index(scheme), 4, levels, 0, n0, len(f), levels
+        ),
+        x[:n0].astype("<f8").tobytes(),
+        f.astype("<u4").tobytes(),
+    ]
+    rec = x[:n0]
+    for i in range(1, levels + 1):
+        pred, _ = subdivide_step(rec, fl[i - 1], scheme)
+        lo = 0 if scheme == "loop" else sizes[i - 1]
+        d = (x[lo : sizes[i]] - pred[lo:]).astype("<f4")
+        parts += [struct.pack("<2sBBII", b"PK", i, 0, lo, len(d)), d.tobytes()]
+        pred[lo:] += d
+        rec = pred
+    return b"".join(parts)
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_version_1_streams_are_still_read(scheme):
+    x, f = _bumpy()
+    old = Stream.from_bytes(_v1_bytes(x, f, 12, 3, scheme))
+    assert old.version == 1 and old.levels == 3 and len(old.packets) == 3
+    y, _ = decode_stream(old)
     assert np.abs(x - y).max() < 1e-6
+    assert np.abs(decode_stream(old, old.packets[:1])[0] - y).max() > 1e-3
+    with pytest.raises(errors.StreamError, match="exceed level"):
+        decode_stream(old, [Packet(1, 10**6, np.zeros((2, 3)))])
+    with pytest.raises(errors.StreamError, match="truncated"):
+        Stream.from_bytes(_v1_bytes(x, f, 12, 3, scheme)[:-10])
+
+
+@settings(max_examples=40, deadline=None)
+@given(scheme=st.sampled_from(SCHEMES), frac=st.floats(0, 1))
+def test_any_cut_decodes_a_prefix_of_the_code(scheme, frac):
+    s = _STREAMS[scheme]
+    data = s.to_bytes()
+    n = s.min_prefix + int(frac * (len(data) - s.min_prefix))
+    cut = Stream.from_bytes(data[:n])
+    assert s.data.startswith(cut.data)
+    assert len(s.data) - len(cut.data) <= len(data) - n + s.block_bytes
+    decode_stream(cut)
 
 
 @settings(max_examples=300, deadline=None)
@@ -247,18 +342,13 @@ def test_random_bytes_raise_only_stream_errors(raw):
         Stream.from_bytes(raw)
 
 
-@pytest.mark.parametrize("scheme", ["loop", "butterfly"])
-@pytest.mark.parametrize("levels", [3, 5])
+@pytest.mark.parametrize("scheme", SCHEMES)
+@pytest.mark.parametrize("levels", [3, 4])
 def test_a_decode_is_refused_when_its_estimate_exceeds_the_free_memory(monkeypatch, scheme, levels):
     """The estimate covers what the decode holds (tracemalloc's peak, numpy's arrays
     included) and is refused, before any work, above the memory the machine has free."""
-    import tracemalloc
-    from dataclasses import replace
-
-    from meshfit.shrinkwrap import stream as sm
-
-    s = replace(_STREAMS[scheme], levels=levels)  # (levels past 3 have no packets: predicted)
-    need = sm.decode_bytes(len(s.base_faces), len(s.base_vertices), s.levels)
+    s = _synthetic_stream(scheme, levels)
+    need = sm.decode_bytes(len(s.base_faces), len(s.base_vertices), levels, levels)
     tracemalloc.start()
     decode_stream(s)
     peak = tracemalloc.get_traced_memory()[1]
@@ -267,4 +357,4 @@ def test_a_decode_is_refused_when_its_estimate_exceeds_the_free_memory(monkeypat
     monkeypatch.setattr(sm, "_free_bytes", lambda: need - 1)
     with pytest.raises(errors.StreamError, match="decode a coarser level"):
         decode_stream(s)
-    decode_stream(s, level=s.levels - 1)  # a coarser level fits
+    decode_stream(s, level=levels - 1)  # a coarser level fits

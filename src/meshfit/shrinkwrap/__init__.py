@@ -2,7 +2,8 @@
 progressive transmission (Kobbelt, Vorsatz, Labsik & Seidel 1999).
 
 Verbs: :func:`sphere_map` (sec. 6), :func:`base_mesh` (sec. 6), :func:`shrink_wrap`
-(sec. 4, 7), :func:`encode_stream` / :func:`decode_stream` (sec. 8.1), :func:`fill_holes`.
+(sec. 4, 7), :func:`encode_stream` / :func:`decode_stream` (sec. 8.1; an embedded code any
+prefix of which decodes, after Khodakovsky, Schroeder & Sweldens 2000), :func:`fill_holes`.
 """
 
 from meshfit.shrinkwrap.base import BaseMesh, BaseOptions, base_mesh, icosahedron, octahedron
@@ -16,6 +17,7 @@ from meshfit.shrinkwrap.sphere import (
 )
 from meshfit.shrinkwrap.stream import (
     Packet,
+    Quantisation,
     Stream,
     decode_stream,
     encode_stream,
@@ -37,6 +39,7 @@ __all__ = [
     "BaseMesh",
     "BaseOptions",
     "Packet",
+    "Quantisation",
     "SphereMap",
     "Stream",
     "WrapLevel",

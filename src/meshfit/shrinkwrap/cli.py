@@ -141,6 +141,8 @@ def cmd_encode(args: argparse.Namespace) -> int:
     from meshfit._cliout import print_json
     from meshfit.shrinkwrap import encode_stream, write_stream
 
+    if args.bytes is not None and args.bytes < 1:
+        raise errors.InputError(f"--bytes must be positive, got {args.bytes}")
     _, res = _wrap(args)
     top = res.levels[-1]
     st = encode_stream(
@@ -149,8 +151,7 @@ def cmd_encode(args: argparse.Namespace) -> int:
         len(res.base.sphere),
         top.level,
         scheme=args.scheme,
-        packet_size=args.packet_size,
-        value_bytes=8 if args.float64 else 4,
+        max_bytes=args.bytes,
     )
     write_stream(st, args.output)
     info = {
@@ -158,8 +159,8 @@ def cmd_encode(args: argparse.Namespace) -> int:
         "scheme": st.scheme,
         "levels": st.levels,
         "base_faces": len(st.base_faces),
-        "packets": len(st.packets),
         "coefficients": st.n_coefficients,
+        "bit_planes": st.quant.planes if st.quant else None,
         "bytes": Path(args.output).stat().st_size,
     }
     if args.json:
@@ -170,35 +171,52 @@ def cmd_encode(args: argparse.Namespace) -> int:
 
 
 def cmd_decode(args: argparse.Namespace) -> int:
+    import sys
+
     from meshfit._cliout import print_json
     from meshfit.mesh import Mesh
     from meshfit.mesh.io import save_mesh
-    from meshfit.shrinkwrap import decode_stream, read_stream
+    from meshfit.shrinkwrap import Stream, decode_stream
 
-    st = read_stream(args.stream)
-    if not 0.0 <= args.fraction <= 1.0:
+    if args.fraction is not None and not 0.0 <= args.fraction <= 1.0:
         raise errors.InputError(f"--fraction must be in [0, 1], got {args.fraction}")
+    if args.bytes is not None and args.bytes < 0:
+        raise errors.InputError(f"--bytes must be >= 0, got {args.bytes}")
+    try:
+        raw = Path(args.stream).read_bytes()
+    except OSError as exc:
+        raise errors.StreamError(f"{args.stream}: cannot read: {exc.strerror}") from None
+    st = Stream.from_bytes(raw, where=args.stream)
+    if st.missing:
+        arrived, whole = len(raw), len(raw) + st.missing
+        print(
+            f"meshfit: note: {args.stream} is cut short: {arrived:,} of {whole:,} bytes "
+            f"arrived ({100 * arrived / whole:.1f}%); decoding its complete blocks",
+            file=sys.stderr,
+        )
+    used, declared = len(raw), len(raw) + st.missing
+    if args.bytes is not None or args.fraction is not None:
+        if st.quant is None:
+            raise errors.InputError("--bytes and --fraction need a version-2 stream")
+        if args.bytes is not None:
+            used = min(args.bytes, len(raw))
+        else:
+            # (at least the blocks that hold the base mesh)
+            used = max(st.min_prefix, int(args.fraction * len(raw)))
+        st = Stream.from_bytes(raw[:used], where=f"{args.stream} (first {used:,} bytes)")
     level = st.levels if args.level is None else args.level
     if not 0 <= level <= st.levels:
         raise errors.InputError(f"--level must be in [0, {st.levels}], got {level}")
-    # packets of finer levels do not enter the reconstruction of this level
-    wanted = [p for p in st.packets if p.level <= level]
-    budget = args.fraction * sum(len(p.values) for p in wanted)
-    got, used = [], 0
-    for p in wanted:
-        if used + len(p.values) > budget:
-            break
-        got.append(p)
-        used += len(p.values)
-    x, f = decode_stream(st, got, level=level)
+    x, f = decode_stream(st, level=level)
     save_mesh(Mesh(x, f, name=Path(args.output).name), args.output)
     info = {
         "output": str(args.output),
         "level": level,
         "vertices": len(x),
         "faces": len(f),
-        "packets_used": len(got),
-        "coefficients_used": used,
+        "bytes_used": used,
+        "bytes": declared,
+        "coefficient_bytes": len(st.data),
     }
     if args.json:
         print_json(info)
@@ -259,9 +277,20 @@ def add_commands(sub) -> None:
     e = ssub.add_parser("encode", help="wrap a mesh and write its progressive stream")
     _wrap_args(e)
     e.add_argument("-o", "--output", required=True, help="stream file (.mfsw)")
-    e.add_argument("--scheme", choices=("loop", "butterfly"), default="loop")
-    e.add_argument("--packet-size", type=int, default=1024, help="coefficients per packet")
-    e.add_argument("--float64", action="store_true", help="store float64 coefficients")
+    e.add_argument(
+        "--scheme",
+        choices=("loop", "butterfly"),
+        default="butterfly",
+        help="subdivision predictor (default: butterfly, the fewer bytes for an error)",
+    )
+    e.add_argument(
+        "--bytes",
+        type=int,
+        default=None,
+        metavar="N",
+        help="write at most N bytes: the stream's first N bytes, cut where a decoder still "
+        "gets whole bit-plane decisions (default: the whole stream)",
+    )
     own_inputs(e, ("mesh",), ("output",))
     e.set_defaults(func=cmd_encode)
 
@@ -269,12 +298,20 @@ def add_commands(sub) -> None:
     d.add_argument("stream", help="stream file (.mfsw)")
     d.add_argument("-o", "--output", required=True, help="mesh file to write")
     d.add_argument("--level", type=int, default=None, help="level (default: finest)")
-    d.add_argument(
+    cut = d.add_mutually_exclusive_group()
+    cut.add_argument(
+        "--bytes",
+        type=int,
+        default=None,
+        metavar="N",
+        help="decode the file's first N bytes (as if only they arrived)",
+    )
+    cut.add_argument(
         "--fraction",
         type=float,
-        default=1.0,
-        help="use the first fraction of the coefficients of levels up to --level, in "
-        "transmission order, whole packets only (default: 1)",
+        default=None,
+        metavar="F",
+        help="decode the file's first fraction F of bytes, at least those of the base mesh",
     )
     d.add_argument("--json", action="store_true", help="print JSON")
     own_inputs(d, ("stream",), ("output",))
