@@ -15,13 +15,16 @@ ONE = 1 << PROB_BITS
 TOP = 1 << 24
 
 
-def _adapt(p: int, bit: int) -> int:
-    return p + ((ONE - p) >> ADAPT) if bit == 0 else p - (p >> ADAPT)
+def _adapt(p: int, n: int, bit: int) -> int:
+    """The probability of a 0 after the n-th symbol (from 1) of a context: it moves
+    1/2**min(ADAPT, bits of n) of the way to the symbol."""
+    shift = min(ADAPT, n.bit_length())
+    return p + ((ONE - p) >> shift) if bit == 0 else p - (p >> shift)
 
 
 def encode_bits(bits, ctxs, n_ctx: int) -> bytes:
     """The code of binary symbols ``bits``, each with its context's adaptive probability."""
-    probs = [ONE // 2] * n_ctx
+    probs, seen = [ONE // 2] * n_ctx, [0] * n_ctx
     low, rng, shifts = 0, (1 << 32) - 1, 0
     for bit, ctx in zip(bits, ctxs, strict=True):
         bound = (rng >> PROB_BITS) * probs[ctx]
@@ -29,7 +32,8 @@ def encode_bits(bits, ctxs, n_ctx: int) -> bytes:
             low, rng = low + bound, rng - bound
         else:
             rng = bound
-        probs[ctx] = _adapt(probs[ctx], int(bit))
+        seen[ctx] += 1
+        probs[ctx] = _adapt(probs[ctx], seen[ctx], int(bit))
         while rng < TOP:
             rng, low, shifts = rng << 8, low << 8, shifts + 1
     return low.to_bytes(shifts + 5, "big")
@@ -41,7 +45,7 @@ class Decoder:
 
     def __init__(self, data: bytes, n_avail: int, n_ctx: int):
         self.data, self.n = bytes(data[:n_avail]), n_avail
-        self.probs = [ONE // 2] * n_ctx
+        self.probs, self.seen = [ONE // 2] * n_ctx, [0] * n_ctx
         self.done = n_avail < 5
         self.code = int.from_bytes(self.data[:5], "big") if not self.done else 0
         self.rng, self.pos = (1 << 32) - 1, 5
@@ -53,7 +57,8 @@ class Decoder:
             self.code, self.rng = self.code - bound, self.rng - bound
         else:
             self.rng = bound
-        self.probs[ctx] = _adapt(self.probs[ctx], bit)
+        self.seen[ctx] += 1
+        self.probs[ctx] = _adapt(self.probs[ctx], self.seen[ctx], bit)
         while self.rng < TOP:
             if self.pos >= self.n:
                 self.done = True

@@ -1,9 +1,11 @@
 """Adaptive binary range coder and the embedded bit-plane coder of wrap streams.
 
 The range coder is LZMA's (Pavlov): 32-bit range, carry propagated through a cached byte,
-adaptive probabilities of `PROB_BITS` bits moved by 1/2**`ADAPT` of the distance after
-each symbol. The decoder stops before the first symbol whose decision needs a byte the
-prefix does not have, so every symbol it returns is the one the encoder coded.
+adaptive probabilities of `PROB_BITS` bits. After the n-th symbol of a context its
+probability moves 1/2**min(`ADAPT`, bit_length(n)) of the way to the symbol seen: about
+Laplace's estimate while the context is young (a small file learns fast), then a window of
+about 2**`ADAPT` symbols. The decoder stops before the first symbol whose decision needs a
+byte the prefix does not have, so every symbol it returns is the one the encoder coded.
 """
 
 from __future__ import annotations
@@ -13,8 +15,10 @@ from numba import njit
 
 #: probabilities are integers in (0, 2**PROB_BITS)
 PROB_BITS = 15
-#: adaptation rate: a probability moves 1/2**ADAPT of the way to the symbol seen
+#: adaptation rate of a context that has seen 2**(ADAPT - 1) symbols and more
 ADAPT = 5
+#: a context's count stops here, where its rate reaches ADAPT
+_COUNT_CAP = 1 << (ADAPT - 1)
 _ONE = 1 << PROB_BITS
 _HALF = 1 << (PROB_BITS - 1)
 _TOP = 1 << 24
@@ -22,6 +26,24 @@ _MASK32 = (1 << 32) - 1
 #: contexts of a significance decision per level and component: 4 parent states x 2
 #: (another component of the vertex significant or not)
 SIG_CONTEXTS = 8
+
+
+@njit(cache=True, nogil=True)
+def _bitlen(n):
+    """Bits of a non-negative integer."""
+    b = 0
+    while n:
+        n >>= 1
+        b += 1
+    return b
+
+
+@njit(cache=True, nogil=True)
+def _probs(n):
+    """Probabilities (even slots, at 1/2) and symbol counts (odd slots) of n contexts."""
+    p = np.zeros(2 * n, np.int64)
+    p[0::2] = _HALF
+    return p
 
 
 @njit(cache=True, nogil=True)
@@ -58,16 +80,21 @@ def _shift_low(buf, st):
 
 @njit(cache=True, nogil=True)
 def _encode_bit(buf, st, probs, ctx, bit):
-    """Code one binary symbol with the adaptive probability ``probs[ctx]`` (of a 0)."""
-    p = probs[ctx]
+    """Code one binary symbol with the adaptive probability ``probs[2 ctx]`` (of a 0)."""
+    p = probs[2 * ctx]
+    n = probs[2 * ctx + 1]
+    sh = ADAPT
+    if n < _COUNT_CAP:
+        sh = min(ADAPT, _bitlen(n + 1))
+        probs[2 * ctx + 1] = n + 1
     bound = (st[1] >> PROB_BITS) * p
     if bit == 0:
         st[1] = bound
-        probs[ctx] = p + ((_ONE - p) >> ADAPT)
+        probs[2 * ctx] = p + ((_ONE - p) >> sh)
     else:
         st[0] += bound
         st[1] -= bound
-        probs[ctx] = p - (p >> ADAPT)
+        probs[2 * ctx] = p - (p >> sh)
     while st[1] < _TOP:
         st[1] <<= 8
         buf = _shift_low(buf, st)
@@ -78,16 +105,21 @@ def _encode_bit(buf, st, probs, ctx, bit):
 def _decode_bit(data, n_avail, st, probs, ctx):
     """Decode one symbol; st = [code, range, position, exhausted]. Sets st[3] when the
     next decision would need a byte past ``n_avail``."""
-    p = probs[ctx]
+    p = probs[2 * ctx]
+    n = probs[2 * ctx + 1]
+    sh = ADAPT
+    if n < _COUNT_CAP:
+        sh = min(ADAPT, _bitlen(n + 1))
+        probs[2 * ctx + 1] = n + 1
     bound = (st[1] >> PROB_BITS) * p
     if st[0] < bound:
         st[1] = bound
-        probs[ctx] = p + ((_ONE - p) >> ADAPT)
+        probs[2 * ctx] = p + ((_ONE - p) >> sh)
         bit = 0
     else:
         st[0] -= bound
         st[1] -= bound
-        probs[ctx] = p - (p >> ADAPT)
+        probs[2 * ctx] = p - (p >> sh)
         bit = 1
     while st[1] < _TOP:
         st[1] <<= 8
@@ -109,7 +141,7 @@ def encode_bits(bits, ctxs, n_ctx):
     """
     st = np.array([0, _MASK32, 0, 1, 0], np.int64)
     buf = np.empty(64, np.uint8)
-    probs = np.full(n_ctx, _HALF, np.int64)
+    probs = _probs(n_ctx)
     for i in range(bits.shape[0]):
         buf = _encode_bit(buf, st, probs, ctxs[i], bits[i])
     for _ in range(5):
@@ -131,7 +163,7 @@ def decode_bits(data, n_avail, ctxs, n_ctx):
     for i in range(5):
         st[0] = ((st[0] << 8) | data[i]) & _MASK32
     st[2] = 5
-    probs = np.full(n_ctx, _HALF, np.int64)
+    probs = _probs(n_ctx)
     k = 0
     for i in range(ctxs.shape[0]):
         if st[3]:
@@ -185,9 +217,9 @@ def encode_planes(mag, neg, node_level, parents, planes, n_levels):
     n = mag.shape[0]
     st = np.array([0, _MASK32, 0, 1, 0], np.int64)
     buf = np.empty(max(64, n // 2), np.uint8)
-    p_sig = np.full(n_levels * 3 * SIG_CONTEXTS, _HALF, np.int64)
-    p_sgn = np.full(3, _HALF, np.int64)
-    p_ref = np.full(3, _HALF, np.int64)
+    p_sig = _probs(n_levels * 3 * SIG_CONTEXTS)
+    p_sgn = _probs(3)
+    p_ref = _probs(3)
     sigplane = np.full(n, -1, np.int64)
     vsig = np.zeros(parents.shape[0], np.bool_)
     for p in range(planes - 1, -1, -1):
@@ -229,9 +261,9 @@ def decode_planes(data, n_avail, node_level, parents, planes, n_levels):
     for i in range(5):
         st[0] = ((st[0] << 8) | data[i]) & _MASK32
     st[2] = 5
-    p_sig = np.full(n_levels * 3 * SIG_CONTEXTS, _HALF, np.int64)
-    p_sgn = np.full(3, _HALF, np.int64)
-    p_ref = np.full(3, _HALF, np.int64)
+    p_sig = _probs(n_levels * 3 * SIG_CONTEXTS)
+    p_sgn = _probs(3)
+    p_ref = _probs(3)
     vsig = np.zeros(parents.shape[0], np.bool_)
     symbols = 0
     for p in range(planes - 1, -1, -1):

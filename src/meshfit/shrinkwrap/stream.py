@@ -635,7 +635,7 @@ def encode_stream(
         prev = x[: sizes[i]]
     flat = coef.reshape(-1)
     mag = np.floor(np.abs(flat))
-    planes = max(1, int(mag.max()).bit_length())
+    planes = max(1, int(mag.max(initial=0)).bit_length())
     if planes > MAX_PLANES:
         raise errors.InputError(
             f"details up to {mag.max():.3g} steps need {planes} bit planes, at most "
