@@ -20,14 +20,16 @@ Coefficients
     what it has decoded, frames included, so the error at full length is the quantisation
     error carried through the (stable) subdivision rules.
 Quantisation and ordering
-    A coefficient component of level ``i`` is weighted by ``2**(-level_shift i / 2)`` (with
-    ``level_shift = 2``, the L2 norm of its basis function: a level holds four times the
-    vertices of the one before) and tangential components by a further
-    ``2**-tangent_shift`` (a tangential error moves the surface along itself), divided by
-    the step, and coded as sign and magnitude bits from plane ``planes - 1`` down to 0
-    (:mod:`meshfit._kernels.streamcode`). A decoded component is the middle of the interval
-    its bits leave open; one not yet significant is 0. The step makes the finest level's
-    normal components exact to `STREAM_PRECISION` times the bounding-box diagonal.
+    A coefficient component of level ``i`` is weighted by ``2**(-level_shift i / 2)`` and
+    tangential components by a further ``2**-tangent_shift`` (a tangential error moves the
+    surface along itself), divided by the step, and coded as sign and magnitude bits from
+    plane ``planes - 1`` down to 0 (:mod:`meshfit._kernels.streamcode`). A decoded
+    component is the middle of the interval its bits leave open; one not yet significant is
+    0. The step makes the finest level's normal components exact to `STREAM_PRECISION`
+    times the bounding-box diagonal. The default ``level_shift = 1`` lies between the L2
+    norm of a level's basis functions (2: a level holds four times the vertices of the one
+    before), which RMS error follows, and the maximum norm (0), which the Hausdorff
+    distance follows.
 Entropy coding
     An adaptive binary range coder (LZMA's) with contexts: a significance bit by its level,
     component, how many of its parents (the coarser vertices it was inserted between, or
@@ -56,7 +58,8 @@ Binary format, version 2 (little endian)::
              step             f8       quantisation step of the weighted coefficients
              header CRC       u32      CRC-32 of the header's bytes before it
     body     blocks of B payload bytes (the last one shorter), each followed by the CRC-32
-             of its payload started from the block's index (u32)
+             of its payload started from the block's index (u32); B is the power of two
+             from 256 to 4096 nearest to a 40th of the whole stream
     payload  base vertices    u16[n0, 3]   coordinates within the cube, 65535 = the side
              base faces       nf0 x 3 indices of ceil(log2 n0) bits, least significant
                                        bit first, padded to a byte
