@@ -464,7 +464,7 @@ def _check_sizes(where: str, levels, n0, nf0) -> None:
     finest level would exceed `WRAP_MAX_FACES` (the memory a decode takes follows from it)."""
     from meshfit.shrinkwrap.wrap import WRAP_MAX_FACES
 
-    if nf0 < 4 or n0 < 4 or nf0 % 2 or nf0 > 2 * n0:
+    if nf0 < 4 or n0 < 4 or nf0 % 2 or n0 > nf0 // 2 + 2:  # (closed: n0 = nf0 / 2 + 2 - 2g)
         raise errors.StreamError(f"{where}: a base mesh of {n0} vertices and {nf0} faces")
     if nf0 * 4**levels > WRAP_MAX_FACES:
         raise errors.StreamError(
