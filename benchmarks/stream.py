@@ -12,7 +12,7 @@ of the raw mesh size measure RMS and Hausdorff distance to the input mesh for
   quantisation bits whose output fits the budget (``null`` when none does);
 - ``decimated_draco``: the input decimated by fast-simplification to the largest face count
   (of a geometric ladder, ratio 2**(1/4)) whose Draco output fits at a given quantisation,
-  for quantisations of 8 to 14 bits, the one of least RMS kept.
+  for quantisations of 6 to 16 bits, the one of least RMS kept.
 
 Raw size: 12 bytes a vertex (float32 x, y, z) and 12 a face (int32 triple) of the input.
 Distances are symmetric, as fractions of the input's bounding-box diagonal: the candidate is
@@ -42,7 +42,7 @@ from meshfit.shrinkwrap import decode_stream, encode_stream, fill_holes, level_m
 MESHES = ("bunny", "igea", "nefertiti", "spot")
 BUDGETS = (0.01, 0.02, 0.05, 0.10, 0.20)
 #: Draco quantisations tried for the decimated meshes
-DECIMATED_BITS = tuple(range(8, 15))
+DECIMATED_BITS = tuple(range(6, 17))
 LEVELS = 5
 
 
