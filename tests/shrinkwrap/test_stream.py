@@ -272,6 +272,11 @@ def test_hostile_headers_and_bases_are_refused_before_any_work():
     _rewrite_crcs(nan)
     with pytest.raises(errors.StreamError, match="not finite"):
         Stream.from_bytes(bytes(nan))
+    huge = bytearray(data)
+    struct.pack_into("<d", huge, 66, 1e300)  # (a step whose details overflow)
+    _rewrite_crcs(huge)
+    with pytest.raises(errors.StreamError, match="beyond the largest coordinate"):
+        Stream.from_bytes(bytes(huge))
 
 
 def _v1_bytes(x, f, n0, levels, scheme) -> bytes:

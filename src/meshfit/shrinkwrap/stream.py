@@ -89,7 +89,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from meshfit import errors
+from meshfit import errors, tol
 from meshfit._atomic import write_bytes
 from meshfit._kernels import streamcode
 from meshfit.shrinkwrap import _topo
@@ -360,6 +360,12 @@ def _read_v2(data: bytes, where: str) -> Stream:
     origin = np.array([ox, oy, oz])
     if not (np.isfinite(origin).all() and 0 < ext < np.inf and 0 < step < np.inf):
         raise errors.StreamError(f"{where}: quantisation cube or step not finite and positive")
+    largest = step * 2.0 ** (planes + (lsh * levels) / 2 + tsh)  # (a detail, unweighted)
+    if max(np.abs(origin).max() + ext, largest) > tol.MAX_COORDINATE:
+        raise errors.StreamError(
+            f"{where}: quantisation cube or step beyond the largest coordinate "
+            f"({tol.MAX_COORDINATE:g})"
+        )
     _check_sizes(where, levels, n0, nf0)
     if size < len(data):
         raise errors.StreamError(
