@@ -119,8 +119,8 @@ def test_wrap_sphere_stretch(capsys):
     assert any("2 rounds of stretch reweighting" in n for n in sm["notes"])
     assert main([*argv, "--sphere-stretch", "-1"]) == 2
     assert "--sphere-stretch must be in 0..100" in capsys.readouterr().err
-    assert main([*argv, "--sphere-stretch", "2", "--sphere-method", "voxel"]) == 2
-    assert "not with --sphere-method voxel" in capsys.readouterr().err
+    assert main([*argv, "--sphere-method", "voxel"]) == 2
+    assert "voxel-flow sphere map was removed" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from meshfit import errors
 from meshfit._cliargs import own_inputs
-from meshfit.shrinkwrap.sphere import MAX_STRETCH_ITERATIONS
+from meshfit.shrinkwrap.sphere import MAX_STRETCH_ITERATIONS, VOXEL_REMOVED
 
 __all__ = ["add_commands"]
 
@@ -76,10 +76,8 @@ def _wrap(args: argparse.Namespace):
         raise errors.InputError(
             f"--sphere-stretch must be in 0..{MAX_STRETCH_ITERATIONS}, got {args.sphere_stretch}"
         )
-    if args.sphere_stretch and args.sphere_method != "tutte":
-        raise errors.InputError(
-            "--sphere-stretch reweights the tutte map: not with --sphere-method voxel"
-        )
+    if args.sphere_method == "voxel":
+        raise errors.InputError(f"--sphere-method voxel: {VOXEL_REMOVED}")
     mesh = _load(args.mesh, args.fill_holes)
     opts = WrapOptions(
         base_faces=args.base_faces,
@@ -239,10 +237,10 @@ def _wrap_args(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--sphere-method",
-        choices=("tutte", "voxel"),
+        choices=("tutte", "voxel"),  # voxel: refused with the reason (VOXEL_REMOVED)
         default="tutte",
-        help="sphere map: convex disk embeddings (default) or the paper's voxel flow, which "
-        "falls back to tutte when it leaves flipped triangles",
+        help="sphere map: convex disk embeddings (the default and only one; 'voxel', the "
+        "paper's distance-field flow, is refused with the reason)",
     )
     p.add_argument(
         "--sphere-max-aspect",

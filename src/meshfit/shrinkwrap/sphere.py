@@ -25,6 +25,7 @@ from meshfit.mesh import Mesh
 from meshfit.types import SurfacePoints
 
 __all__ = [
+    "VOXEL_REMOVED",
     "SphereMap",
     "check_genus0",
     "sphere_map",
@@ -35,6 +36,18 @@ __all__ = [
 
 #: walk-step cap of the spherical point location, times sqrt(number of faces)
 _WALK_STEPS_PER_SQRT_FACE = 8
+
+#: why ``method="voxel"`` is refused: the paper's sphere map (grow the mesh along the
+#: gradient of the distance to its voxelization toward a convex shape, then project it
+#: radially) was implemented and measured; surfaces facing each other across a gap move
+#: toward the same points of the gap's medial surface and cross there, so the projection
+#: folds on every scanned mesh and no local untangling undoes it
+VOXEL_REMOVED = (
+    "the voxel-flow sphere map was removed: flowing a mesh outward along its distance field "
+    "folds it wherever two parts of the surface face each other (it left flipped triangles "
+    "on every scanned mesh measured), so it always fell back to 'tutte'; use "
+    "method='tutte' (the default)"
+)
 
 
 def check_genus0(mesh: Mesh) -> None:
@@ -138,9 +151,8 @@ class SphereMap:
     sphere : (nv, 3) float64
         Image of each mesh vertex on the unit sphere (``F^-1`` at the vertices).
     method : str
-        Which construction ran: ``"voxel"`` (the paper's distance-field flow) or
-        ``"tutte"`` (two convex disk embeddings lifted to the hemispheres by inverse
-        stereographic projection).
+        The construction: ``"tutte"`` (two convex disk embeddings lifted to the
+        hemispheres by inverse stereographic projection).
     flips : int
         Spherical triangles with ``det[a, b, c] <= 0``; 0 for a valid map.
     min_det : float
@@ -581,15 +593,13 @@ def sphere_map(
     ----------
     mesh : Mesh
         Closed, connected genus-0 surface.
-    method : {"tutte", "voxel"}
-        ``"tutte"`` (default): split the mesh into two disks of equal surface area, embed
-        each in the unit disk with positive mean-value weights and the same boundary
-        positions (a strictly convex boundary gives a map without flips, Floater 2003),
-        then lift them to the two hemispheres by inverse stereographic projection.
-        ``"voxel"``: the paper's method (:func:`meshfit.shrinkwrap.voxel.voxel_sphere`:
-        distance-field flow toward a convex shape, radial projection), then local
-        untangling; if flipped triangles remain it falls back to ``"tutte"`` and says so in
-        ``notes`` (``method`` records what ran).
+    method : {"tutte"}
+        ``"tutte"`` (the only construction): split the mesh into two disks of equal surface
+        area, embed each in the unit disk with positive mean-value weights and the same
+        boundary positions (a strictly convex boundary gives a map without flips, Floater
+        2003), then lift them to the two hemispheres by inverse stereographic projection.
+        ``"voxel"``, the paper's distance-field flow, is refused with the reason
+        (`VOXEL_REMOVED`).
     relax_iterations : int
         Flip-guarded smoothing steps on the sphere after the embedding (default 0; each step
         is a pass over every vertex, so the cost grows with steps times vertices).
@@ -641,12 +651,9 @@ def sphere_map(
             f"max_aspect must be a finite number >= 1 (equilateral), got {max_aspect}"
         )
     notes: list[str] = []
-    s = _voxel_points(mesh, progress, notes) if method == "voxel" else None
-    used = "tutte" if s is None else "voxel"
-    if s is None:
-        s = _tutte_points(mesh, int(stretch_iterations), progress, notes)
-        if relax_iterations > 0:
-            s = _relax_area(mesh, s, relax_iterations, relax_step)
+    s = _tutte_points(mesh, int(stretch_iterations), progress, notes)
+    if relax_iterations > 0:
+        s = _relax_area(mesh, s, relax_iterations, relax_step)
     if max_aspect is not None:
         s = _aspect_bounded(mesh, s, max_aspect, notes)
     dets = spherical_orientation(s, mesh.faces)
@@ -656,7 +663,7 @@ def sphere_map(
     return SphereMap(
         mesh,
         s,
-        used,
+        "tutte",
         int((dets <= 0).sum()),
         float(dets.min()),
         float(aspect.max()),
@@ -665,8 +672,10 @@ def sphere_map(
 
 
 def _check_method(method: str, stretch_iterations) -> None:
-    if method not in ("tutte", "voxel"):
-        raise errors.InputError(f"method must be 'tutte' or 'voxel', got {method!r}")
+    if method == "voxel":
+        raise errors.InputError(VOXEL_REMOVED)
+    if method != "tutte":
+        raise errors.InputError(f"method must be 'tutte', got {method!r}")
     if isinstance(stretch_iterations, bool) or int(stretch_iterations) != stretch_iterations:
         raise errors.InputError(
             f"stretch_iterations must be a whole number, got {stretch_iterations!r}"
@@ -675,31 +684,6 @@ def _check_method(method: str, stretch_iterations) -> None:
         raise errors.InputError(
             f"stretch_iterations must be in 0..{MAX_STRETCH_ITERATIONS}, got {stretch_iterations}"
         )
-    if stretch_iterations and method != "tutte":
-        raise errors.InputError(
-            "stretch_iterations reweights the 'tutte' map: not with method='voxel'"
-        )
-
-
-def _voxel_points(mesh: Mesh, progress, notes: list[str]) -> NDArray[np.float64] | None:
-    """Sphere points of the ``"voxel"`` method of `sphere_map`, untangled; None (and a
-    note) where the flow fails or triangles stay flipped."""
-    from meshfit.shrinkwrap.voxel import voxel_sphere
-
-    s, note = voxel_sphere(mesh, progress=progress)
-    notes.append(note)
-    if s is not None:
-        nflip = int((spherical_orientation(s, mesh.faces) <= 0).sum())
-        if nflip:
-            s = _untangle(mesh, s, _UNTANGLE_ROUNDS)
-            left = int((spherical_orientation(s, mesh.faces) <= 0).sum())
-            notes.append(
-                f"voxel: {nflip} flipped triangles after projection, {left} after untangling"
-            )
-            if left:
-                notes.append("voxel: not flip-free, fell back to tutte")
-                s = None
-    return s
 
 
 def _tutte_points(

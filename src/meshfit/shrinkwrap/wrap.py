@@ -15,6 +15,7 @@ from meshfit.mesh import Mesh
 from meshfit.shrinkwrap import _topo
 from meshfit.shrinkwrap.base import STARTS, BaseMesh, BaseOptions, base_mesh, cell_areas
 from meshfit.shrinkwrap.sphere import (
+    VOXEL_REMOVED,
     SphereMap,
     sphere_map,
     spherical_orientation,
@@ -312,8 +313,9 @@ class WrapOptions:
         ``base_options`` builds the base with ``BaseOptions(max_faces=base_faces)``. Given
         base options carry their own ``max_faces``; a ``base_faces`` other than the default
         must then agree with it (InputError otherwise, rather than one silently winning).
-    sphere_method : {"tutte", "voxel"}
-        Construction of the sphere map when ``smap`` is omitted (see :func:`sphere_map`).
+    sphere_method : {"tutte"}
+        Construction of the sphere map when ``smap`` is omitted (see :func:`sphere_map`;
+        ``"voxel"``, the paper's distance-field flow, is refused with the reason).
     sphere_max_aspect : float, optional
         Aspect-ratio bound of the spherical triangles when ``smap`` is omitted
         (``sphere_map(max_aspect=...)``; default ``None``: no bound).
@@ -365,10 +367,10 @@ class WrapOptions:
     clean_rounds: int = 20
 
     def __post_init__(self) -> None:
-        if self.sphere_method not in ("tutte", "voxel"):
-            raise errors.InputError(
-                f"sphere_method must be 'tutte' or 'voxel', got {self.sphere_method!r}"
-            )
+        if self.sphere_method == "voxel":
+            raise errors.InputError(f"sphere_method: {VOXEL_REMOVED}")
+        if self.sphere_method != "tutte":
+            raise errors.InputError(f"sphere_method must be 'tutte', got {self.sphere_method!r}")
 
 
 def _base_options(o: WrapOptions, given: BaseOptions | None) -> BaseOptions:
