@@ -618,8 +618,8 @@ def wrap_report(
     ``switch_level``, ``levels`` (one :func:`level_metrics` dict per level: flips in the parameter
     domain and in space, min angle, aspect, RMS and Hausdorff as fractions of the bbox
     diagonal, share of ray hits in the projections), ``reconstruction`` (per
-    scheme: RMS vertex error of the finest level after the first 1 %, 3 %, 10 % of the
-    detail coefficients, fraction of the bbox diagonal), ``seconds``.
+    scheme: RMS vertex error of the finest level decoded from the stream cut to its first
+    1 %, 3 %, 10 % of bytes, "0%" the base mesh alone; fractions of the bbox diagonal), ``seconds``.
     """
     from meshfit.shrinkwrap.stream import encode_stream, reconstruction_errors
 
