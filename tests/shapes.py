@@ -264,3 +264,42 @@ def spiky(arms: int = 8, *, edge: float = 0.05, length: float = 1.6, seed: int =
 
     b = length + 0.4
     return _from_manifold(m3.Manifold.level_set(sdf, [-b, -b, -b, b, b, b], edge), "spiky")
+
+
+def quadruped(*, edge: float = 0.04) -> Mesh:
+    """Closed genus-0 animal: a body on four long legs, a neck and a head with two thin
+    ears, a tail (capsules blended by a smooth minimum). Its legs are 15 radii long."""
+    import manifold3d as m3
+
+    parts = [  # (from, to, radius)
+        ((-0.7, 0, 0), (0.7, 0, 0), 0.35),
+        ((-0.55, 0.18, -0.1), (-0.6, 0.2, -1.3), 0.08),
+        ((-0.55, -0.18, -0.1), (-0.6, -0.2, -1.3), 0.08),
+        ((0.55, 0.18, -0.1), (0.6, 0.2, -1.3), 0.08),
+        ((0.55, -0.18, -0.1), (0.6, -0.2, -1.3), 0.08),
+        ((0.7, 0, 0.1), (1.1, 0, 0.8), 0.13),
+        ((1.1, 0, 0.8), (1.5, 0, 0.65), 0.12),
+        ((1.1, 0.07, 0.9), (1.05, 0.1, 1.2), 0.035),
+        ((1.1, -0.07, 0.9), (1.05, -0.1, 1.2), 0.035),
+        ((-0.8, 0, 0.1), (-1.4, 0, -0.4), 0.04),
+    ]
+    segs = [(np.array(a, float), np.array(b, float), r) for a, b, r in parts]
+    k = 0.08
+
+    def sdf(x: float, y: float, z: float) -> float:
+        p = np.array([x, y, z])
+        d = None
+        for a, b, r in segs:
+            ab = b - a
+            t = np.clip((p - a) @ ab / (ab @ ab), 0.0, 1.0)
+            q = np.linalg.norm(p - a - t * ab) - r
+            if d is None:
+                d = q
+            else:  # polynomial smooth minimum
+                h = max(k - abs(d - q), 0.0) / k
+                d = min(d, q) - h * h * k / 4.0
+        return -float(d)  # positive inside
+
+    return _from_manifold(
+        m3.Manifold.level_set(sdf, [-1.7, -0.6, -1.5, 1.8, 0.6, 1.4], edge), "quadruped"
+    )

@@ -21,7 +21,7 @@ from meshfit.shrinkwrap import (
 )
 
 from ..conftest import analytic_mesh, real_mesh
-from ..shapes import icosphere
+from ..shapes import icosphere, quadruped
 from .conftest import smap, wrap
 
 #: the issue's targets
@@ -111,6 +111,48 @@ def test_level5_has_no_flips_and_no_thin_triangles(name):
     # in space: measured igea 0, spot 0, nefertiti 12 of 30,720 triangles facing against the
     # input (it has 294 faces folded by more than 120 deg against a neighbour itself)
     assert m["normal_flips"] <= MAX_NORMAL_FLIPS * m["faces"]
+
+
+#: the protrusion bounds of a level-5 wrap: Hausdorff distance (fraction of the bbox
+#: diagonal), smallest angle (degrees), triangles facing against the input
+PROTRUSION_HAUSDORFF, PROTRUSION_MIN_ANGLE_DEG = 0.01, 5.0
+
+_MISSES_TIPS = pytest.mark.xfail(
+    strict=True,
+    reason="the two-disk sphere map squeezes long protrusions into specks of the sphere and "
+    "the wrap misses their tips (level 5, measured: bunny Hausdorff 5.3%, the generated "
+    "quadruped 11.8%); 4 rounds of stretch reweighting reach them (1.4%, 2.1%) with slivers "
+    "(0.17, 0.02 deg) and 27, 259 triangles facing against the input. Tried: base vertices at "
+    "geodesic farthest points (the tips) on the sphere's hull, 3D edge midpoints projected "
+    "from level 1, tangential relaxation, 3D Delaunay flips of the base (quadruped with "
+    "stretch: 1.5%, 0.005 deg): the smallest angle halves at every level at the leg roots",
+)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "name",
+    [
+        "spot",
+        pytest.param("bunny", marks=_MISSES_TIPS),
+        pytest.param("quadruped", marks=_MISSES_TIPS),
+    ],
+)
+def test_level5_keeps_protrusions(name):
+    # spot measured: Hausdorff 0.85 %, smallest angle 7.1 deg, no triangle against the input
+    if name == "quadruped":
+        mesh = quadruped()
+        res = shrink_wrap(mesh, levels=5)
+    elif name == "bunny":
+        mesh = fill_holes(real_mesh("bunny"))
+        res = shrink_wrap(mesh, levels=5)
+    else:
+        mesh, res = real_mesh(name), wrap(name, 5)
+    m = level_metrics(mesh, res.levels[5])
+    assert m["hausdorff"] <= PROTRUSION_HAUSDORFF
+    assert m["min_angle_deg"] >= PROTRUSION_MIN_ANGLE_DEG
+    assert m["flips"] == 0
+    assert m["normal_flips"] == 0
 
 
 def test_normal_flips_count_triangles_facing_against_the_input():
