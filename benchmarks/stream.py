@@ -1,29 +1,36 @@
 """Benchmark: rate-distortion of wrap streams against Draco and decimation + Draco.
 
 For bunny (holes filled as ``meshfit wrap --fill-holes`` does), igea, nefertiti and spot:
-wrap at level 5 with default options, encode the finest level
-(:func:`meshfit.shrinkwrap.encode_stream`, Butterfly), and at byte budgets of 1, 2, 5, 10 and 20 %
-of the raw mesh size measure RMS and Hausdorff distance to the input mesh for
+wrap with default options to the finest level asked for, encode each asked level ``L``
+(level ``L`` of that wrap, the same vertices as ``shrink_wrap(mesh, levels=L)``;
+:func:`meshfit.shrinkwrap.encode_stream`, Butterfly), and at byte budgets of 1, 2, 5, 10 and
+20 % of the raw mesh size measure RMS and Hausdorff distance to the input mesh for
 
-- ``stream``: our stream cut to the budget (:meth:`Stream.truncate`), decoded at the finest
-  level; also its distance to the wrap itself (``*_to_wrap``: the coding error alone, the
-  wrap's own distance to the input being the floor the stream approaches);
+- ``stream_by_level``: for each level, our stream cut to the budget (:meth:`Stream.truncate`),
+  decoded at its finest level; also its distance to that level's wrap (``*_to_wrap``: the
+  coding error alone, the wrap's own distance to the input being the floor the stream
+  approaches);
+- ``stream``: the level whose prefix has the least RMS at that budget (``best_level``, the
+  choice a user with that budget makes); ``best_has_lowest_hausdorff`` says whether that
+  level also has the least Hausdorff distance;
 - ``draco``: the input compressed by Draco (DracoPy, compression level 10) at the most
   quantisation bits whose output fits the budget (``null`` when none does);
 - ``decimated_draco``: the input decimated by fast-simplification to the largest face count
   (of a geometric ladder, ratio 2**(1/4)) whose Draco output fits at a given quantisation,
   for quantisations of 6 to 16 bits, the one of least RMS kept.
 
-Raw size: 12 bytes a vertex (float32 x, y, z) and 12 a face (int32 triple) of the input.
-Distances are symmetric, as fractions of the input's bounding-box diagonal: the candidate is
-sampled at its vertices and face centroids against the input surface, the input at its
-vertices against the candidate surface (as `meshfit.shrinkwrap.level_metrics`); RMS is the
-larger of the two directions' RMS, Hausdorff the largest distance. Ratios are ours over the
-peer's (below 1: ours is closer). Target (issue 54): lower error than both peers at every
-budget up to 10 %.
+Levels: ``--levels`` (default 5, 6 and 7, a level kept only when its finest level has at
+most `meshfit.shrinkwrap.wrap.WRAP_MAX_FACES` faces). Raw size: 12 bytes a vertex (float32
+x, y, z) and 12 a face (int32 triple) of the input. Distances are symmetric, as fractions
+of the input's bounding-box diagonal: the candidate is sampled at its vertices and face
+centroids against the input surface, the input at its vertices against the candidate
+surface (as `meshfit.shrinkwrap.level_metrics`); RMS is the larger of the two directions'
+RMS, Hausdorff the largest distance. Ratios are ours (``stream``, the best level) over the
+peer's (below 1: ours is closer). Target (issue 54): lower RMS and Hausdorff than both peers
+at every budget up to 10 %.
 
-Run: ``python benchmarks/stream.py [--meshes bunny spot]``. Prints JSON and writes
-``benchmarks/results/stream.json`` atomically.
+Run: ``python benchmarks/stream.py [--meshes bunny spot] [--levels 5 6 7]``. Prints the
+ratios (stderr) and JSON (stdout), and writes ``benchmarks/results/stream.json`` atomically.
 """
 
 from __future__ import annotations
@@ -31,19 +38,39 @@ from __future__ import annotations
 import argparse
 import os
 import platform
+import sys
 import time
 
 import numpy as np
 from _common import mesh_path, write_result
 
-from meshfit.mesh import load_mesh
-from meshfit.shrinkwrap import decode_stream, encode_stream, fill_holes, level_metrics, shrink_wrap
+from meshfit.mesh import Mesh, load_mesh
+from meshfit.shrinkwrap import (
+    BaseOptions,
+    WrapOptions,
+    base_mesh,
+    decode_stream,
+    encode_stream,
+    fill_holes,
+    level_metrics,
+    shrink_wrap,
+    sphere_map,
+)
+from meshfit.shrinkwrap.wrap import WRAP_MAX_FACES
 
 MESHES = ("bunny", "igea", "nefertiti", "spot")
 BUDGETS = (0.01, 0.02, 0.05, 0.10, 0.20)
 #: Draco quantisations tried for the decimated meshes
 DECIMATED_BITS = tuple(range(6, 17))
-LEVELS = 5
+#: wrap levels measured by default
+LEVELS = (5, 6, 7)
+#: the ratios a budget must have below 1 to meet the target, and the peer of each
+RATIOS = {
+    "ratio_rms_vs_draco": "draco",
+    "ratio_hausdorff_vs_draco": "draco",
+    "ratio_rms_vs_decimated": "decimated_draco",
+    "ratio_hausdorff_vs_decimated": "decimated_draco",
+}
 
 
 def _distances(x, f, mesh) -> tuple[float, float]:
@@ -124,99 +151,170 @@ def _ratio(a: float, peer: dict | None, key: str) -> float | None:
     return None if peer is None else round(a / peer[key], 3)
 
 
-def bench_mesh(name: str) -> dict:
+def _stream_row(st, budget: int, mesh, wrap_mesh) -> dict | None:
+    """Our stream cut to ``budget`` bytes, decoded: distances to the input and to the wrap."""
+    if budget < st.min_bytes:
+        return None
+    cut = st.truncate(budget)
+    x, f = decode_stream(cut)
+    rms, haus = _distances(x, f, mesh)
+    rw, hw = _distances(x, f, wrap_mesh)
+    return {
+        "bytes": cut.n_bytes,
+        "rms": rms,
+        "hausdorff": haus,
+        "rms_to_wrap": rw,
+        "hausdorff_to_wrap": hw,
+    }
+
+
+def _meets(row: dict, peer: str | None = None) -> bool:
+    """Ours below ``peer`` (both when None) in RMS and Hausdorff; a peer that fits no
+    output is beaten."""
+    if row["stream"] is None:
+        return False
+    return all(row[k] is None or row[k] < 1 for k, p in RATIOS.items() if peer is None or p == peer)
+
+
+def bench_mesh(name: str, asked: list[int] | None) -> dict:
+    """One mesh at every budget; ``asked``: the levels (default `LEVELS` within
+    `WRAP_MAX_FACES`)."""
     mesh = load_mesh(mesh_path(name), repair=True)
     if not mesh.is_closed:
         mesh = fill_holes(mesh, max_edges=1000)  # as `meshfit wrap --fill-holes`
     raw = 12 * mesh.n_vertices + 12 * mesh.n_faces
+    o = WrapOptions()
     t0 = time.perf_counter()
-    res = shrink_wrap(mesh, levels=LEVELS)
+    smap = sphere_map(
+        mesh,
+        method=o.sphere_method,
+        max_aspect=o.sphere_max_aspect,
+        stretch_iterations=o.sphere_stretch,
+    )
+    base = base_mesh(smap, BaseOptions(max_faces=o.base_faces))
+    nf0 = len(base.faces)
+    levels = sorted(set(asked)) if asked else [lv for lv in LEVELS if nf0 * 4**lv <= WRAP_MAX_FACES]
+    res = shrink_wrap(mesh, o, levels=max(levels), smap=smap, base=base)
     t_wrap = time.perf_counter() - t0
-    top = res.levels[-1]
-    wrap_m = level_metrics(mesh, top)
+    nb = len(res.base.sphere)
+    streams, wraps, per_level = {}, {}, {}
+    for lv in levels:
+        top = res.levels[lv]
+        wrap_m = level_metrics(mesh, top)
+        t0 = time.perf_counter()
+        st = encode_stream(top.vertices, res.base.faces, nb, lv)
+        t_enc = time.perf_counter() - t0
+        streams[lv], wraps[lv] = st, Mesh(top.vertices, top.faces)
+        per_level[str(lv)] = {
+            "wrap_faces": len(top.faces),
+            "wrap_rms": wrap_m["rms"],
+            "wrap_hausdorff": wrap_m["hausdorff"],
+            "stream_bytes": st.n_bytes,
+            "stream_min_bytes": st.min_bytes,
+            "bit_planes": st.quant.planes if st.quant else None,
+            "seconds_encode": round(t_enc, 3),
+        }
     t0 = time.perf_counter()
-    st = encode_stream(top.vertices, res.base.faces, len(res.base.sphere), LEVELS)
-    t_enc = time.perf_counter() - t0
     ladder = _ladder(mesh)
     sizes = {b: [len(_draco(x, f, b)) for x, f in ladder] for b in DECIMATED_BITS}
-    from meshfit.mesh import Mesh
-
-    wrap_mesh = Mesh(top.vertices, top.faces)
+    t_peers = time.perf_counter() - t0
     rows = {}
     for fr in BUDGETS:
         budget = int(fr * raw)
-        row: dict = {"budget_bytes": budget}
-        if budget >= st.min_bytes:
-            cut = st.truncate(budget)
-            x, f = decode_stream(cut)
-            rms, haus = _distances(x, f, mesh)
-            rw, hw = _distances(x, f, wrap_mesh)
-            row["stream"] = {
-                "bytes": cut.n_bytes,
-                "rms": rms,
-                "hausdorff": haus,
-                "rms_to_wrap": rw,
-                "hausdorff_to_wrap": hw,
-            }
-        else:
-            row["stream"] = None
+        by_level = {str(lv): _stream_row(streams[lv], budget, mesh, wraps[lv]) for lv in levels}
+        fit = {k: v for k, v in by_level.items() if v is not None}
+        row: dict = {"budget_bytes": budget, "best_level": None, "stream": None}
+        row["best_has_lowest_hausdorff"] = None
+        if fit:
+            best = min(fit, key=lambda k: fit[k]["rms"])
+            row["best_level"] = int(best)
+            row["best_has_lowest_hausdorff"] = fit[best]["hausdorff"] <= min(
+                v["hausdorff"] for v in fit.values()
+            )
+            row["stream"] = {"level": int(best), **fit[best]}
+        row["stream_by_level"] = by_level
+        t0 = time.perf_counter()
         row["draco"] = _draco_best(mesh, budget)
         row["decimated_draco"] = _decimated_best(mesh, ladder, sizes, budget)
+        t_peers += time.perf_counter() - t0
         ours = row["stream"]
         if ours is not None:
-            row["ratio_rms_vs_draco"] = _ratio(ours["rms"], row["draco"], "rms")
-            row["ratio_hausdorff_vs_draco"] = _ratio(ours["hausdorff"], row["draco"], "hausdorff")
-            row["ratio_rms_vs_decimated"] = _ratio(ours["rms"], row["decimated_draco"], "rms")
-            row["ratio_hausdorff_vs_decimated"] = _ratio(
-                ours["hausdorff"], row["decimated_draco"], "hausdorff"
-            )
+            for k, peer in RATIOS.items():
+                key = "rms" if "_rms_" in k else "hausdorff"
+                row[k] = _ratio(ours[key], row[peer], key)
+        row["meets_target"] = _meets(row)
         rows[f"{100 * fr:g}%"] = row
     return {
         "input_vertices": mesh.n_vertices,
         "input_faces": mesh.n_faces,
         "raw_bytes": raw,
-        "wrap_faces": len(top.faces),
-        "wrap_rms": wrap_m["rms"],
-        "wrap_hausdorff": wrap_m["hausdorff"],
-        "stream_bytes": st.n_bytes,
-        "stream_min_bytes": st.min_bytes,
-        "bit_planes": st.quant.planes if st.quant else None,
+        "base_faces": nf0,
+        "levels": per_level,
         "seconds_wrap": round(t_wrap, 2),
-        "seconds_encode": round(t_enc, 3),
+        "seconds_peers": round(t_peers, 2),
         "budgets": rows,
     }
+
+
+def _print_table(out: dict, names: list[str]) -> None:
+    def g(v) -> str:
+        return "-" if v is None else f"{v:.2e}"
+
+    def r(v) -> str:
+        return "-" if v is None else f"{v:.3g}"
+
+    print(
+        f"{'mesh':10} {'budget':>6} {'lvl':>3} {'rms':>8} {'haus':>8} | {'draco':>17} |"
+        f" {'decimated+draco':>17} | {'rms/dr':>7} {'h/dr':>7} {'rms/dec':>7} {'h/dec':>7} meets",
+        file=sys.stderr,
+    )
+    for name in names:
+        for key, row in out[name]["budgets"].items():
+            o, d, e = row["stream"] or {}, row["draco"] or {}, row["decimated_draco"] or {}
+            print(
+                f"{name:10} {key:>6} {row['best_level'] or '-':>3} {g(o.get('rms')):>8}"
+                f" {g(o.get('hausdorff')):>8} | {g(d.get('rms')):>8} {g(d.get('hausdorff')):>8} |"
+                f" {g(e.get('rms')):>8} {g(e.get('hausdorff')):>8} |"
+                + "".join(f" {r(row.get(k)):>7}" for k in RATIOS)
+                + f" {'yes' if row['meets_target'] else 'no'}",
+                file=sys.stderr,
+            )
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--meshes", nargs="*", default=list(MESHES))
+    ap.add_argument(
+        "--levels",
+        nargs="*",
+        type=int,
+        default=None,
+        help="wrap levels whose streams are measured (default 5 6 7, those within WRAP_MAX_FACES)",
+    )
     args = ap.parse_args()
     import DracoPy
     import fast_simplification
 
-    out: dict = {name: bench_mesh(name) for name in args.meshes}
-    meets = []
+    t_all = time.perf_counter()
+    out: dict = {}
     for name in args.meshes:
-        for key, row in out[name]["budgets"].items():
-            if float(key[:-1]) <= 10:
-                ok = row["stream"] is not None and all(
-                    row[k] is None or row[k] < 1
-                    for k in (
-                        "ratio_rms_vs_draco",
-                        "ratio_hausdorff_vs_draco",
-                        "ratio_rms_vs_decimated",
-                        "ratio_hausdorff_vs_decimated",
-                    )
-                )
-                meets.append(ok)
+        out[name] = bench_mesh(name, args.levels)
+    seconds = time.perf_counter() - t_all
+    small = [(n, k) for n in args.meshes for k in out[n]["budgets"] if float(k[:-1]) <= 10]
     out["target"] = "lower RMS and Hausdorff than both peers at every budget up to 10%"
+    meets = [out[n]["budgets"][k]["meets_target"] for n, k in small]
     out["meets_target"] = all(meets)
     out["budgets_meeting_target"] = f"{sum(meets)} of {len(meets)}"
+    for peer, label in (("draco", "draco"), ("decimated_draco", "decimated")):
+        ok = [_meets(out[n]["budgets"][k], peer) for n, k in small]
+        out[f"budgets_below_{label}"] = f"{sum(ok)} of {len(ok)}"
     out["peers"] = {
         "DracoPy": getattr(DracoPy, "__version__", "?"),
         "fast_simplification": getattr(fast_simplification, "__version__", "?"),
     }
+    out["seconds_total"] = round(seconds, 1)
     out["machine"] = {"cpus": os.cpu_count(), "python": platform.python_version()}
+    _print_table(out, args.meshes)
     write_result("stream", out)
 
 
