@@ -266,9 +266,10 @@ def spiky(arms: int = 8, *, edge: float = 0.05, length: float = 1.6, seed: int =
     return _from_manifold(m3.Manifold.level_set(sdf, [-b, -b, -b, b, b, b], edge), "spiky")
 
 
-def quadruped(*, edge: float = 0.04) -> Mesh:
+def quadruped(*, segments: int = 48) -> Mesh:
     """Closed genus-0 animal: a body on four long legs, a neck and a head with two thin
-    ears, a tail (capsules blended by a smooth minimum). Its legs are 15 radii long."""
+    ears, a tail (the union of capsules, each the hull of two spheres). Its legs are 15
+    radii long."""
     import manifold3d as m3
 
     parts = [  # (from, to, radius)
@@ -283,23 +284,9 @@ def quadruped(*, edge: float = 0.04) -> Mesh:
         ((1.1, -0.07, 0.9), (1.05, -0.1, 1.2), 0.035),
         ((-0.8, 0, 0.1), (-1.4, 0, -0.4), 0.04),
     ]
-    segs = [(np.array(a, float), np.array(b, float), r) for a, b, r in parts]
-    k = 0.08
-
-    def sdf(x: float, y: float, z: float) -> float:
-        p = np.array([x, y, z])
-        d = None
-        for a, b, r in segs:
-            ab = b - a
-            t = np.clip((p - a) @ ab / (ab @ ab), 0.0, 1.0)
-            q = np.linalg.norm(p - a - t * ab) - r
-            if d is None:
-                d = q
-            else:  # polynomial smooth minimum
-                h = max(k - abs(d - q), 0.0) / k
-                d = min(d, q) - h * h * k / 4.0
-        return -float(d)  # positive inside
-
-    return _from_manifold(
-        m3.Manifold.level_set(sdf, [-1.7, -0.6, -1.5, 1.8, 0.6, 1.4], edge), "quadruped"
-    )
+    body = None
+    for a, b, r in parts:
+        ball = m3.Manifold.sphere(r, segments)
+        capsule = m3.Manifold.batch_hull([ball.translate(a), ball.translate(b)])
+        body = capsule if body is None else body + capsule
+    return _from_manifold(body, "quadruped")
