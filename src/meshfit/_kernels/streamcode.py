@@ -79,22 +79,37 @@ def _shift_low(buf, st):
 
 
 @njit(cache=True, nogil=True)
-def _encode_bit(buf, st, probs, ctx, bit):
-    """Code one binary symbol with the adaptive probability ``probs[2 ctx]`` (of a 0)."""
-    p = probs[2 * ctx]
+def _rate(probs, ctx):
+    """The context's probability (of a 0) and adaptation shift, its count advanced: the
+    shift starts near Laplace's estimate and settles at ``ADAPT``."""
     n = probs[2 * ctx + 1]
     sh = ADAPT
     if n < _COUNT_CAP:
         sh = min(ADAPT, _bitlen(n + 1))
         probs[2 * ctx + 1] = n + 1
+    return probs[2 * ctx], sh
+
+
+@njit(cache=True, nogil=True)
+def _adapt(probs, ctx, p, sh, bit):
+    """Move the context's probability toward the symbol just coded."""
+    if bit == 0:
+        probs[2 * ctx] = p + ((_ONE - p) >> sh)
+    else:
+        probs[2 * ctx] = p - (p >> sh)
+
+
+@njit(cache=True, nogil=True)
+def _encode_bit(buf, st, probs, ctx, bit):
+    """Code one binary symbol with the adaptive probability ``probs[2 ctx]`` (of a 0)."""
+    p, sh = _rate(probs, ctx)
     bound = (st[1] >> PROB_BITS) * p
     if bit == 0:
         st[1] = bound
-        probs[2 * ctx] = p + ((_ONE - p) >> sh)
     else:
         st[0] += bound
         st[1] -= bound
-        probs[2 * ctx] = p - (p >> sh)
+    _adapt(probs, ctx, p, sh, bit)
     while st[1] < _TOP:
         st[1] <<= 8
         buf = _shift_low(buf, st)
@@ -105,22 +120,16 @@ def _encode_bit(buf, st, probs, ctx, bit):
 def _decode_bit(data, n_avail, st, probs, ctx):
     """Decode one symbol; st = [code, range, position, exhausted]. Sets st[3] when the
     next decision would need a byte past ``n_avail``."""
-    p = probs[2 * ctx]
-    n = probs[2 * ctx + 1]
-    sh = ADAPT
-    if n < _COUNT_CAP:
-        sh = min(ADAPT, _bitlen(n + 1))
-        probs[2 * ctx + 1] = n + 1
+    p, sh = _rate(probs, ctx)
     bound = (st[1] >> PROB_BITS) * p
     if st[0] < bound:
         st[1] = bound
-        probs[2 * ctx] = p + ((_ONE - p) >> sh)
         bit = 0
     else:
         st[0] -= bound
         st[1] -= bound
-        probs[2 * ctx] = p - (p >> sh)
         bit = 1
+    _adapt(probs, ctx, p, sh, bit)
     while st[1] < _TOP:
         st[1] <<= 8
         byte = 0
