@@ -18,14 +18,31 @@ from meshfit._words import plural
 from meshfit.errors import MeshfitError
 from meshfit.mesh import Mesh
 from meshfit.ui.files import LAYOUT_SUFFIXES, FilePolicy, mesh_from_upload
+from meshfit.ui.fitting import FitCancelled, patch_colors, percent
+from meshfit.ui.fitview import FitLayers, grid_lines, legend_html
 from meshfit.ui.state import Session
 
 __all__ = ["App"]
 
-_REGION_OK = (80, 190, 110)
 _REGION_BAD = (225, 80, 70)
+_HIGHLIGHT = (255, 235, 0)
+#: click modes of the 3D view, as the dropdown lists them
+MODES = ("boundary", "feature", "edit", "select", "brush", "view")
+#: output formats the export panel offers, with their hints
+FORMAT_HINTS = {
+    "usd": "USD stage: watertight mesh with UVs, material reading the maps, NURBS patches",
+    "3dm": "Rhino 3dm: the B-spline patches as NURBS surfaces",
+    "iges": "IGES 5.3: the patches as rational B-spline surfaces (entity 128)",
+    "step": "STEP AP214 through OpenCASCADE (pip install 'meshfit[cad]')",
+    "obj": "OBJ mesh of the displaced surface with its material",
+    "glb": "glTF binary of the displaced surface",
+    "ply": "PLY mesh of the displaced surface",
+    "exr": "the displacement maps as float32 OpenEXR (UDIM tiles)",
+    "png": "the displacement maps as 16-bit PNG (UDIM tiles)",
+}
 _BOUNDARY = (20, 20, 230)
 _FEATURE = (230, 120, 20)
+_CREASE = (170, 20, 60)
 _SELECTED = (250, 220, 0)
 _STROKE = (240, 40, 200)
 
@@ -92,10 +109,19 @@ class App:
         self._levels_thread: threading.Thread | None = None
         self.preview_level = -1
         self._nodes: dict[str, list] = {}
+        #: the patch selected by a click (highlighted, its figures shown), or None
+        self.selected_patch: int | None = None
+        self.layers = None if session.mesh is None else FitLayers(self.server.scene, session.mesh)
+        self._cancel = threading.Event()
+        self._fit_thread: threading.Thread | None = None
+        self._stages: dict[str, tuple[int, int]] = {}
         self._build_gui(layout_path)
+        self._add_shortcuts()
         self.server.scene.on_click()(self._on_click)
         self.server.on_client_connect(self._frame_camera)
         self.redraw(mesh=True)
+        if session.mesh is not None:
+            self.say(_opened(session.mesh))
 
     def _frame_camera(self, client) -> None:
         """Look at the mesh from its front (+z), the mesh filling most of the view."""
@@ -195,46 +221,101 @@ class App:
 
         with gui.add_folder("Paint"):
             self.gui_mode = gui.add_dropdown(
-                "Click mode", ("boundary", "feature", "edit", "view"), initial_value="boundary"
+                "Click mode",
+                MODES,
+                initial_value="boundary",
+                hint="What a click on the model does: paint a boundary or feature curve (B, F), "
+                "pick and pull a curve (E), select a patch or curve (S), paint on the selected "
+                "patch's map (M), or nothing (V)",
             )
-            gui.add_button("Finish curve").on_click(
-                lambda _: self._run(s.finish_curve) is not FAILED and self.say("curve finished")
-            )
-            gui.add_button("Cancel curve").on_click(
+            gui.add_button(
+                "Finish curve", hint="End the curve at its last pick (it is then selected)"
+            ).on_click(lambda _: self._on_finish())
+            gui.add_button("Cancel curve", hint="Drop the curve being painted").on_click(
                 lambda _: self._run(s.cancel_curve) is not FAILED and self.say("curve cancelled")
             )
-            gui.add_button("Undo").on_click(
-                lambda _: self.say("undone" if self._run(s.undo) is True else "nothing to undo")
+            gui.add_button("Undo", hint="Undo the last edit (Ctrl+Z)").on_click(
+                lambda _: self._on_undo()
             )
-            gui.add_button("Redo").on_click(
-                lambda _: self.say("redone" if self._run(s.redo) is True else "nothing to redo")
+            gui.add_button("Redo", hint="Redo the last undone edit (Ctrl+Y)").on_click(
+                lambda _: self._on_redo()
             )
-            self.gui_curve = gui.add_number("Selected curve", initial_value=-1, step=1)
+            self.gui_curve = gui.add_number(
+                "Selected curve",
+                initial_value=-1,
+                step=1,
+                hint="The curve the edit buttons act on (-1: none); a click in select or "
+                "edit mode sets it",
+            )
             self.gui_curve.on_update(lambda _: self._select(int(self.gui_curve.value)))
-            gui.add_button("Delete curve").on_click(lambda _: self._on_delete())
+            gui.add_button("Delete curve", hint="Remove the selected curve").on_click(
+                lambda _: self._on_delete()
+            )
 
-        with gui.add_folder("Edit"):
+        with gui.add_folder("Edit", expand_by_default=False):
             self.gui_section = gui.add_slider(
-                "Edit section", min=2, max=60, step=1, initial_value=8
+                "Edit section",
+                min=2,
+                max=60,
+                step=1,
+                initial_value=8,
+                hint="Samples either side of the edit point that move with it",
             )
             self.gui_fair = gui.add_slider(
-                "Fairness", min=0.0, max=4.0, step=0.1, initial_value=1.0
+                "Fairness",
+                min=0.0,
+                max=4.0,
+                step=0.1,
+                initial_value=1.0,
+                hint="Weight of the snake's evenness (larger: smoother, shorter curves)",
             )
             self.gui_curv = gui.add_slider(
-                "Curvature", min=0.0, max=4.0, step=0.1, initial_value=0.0
+                "Curvature",
+                min=0.0,
+                max=4.0,
+                step=0.1,
+                initial_value=0.0,
+                hint="Weight of the snake's bending term",
             )
             self.gui_iters = gui.add_slider(
-                "Iterations", min=1, max=2000, step=1, initial_value=200
+                "Iterations",
+                min=1,
+                max=2000,
+                step=1,
+                initial_value=200,
+                hint="Most relaxation steps of Smooth curve",
             )
-            gui.add_button("Smooth curve").on_click(lambda _: self._on_curve_action("smooth"))
-            gui.add_button("Snake step").on_click(lambda _: self._on_curve_action("step"))
+            gui.add_button(
+                "Smooth curve", hint="Relax the selected curve as a surface snake, ends fixed"
+            ).on_click(lambda _: self._on_curve_action("smooth"))
+            gui.add_button("Snake step", hint="One relaxation step of the selected curve").on_click(
+                lambda _: self._on_curve_action("step")
+            )
             self.gui_ncontrol = gui.add_slider(
-                "Control vertices", min=4, max=30, step=1, initial_value=8
+                "Control vertices",
+                min=4,
+                max=30,
+                step=1,
+                initial_value=8,
+                hint="Control vertices of the space curve fitted for dragging",
             )
-            gui.add_button("Fit space curve").on_click(lambda _: self._on_curve_action("space"))
-            self.gui_color = gui.add_checkbox("Colour attraction", initial_value=False)
+            gui.add_button(
+                "Fit space curve",
+                hint="Fit a B-spline space curve to the selected curve; drag its control "
+                "vertices to reshape it",
+            ).on_click(lambda _: self._on_curve_action("space"))
+            self.gui_color = gui.add_checkbox(
+                "Colour attraction",
+                initial_value=False,
+                hint="Pull curves toward features of the scan's colours or curvature",
+            )
             self.gui_color_weight = gui.add_slider(
-                "Colour weight", min=0.0, max=5.0, step=0.1, initial_value=1.0
+                "Colour weight",
+                min=0.0,
+                max=5.0,
+                step=0.1,
+                initial_value=1.0,
+                hint="Strength of the colour attraction against the snake's own forces",
             )
             self.gui_field = gui.add_dropdown(
                 "Scalar field",
@@ -248,46 +329,292 @@ class App:
                     "mean_curvature",
                 ),
                 initial_value="luminance",
+                hint="The field colour attraction follows",
             )
-            self.gui_sign = gui.add_dropdown("Attract to", ("high", "low"), initial_value="high")
+            self.gui_sign = gui.add_dropdown(
+                "Attract to",
+                ("high", "low"),
+                initial_value="high",
+                hint="Up the field (bright bands, ridges) or down it",
+            )
             for h in (self.gui_color, self.gui_color_weight, self.gui_field, self.gui_sign):
                 h.on_update(lambda _: self._on_color())
 
         with gui.add_folder("Layout"):
-            gui.add_button("Check layout").on_click(lambda _: self._show_status())
-            gui.add_button("Automatic layout").on_click(
-                lambda _: self._run(s.auto_layout) is not FAILED and self._show_status()
+            gui.add_button(
+                "Check layout", hint="Which regions are four-sided patches, and the problems"
+            ).on_click(lambda _: self._show_status())
+            gui.add_button(
+                "Automatic layout",
+                hint="Replace the curves by an automatic layout (creases become C0 boundaries)",
+            ).on_click(lambda _: self._run(s.auto_layout) is not FAILED and self._show_status())
+            self.gui_regions = gui.add_checkbox(
+                "Colour regions",
+                initial_value=False,
+                hint="Colour each region of the painted network; regions that are no patch "
+                "are red with a badge saying why",
             )
-            self.gui_regions = gui.add_checkbox("Colour regions", initial_value=False)
             self.gui_regions.on_update(lambda _: self.redraw(mesh=True))
             self.gui_status = gui.add_markdown("")
 
+        with gui.add_folder("Fit"):
+            self.gui_default_cont = gui.add_dropdown(
+                "Default continuity",
+                ("G1", "C0"),
+                initial_value=s.default_continuity,
+                hint="Continuity across boundaries without a choice of their own (G1: "
+                "tangent planes match; C0: positions only)",
+            )
+            self.gui_default_cont.on_update(lambda _: self._on_default_continuity())
+            self.gui_curve_cont = gui.add_dropdown(
+                "Curve continuity",
+                ("default", "C0", "G1"),
+                initial_value="default",
+                hint="Continuity across the selected boundary curve (creases of the automatic "
+                "layout start at C0)",
+            )
+            self.gui_curve_cont.on_update(lambda _: self._on_curve_continuity())
+            self.gui_fcu = gui.add_slider(
+                "Fit controls u",
+                min=4,
+                max=40,
+                step=1,
+                initial_value=16,
+                hint="Control points per patch along u",
+            )
+            self.gui_fcv = gui.add_slider(
+                "Fit controls v",
+                min=4,
+                max=40,
+                step=1,
+                initial_value=16,
+                hint="Control points per patch along v",
+            )
+            self.gui_map_kind = gui.add_dropdown(
+                "Map kind",
+                ("vector", "scalar"),
+                initial_value="vector",
+                hint="Vector maps hold the exact detail; scalar maps a height along the normal",
+            )
+            gui.add_button(
+                "Fit model", hint="Fit every patch (spring meshes, splines, maps, stitching)"
+            ).on_click(lambda _: self._on_fit_model())
+            gui.add_button("Cancel fit", hint="Stop the running fit").on_click(
+                lambda _: self._on_cancel()
+            )
+            self.gui_fit_progress = gui.add_progress_bar(0.0, visible=False)
+            self.gui_fit_stages = gui.add_markdown("")
+            gui.add_button(
+                "Re-fit selected patch",
+                hint="Fit the selected patch again at the controls above (its neighbours "
+                "are not touched)",
+            ).on_click(lambda _: self._on_refit_patch())
+            gui.add_button(
+                "Re-fit all patches",
+                hint="Fit every patch again at the controls above from its spring mesh "
+                "(a preview; Fit model stitches the seams)",
+            ).on_click(lambda _: self._on_refit_all())
+            self.gui_patch_info = gui.add_markdown("")
+
+        with gui.add_folder("View"):
+            self.gui_show_scan = gui.add_checkbox(
+                "Scan", initial_value=True, hint="Show the scanned mesh"
+            )
+            self.gui_show_layout = gui.add_checkbox(
+                "Layout", initial_value=True, hint="Show the boundary and feature curves"
+            )
+            self.gui_show = {
+                "springs": gui.add_checkbox(
+                    "Spring grids", initial_value=False, hint="Show each patch's spring mesh"
+                ),
+                "spline": gui.add_checkbox(
+                    "Spline", initial_value=False, hint="Show the fitted B-spline surfaces"
+                ),
+                "displaced": gui.add_checkbox(
+                    "Displaced",
+                    initial_value=True,
+                    hint="Show the splines with their displacement maps applied",
+                ),
+            }
+            self.gui_deviation = gui.add_checkbox(
+                "Deviation colours",
+                initial_value=True,
+                hint="Colour the fitted surfaces by their distance to the scan (else one "
+                "colour per patch)",
+            )
+            self.gui_labels = gui.add_checkbox(
+                "Patch numbers", initial_value=True, hint="Show each patch's number"
+            )
+            self.gui_legend = gui.add_html("")
+            self.gui_show_scan.on_update(lambda _: self._on_view())
+            self.gui_show_layout.on_update(lambda _: self._on_view())
+            for h in (*self.gui_show.values(), self.gui_labels):
+                h.on_update(lambda _: self._on_view())
+            self.gui_deviation.on_update(lambda _: self._on_deviation())
+
+        with gui.add_folder("Map brush", expand_by_default=False):
+            self.gui_brush_radius = gui.add_slider(
+                "Brush radius %",
+                min=0.2,
+                max=20.0,
+                step=0.1,
+                initial_value=3.0,
+                hint="Radius of the brush, percent of the bounding-box diagonal",
+            )
+            self.gui_brush_amount = gui.add_slider(
+                "Brush height %",
+                min=0.01,
+                max=5.0,
+                step=0.01,
+                initial_value=0.5,
+                hint="Height added at the brush centre, percent of the diagonal",
+            )
+            self.gui_brush_dir = gui.add_dropdown(
+                "Brush",
+                ("raise", "lower"),
+                initial_value="raise",
+                hint="Add to the map (raise the surface) or take away (lower it)",
+            )
+
         with gui.add_folder("Preview"):
-            self.gui_patch = gui.add_number("Patch", initial_value=0, min=0, step=1)
-            self.gui_level = gui.add_slider("Spring level", min=0, max=4, step=1, initial_value=0)
-            gui.add_button("Spring mesh").on_click(lambda _: self._on_springs())
-            gui.add_button("Run levels").on_click(lambda _: self._on_run_levels())
-            gui.add_button("Pause / continue").on_click(lambda _: self._on_pause())
-            self.gui_cu = gui.add_slider("Controls u", min=4, max=40, step=1, initial_value=8)
-            self.gui_cv = gui.add_slider("Controls v", min=4, max=40, step=1, initial_value=8)
+            self.gui_patch = gui.add_number(
+                "Patch",
+                initial_value=0,
+                min=0,
+                step=1,
+                hint="The patch the spring and spline previews show (a selected patch sets it)",
+            )
+            self.gui_level = gui.add_slider(
+                "Spring level",
+                min=0,
+                max=4,
+                step=1,
+                initial_value=0,
+                hint="Spring-mesh level to preview (each level doubles the grid)",
+            )
+            gui.add_button(
+                "Spring mesh", hint="Show the patch's spring mesh at the level"
+            ).on_click(lambda _: self._on_springs())
+            gui.add_button(
+                "Run levels", hint="Show the levels from 0 up to the chosen one, coarse to fine"
+            ).on_click(lambda _: self._on_run_levels())
+            gui.add_button("Pause / continue", hint="Pause or continue Run levels").on_click(
+                lambda _: self._on_pause()
+            )
+            self.gui_cu = gui.add_slider(
+                "Controls u",
+                min=4,
+                max=40,
+                step=1,
+                initial_value=8,
+                hint="Preview spline controls along u (re-fits as it moves)",
+            )
+            self.gui_cv = gui.add_slider(
+                "Controls v",
+                min=4,
+                max=40,
+                step=1,
+                initial_value=8,
+                hint="Preview spline controls along v (re-fits as it moves)",
+            )
             self.gui_cu.on_update(lambda _: self._on_fit())
             self.gui_cv.on_update(lambda _: self._on_fit())
-            gui.add_button("Fit B-spline").on_click(lambda _: self._on_fit())
+            gui.add_button(
+                "Fit B-spline", hint="Fit a spline to the previewed spring mesh"
+            ).on_click(lambda _: self._on_fit())
             self.gui_fitinfo = gui.add_markdown("")
             self.gui_image = gui.add_image(np.zeros((8, 8, 3), np.uint8), label="Displacement")
 
         with gui.add_folder("Files"):
             default = "" if layout_path is None else str(layout_path)
             self.gui_layout_path = gui.add_text(
-                "Layout file", initial_value=default or "layout.json"
+                "Layout file",
+                initial_value=default or "layout.json",
+                hint="Layout JSON in the working folder (or the one named on the command line)",
             )
-            gui.add_button("Save layout").on_click(lambda _: self._on_save())
-            gui.add_button("Load layout").on_click(lambda _: self._on_load())
-            self.gui_export = gui.add_text("Export folder", initial_value="export")
-            gui.add_button("Export").on_click(lambda _: self._on_export())
+            gui.add_button("Save layout", hint="Write the layout file").on_click(
+                lambda _: self._on_save()
+            )
+            gui.add_button("Load layout", hint="Read the layout file and edit its curves").on_click(
+                lambda _: self._on_load()
+            )
+            self.gui_export = gui.add_text(
+                "Export folder",
+                initial_value="export",
+                hint="Folder inside the working folder the exports go to",
+            )
+            from meshfit.export import step_available
+            from meshfit.export.units import UNITS
+
+            self.gui_formats = {}
+            for name, hint in FORMAT_HINTS.items():
+                missing = name == "step" and not step_available()
+                self.gui_formats[name] = gui.add_checkbox(
+                    name.upper() + (" (not installed)" if missing else ""),
+                    initial_value=name in ("usd", "obj", "exr"),
+                    disabled=missing,
+                    hint=hint,
+                )
+            self.gui_units = gui.add_dropdown(
+                "Units",
+                tuple(UNITS),
+                initial_value="mm",
+                hint="The length unit of the scan's coordinates, declared by every export "
+                "(never scaled)",
+            )
+            self.gui_up = gui.add_dropdown(
+                "Up axis",
+                ("auto", "y", "z"),
+                initial_value="auto",
+                hint="The axis the exports declare as up (never turned)",
+            )
+            gui.add_button(
+                "Export",
+                hint="Write the chosen formats (the last fit; without one, fit first)",
+            ).on_click(lambda _: self._on_export())
             self.gui_progress = gui.add_progress_bar(0.0, visible=False)
-            self.gui_upload = gui.add_upload_button("Open mesh", mime_type="*/*")
+            self.gui_upload = gui.add_upload_button(
+                "Open mesh", mime_type="*/*", hint="Open a mesh file (PLY, OBJ, STL, OFF, GLB)"
+            )
             self.gui_upload.on_upload(lambda _: self._on_upload())
+
+    def _add_shortcuts(self) -> None:
+        """Keyboard shortcuts (viser's command palette hotkeys) for modes, undo and redo."""
+        gui = self.server.gui
+        for label, key, mode in (
+            ("Paint boundary curves", "B", "boundary"),
+            ("Paint feature curves", "F", "feature"),
+            ("Edit curves", "E", "edit"),
+            ("Select patches and curves", "S", "select"),
+            ("Paint on the map", "M", "brush"),
+            ("View only", "V", "view"),
+        ):
+            gui.add_command(label, hotkey=key).on_trigger(lambda _, m=mode: self._set_mode(m))
+        gui.add_command("Undo", hotkey="Z", modifier="cmd/ctrl").on_trigger(
+            lambda _: self._on_undo()
+        )
+        gui.add_command("Redo", hotkey="Y", modifier="cmd/ctrl").on_trigger(
+            lambda _: self._on_redo()
+        )
+        gui.add_command("Redo (Ctrl+Shift+Z)", hotkey="Z", modifier="cmd/ctrl+shift").on_trigger(
+            lambda _: self._on_redo()
+        )
+
+    def _set_mode(self, mode: str) -> None:
+        self.gui_mode.value = mode
+        self.say(f"click mode: {mode}")
+
+    def _on_undo(self) -> None:
+        self.say("undone" if self._run(self.session.undo) is True else "nothing to undo")
+
+    def _on_redo(self) -> None:
+        self.say("redone" if self._run(self.session.redo) is True else "nothing to redo")
+
+    def _on_finish(self) -> None:
+        i = self._run(self.session.finish_curve)
+        if i is not FAILED:
+            self._select(int(i))
+            self.say(f"curve {i} finished and selected")
 
     # ------------------------------------------------------------------------ drawing
     def _lift(self, xyz: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -310,11 +637,20 @@ class App:
             x = self._lift(m.xyz(c), c.face)
             if len(x) < 2:
                 continue
-            col = _SELECTED if i == self.selected else (_BOUNDARY if pc.ends else _FEATURE)
+            if i == self.selected:
+                col = _SELECTED
+            elif pc.ends is None:
+                col = _FEATURE
+            else:
+                col = _CREASE if (pc.continuity or s.default_continuity) == "C0" else _BOUNDARY
             self._keep(
                 "/curves",
                 scene.add_line_segments(
-                    f"/curves/c{i}", np.stack([x[:-1], x[1:]], axis=1), col, thickness=width
+                    f"/curves/c{i}",
+                    np.stack([x[:-1], x[1:]], axis=1),
+                    col,
+                    thickness=width,
+                    visible=bool(self.gui_show_layout.value),
                 ),
             )
         st = s.state.stroke
@@ -340,10 +676,13 @@ class App:
                     x,
                     np.full((len(x), 3), 20, np.uint8),
                     point_size=0.012 * m.bbox_diagonal,
+                    visible=bool(self.gui_show_layout.value),
                 ),
             )
         self._draw_gizmos()
         self.gui_curve.value = -1 if self.selected is None else self.selected
+        if self.selected is not None and self.selected < len(s.curves):
+            self.gui_curve_cont.value = s.curves[self.selected].continuity or "default"
 
     def _clear(self, prefix: str) -> None:
         for h in self._nodes.pop(prefix, []):
@@ -355,15 +694,18 @@ class App:
     def _draw_mesh(self, m: Mesh) -> None:
         scene = self.server.scene
         self._clear("/mesh")
+        self._clear("/badges")
         if self.gui_regions.value and self.session.curves:
             st = self.session.status()
             if st.regions:
                 rof = st.region_of_face
+                palette = patch_colors(len(st.regions))
+                k = 0  # patch number of the next valid region
                 for r in st.regions:
                     f = m.faces[rof == r.index]
+                    col = palette[k] if r.valid else np.asarray(_REGION_BAD)
+                    k += int(r.valid)
                     if f.size:
-                        shade = 0.75 + 0.25 * ((r.index * 7) % 5) / 4
-                        col = np.asarray(_REGION_OK if r.valid else _REGION_BAD) * shade
                         self._keep(
                             "/mesh",
                             scene.add_mesh_simple(
@@ -371,6 +713,19 @@ class App:
                                 m.vertices,
                                 f,
                                 color=tuple(int(c) for c in col),
+                                visible=bool(self.gui_show_scan.value),
+                            ),
+                        )
+                    if not r.valid and f.size:  # a badge saying why it is no patch
+                        centre = m.vertices[f].mean(axis=(0, 1))
+                        at = m.xyz(m.closest_points(centre[None]).points)[0]
+                        self._keep(
+                            "/badges",
+                            scene.add_label(
+                                f"/badges/region{r.index}",
+                                f"region {r.index}: no patch",
+                                position=tuple(at),
+                                anchor="center-center",
                             ),
                         )
                 return
@@ -380,11 +735,20 @@ class App:
             tm = trimesh.Trimesh(
                 m.vertices, m.faces, vertex_colors=m.vertex_colors[:, :3], process=False
             )
-            self._keep("/mesh", scene.add_mesh_trimesh("/mesh/surface", tm))
+            self._keep(
+                "/mesh",
+                scene.add_mesh_trimesh("/mesh/surface", tm, visible=bool(self.gui_show_scan.value)),
+            )
         else:
             self._keep(
                 "/mesh",
-                scene.add_mesh_simple("/mesh/surface", m.vertices, m.faces, color=(200, 200, 200)),
+                scene.add_mesh_simple(
+                    "/mesh/surface",
+                    m.vertices,
+                    m.faces,
+                    color=(200, 200, 200),
+                    visible=bool(self.gui_show_scan.value),
+                ),
             )
 
     def _draw_gizmos(self) -> None:
@@ -428,11 +792,21 @@ class App:
         o, d = event.ray_origin, event.ray_direction
         if mode in ("boundary", "feature"):
             what = self._run(s.click, o, d, kind=mode)
+            if what == "finished":  # the new curve is selected, ready for the edit buttons
+                self.selected, self.edit_point = len(s.curves) - 1, None
+                self.redraw()
             if what is not FAILED:
+                done = f"; curve {self.selected} selected" if what == "finished" else ""
                 self.say(
                     f"{mode} pick: {what} ({plural(len(s.curves), 'curve')}, "
-                    f"{plural(len(s.corners), 'corner')})"
+                    f"{plural(len(s.corners), 'corner')}){done}"
                 )
+            return
+        if mode == "select":
+            self._on_select_click(o, d)
+            return
+        if mode == "brush":
+            self._on_brush_click(o, d)
             return
         if mode == "edit":
             with self.lock:
@@ -536,10 +910,7 @@ class App:
         if st.error:
             text = f"**not a layout:** {st.error}"
         else:
-            n_ok = sum(r.valid for r in st.regions)
-            rows = [f"**{n_ok} of {len(st.regions)} regions are four-sided patches**", ""]
-            rows += [f"- region {r.index}: " + _region_text(r) for r in st.regions[:40]]
-            text = "\n".join(rows)
+            text = _status_text(st)
         self.gui_status.content = text
         self.say(text.splitlines()[0])
         if self.gui_regions.value:
@@ -548,22 +919,23 @@ class App:
 
     # ------------------------------------------------------------------------ previews
     def _show_grid(self, grid) -> None:
-        m = self.session.mesh
         x = np.asarray(grid.xyz)
         nu, nv = x.shape[:2]
-        a = np.stack([x[:-1, :], x[1:, :]], axis=2).reshape(-1, 2, 3)
-        b = np.stack([x[:, :-1], x[:, 1:]], axis=2).reshape(-1, 2, 3)
+        lines = grid_lines(x)
         self._clear("/preview/springs")
         self._keep(
             "/preview/springs",
             self.server.scene.add_line_segments(
                 "/preview/springs",
-                np.concatenate([a, b]),
-                (0, 0, 0),
-                thickness=0.002 * m.bbox_diagonal,
+                self._lift_points(lines.reshape(-1, 3)).reshape(-1, 2, 3),
+                (30, 30, 120),
+                thickness=1.5,
+                thickness_units="screen",
             ),
         )
-        self.say(f"patch {grid.patch}: spring mesh level {grid.level}, {nu} x {nv} points")
+        shown = len(np.unique(lines[:, :, :].reshape(-1, 3), axis=0))
+        thinned = "" if shown >= nu * nv else " (every few grid lines drawn)"
+        self.say(f"patch {grid.patch}: spring mesh level {grid.level}, {nu} x {nv} points{thinned}")
 
     def _on_springs(self) -> None:
         g = self._run(
@@ -637,11 +1009,342 @@ class App:
             )
             self.gui_image.image = big
         cp = fit.surface.control_points.shape
+        diag = s.mesh.bbox_diagonal
         self.gui_fitinfo.content = (
-            f"patch {p}: {cp[0]} x {cp[1]} controls, RMS {fit.rms:.4g}, max "
-            f"{float(fit.error.max()):.4g} (model units)"
+            f"patch {p}: {cp[0]} x {cp[1]} controls, RMS {percent(fit.rms, diag):.3g} %, max "
+            f"{percent(float(fit.error.max()), diag):.3g} % of the diagonal"
         )
         self.say(self.gui_fitinfo.content)
+
+    # ------------------------------------------------------------------------ the fit
+    def _lift_points(self, xyz: np.ndarray) -> np.ndarray:
+        """Points lifted off the scan along the normal of their closest face."""
+        m = self.session.mesh
+        f = m.closest_points(xyz).points.face
+        return xyz + m.face_normals[f] * (0.002 * m.bbox_diagonal)
+
+    def _fit_options(self):
+        from meshfit.pipeline import FitOptions
+
+        return FitOptions(
+            controls=(int(self.gui_fcu.value), int(self.gui_fcv.value)),
+            map_kind=str(self.gui_map_kind.value),
+            units=str(self.gui_units.value),
+            up_axis=str(self.gui_up.value),
+        )
+
+    def _on_fit_model(self) -> None:
+        """Fit the whole model on a thread: a progress bar per stage, a cancel button."""
+        if self._fit_thread is not None and self._fit_thread.is_alive():
+            self.say("a fit is running: wait for it or cancel it")
+            return
+        opts = self._run(self._fit_options, redraw=False)
+        if opts is FAILED:
+            return
+        self._cancel.clear()
+        self._stages = {}
+        self.gui_fit_progress.value = 0.0
+        self.gui_fit_progress.visible = True
+        self.say("fitting the model...")
+
+        def work() -> None:
+            t0 = time.perf_counter()
+            try:
+                result = self.session.fit_model(
+                    options=opts, progress=self._fit_progress, cancel=self._cancel
+                )
+            except FitCancelled as exc:
+                self.say(f"{exc}; the view keeps the last fit")
+                return
+            except MeshfitError as exc:
+                self.say(f"**refused:** {exc}")
+                return
+            except Exception as exc:  # keep the server alive; show what broke
+                traceback.print_exc()
+                self.say(f"**error:** {type(exc).__name__}: {exc}")
+                return
+            finally:
+                self.gui_fit_progress.visible = False
+            with self.lock:
+                self._draw_fit(result)
+            e = result.errors
+            diag_pc = "percent of the diagonal"
+            spline = 100 * e["spline_only"]["hausdorff"]
+            disp = e["displaced"]
+            shown = "" if not disp else f", displaced {100 * disp['hausdorff']:.3g} %"
+            self.say(
+                f"fitted {plural(len(result.patches), 'patch')} in "
+                f"{time.perf_counter() - t0:.1f} s: Hausdorff distance spline "
+                f"{spline:.3g} %{shown} ({diag_pc})"
+            )
+
+        self._fit_thread = threading.Thread(target=work, daemon=True)
+        self._fit_thread.start()
+
+    def _fit_progress(self, stage: str, done: int, total: int) -> None:
+        """One progress bar for the running stage and a line per stage."""
+        self._stages[stage] = (done, total)
+        frac = done / total if total else 1.0
+        self.gui_fit_progress.value = float(100.0 * min(max(frac, 0.0), 1.0))
+        rows = []
+        for name, (d, n) in self._stages.items():
+            mark = "done" if (n and d >= n) else f"{d}/{n}"
+            rows.append(f"{name} {mark}")
+        self.gui_fit_stages.content = "fit: " + " · ".join(rows)
+
+    def _on_cancel(self) -> None:
+        if self._fit_thread is None or not self._fit_thread.is_alive():
+            self.say("no fit is running")
+            return
+        self._cancel.set()
+        self.say("cancelling the fit...")
+
+    def _draw_fit(self, result) -> None:
+        if self.layers is None or self.layers.mesh is not self.session.mesh:
+            if self.layers is not None:
+                self.layers.clear()
+            self.layers = FitLayers(self.server.scene, self.session.mesh)
+        for name, box in self.gui_show.items():
+            self.layers.visible[name] = bool(box.value)
+        self.layers.deviation = bool(self.gui_deviation.value)
+        self.layers.show_labels = bool(self.gui_labels.value)
+        self.layers.draw(result)
+        self.gui_legend.content = legend_html(self.layers.top, "Deviation from the scan")
+        if self.selected_patch is not None and self.selected_patch < len(result.patches):
+            self._show_patch_info(self.selected_patch)
+
+    def _on_view(self) -> None:
+        with self.lock:
+            for h in self._nodes.get("/mesh", []):
+                h.visible = bool(self.gui_show_scan.value)
+            for h in self._nodes.get("/curves", []):
+                h.visible = bool(self.gui_show_layout.value)
+            if self.layers is not None:
+                for name, box in self.gui_show.items():
+                    self.layers.set_visible(name, bool(box.value))
+                self.layers.set_labels(bool(self.gui_labels.value))
+        shown = [n for n, b in self._view_boxes() if b]
+        self.say("showing: " + (", ".join(shown) or "nothing"))
+
+    def _view_boxes(self) -> list[tuple[str, bool]]:
+        return [
+            ("scan", bool(self.gui_show_scan.value)),
+            ("layout", bool(self.gui_show_layout.value)),
+            *((n, bool(b.value)) for n, b in self.gui_show.items()),
+        ]
+
+    def _on_deviation(self) -> None:
+        result = self.session.result
+        if result is None or self.layers is None:
+            return
+        with self.lock:
+            self.layers.deviation = bool(self.gui_deviation.value)
+            for p in range(len(result.patches)):
+                self.layers.draw_patch(result, p, measure=False)
+        self.say("colours: " + ("deviation from the scan" if self.layers.deviation else "patches"))
+
+    def _controls(self) -> tuple[int, int]:
+        return int(self.gui_fcu.value), int(self.gui_fcv.value)
+
+    def _on_refit_patch(self) -> None:
+        p = self.selected_patch
+        if p is None:
+            self.say("select a patch first (select mode: click it)")
+            return
+        result = self._run(self.session.refit_patch, p, controls=self._controls(), redraw=False)
+        if result is FAILED:
+            return
+        with self.lock:
+            self.layers.draw_patch(result, p)
+        self._show_patch_info(p)
+        mu, mv = result.patches[p].surface.control_points.shape[:2]
+        self.say(f"patch {p} re-fitted with {mu} x {mv} controls")
+
+    def _on_refit_all(self) -> None:
+        t0 = time.perf_counter()
+        result = self._run(self.session.refit_all, controls=self._controls(), redraw=False)
+        if result is FAILED:
+            return
+        with self.lock:
+            self._draw_fit(result)
+        self.say(
+            f"{plural(len(result.patches), 'patch')} re-fitted in "
+            f"{time.perf_counter() - t0:.2f} s (seams are closed by Fit model)"
+        )
+
+    def _on_default_continuity(self) -> None:
+        value = str(self.gui_default_cont.value)
+        if self._run(self.session.set_default_continuity, value) is FAILED:
+            return
+        self.say(f"default continuity: {self.session.default_continuity} (used by the next fit)")
+
+    def _on_curve_continuity(self) -> None:
+        i = self.selected
+        value = str(self.gui_curve_cont.value)
+        if i is None or i >= len(self.session.curves):
+            return
+        pc = self.session.curves[i]
+        if (pc.continuity or "default") == value:
+            return
+        if self._run(self.session.set_curve_continuity, i, value) is not FAILED:
+            self.say(f"curve {i}: {self.session.curve_continuity(i)} (used by the next fit)")
+
+    # ------------------------------------------------------------------------ selection
+    def _patch_of_face(self, face: int) -> int | None:
+        """The patch a face of the scan is in: the last fit's, else the painted layout's."""
+        result = self.session.result
+        if result is not None and result.face_patch is not None:
+            k = int(result.face_patch[face])
+            return k if k >= 0 else None
+        st = self.session.status()
+        if st.error or not st.regions:
+            return None
+        r = int(st.region_of_face[face])
+        valid = [q.index for q in st.regions if q.valid]
+        return valid.index(r) if r in valid else None
+
+    def _patch_faces(self, patch: int) -> np.ndarray:
+        result = self.session.result
+        if result is not None and result.face_patch is not None:
+            return np.flatnonzero(result.face_patch == patch)
+        st = self.session.status()
+        valid = [q for q in st.regions if q.valid]
+        return np.flatnonzero(st.region_of_face == valid[patch].index)
+
+    def _on_select_click(self, origin, direction) -> None:
+        s = self.session
+        with self.lock:
+            hit = s.pick(origin, direction)
+        if hit is None:
+            self.say("select: the click missed the mesh")
+            return
+        near = s.nearest_sample(s.mesh.xyz(hit)[0])
+        if near is not None:
+            self._select(near[0])
+            pc = s.curves[near[0]]
+            cont = "" if pc.ends is None else s.curve_continuity(near[0])
+            what = "feature curve" if pc.ends is None else f"boundary, {cont}"
+            self.say(f"curve {near[0]} selected ({what})")
+            return
+        k = self._patch_of_face(int(hit.face[0]))
+        if k is None:
+            self.say("select: no patch there (check the layout)")
+            return
+        self.select_patch(k)
+
+    def select_patch(self, k: int) -> None:
+        """Highlight patch ``k``, frame every client's camera on it and show its figures."""
+        with self.lock:
+            faces = self._patch_faces(k)
+            self.selected_patch = k
+            self.gui_patch.value = k
+            self._highlight(faces)
+            self._frame_on(faces)
+            self._show_patch_info(k)
+        self.say(self.gui_patch_info.content.splitlines()[0].strip("*"))
+
+    def _highlight(self, faces: np.ndarray) -> None:
+        m = self.session.mesh
+        self._clear("/select")
+        tri = (
+            m.vertices[m.faces[faces]]
+            + (0.001 * m.bbox_diagonal) * m.face_normals[faces][:, None, :]
+        )
+        self._keep(
+            "/select",
+            self.server.scene.add_mesh_simple(
+                "/select/patch",
+                tri.reshape(-1, 3),
+                np.arange(3 * len(faces), dtype=np.int64).reshape(-1, 3),
+                color=_HIGHLIGHT,
+                opacity=0.6,
+            ),
+        )
+
+    def _frame_on(self, faces: np.ndarray) -> None:
+        """Look at the faces from outside, along their mean normal."""
+        m = self.session.mesh
+        area = m.face_areas[faces]
+        centres = m.vertices[m.faces[faces]].mean(axis=1)
+        c = (centres * area[:, None]).sum(axis=0) / area.sum()
+        n = (m.face_normals[faces] * area[:, None]).sum(axis=0)
+        if np.linalg.norm(n) < 1e-12:
+            n = c - m.vertices.mean(axis=0)
+        n = n / (np.linalg.norm(n) or 1.0)
+        lo, hi = centres.min(axis=0), centres.max(axis=0)
+        dist = max(2.0 * float(np.linalg.norm(hi - lo)), 0.3 * m.bbox_diagonal)
+        up = np.array([0.0, 1.0, 0.0]) if abs(n[1]) < 0.9 else np.array([0.0, 0.0, 1.0])
+        for client in self.server.get_clients().values():
+            client.camera.up_direction = tuple(up)
+            client.camera.position = tuple(c + n * dist)
+            client.camera.look_at = tuple(c)
+
+    def _show_patch_info(self, k: int) -> None:
+        s = self.session
+        diag = s.mesh.bbox_diagonal
+        result = s.result
+        if result is not None and k < len(result.patches):
+            pf = result.patches[k]
+            f = self.layers.figures(result, k) if self.layers is not None else {}
+            nu, nv = pf.spring.shape[:2]
+            mu, mv = pf.surface.control_points.shape[:2]
+            h, w = pf.displacement.shape
+            rows = [
+                f"**patch {k}: {mu} x {mv} controls**",
+                f"- spring mesh {nu} x {nv}, {pf.displacement.kind} map {h} x {w}",
+                f"- spline to scan: max {f['spline_max']:.3g} %, RMS {f['spline_rms']:.3g} %",
+                f"- displaced to scan: max {f['displaced_max']:.3g} %, "
+                f"RMS {f['displaced_rms']:.3g} %",
+            ]
+            far = pf.errors.get("input_distance_max")
+            if far is not None:
+                rows.append(f"- scan to displaced: max {100 * far:.3g} %")
+            rows.append("(percent of the bounding-box diagonal)")
+        else:
+            faces = self._patch_faces(k)
+            area = float(s.mesh.face_areas[faces].sum())
+            rows = [
+                f"**patch {k}: {len(faces)} faces (not fitted yet)**",
+                f"- area {100 * area / diag**2:.3g} % of the diagonal squared",
+            ]
+        self.gui_patch_info.content = "\n".join(rows)
+
+    def _on_brush_click(self, origin, direction) -> None:
+        s = self.session
+        if s.result is None:
+            self.say("map brush: fit the model first")
+            return
+        with self.lock:
+            hit = s.pick(origin, direction)
+        if hit is None:
+            self.say("map brush: the click missed the mesh")
+            return
+        k = self._patch_of_face(int(hit.face[0]))
+        if k is None:
+            return
+        if k != self.selected_patch:
+            self.select_patch(k)
+        diag = s.mesh.bbox_diagonal
+        sign = 1.0 if self.gui_brush_dir.value == "raise" else -1.0
+        amount = sign * float(self.gui_brush_amount.value) / 100.0 * diag
+        result = self._run(
+            s.brush_map,
+            k,
+            s.mesh.xyz(hit)[0],
+            radius=float(self.gui_brush_radius.value) / 100.0 * diag,
+            amount=amount,
+            redraw=False,
+        )
+        if result is FAILED:
+            return
+        with self.lock:
+            for p in range(len(result.patches)):  # the rebuild closes the seams around it
+                self.layers.draw_patch(result, p)
+            self._show_patch_info(k)
+        self.say(
+            f"patch {k}: map {self.gui_brush_dir.value}d by "
+            f"{float(self.gui_brush_amount.value):.3g} % of the diagonal"
+        )
 
     # ------------------------------------------------------------------------ files
     def _on_save(self) -> None:
@@ -665,11 +1368,19 @@ class App:
             self.say(f"layout loaded from {out} ({plural(len(self.session.curves), 'curve')})")
 
     def _on_export(self) -> None:
+        formats = tuple(name for name, box in self.gui_formats.items() if box.value)
+        units, up = str(self.gui_units.value), str(self.gui_up.value)
+
         def export():
             folder = self.policy.check_folder(self.gui_export.value)
+            if self.session.result is not None:
+                return self.session.export_fit(folder, formats=formats, units=units, up_axis=up)
             return self.session.export(
                 folder,
                 controls=(int(self.gui_cu.value), int(self.gui_cv.value)),
+                formats=formats,
+                units=units,
+                up_axis=up,
                 progress=self._progress,
             )
 
@@ -680,7 +1391,10 @@ class App:
         finally:
             self.gui_progress.visible = False
         if out is not FAILED:
-            self.say(f"exported {len(out)} files to {self.gui_export.value}")
+            self.say(
+                f"exported {len(out)} files ({', '.join(formats)}; {units}, up "
+                f"{up}) to {self.gui_export.value}"
+            )
 
     def _progress(self, stage: str, done: int, total: int) -> None:
         """Fit progress from :func:`meshfit.fit` to the progress bar."""
@@ -707,10 +1421,38 @@ class App:
         if mesh is not FAILED:
             self._clear("/preview/springs")
             self._clear("/preview/spline")
+            self._clear("/select")
+            self.selected_patch = None
+            if self.layers is not None:
+                self.layers.clear()
+            self.layers = FitLayers(self.server.scene, mesh)
+            self.gui_legend.content = ""
+            self.gui_patch_info.content = ""
             self.say(f"opened {mesh.name}: {mesh.n_vertices} vertices, {mesh.n_faces} faces")
             if self.session.set_aside is not None:
                 moved, why = self.session.set_aside
                 self.say(f"{why}: moved it to {moved.name} and started a new session")
+
+
+def _opened(mesh: Mesh) -> str:
+    return (
+        f"{mesh.name}: {mesh.n_vertices:,} vertices, {mesh.n_faces:,} faces. Click on it to "
+        "paint boundary curves (B), or run Automatic layout; then Fit model."
+    )
+
+
+def _status_text(st) -> str:
+    """The layout status in a few lines: the counts, then only the regions with a problem."""
+    n_ok = sum(r.valid for r in st.regions)
+    head = f"**{n_ok} of {len(st.regions)} regions are four-sided patches**"
+    problems = [r for r in st.regions if _region_text(r) != "patch"]
+    if not problems:
+        return head
+    rows = [head, ""]
+    rows += [f"- region {r.index}: " + _region_text(r) for r in problems[:8]]
+    if len(problems) > 8:
+        rows.append(f"- and {len(problems) - 8} more regions with a problem")
+    return "\n".join(rows)
 
 
 def _region_text(r) -> str:

@@ -66,6 +66,8 @@ SESSION_VERSION = 2
 READ_VERSIONS = (1, 2)
 
 Kind = Literal["boundary", "feature"]
+#: continuity choices across a boundary curve
+CONTINUITY = ("C0", "G1")
 
 
 @dataclass(frozen=True, eq=False)
@@ -80,11 +82,14 @@ class PaintedCurve:
         Start and end corner of a boundary curve; None for a feature curve.
     space : SpaceCurve or None
         The B-spline space curve fitted to it for control-vertex editing, if any.
+    continuity : {"C0", "G1"} or None
+        The continuity chosen for this boundary; None follows the session's default.
     """
 
     curve: SurfaceCurve
     ends: tuple[int, int] | None = None
     space: SpaceCurve | None = None
+    continuity: str | None = None
 
     @property
     def kind(self) -> str:
@@ -283,6 +288,10 @@ class Session:
         self._writer: threading.Thread | None = None
         self.save_errors: list[str] = []
         self.listeners: list[Callable[[], None]] = []
+        #: continuity of the boundaries with no choice of their own ("C0" or "G1")
+        self.default_continuity = "G1"
+        #: the last whole fit (:meth:`fit_model`), with the previews' and brushes' edits
+        self.result = None
         if mesh is not None:
             self.set_mesh(mesh)
 
@@ -413,6 +422,7 @@ class Session:
         from meshfit.layout import mesh_fingerprint
 
         self.mesh = mesh
+        self.result = None
         self._fingerprint = mesh_fingerprint(mesh)  # hashed once: autosave runs every edit
         with self._json_lock:
             self._json_parts.clear()
@@ -497,8 +507,12 @@ class Session:
             pts = pc.curve.points
             corners = SurfacePoints.concatenate([state.corners, pts[s]])
             a, b = pc.ends
-            first = PaintedCurve(SurfaceCurve(pts[: s + 1], kind="boundary"), (a, new))
-            second = PaintedCurve(SurfaceCurve(pts[s:], kind="boundary"), (new, b))
+            first = PaintedCurve(
+                SurfaceCurve(pts[: s + 1], kind="boundary"), (a, new), None, pc.continuity
+            )
+            second = PaintedCurve(
+                SurfaceCurve(pts[s:], kind="boundary"), (new, b), None, pc.continuity
+            )
             curves = list(state.curves)
             curves[i] = first
             curves.append(second)
@@ -642,7 +656,7 @@ class Session:
 
     def _replace_curve(self, i: int, curve: SurfaceCurve, space: SpaceCurve | None) -> None:
         curves = list(self.state.curves)
-        curves[i] = PaintedCurve(curve, curves[i].ends, space)
+        curves[i] = PaintedCurve(curve, curves[i].ends, space, curves[i].continuity)
         self._commit(replace(self.state, curves=tuple(curves)))
 
     # ------------------------------------------------------------------------ editing
@@ -811,6 +825,7 @@ class Session:
             np.asarray([st.curves[i].ends for i in ids], dtype=np.int64),
             status.patches,
             feats,
+            creases=self.creases(),
         )
         self._cache["layout"] = layout
         return layout
@@ -825,7 +840,11 @@ class Session:
         """Replace the painted curves by a layout's corners, curves and feature curves."""
         st = self.state
         curves = [
-            PaintedCurve(c, (int(layout.curve_ends[i, 0]), int(layout.curve_ends[i, 1])))
+            PaintedCurve(
+                c,
+                (int(layout.curve_ends[i, 0]), int(layout.curve_ends[i, 1])),
+                continuity="C0" if bool(layout.creases[i]) else None,
+            )
             for i, c in enumerate(layout.curves)
         ]
         curves += [PaintedCurve(f, None) for fs in layout.features for f in fs]
@@ -932,18 +951,180 @@ class Session:
         *,
         controls: tuple[int, int] = (16, 16),
         formats: tuple[str, ...] | None = None,
+        units: str = "mm",
+        up_axis: str = "auto",
         progress: Callable[[str, int, int], None] | None = None,
     ) -> list[Path]:
         """Fit the painted layout and write everything ``meshfit fit`` writes into ``folder``
-        (:func:`meshfit.fit` with this layout); returns the files written."""
+        (:func:`meshfit.fit` with this layout and the chosen continuity); returns the files
+        written."""
         from meshfit.pipeline import FitOptions, fit
 
         folder = Path(folder)
         before = set(folder.rglob("*")) if folder.is_dir() else set()
         kw = {} if formats is None else {"formats": tuple(formats)}
-        opts = FitOptions(controls=(int(controls[0]), int(controls[1])), **kw)
+        opts = FitOptions(
+            controls=(int(controls[0]), int(controls[1])),
+            continuity="auto",
+            units=units,
+            up_axis=up_axis,
+            **kw,
+        )
         fit(self._need_mesh(), self.layout(), options=opts, out=folder, progress=progress)
         return sorted(p for p in folder.rglob("*") if p.is_file() and p not in before)
+
+    # ------------------------------------------------------------------------ continuity
+    def set_default_continuity(self, continuity: str) -> None:
+        """The continuity of every boundary without a choice of its own: "C0" or "G1"."""
+        c = str(continuity).upper()
+        if c not in CONTINUITY:
+            raise InputError(f"continuity must be C0 or G1, got {continuity!r}")
+        self.default_continuity = c
+        self._cache.pop("layout", None)
+
+    def set_curve_continuity(self, index: int, continuity: str | None) -> None:
+        """Choose C0 or G1 across boundary curve ``index`` (None: the default); undoable."""
+        i = self._curve_index(index)
+        pc = self.state.curves[i]
+        if pc.ends is None:
+            raise InputError(f"curve {i} is a feature curve: continuity is chosen on boundaries")
+        c = None if continuity in (None, "default") else str(continuity).upper()
+        if c is not None and c not in CONTINUITY:
+            raise InputError(f"continuity must be C0, G1 or default, got {continuity!r}")
+        curves = list(self.state.curves)
+        curves[i] = replace(pc, continuity=c)
+        self._commit(replace(self.state, curves=tuple(curves)))
+
+    def curve_continuity(self, index: int) -> str:
+        """The continuity a fit uses across boundary curve ``index``."""
+        pc = self.state.curves[self._curve_index(index)]
+        return pc.continuity or self.default_continuity
+
+    def creases(self) -> NDArray[np.bool_]:
+        """Per boundary curve (in layout order): whether a fit keeps it C0, ``(nk,) bool``
+        (the layout's ``creases``, which a fit with continuity "auto" leaves C0)."""
+        st = self.state
+        return np.asarray(
+            [(st.curves[i].continuity or self.default_continuity) == "C0" for i in st.boundary_ids],
+            dtype=bool,
+        )
+
+    # ------------------------------------------------------------------------ the fit
+    def fit_model(
+        self,
+        *,
+        options=None,
+        progress: Callable[[str, int, int], None] | None = None,
+        cancel: threading.Event | None = None,
+    ):
+        """Fit the whole painted layout in memory (:func:`meshfit.fit`) with the chosen
+        continuity: C0 across the curves chosen C0 (or by default), G1 elsewhere.
+
+        Parameters
+        ----------
+        options : meshfit.pipeline.FitOptions, optional
+            Controls, map kind, units...; its continuity, formats and report are replaced
+            (continuity per curve, nothing written).
+        progress : callable(stage, done, total), optional
+        cancel : threading.Event, optional
+            Set it to stop the fit at its next progress step
+            (:class:`meshfit.ui.fitting.FitCancelled` is raised; the last result stays).
+
+        Returns
+        -------
+        meshfit.FitResult
+            Also kept as :attr:`result`.
+        """
+        from meshfit.pipeline import FitOptions, fit
+        from meshfit.ui.fitting import FitCancelled
+
+        opts = replace(options or FitOptions(), continuity="auto", formats=(), report=False)
+
+        def tick(stage: str, done: int, total: int) -> None:
+            if cancel is not None and cancel.is_set():
+                raise FitCancelled(f"fit cancelled at stage {stage}")
+            if progress is not None:
+                progress(stage, done, total)
+
+        result = fit(self._need_mesh(), self.layout(), options=opts, progress=tick)
+        self.result = result
+        return result
+
+    def _need_result(self):
+        if self.result is None:
+            raise InputError("no fit yet: fit the model first")
+        return self.result
+
+    def refit_patch(self, patch: int, *, controls: tuple[int, int]):
+        """Re-fit one patch of the last fit at a control resolution (its spring mesh kept);
+        the other patches stay as they are. Returns the new result."""
+        from meshfit.ui.fitting import refit_patch
+
+        self.result = refit_patch(self._need_result(), patch, controls)
+        return self.result
+
+    def refit_all(self, *, controls: tuple[int, int]):
+        """Re-fit every patch of the last fit from its spring mesh at a control resolution
+        (the whole-model preview; seams are closed by the next whole fit)."""
+        from meshfit.ui.fitting import refit_patch
+
+        result = self._need_result()
+        for p in range(len(result.patches)):
+            result = refit_patch(result, p, controls)
+        self.result = result
+        return result
+
+    def brush_map(self, patch: int, xyz: ArrayLike, *, radius: float, amount: float):
+        """Paint on a patch's map: raise (``amount`` > 0) or lower the displaced surface
+        around the texel nearest ``xyz`` and rebuild the result.
+
+        Parameters
+        ----------
+        patch : int
+        xyz : (3,) float64
+            The brush's centre on the displaced surface, model units.
+        radius : float
+            Brush radius, model units.
+        amount : float
+            Displacement at the centre, model units.
+        """
+        from meshfit.ui.fitting import brush_map, texel_of
+
+        result = self._need_result()
+        if not (np.isfinite(radius) and radius > 0 and np.isfinite(amount)):
+            raise InputError(
+                f"a brush needs a radius > 0 and a finite amount, got {radius}, {amount}"
+            )
+        texel = texel_of(result, patch, np.asarray(xyz, dtype=np.float64))
+        grid = result.patches[int(patch)].displaced()
+        step = float(
+            np.mean([np.linalg.norm(np.diff(grid, axis=k), axis=2).mean() for k in (0, 1)])
+        )
+        r_texels = max(float(radius) / max(step, 1e-300), 0.5)
+        self.result = brush_map(result, patch, texel, radius=r_texels, amount=amount)
+        return self.result
+
+    def export_fit(
+        self,
+        folder: str | os.PathLike,
+        *,
+        formats: tuple[str, ...],
+        units: str = "mm",
+        up_axis: str = "auto",
+    ) -> list[Path]:
+        """Write the last fit in ``formats`` (any of :data:`meshfit.pipeline.FORMATS`) with
+        the units and up axis the exports declare; returns the files written."""
+        from meshfit.pipeline import FitOptions
+
+        result = self._need_result()
+        if not formats:
+            raise InputError("choose at least one format to export")
+        checked = FitOptions(formats=tuple(formats), units=units, up_axis=up_axis)
+        result = replace(
+            result, options=replace(result.options, units=checked.units, up_axis=checked.up_axis)
+        )
+        files = result.export(folder, formats=checked.formats)
+        return sorted(Path(folder) / f for fs in files.values() for f in fs)
 
     # ------------------------------------------------------------------------ session file
     def _points_json(self, sp: SurfacePoints) -> str:
@@ -981,7 +1162,8 @@ class Session:
             used.add(id(pts))
             ends = "null" if pc.ends is None else json.dumps(list(pc.ends))
             body = self._points_json(pts)[1:-1]  # '"n": ..., "face": "...", "bary": "..."'
-            curves.append(f'{{"kind": {json.dumps(pc.kind)}, "ends": {ends}, {body}}}')
+            cont = "" if pc.continuity is None else f'"continuity": "{pc.continuity}", '
+            curves.append(f'{{"kind": {json.dumps(pc.kind)}, "ends": {ends}, {cont}{body}}}')
         stroke = "null"
         if st.stroke is not None:
             used.update(id(p) for p in (st.stroke.picks, *st.stroke.pieces))
@@ -1041,7 +1223,10 @@ class Session:
                 ends = None
             sp = _sp_from_json(c, f"{p}: curve {i}")
             _check_on_mesh(mesh, sp, f"{p}: curve {i}")
-            curves.append(PaintedCurve(SurfaceCurve(sp, kind=kind), ends))
+            cont = c.get("continuity")
+            if cont not in (None, *CONTINUITY):
+                raise InputError(f"{p}: curve {i}: continuity must be C0 or G1, got {cont!r}")
+            curves.append(PaintedCurve(SurfaceCurve(sp, kind=kind), ends, None, cont))
         _check_on_mesh(mesh, corners, f"{p}: corners")
         stroke = None
         s = doc.get("stroke")
