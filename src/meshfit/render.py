@@ -23,11 +23,14 @@ from meshfit._kernels import render as _k
 from meshfit.errors import InputError
 
 __all__ = [
+    "HEAT_COLORS",
+    "HEAT_STOPS",
     "PALETTE",
     "Camera",
     "camera_frame",
     "heat_colors",
     "patch_colors",
+    "project",
     "render",
     "write_png_rgb",
 ]
@@ -58,6 +61,13 @@ PALETTE = np.array(
     ]
 )
 
+
+#: the heat map of :func:`heat_colors`: fractions of its top value and their colours (RGB in
+#: [0, 1], sRGB), interpolated linearly between
+HEAT_STOPS = np.array([0.0, 0.33, 0.66, 1.0])
+HEAT_COLORS = np.array(
+    [[0.05, 0.10, 0.55], [0.10, 0.75, 0.85], [0.98, 0.90, 0.15], [0.85, 0.05, 0.05]]
+)
 
 #: a point or direction in model space
 Vec3 = tuple[float, float, float]
@@ -157,10 +167,7 @@ def heat_colors(values: ArrayLike, vmax: float | None = None) -> NDArray[np.floa
     v = np.asarray(values, dtype=np.float64)
     top = float(np.max(v)) if vmax is None else float(vmax)
     t = np.clip(v / top, 0.0, 1.0) if top > 0 else np.zeros_like(v)
-    stops = np.array([0.0, 0.33, 0.66, 1.0])
-    cols = np.array(
-        [[0.05, 0.10, 0.55], [0.10, 0.75, 0.85], [0.98, 0.90, 0.15], [0.85, 0.05, 0.05]]
-    )
+    stops, cols = HEAT_STOPS, HEAT_COLORS
     return np.stack([np.interp(t, stops, cols[:, c]) for c in range(3)], axis=-1)
 
 
@@ -174,6 +181,7 @@ def render(
     uv: ArrayLike | None = None,
     checker: float = 0.0,
     shading: str = "gouraud",
+    depth_out: NDArray[np.float64] | None = None,
 ) -> NDArray[np.uint8]:
     """Render a triangle mesh to an RGB image.
 
@@ -195,6 +203,10 @@ def render(
         Checker squares per unit of ``uv`` (default 0: no texture).
     shading : {"gouraud", "flat"}
         Light per vertex (normals averaged over faces) interpolated, or per face.
+    depth_out : (h, w) float64, optional
+        Filled with each pixel's depth towards the viewer (model units, larger is nearer;
+        ``-inf`` where nothing is drawn): what :func:`project` compares points with to
+        tell whether they are in sight.
 
     Returns
     -------
@@ -213,22 +225,7 @@ def render(
         raise InputError(f"camera must be a Camera, got {type(camera).__name__}")
     w, h = cam.size
     R = camera_frame(cam.view, cam.up)
-    pts = V if cam.bounds is None else np.array(cam.bounds, dtype=np.float64).reshape(-1, 3)
-    if pts.shape[0] == 2:  # a box: frame its eight corners
-        pts = np.array(
-            [[pts[i][0], pts[j][1], pts[k][2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)]
-        )
-    corners = pts if pts.size else np.zeros((1, 3))
-    cs = corners @ R.T
-    lo, hi = cs.min(axis=0), cs.max(axis=0)
-    extent = max(hi[0] - lo[0], hi[1] - lo[1], 1e-300)
-    scale = (1.0 - 2.0 * MARGIN) * min(w, h) / extent
-    mid = 0.5 * (lo + hi)
-    S = V @ R.T
-    X = np.empty_like(S)
-    X[:, 0] = (S[:, 0] - mid[0]) * scale + 0.5 * w
-    X[:, 1] = 0.5 * h - (S[:, 1] - mid[1]) * scale
-    X[:, 2] = S[:, 2]
+    X = project(V, cam)
     empty = np.zeros((0, 3))
     fc = vc = empty
     if face_colors is not None:
@@ -258,7 +255,49 @@ def render(
         image,
         depth,
     )
+    if depth_out is not None:
+        depth_out[...] = depth
     return np.rint(image * 255.0).astype(np.uint8)
+
+
+def project(points: ArrayLike, camera: Camera) -> NDArray[np.float64]:
+    """Image positions of model points as :func:`render` draws them with ``camera``.
+
+    Parameters
+    ----------
+    points : (n, 3) float64
+        Model units.
+    camera : Camera
+        Framing ``camera.bounds``, or where that is None these points (as :func:`render`
+        frames the vertices it draws): give bounds to place points on another render.
+
+    Returns
+    -------
+    (n, 3) float64
+        Column and row (pixels from the top left, pixel centres at half-integers) and
+        depth towards the viewer (model units; larger is nearer), the depth
+        :func:`render`'s ``depth_out`` holds.
+    """
+    V = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    w, h = camera.size
+    R = camera_frame(camera.view, camera.up)
+    pts = V if camera.bounds is None else np.array(camera.bounds, dtype=np.float64).reshape(-1, 3)
+    if pts.shape[0] == 2:  # a box: frame its eight corners
+        pts = np.array(
+            [[pts[i][0], pts[j][1], pts[k][2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)]
+        )
+    corners = pts if pts.size else np.zeros((1, 3))
+    cs = corners @ R.T
+    lo, hi = cs.min(axis=0), cs.max(axis=0)
+    extent = max(hi[0] - lo[0], hi[1] - lo[1], 1e-300)
+    scale = (1.0 - 2.0 * MARGIN) * min(w, h) / extent
+    mid = 0.5 * (lo + hi)
+    S = V @ R.T
+    X = np.empty_like(S)
+    X[:, 0] = (S[:, 0] - mid[0]) * scale + 0.5 * w
+    X[:, 1] = 0.5 * h - (S[:, 1] - mid[1]) * scale
+    X[:, 2] = S[:, 2]
+    return X
 
 
 def _as_colors(c: ArrayLike, n: int, name: str) -> NDArray[np.float64]:

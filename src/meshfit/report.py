@@ -31,30 +31,82 @@ from numpy.typing import NDArray
 from meshfit._atomic import write_bytes, write_text
 from meshfit.errors import RenderError
 from meshfit.mesh.measures import up_axis
-from meshfit.render import Camera, heat_colors, patch_colors, render, write_png_rgb
+from meshfit.render import (
+    HEAT_COLORS,
+    HEAT_STOPS,
+    Camera,
+    heat_colors,
+    patch_colors,
+    render,
+    write_png_rgb,
+)
+from meshfit.report_bounds import beyond_bounds
+from meshfit.report_view import (
+    View,
+    copy_static,
+    deviation_glb,
+    fixed_views,
+    in_sight,
+    near_max,
+    write_model,
+)
 
 __all__ = [
     "BLENDER_IMAGES",
     "BLENDER_PYTHON_ENV",
     "BLENDER_SCRIPT",
     "REPORT_IMAGES",
+    "VIEW_NAMES",
+    "VIEW_ROWS",
     "ReportInputs",
     "blender_python",
     "blender_renders",
     "model_view",
+    "report_images",
     "usd_layer",
     "write_html",
     "write_report",
 ]
 
-#: the model renders of the report, in order: (file stem, caption)
+#: the renders of the report from its main view, in order: (file stem, caption)
 REPORT_IMAGES = (
-    ("layout", "patch layout on the input mesh"),
     ("springs", "spring meshes (checkerboard: one square per grid cell)"),
     ("spline", "spline-only surface"),
     ("displaced", "displaced surface (spline + displacement maps)"),
-    ("error", "distance of the spline-only surface to the input (heat map)"),
 )
+#: the rows of renders from the fixed viewpoints (:func:`meshfit.report_view.fixed_views`),
+#: in order: (file stem before ``_<view>``, caption)
+VIEW_ROWS = (
+    ("layout", "Patch layout on the input mesh, with patch numbers"),
+    ("error_spline", "Spline-only surface: its distance to the scan"),
+    (
+        "error_displaced",
+        "Displaced surface: the scan's distance to it (each vertex shows the largest "
+        "distance of the scan points nearest to it)",
+    ),
+)
+#: names of the fixed viewpoints, in order
+VIEW_NAMES = ("front", "right", "back", "left")
+#: smallest side of the fixed viewpoints' images, pixels
+VIEW_MIN_SIZE = 120
+#: the page's own data (scales, viewpoints, labels) beside the images, for a resumed run
+PAGE_FILE = "page.json"
+#: the columns of the report's patch table
+PATCH_COLUMNS = [
+    "patch",
+    "shape",
+    "levels",
+    "folded",
+    "arc_cv_max",
+    "aspect_max",
+    "corner_angles",
+    "controls",
+    "fit_parametric_rms",
+    "fit_parametric_max",
+    "displacement_max",
+    "input_distance_max",
+    "seconds",
+]
 
 #: the environment variable naming Blender's Python, an interpreter that imports ``bpy``
 #: (Blender's module pins its own Python and numpy, so it lives in a virtualenv of its own)
@@ -317,6 +369,159 @@ class ReportInputs:
     spline_distance: NDArray[np.float64] | None = None
 
 
+def _view_size(image_size: int) -> int:
+    """Side of the fixed viewpoints' images: half the main renders', four to a row."""
+    return max(VIEW_MIN_SIZE, int(image_size) // 2)
+
+
+def _deviations(fit: ReportInputs, Vs, Fs, Vd, Fd, shapes) -> tuple[NDArray, NDArray]:
+    """Deviation from the scan at each spline-only and each displaced grid vertex, model
+    units: the spline's own distance to the scan, and for the displaced surface (which
+    passes through scan points at its vertices) the scan's distance to it, carried to the
+    nearest vertices (:func:`meshfit.report_view.near_max`)."""
+    from meshfit.mesh.locate import grid_tree, triangle_distances
+
+    mesh = fit.mesh
+    dist = fit.spline_distance
+    if dist is None or len(dist) != len(Vs):
+        dist = mesh.closest_points(Vs).distance
+    if len(Fd):
+        from_input, _ = triangle_distances(mesh.vertices, Vd, Fd, tree=grid_tree(Vd, Fd, shapes))
+        dev = near_max(Vd, mesh.vertices, from_input)
+    else:
+        dev = np.zeros(len(Vd))
+    return np.asarray(dist, dtype=np.float64), dev
+
+
+def _top(values: NDArray[np.float64]) -> float:
+    """The heat map's red end: the 99th percentile, so that a few outliers do not wash the
+    rest out (they show red)."""
+    return float(np.quantile(values, 0.99)) if values.size else 0.0
+
+
+def _labels(points, camera: Camera, depth, slack: float) -> list[list[float]]:
+    """``[patch, x %, y %]`` of each patch label in sight on a render."""
+    if not len(points):
+        return []
+    xy, visible = in_sight(points, camera, depth, slack)
+    w, h = camera.size
+    return [
+        [int(p), round(100 * xy[p, 0] / w, 2), round(100 * xy[p, 1] / h, 2)]
+        for p in np.flatnonzero(visible)
+    ]
+
+
+def _render_views(fit: ReportInputs, folder: Path, size: int, view, up, page: dict) -> None:
+    """Draw every render and map image; the jobs' images go to ``folder``. Fills ``page``
+    (the scales, viewpoints, labels, model and viewer files the page refers to)."""
+    mesh, grids, dmaps = fit.mesh, fit.grids, fit.maps
+    diag = mesh.bbox_diagonal
+    bounds = _hull_points(mesh.vertices[:: max(1, mesh.n_vertices // 20000)])
+    camera = Camera(size=(size, size), view=tuple(view), up=tuple(up), bounds=bounds)
+    vsize = _view_size(size)
+    views = fixed_views(view, up)
+    cams = [Camera(size=(vsize, vsize), view=v.view, up=v.up, bounds=bounds) for v in views]
+    face_patch = fit.face_patch
+    if face_patch is None:
+        face_patch = np.full(mesh.n_faces, -1, dtype=np.int64)
+    layout_colors = patch_colors(face_patch)
+    topology: dict = {}  # the grids, splines and displaced grids share their triangles
+    V, F, P, UV = _grid_soup(grids, topology)
+    cols = patch_colors(P)
+    vcol = np.zeros((V.shape[0], 3))
+    for k in range(3):
+        vcol[F[:, k]] = cols
+    spline = fit.spline
+    if spline is None:
+        spline = [
+            s.evaluate_grid(np.linspace(0, 1, g.shape[0]), np.linspace(0, 1, g.shape[1]))
+            for s, g in zip(fit.surfaces, grids, strict=True)
+        ]
+    spline = spline() if callable(spline) else spline
+    Vs, Fs, _, _ = _grid_soup(spline, topology)
+    disp = fit.displaced() if callable(fit.displaced) else fit.displaced
+    Vd, Fd, _, _ = _grid_soup(disp, topology)
+    dist, dev = _deviations(fit, Vs, Fs, Vd, Fd, [d.shape[:2] for d in disp])
+    top_s, top_d = _top(dist), _top(dev)
+    page["error_scale"] = {"spline": top_s / diag, "displaced": top_d / diag}
+    page["error_max"] = {
+        "spline": float(dist.max()) / diag if dist.size else 0.0,
+        "displaced": float(dev.max()) / diag if dev.size else 0.0,
+    }
+    page["views"] = [{"name": v.name, "view": list(v.view), "up": list(v.up)} for v in views]
+    heat_s, heat_d = heat_colors(dist, top_s), heat_colors(dev, top_d)
+
+    jobs: dict[str, Callable[[], NDArray[np.uint8]]] = {
+        "springs": lambda: render(
+            V, F, camera=camera, vertex_colors=vcol, uv=UV, checker=1.0, shading="flat"
+        ),
+        "spline": lambda: render(Vs, Fs, camera=camera),
+        "displaced": lambda: render(Vd, Fd, camera=camera),
+    }
+    label_points = np.array([g[g.shape[0] // 2, g.shape[1] // 2] for g in grids]).reshape(-1, 3)
+    page["labels"] = {}
+
+    def layout_view(v: View, cam: Camera) -> NDArray[np.uint8]:
+        depth = np.empty((vsize, vsize))
+        img = render(
+            mesh.vertices, mesh.faces, face_colors=layout_colors, shading="flat", camera=cam,
+            depth_out=depth,
+        )  # fmt: skip
+        page["labels"][f"layout_{v.name}"] = _labels(label_points, cam, depth, 0.01 * diag)
+        return img
+
+    for v, cam in zip(views, cams, strict=True):
+        jobs[f"layout_{v.name}"] = lambda v=v, cam=cam: layout_view(v, cam)
+        jobs[f"error_spline_{v.name}"] = lambda cam=cam: render(
+            Vs, Fs, camera=cam, vertex_colors=heat_s
+        )
+        jobs[f"error_displaced_{v.name}"] = lambda cam=cam: render(
+            Vd, Fd, camera=cam, vertex_colors=heat_d
+        )
+    # each map on its own scale: its largest displacement is full scale
+    scales = [float(np.abs(d.values).max()) if d.values.size else 0.0 for d in dmaps]
+    page["map_scales"] = [x / diag for x in scales]
+
+    def map_png(p: int) -> None:
+        d = dmaps[p]
+        # the channels in the files' order: a vector map's T, N, B as R, G, B
+        img = _map_image(d.values[..., [0, 2, 1]] if d.kind == "vector" else d.values, scales[p])
+        # rows along v, columns along u, magnified to at least 128 pixels
+        img = np.transpose(img, (1, 0, 2))[::-1]
+        k = max(1, -(-128 // max(img.shape[:2])))
+        img = np.repeat(np.repeat(img, k, axis=0), k, axis=1)
+        write_png_rgb(folder / f"map_{p:03d}.png", img)
+
+    deviation = []
+    base = 0
+    for D in disp:
+        n = D.shape[0] * D.shape[1]
+        deviation.append(100.0 * dev[base : base + n].reshape(D.shape[:2]) / diag)
+        base += n
+    glb = deviation_glb(disp, deviation, 100.0 * top_d / diag)
+    page["model"] = write_model(folder, glb)
+    page["static"] = copy_static(folder)
+    # the rasteriser and zlib run without the GIL: the images are made side by side
+    with ThreadPoolExecutor(max_workers=max(1, min(len(jobs), os.cpu_count() or 1))) as pool:
+        futures = {stem: pool.submit(job) for stem, job in jobs.items()}
+        maps = [pool.submit(map_png, p) for p in range(len(dmaps))]
+        for stem, fut in futures.items():
+            write_png_rgb(folder / f"{stem}.png", fut.result())
+        for fut in maps:
+            fut.result()
+
+
+def report_images(n_patches: int) -> list[str]:
+    """The images of a report of ``n_patches`` patches (relative to the fit folder), in
+    the page's order: the fixed viewpoints of :data:`VIEW_ROWS`, :data:`REPORT_IMAGES`, the
+    maps."""
+    names = [f"layout_{v}" for v in VIEW_NAMES]
+    names += [f"{row}_{v}" for row, _ in VIEW_ROWS[1:] for v in VIEW_NAMES]
+    names += [stem for stem, _ in REPORT_IMAGES]
+    names += [f"map_{p:03d}" for p in range(n_patches)]
+    return [f"report/{n}.png" for n in names]
+
+
 def write_report(
     out: str | os.PathLike,
     fit: ReportInputs,
@@ -325,48 +530,51 @@ def write_report(
     render_images: bool = True,
     blender_python: str | os.PathLike | None = None,
 ) -> dict[str, Any]:
-    """Render the report images and write ``report.html``.
+    """Render the report images, write its 3D model and ``report.html``.
 
     Parameters
     ----------
     out : path
-        The fit's output folder; images go to ``out/report/``.
+        The fit's output folder; images, the model and the viewer go to ``out/report/``.
     fit : ReportInputs
-        What is shown; its ``summary`` gets ``report_images`` added.
+        What is shown; its ``summary`` gets ``report_images`` and ``report_page`` (scales,
+        viewpoints, patch labels: what the page prints besides the summary) added.
     image_size : int
-        Width and height of the model renders, pixels.
+        Width and height of the main renders, pixels; the fixed viewpoints are half that.
     render_images : bool
-        False re-uses images already in ``out/report`` (resume) and only rewrites the page
-        (the Blender renders are shown where both files are there).
+        False re-uses the files already in ``out/report`` (resume) and only rewrites the
+        page, from the ``page.json`` written beside them (the Blender renders are shown
+        where both files are there).
     blender_python : path, optional
         Blender's Python (e.g. :func:`blender_python`): where the summary lists a USD stage
         among the outputs (:func:`usd_layer`) and it is in ``out``, the page also shows it
         rendered by Blender (:func:`blender_renders`, at most :data:`BLENDER_MAX_SIZE`
-        pixels, the model renders' view). A failed or timed-out render adds a note to the
+        pixels, the main renders' view). A failed or timed-out render adds a note to the
         summary instead; the report is written without it. Default None: no Blender.
 
     Returns
     -------
     dict
-        ``images``: paths of the images relative to ``out``; ``notes``: the notes added to
-        the summary.
+        ``images``: the files of the report relative to ``out`` (images, model, viewer);
+        ``notes``: the notes added to the summary.
     """
-    mesh, grids, surfaces, summary = fit.mesh, fit.grids, fit.surfaces, fit.summary
-    face_patch, spline, dmaps = fit.face_patch, fit.spline, fit.maps
+    mesh, summary = fit.mesh, fit.summary
     out = Path(out)
     folder = out / "report"
     folder.mkdir(parents=True, exist_ok=True)
-    n = len(grids)
-    images = [f"report/{stem}.png" for stem, _ in REPORT_IMAGES]
-    images += [f"report/map_{p:03d}.png" for p in range(n)]
+    images = report_images(len(fit.grids))
     layer = usd_layer(summary) if blender_python is not None else None
     if layer is not None and not (out / layer).is_file():
         layer = None
     notes: list[str] = []
-    if not render_images and layer is not None:
-        shown = [f"report/{stem}.png" for stem, _, _ in BLENDER_IMAGES]
-        images += shown if all((out / f).is_file() for f in shown) else []
-    if render_images:
+    page: dict[str, Any] = {}
+    if not render_images:
+        if (folder / PAGE_FILE).is_file():
+            page = json.loads((folder / PAGE_FILE).read_text())
+        if layer is not None:
+            shown = [f"report/{stem}.png" for stem, _, _ in BLENDER_IMAGES]
+            images += shown if all((out / f).is_file() for f in shown) else []
+    else:
         view, up = model_view(mesh.vertices)
         blender = None
         if layer is not None and blender_python is not None:
@@ -377,77 +585,16 @@ def write_report(
                 size=min(int(image_size), BLENDER_MAX_SIZE),
             )  # fmt: skip
             side.shutdown(wait=False)  # its thread ends with the render
-        camera = Camera(
-            size=(int(image_size), int(image_size)),
-            view=tuple(view),
-            up=tuple(up),
-            bounds=_hull_points(mesh.vertices[:: max(1, mesh.n_vertices // 20000)]),
-        )
-        # layout: input faces coloured by patch
-        if face_patch is None:
-            face_patch = np.full(mesh.n_faces, -1, dtype=np.int64)
-        jobs = {
-            "layout": lambda: render(
-                mesh.vertices,
-                mesh.faces,
-                face_colors=patch_colors(face_patch),
-                shading="flat",
-                camera=camera,
-            )
-        }
-        topology: dict = {}  # the grids, splines and displaced grids share their triangles
-        V, F, P, UV = _grid_soup(grids, topology)
-        cols = patch_colors(P)
-        vcol = np.zeros((V.shape[0], 3))
-        vcol[F[:, 0]] = cols
-        vcol[F[:, 1]] = cols
-        vcol[F[:, 2]] = cols
-        jobs["springs"] = lambda: render(
-            V, F, camera=camera, vertex_colors=vcol, uv=UV, checker=1.0, shading="flat"
-        )
-        if spline is None:
-            spline = [
-                s.evaluate_grid(np.linspace(0, 1, g.shape[0]), np.linspace(0, 1, g.shape[1]))
-                for s, g in zip(surfaces, grids, strict=True)
-            ]
-        Vs, Fs, _, _ = _grid_soup(spline() if callable(spline) else spline, topology)
-        jobs["spline"] = lambda: render(Vs, Fs, camera=camera)
-        disp = fit.displaced() if callable(fit.displaced) else fit.displaced
-        Vd, Fd, _, _ = _grid_soup(disp, topology)
-        jobs["displaced"] = lambda: render(Vd, Fd, camera=camera)
-        dist = fit.spline_distance
-        if dist is None or len(dist) != len(Vs):
-            dist = mesh.closest_points(Vs).distance
-        vmax = float(np.quantile(dist, 0.99)) if dist.size else 0.0
-        summary["error_map_max"] = vmax / mesh.bbox_diagonal
-        jobs["error"] = lambda: render(Vs, Fs, camera=camera, vertex_colors=heat_colors(dist, vmax))
-        scale = max(float(np.abs(d.values).max()) for d in dmaps) if dmaps else 0.0
-
-        def map_png(p: int) -> None:
-            d = dmaps[p]
-            # the channels in the files' order: a vector map's T, N, B as R, G, B
-            img = _map_image(d.values[..., [0, 2, 1]] if d.kind == "vector" else d.values, scale)
-            # rows along v, columns along u, magnified to at least 128 pixels
-            img = np.transpose(img, (1, 0, 2))[::-1]
-            k = max(1, -(-128 // max(img.shape[:2])))
-            img = np.repeat(np.repeat(img, k, axis=0), k, axis=1)
-            write_png_rgb(folder / f"map_{p:03d}.png", img)
-
-        # the rasteriser and zlib run without the GIL: the images are made side by side
-        with ThreadPoolExecutor(max_workers=max(1, min(len(jobs), os.cpu_count() or 1))) as pool:
-            futures = {stem: pool.submit(job) for stem, job in jobs.items()}
-            maps = [pool.submit(map_png, p) for p in range(len(dmaps))]
-            for stem, fut in futures.items():
-                write_png_rgb(folder / f"{stem}.png", fut.result())
-            for fut in maps:
-                fut.result()
-        summary["map_scale"] = scale / mesh.bbox_diagonal
+        _render_views(fit, folder, int(image_size), view, up, page)
+        write_text(folder / PAGE_FILE, json.dumps(page))
         if blender is not None:
             images += _blender_result(blender, layer, notes)
             summary.setdefault("notes", []).extend(notes)
+    files = [f"report/{f}" for f in (*page.get("model", ()), *page.get("static", ()))]
     summary["report_images"] = images
+    summary["report_page"] = page
     write_html(out, summary)
-    return {"images": images, "notes": notes}
+    return {"images": [*images, *files, f"report/{PAGE_FILE}"], "notes": notes}
 
 
 def _blender_result(future: Future, layer: str | None, notes: list[str]) -> list[str]:
@@ -465,40 +612,206 @@ def _fmt(v: Any) -> str:
     if isinstance(v, float):
         return f"{v:.4g}"
     if isinstance(v, list):
-        return " x ".join(_fmt(x) for x in v) if len(v) <= 3 else f"[{len(v)} values]"
+        return " x ".join(_fmt(x) for x in v) if len(v) <= 3 else " ".join(_fmt(x) for x in v)
     return html.escape(str(v))
 
 
-def _table(rows: list[dict[str, Any]], columns: list[str] | None = None) -> str:
+def _table(
+    rows: list[dict[str, Any]],
+    columns: list[str] | None = None,
+    flagged: dict[tuple[int, str], int] | None = None,
+) -> str:
+    """An HTML table; ``flagged`` maps (row, column) to the number of the reason that
+    value is beyond its bound (:func:`_flag_list`): the cell is marked and points to it."""
     if not rows:
         return "<p>none</p>"
     columns = columns or list(rows[0])
+    flagged = flagged or {}
     head = "".join(f"<th>{html.escape(c.replace('_', ' '))}</th>" for c in columns)
-    body = "".join(
-        "<tr>" + "".join(f"<td>{_fmt(r.get(c, ''))}</td>" for c in columns) + "</tr>" for r in rows
+    body = []
+    for i, r in enumerate(rows):
+        cells = []
+        for c in columns:
+            k = flagged.get((i, c))
+            if k is None:
+                cells.append(f"<td>{_fmt(r.get(c, ''))}</td>")
+            else:
+                cells.append(
+                    f"<td class='beyond' title='beyond bound: see note {k}'>"
+                    f"{_fmt(r.get(c, ''))} <a href='#beyond-{k}'>[{k}]</a></td>"
+                )
+        body.append("<tr>" + "".join(cells) + "</tr>")
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
+
+
+def _pct(x: float) -> str:
+    return f"{100 * x:.3g}%"
+
+
+def _legend(top: float, peak: float) -> str:
+    """The heat map's colour bar, 0 to ``top`` (fractions of the diagonal), and the
+    largest value shown (red beyond ``top``)."""
+    stops = ", ".join(
+        f"rgb({', '.join(str(round(255 * c)) for c in col)}) {100 * s:g}%"
+        for s, col in zip(HEAT_STOPS, HEAT_COLORS, strict=True)
     )
-    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+    return (
+        f"<div class='legend'><span>0</span><span class='bar' style='background:"
+        f"linear-gradient(to right, {stops})'></span><span>{_pct(top)} of the bbox diagonal"
+        f" and above</span> <span class='note'>(largest: {_pct(peak)})</span></div>"
+    )
+
+
+def _flag_list(summary: dict[str, Any]) -> tuple[str, dict[str, dict[tuple[int, str], int]]]:
+    """The section listing values beyond the bounds (with their reasons), and for each
+    table (``errors``, ``seams``, ``patches``) the cells to mark with their note numbers."""
+    flags = beyond_bounds(summary)
+    marks: dict[str, dict[tuple[int, str], int]] = {"errors": {}, "seams": {}, "patches": {}}
+    if not flags:
+        return (
+            "<p class='ok'>Every figure below is within the report's bounds "
+            "(<code>meshfit.report_bounds.BOUNDS</code>).</p>",
+            marks,
+        )
+    items = []
+    for k, f in enumerate(flags, start=1):
+        where = f.key.replace("_", " ")
+        if f.section == "patches":
+            where = f"patch {f.row}: {where}"
+            marks["patches"][(f.row if f.row is not None else 0, f.key)] = k
+        elif f.section.startswith("errors."):
+            surface = f.section.split(".", 1)[1]
+            where = f"{surface.replace('_', ' ')} surface: {where}"
+            row = 0 if surface == "spline_only" else 1
+            marks["errors"][(row, f.key)] = k
+        else:
+            marks["seams"][(0, f.key)] = k
+        items.append(
+            f"<li id='beyond-{k}'><b>{html.escape(where)} = {_fmt(f.value)}</b>: "
+            f"{html.escape(f.reason)}</li>"
+        )
+    return (
+        "<div class='alarm'><h2>Beyond the bounds</h2><p>These figures lie beyond what a "
+        "sound fit stays within; they are marked in the tables below.</p><ol>"
+        + "".join(items)
+        + "</ol></div>",
+        marks,
+    )
+
+
+def _view3d(summary: dict[str, Any], page: dict[str, Any]) -> list[str]:
+    """The interactive 3D view (screen only; the fixed viewpoints below print)."""
+    if not page.get("model"):
+        return []
+    views = page.get("views", [])
+    buttons = "".join(
+        f"<button type='button' data-view='{k}'>{html.escape(v['name'])}</button>"
+        for k, v in enumerate(views)
+    )
+    scale = page.get("error_scale", {}).get("displaced", 0.0)
+    peak = page.get("error_max", {}).get("displaced", 0.0)
+    return [
+        "<section class='screen-only'><h2>3D view: displaced surface, deviation from the scan</h2>",
+        "<p>Drag to turn, wheel to zoom, right-drag to pan; the buttons go to the fixed "
+        "viewpoints printed below. The pointer shows the patch and the deviation under it. "
+        "The model is also in <code>report/model.glb</code>.</p>",
+        f"<div id='view3d' data-views='{html.escape(json.dumps(views))}' "
+        "data-background='#ffffff'><canvas></canvas>"
+        f"<div class='view3d-bar'>{buttons}<span class='view3d-readout'></span></div>"
+        "<p class='view3d-status'>3D view loading...</p></div>",
+        _legend(scale, peak),
+        "</section>",
+    ]
+
+
+def _view_rows(summary: dict[str, Any], page: dict[str, Any], images: list[str]) -> list[str]:
+    """The fixed viewpoints: one row of images per :data:`VIEW_ROWS` entry, patch numbers
+    over the layout's, a colour bar under each heat map's."""
+    have = set(images)
+    names = [v["name"] for v in page.get("views", [])] or list(VIEW_NAMES)
+    scale = page.get("error_scale", {})
+    peak = page.get("error_max", {})
+    labels = page.get("labels", {})
+    parts = ["<h2>Fixed viewpoints</h2>"]
+    for row, caption in VIEW_ROWS:
+        shown = [(n, f"report/{row}_{n}.png") for n in names if f"report/{row}_{n}.png" in have]
+        if not shown:
+            continue
+        parts.append(f"<div class='viewrow'><h3>{html.escape(caption)}</h3><div class='pics'>")
+        for name, img in shown:
+            tags = "".join(
+                f"<span class='tag' style='left:{x}%;top:{y}%'>{p}</span>"
+                for p, x, y in labels.get(f"{row}_{name}", [])
+            )
+            parts.append(
+                f"<figure><div class='pic'><img src='{html.escape(img)}'>{tags}</div>"
+                f"<figcaption>{html.escape(name)}</figcaption></figure>"
+            )
+        parts.append("</div>")
+        kind = row.removeprefix("error_")
+        if kind in scale:
+            parts.append(_legend(scale[kind], peak.get(kind, 0.0)))
+        if row == "layout" and labels:
+            seen = {p for tags in labels.values() for p, _, _ in tags}
+            hidden = [p for p in range(summary.get("patches_total", 0)) if p not in seen]
+            if hidden:
+                parts.append(
+                    "<p class='note'>Not in sight from these viewpoints (use the 3D view): "
+                    f"patches {', '.join(map(str, hidden))}.</p>"
+                )
+        parts.append("</div>")
+    return parts
+
+
+_STYLE = (
+    "body{font-family:sans-serif;margin:2em;max-width:1400px}"
+    "table{border-collapse:collapse;margin:1em 0;font-size:13px}"
+    "td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}"
+    "td.beyond{background:#fde0dc;color:#a00;font-weight:bold}"
+    ".alarm{border:2px solid #c00;background:#fff4f2;padding:0.2em 1em;margin:1em 0}"
+    ".alarm h2{color:#a00;margin:0.4em 0}.ok{color:#060}"
+    "figure{display:inline-block;margin:0.5em;vertical-align:top}"
+    "figcaption{font-size:13px;max-width:420px}"
+    ".viewrow .pics{display:grid;grid-template-columns:repeat(4,1fr);gap:0.5em;max-width:1300px}"
+    ".viewrow figure{margin:0}.viewrow img{width:100%;display:block}"
+    ".pic{position:relative}"
+    ".tag{position:absolute;transform:translate(-50%,-50%);font:bold 11px sans-serif;"
+    "background:rgba(255,255,255,0.85);border:1px solid #333;border-radius:3px;"
+    "padding:0 2px;color:#000}"
+    ".legend{display:flex;align-items:center;gap:0.5em;font-size:13px;margin:0.3em 0}"
+    ".legend .bar{display:inline-block;width:240px;height:14px;border:1px solid #888;"
+    "-webkit-print-color-adjust:exact;print-color-adjust:exact}"
+    ".note{color:#555;font-size:13px}"
+    "#view3d{position:relative;width:100%;max-width:900px;border:1px solid #ccc}"
+    "#view3d canvas{width:100%;height:560px;display:block;touch-action:none}"
+    ".view3d-bar{padding:4px;font-size:13px}.view3d-bar button{margin-right:4px}"
+    ".view3d-readout{margin-left:1em}.view3d-status{margin:4px;color:#a00}"
+    ".maps img{image-rendering:pixelated;width:128px}"
+    ".maps figcaption{max-width:140px}"
+    "@media print{.screen-only{display:none}body{margin:0}.tag{font-size:8px}"
+    ".viewrow{break-inside:avoid}}"
+)
 
 
 def write_html(out: str | os.PathLike, summary: dict[str, Any]) -> Path:
-    """Write ``out/report.html`` from a fit summary (images listed in ``report_images``)."""
+    """Write ``out/report.html`` from a fit summary: images listed in ``report_images``,
+    scales, viewpoints and labels in ``report_page`` (:func:`write_report`)."""
     out = Path(out)
     s = summary
     m = s["mesh"]
     e = s["errors"]
     images = s.get("report_images", [])
+    page = s.get("report_page", {})
+    alarm, marks = _flag_list(s)
     parts = [
         "<!doctype html><html><head><meta charset='utf-8'>",
         f"<title>meshfit report: {html.escape(str(m['name']))}</title>",
-        "<style>body{font-family:sans-serif;margin:2em;max-width:1400px}"
-        "table{border-collapse:collapse;margin:1em 0;font-size:13px}"
-        "td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}"
-        "figure{display:inline-block;margin:0.5em;vertical-align:top}"
-        "figcaption{font-size:13px;max-width:420px}"
-        ".maps img{image-rendering:pixelated;width:128px}</style></head><body>",
+        f"<style>{_STYLE}</style></head><body>",
         f"<h1>meshfit fit of {html.escape(str(m['name']))}</h1>",
         f"<p>{m['vertices']:,} vertices, {m['faces']:,} triangles, bbox diagonal "
         f"{m['bbox_diagonal']:.6g}; {s['patches_total']} patches; meshfit {s['version']}.</p>",
+        alarm,
+        *_view3d(s, page),
         "<h2>Errors against the input</h2>",
         "<p>Two-sided distances (reconstruction vertices to the input and input vertices to "
         "the reconstruction) as fractions of the input's bbox diagonal.</p>",
@@ -506,27 +819,26 @@ def write_html(out: str | os.PathLike, summary: dict[str, Any]) -> Path:
             [
                 {"surface": k.replace("_", " "), **{kk: vv for kk, vv in e[k].items()}}
                 for k in ("spline_only", "displaced")
-            ]
+            ],
+            flagged=marks["errors"],
         ),
         "<h2>Seams</h2>",
         "<p>Across every curve shared by two patches: gaps as fractions of the bbox diagonal, "
         "normal jumps in degrees (inner: away from the corner zones, one knot span from each "
         "end).</p>",
-        _table([s["seams"]]),
+        _table([s["seams"]], flagged=marks["seams"]),
     ]
     if s.get("notes"):
         parts.append("<ul>" + "".join(f"<li>{html.escape(x)}</li>" for x in s["notes"]) + "</ul>")
+    parts += _view_rows(s, page, images)
     captions = dict(REPORT_IMAGES)
     parts.append("<h2>Renders</h2>")
     for img in images:
         stem = Path(img).stem
         if stem in captions:
-            cap = captions[stem]
-            if stem == "error" and "error_map_max" in s:
-                cap += f" (red: {100 * s['error_map_max']:.3g}% of the bbox diagonal and above)"
             parts.append(
                 f"<figure><img src='{html.escape(img)}' width='420'>"
-                f"<figcaption>{html.escape(cap)}</figcaption></figure>"
+                f"<figcaption>{html.escape(captions[stem])}</figcaption></figure>"
             )
     blender = {stem: what for stem, _, what in BLENDER_IMAGES}
     for img in images:
@@ -537,20 +849,7 @@ def write_html(out: str | os.PathLike, summary: dict[str, Any]) -> Path:
                 f"<figure><img src='{html.escape(img)}' width='420'>"
                 f"<figcaption>{html.escape(cap)}</figcaption></figure>"
             )
-    maps = [img for img in images if Path(img).stem.startswith("map_")]
-    if maps:
-        scale = s.get("map_scale")
-        note = f" (full scale +-{100 * scale:.3g}% of the bbox diagonal)" if scale else ""
-        parts.append(
-            "<h2>Displacement maps</h2><p>T, N, B components as red, green, blue; mid-grey is "
-            f"no displacement{html.escape(note)}; u to the right, v upwards.</p><div class='maps'>"
-        )
-        for img in maps:
-            parts.append(
-                f"<figure><img src='{html.escape(img)}'><figcaption>patch "
-                f"{int(Path(img).stem[4:])}</figcaption></figure>"
-            )
-        parts.append("</div>")
+    parts += _map_figures(images, page.get("map_scales", []))
     parts.append("<h2>Stage timings (seconds)</h2>")
     parts.append(
         _table(
@@ -561,25 +860,15 @@ def write_html(out: str | os.PathLike, summary: dict[str, Any]) -> Path:
         )
     )
     parts.append("<h2>Patches</h2>")
-    cols = [
-        "patch",
-        "shape",
-        "levels",
-        "folded",
-        "arc_cv_max",
-        "aspect_max",
-        "controls",
-        "fit_parametric_rms",
-        "fit_parametric_max",
-        "displacement_max",
-        "input_distance_max",
-        "seconds",
-    ]
     parts.append(
         "<p>Fit errors, displacements and the largest distance of the patch's input vertices "
-        "to the displaced surface, as fractions of the bbox diagonal.</p>"
+        "to the displaced surface, as fractions of the bbox diagonal; corner angles in "
+        "degrees.</p>"
     )
-    parts.append(_table(s["patches"], cols))
+    patches = s["patches"]
+    rows = {(i, c): k for (p, c), k in marks["patches"].items() for i, r in enumerate(patches)
+            if int(r.get("patch", i)) == p}  # fmt: skip
+    parts.append(_table(patches, PATCH_COLUMNS, flagged=rows))
     if s.get("control_classes"):
         parts.append("<h2>Control classes</h2>")
         parts.append(
@@ -587,7 +876,7 @@ def write_html(out: str | os.PathLike, summary: dict[str, Any]) -> Path:
             "and opposite sides); set a class's count with <code>--class-cv CLASS=COUNT</code> "
             "(at most <i>max</i>, its smallest spring grid).</p>"
         )
-        rows = [
+        rows_cc = [
             {
                 "class": c["class"],
                 "controls": c["controls"],
@@ -596,6 +885,34 @@ def write_html(out: str | os.PathLike, summary: dict[str, Any]) -> Path:
             }
             for c in s["control_classes"]
         ]
-        parts.append(_table(rows))
+        parts.append(_table(rows_cc))
+    if page.get("model"):
+        parts += [
+            "<script src='report/three.min.js'></script>",
+            "<script src='report/model.js'></script>",
+            "<script src='report/viewer.js'></script>",
+        ]
     parts.append("</body></html>\n")
     return write_text(out / "report.html", "\n".join(parts))
+
+
+def _map_figures(images: list[str], scales: list[float]) -> list[str]:
+    """The displacement maps, each on its own scale, the scale under it."""
+    maps = [img for img in images if Path(img).stem.startswith("map_")]
+    if not maps:
+        return []
+    parts = [
+        "<h2>Displacement maps</h2><p>T, N, B components as red, green, blue; mid-grey is no "
+        "displacement; u to the right, v upwards. Each map is shown on its own scale: full "
+        "colour is its largest displacement, printed under it (percent of the bbox "
+        "diagonal).</p><div class='maps'>"
+    ]
+    for img in maps:
+        p = int(Path(img).stem[4:])
+        scale = f": &plusmn;{_pct(scales[p])}" if p < len(scales) else ""
+        parts.append(
+            f"<figure><img src='{html.escape(img)}'><figcaption>patch {p}{scale}"
+            "</figcaption></figure>"
+        )
+    parts.append("</div>")
+    return parts
