@@ -153,11 +153,10 @@ def test_patch_numbers_sit_on_their_patches(report):
 
 def test_the_model_is_the_displaced_surface_with_its_deviation(report):
     out, summary = report
-    glb = (out / "report/model.glb").read_bytes()
     script = (out / "report/model.js").read_text()
     b64 = re.fullmatch(r'window\.MESHFIT_MODEL = "([A-Za-z0-9+/=]+)";\n', script).group(1)
-    assert base64.b64decode(b64) == glb
-    scene = trimesh.load(out / "report/model.glb", process=False)
+    glb = base64.b64decode(b64)
+    scene = trimesh.load(trimesh.util.wrap_as_stream(glb), file_type="glb", process=False)
     n = summary["patches_total"]
     assert sorted(scene.geometry) == sorted(f"patch {p}" for p in range(n))
     diag = summary["mesh"]["bbox_diagonal"]
@@ -330,6 +329,11 @@ def test_the_3d_view_draws_offline_from_the_file(report, shots):
             page.get_by_role("button", name="back").click()
             view.screenshot(path=str(shots / "view3d_back.png"))
             back = page.evaluate(_DRAWN)
+            # the page saves the model it shows as a GLB file
+            with page.expect_download() as saving:
+                page.get_by_role("button", name="save model.glb").click()
+            saved = Path(saving.value.path()).read_bytes()
+            assert saving.value.suggested_filename == "model.glb"
             page.screenshot(path=str(shots / "report_page.png"), full_page=True)
             page.emulate_media(media="print")
             page.screenshot(path=str(shots / "report_print.png"), full_page=True)
@@ -342,6 +346,8 @@ def test_the_3d_view_draws_offline_from_the_file(report, shots):
     assert blue > 0.2 * drawn  # coloured by the deviation (mostly near: blue)
     assert back[0] > 0.05 * total and back != [drawn, blue, total]
     assert not printed  # the printout shows the fixed viewpoints instead
+    script = (out / "report/model.js").read_text()
+    assert saved[:4] == b"glTF" and base64.b64encode(saved).decode() in script
 
 
 def test_resume_keeps_the_images(report, tmp_path):

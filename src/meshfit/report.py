@@ -1,10 +1,15 @@
-"""The fit report: ``report.html`` with headless renders and tables of metrics and timings.
+"""The fit report: ``report.html`` with a 3D view, headless renders and tables.
 
-Images (8-bit PNG, :mod:`meshfit.render`) in ``<out>/report/``: the patch layout on the input
-model, the spring meshes as a checkerboard (one square per grid cell), the spline-only
-surface, the displaced surface, a heat map of the spline-only surface's distance to the
-input, and each patch's displacement map as its image file shows it (x along u, y up along
-v; a vector map's T, N, B components as R, G, B; mid-grey = 0).
+In ``<out>/report/``: an interactive 3D view of the displaced surface coloured by its
+deviation from the scan (:mod:`meshfit.report_view`: a GLB drawn by a three.js bundle shipped
+with the package, offline from ``file://``); 8-bit PNG renders (:mod:`meshfit.render`) from
+four fixed viewpoints, for print, of the patch layout on the input with patch numbers and of
+heat maps of the spline-only and the displaced surfaces' deviation, each with its colour bar
+in percent of the bbox diagonal; the spring meshes as a checkerboard (one square per grid
+cell), the spline-only and the displaced surface; each patch's displacement map as its image
+file shows it (x along u, y up along v; a vector map's T, N, B components as R, G, B;
+mid-grey = 0), each on its own scale, printed under it. Figures beyond the bounds of
+:mod:`meshfit.report_bounds` are listed with the reason and marked in the tables.
 
 With Blender's Python at hand (``$MESHFIT_BLENDER_PYTHON``, an interpreter that imports
 ``bpy``) and a USD stage among the fit's outputs, the page also shows that stage as Blender
@@ -714,10 +719,12 @@ def _view3d(summary: dict[str, Any], page: dict[str, Any]) -> list[str]:
         "<section class='screen-only'><h2>3D view: displaced surface, deviation from the scan</h2>",
         "<p>Drag to turn, wheel to zoom, right-drag to pan; the buttons go to the fixed "
         "viewpoints printed below. The pointer shows the patch and the deviation under it. "
-        "The model is also in <code>report/model.glb</code>.</p>",
+        "<i>save model.glb</i> saves the model (glTF, deviation as vertex colours and as "
+        "the <code>_DEVIATION</code> attribute, percent of the bbox diagonal).</p>",
         f"<div id='view3d' data-views='{html.escape(json.dumps(views))}' "
         "data-background='#ffffff'><canvas></canvas>"
-        f"<div class='view3d-bar'>{buttons}<span class='view3d-readout'></span></div>"
+        f"<div class='view3d-bar'>{buttons}<button type='button' class='view3d-save'>save "
+        "model.glb</button><span class='view3d-readout'></span></div>"
         "<p class='view3d-status'>3D view loading...</p></div>",
         _legend(scale, peak),
         "</section>",

@@ -5,8 +5,8 @@ vertices carry their deviation from the scan, as heat-map colours (``COLOR_0``) 
 number (``_DEVIATION``, percent of the input's bbox diagonal). The page draws it with a
 three.js bundle shipped in ``meshfit/report_static`` (copied beside the page, with its
 licence); a page opened from ``file://`` may neither fetch files nor import ES modules, so
-the GLB is also written as ``model.js``, its bytes in base64 set on ``window``, and the
-scripts are classic ones. No network is used.
+the GLB is written as ``model.js``, its bytes in base64 set on ``window`` (the page saves
+them as ``model.glb`` on request), and the scripts are classic ones. No network is used.
 """
 
 from __future__ import annotations
@@ -258,13 +258,13 @@ def deviation_glb(
 
 
 def write_model(folder: str | Path, glb: bytes) -> list[str]:
-    """Write ``model.glb`` (for other viewers) and ``model.js`` (the same bytes in base64
-    for the page's view, which cannot read files) into ``folder``; their names."""
+    """Write ``model.js`` into ``folder``: the GLB's bytes in base64 set on ``window``
+    (the page's view cannot read files; its "save model.glb" button writes them out, so
+    the model is not stored twice). Returns its name."""
     folder = Path(folder)
-    write_bytes(folder / "model.glb", glb)
     script = "window.MESHFIT_MODEL = " + json.dumps(base64.b64encode(glb).decode()) + ";\n"
     write_text(folder / "model.js", script)
-    return ["model.glb", "model.js"]
+    return ["model.js"]
 
 
 def copy_static(folder: str | Path) -> list[str]:

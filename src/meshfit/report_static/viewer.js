@@ -88,6 +88,21 @@
     draw();
   }
 
+  // the model as a file, for other viewers: the bytes the page holds, saved by the browser
+  var save = box.querySelector("button.view3d-save");
+  if (save) {
+    save.addEventListener("click", function () {
+      var url = URL.createObjectURL(new Blob([decode(window.MESHFIT_MODEL)], { type: "model/gltf-binary" }));
+      var a = document.createElement("a");
+      a.href = url;
+      a.download = "model.glb";
+      document.body.appendChild(a);
+      a.click();
+      a.remove();
+      setTimeout(function () { URL.revokeObjectURL(url); }, 1000);
+    });
+  }
+
   var buttons = box.querySelectorAll("button[data-view]");
   buttons.forEach(function (b) {
     b.addEventListener("click", function () { show(Number(b.dataset.view)); });
