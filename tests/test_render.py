@@ -13,6 +13,7 @@ from meshfit.render import (
     camera_frame,
     heat_colors,
     patch_colors,
+    project,
     render,
     write_png_rgb,
 )
@@ -186,3 +187,21 @@ def test_camera_normalises_and_validates():
     for kw in bad:
         with pytest.raises(InputError):
             Camera(**kw)
+
+
+def test_project_places_points_where_render_draws_them():
+    V1, F1 = _square(0.0)
+    V2, F2 = _square(-1.0)  # nearer, half the size
+    V = np.vstack([V1, V2 * [0.5, 1, 0.5]])
+    F = np.vstack([F1, F2 + 4])
+    cam = Camera(size=(40, 40), view=(0, 1, 0), bounds=V1)
+    depth = np.empty((40, 40))
+    render(V, F, camera=cam, depth_out=depth)
+    X = project(V, cam)
+    # the big square's corners at the margins, the small one's halfway in
+    np.testing.assert_allclose(np.sort(X[:4, 0]), [2.4, 2.4, 37.6, 37.6])
+    np.testing.assert_allclose(np.sort(X[4:, 0]), [11.2, 11.2, 28.8, 28.8])
+    # depth towards the viewer: the nearer square (y = -1) is 1 unit nearer
+    np.testing.assert_allclose(X[:4, 2] - X[4:, 2], -1.0)
+    assert depth[20, 20] == X[4, 2] and depth[4, 4] == X[0, 2]
+    assert np.isneginf(depth[0, 0])  # nothing drawn in the margin
