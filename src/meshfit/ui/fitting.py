@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from meshfit.errors import InputError
+from meshfit.errors import InputError, MeshfitError
 
 if TYPE_CHECKING:
     from meshfit.mesh import Mesh
@@ -143,7 +143,9 @@ def brush_map(
     -------
     FitResult
         Only the scalar (normal) component changes: the N channel of a vector map, the
-        value of a scalar map; bump maps hold no geometry and are refused.
+        value of a scalar map; bump maps hold no geometry and are refused. Not rebuilt
+        (seams left open) where a patch re-fitted alone no longer shares control counts
+        with its neighbours.
     """
     from meshfit.displacement import DisplacementMap
 
@@ -161,7 +163,14 @@ def brush_map(
     values[:, :, -1] += dab  # N is the last channel of a vector map and the only of a scalar
     maps = list(result.maps)
     maps[p] = DisplacementMap(values, dmap.kind)
-    return result.with_maps(maps).rebuild()
+    edited = result.with_maps(maps)
+    try:
+        return edited.rebuild()
+    except MeshfitError:
+        # a patch re-fitted alone may no longer share control counts with its neighbours,
+        # which the seams' closing needs: the patches then show their own reconstruction
+        # (spline plus map) and the next whole fit closes the seams
+        return edited
 
 
 def texel_of(result: FitResult, patch: int, xyz: NDArray[np.float64]) -> tuple[float, float]:
