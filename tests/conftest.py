@@ -20,6 +20,15 @@ from . import shapes
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def pytest_sessionstart(session):
+    """As a first command-line run does, a second process compiles the kernels a fit calls
+    ahead of need (:mod:`meshfit._compile_ahead`): the suite's first run after an install
+    compiles on two cores."""
+    from meshfit._compile_ahead import start
+
+    start()
+
+
 def data_dir() -> Path:
     candidates = [
         os.environ.get("MESHFIT_DATA"),

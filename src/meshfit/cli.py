@@ -155,8 +155,10 @@ def _terminate(signum, frame) -> None:
     whole (:mod:`meshfit._atomic`), so ending here leaves no half-written file; the
     temporary files of writes under way are removed first."""
     from meshfit._atomic import remove_pending
+    from meshfit._compile_ahead import stop
 
     remove_pending()
+    stop()
     try:
         sys.stderr.write("meshfit: terminated\n")
         sys.stderr.flush()
@@ -206,10 +208,18 @@ def _show_warnings(caught: list) -> None:
         sys.stderr.write(f"meshfit: warning: {len(seen) - SHOWN_WARNINGS} more kinds\n")
 
 
+#: commands that run kernels: on a first run a second process compiles them ahead of need
+COMPILING = frozenset({"demo", "layout", "wrap", "stream", "springs", "fit", "rebuild", "ui"})
+
+
 def _command(args: argparse.Namespace) -> int:
     """The command, its failures as one line each and an exit code."""
     try:
         refuse_own_input(args)
+        if args.command in COMPILING:
+            from meshfit._compile_ahead import start
+
+            start()
         return int(args.func(args))
     except errors.MeshfitError as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__

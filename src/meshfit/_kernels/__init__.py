@@ -1,8 +1,8 @@
 """Numba kernels (nopython, compiled once and cached on disk).
 
 numba checks a kernel's cached machine code against the kernel's own file only, but kernels
-here inline helpers of other files of this package (the walks of ``walk.py`` in
-``springs.py``, ``curves.py``, ``snakes.py`` and ``bvh.py``). So a digest of all the files
+here call helpers of other files of this package, compiled into the caller's machine code
+(the walks of ``walk.py`` in ``springs.py``, ``curves.py``, ``snakes.py`` and ``bvh.py``). So a digest of all the files
 here is kept beside the caches, and when it changes every cache of this package is dropped
 before any is loaded: an edited helper is never run in its old form by a caller whose own
 file did not change.
@@ -82,6 +82,35 @@ def _cache_folder() -> Path | None:
         return None
 
 
+def _plain_calls() -> None:
+    """Kernels called from kernels are compiled for plain argument types.
+
+    numba types a constant argument of a call between compiled functions as a literal
+    (``Literal[int](32)``, not ``int64``) and compiles the callee once per literal value:
+    calls of one helper with the constants 16, 32 and 64 compiled it three times. For the
+    kernels of this package the call is typed with the plain types instead (as numba
+    itself does for its library overloads); the compiled code is the same up to constant
+    folding, which the compiler still does after it inlines the callee.
+    """
+    from numba.core import types
+    from numba.core.dispatcher import _DispatcherBase
+
+    original = _DispatcherBase.get_call_template
+    if getattr(original, "plain_for", None) == __name__:
+        return
+    prefix = __name__ + "."
+
+    def get_call_template(self, args, kws):
+        if getattr(self.py_func, "__module__", "").startswith(prefix):
+            args = tuple(types.unliteral(a) for a in args)
+            kws = {k: types.unliteral(v) for k, v in kws.items()}
+        return original(self, args, kws)
+
+    get_call_template.plain_for = __name__  # type: ignore[attr-defined]
+    _DispatcherBase.get_call_template = get_call_template
+
+
+_plain_calls()
 _folder = _cache_folder()
 if _folder is not None:
     drop_stale_caches(Path(__file__).resolve().parent, _folder)

@@ -305,7 +305,7 @@ def build_grids(V, F, shapes, tbase, centroid):
     return order, lo, hi, child, start, stop
 
 
-@njit(cache=True, nogil=True, fastmath=False, inline="always")
+@njit(cache=True, nogil=True, fastmath=False)
 def _node_box(V, F, ords, lo, hi, child, start, stop, k):
     """Box of node ``k`` from its children's boxes, or from its triangles for a leaf."""
     c = child[k]
@@ -621,7 +621,7 @@ def _nearest(
     return best, best_t
 
 
-@njit(cache=True, nogil=True, fastmath=False, inline="always")
+@njit(cache=True, nogil=True, fastmath=False)
 def _push_children(lo, hi, c, px, py, pz, bound, inclusive, stack, near_sq, top):
     """Push children ``c`` and ``c + 1`` of a node onto the search stack with their boxes'
     squared distances to ``(px, py, pz)``, each only if that distance is within ``bound``

@@ -102,7 +102,7 @@ def _representations(F, FN, VF_ptr, VF, face, bary, eps, faces_out, bary_out):
     return n
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _adjacent(FN, f, g):
     return FN[f, 0] == g or FN[f, 1] == g or FN[f, 2] == g
 
@@ -124,7 +124,7 @@ def _max_valence(F, FN, VF_ptr, fa, fb):
     return m
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _best_option(FN, fa_r, na, fb_r, nb):
     """First pair (i, j) on a shared face, else the first on adjacent faces, else (-1, -1)."""
     adj_i = -1
@@ -233,7 +233,7 @@ def walk_points_serial(V, F, FN, face, bary, step, max_faces, eps_len, bary_eps)
     return out_face, out_bary, length, hit, capped
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _dist2(t, x):
     """|t - x|^2 for (3,) arrays, summed in the order of ``np.sum``."""
     d0 = t[0] - x[0]
@@ -287,7 +287,7 @@ def attract_points_serial(
 # ------------------------------------------------------------ subdividing steps of resampling
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _place(s, closed, p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, pt_bary, out_b):
     """Face point at arc length ``s`` (already in range) of a curve given by its pieces.
 
@@ -330,7 +330,7 @@ def _place(s, closed, p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, pt_bary,
     return f, segment
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _pair_ok(F, FN, VF_ptr, VF, f, ba, g, bb, eps, fa_r, ba_r, fb_r, bb_r):
     if f == g or _adjacent(FN, f, g):
         return True
@@ -427,7 +427,7 @@ def revert_jumps(V, F, FN, VF_ptr, VF, face, bary, gface, gbary, keep, max_gap, 
     return reverts
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _place_part(
     ai, d, j, k, closed, total, p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, pt_bary, out_b
 ):
@@ -524,14 +524,14 @@ def subdivide_steps(
 # ----------------------------------------------------------------- a curve as straight pieces
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _point_in(V, F, f, b, out):
     """Position of barycentrics ``b`` (3,) in face ``f`` into ``out`` (3,)."""
     for d in range(3):
         out[d] = b[0] * V[F[f, 0], d] + b[1] * V[F[f, 1], d] + b[2] * V[F[f, 2], d]
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _norm3(x0, x1, x2):
     return np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
 
@@ -669,7 +669,7 @@ def place_on_pieces(p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, pt_bary, c
 # --------------------------------------------------------- bisecting pairs that break the rule
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _clean_copy(b, out):
     """``out`` = ``b`` (3,) with tiny negatives clamped and renormalised, only when there is
     one (as `meshfit.surface.walk._clean_bary`)."""

@@ -18,7 +18,7 @@ def _centre_box(x0, x1, x2, y0, y1, y2, w, h):
     return xmin, xmax, ymin, ymax
 
 
-@njit(cache=True, nogil=True, fastmath=False, inline="always")
+@njit(cache=True, nogil=True, fastmath=False)
 def _fill(P, color, shade, uv, checker, image, depth):
     """Rasterise one triangle: P (3, 3) screen x, y and depth per corner, color (3, 3),
     shade (3,), uv (3, 2); see `raster`. Inlined into its callers: as a call per triangle,

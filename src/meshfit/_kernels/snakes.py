@@ -64,7 +64,7 @@ def curve_max(values, start):
     return out
 
 
-@njit(cache=True, nogil=True, fastmath=False, inline="always")
+@njit(cache=True, nogil=True, fastmath=False)
 def _share_vertex(F, a, b):
     """Faces ``a`` and ``b`` share a vertex (the pair test of `snake.pairs_ok`)."""
     for p in range(3):
@@ -74,7 +74,7 @@ def _share_vertex(F, a, b):
     return False
 
 
-@njit(cache=True, nogil=True, fastmath=False, inline="always")
+@njit(cache=True, nogil=True, fastmath=False)
 def _mark_broken(F, ok0, face, mark):
     """Mark both points of every segment that shared a vertex (``ok0``) and no longer does;
     face (m,) i8, ok0 (m - 1,) bool, mark (m,) bool -> number of broken segments."""
@@ -88,7 +88,7 @@ def _mark_broken(F, ok0, face, mark):
     return n
 
 
-@njit(cache=True, nogil=True, fastmath=False, inline="always")
+@njit(cache=True, nogil=True, fastmath=False)
 def _walk_from(V, F, FN, f, b, step, out_b, u, max_faces, eps_len, bary_eps):
     """One point of `walk.walk_points`: ``(f, b (3,))`` walked by ``step (3,)``; the new
     barycentrics into ``out_b (3,)``, ``u (3,)`` scratch -> (face, walked length)."""
@@ -102,7 +102,7 @@ def _walk_from(V, F, FN, f, b, step, out_b, u, max_faces, eps_len, bary_eps):
     return g, (total - rest if status != DONE else total)
 
 
-@njit(cache=True, nogil=True, fastmath=False, inline="always")
+@njit(cache=True, nogil=True, fastmath=False)
 def _vertex_normals_at(VN, F, face, bary, out):
     """Unit interpolated vertex normals of face points into ``out (m, 3)``, summed and
     normalised in the order of ``einsum("ij,ijk->ik")`` and ``linalg.norm(axis=1)``."""

@@ -46,7 +46,7 @@ def grid_xyz(V, F, face, bary):
 
 # the per-point helpers of `relax_sweeps` are inlined into it (calls with array arguments
 # cost a noticeable share of the sweeps on a large patch; same grids bit for bit)
-@njit(cache=True, nogil=True, fastmath=False, inline="always")
+@njit(cache=True, nogil=True, fastmath=False)
 def walk_inside(V, F, FN, f, b, u, total, max_faces, bary_eps, tries, b0, u0):
     """Walk face point (f, b) by ``total`` along unit in-plane ``u``, never onto the boundary.
 
@@ -75,7 +75,7 @@ def walk_inside(V, F, FN, f, b, u, total, max_faces, bary_eps, tries, b0, u0):
     return f, 0.0
 
 
-@njit(cache=True, nogil=True, fastmath=False, inline="always")
+@njit(cache=True, nogil=True, fastmath=False)
 def _spring_vector(X, p, q, n0, n1, n2, tangent):
     """Spring vector from grid point ``p`` to its neighbour ``q`` (three scalars); with
     ``tangent`` turned into the plane of unit normal ``(n0, n1, n2)`` keeping its length."""
@@ -97,7 +97,7 @@ def _spring_vector(X, p, q, n0, n1, n2, tangent):
     return d0, d1, d2
 
 
-@njit(cache=True, nogil=True, fastmath=False, inline="always")
+@njit(cache=True, nogil=True, fastmath=False)
 def _pair_arc(a0, a1, a2, b0, b1, b2):
     """Arc-length force (eq. 5.1) of the spring vectors ``a`` and ``b`` to the two
     neighbours along one grid line, toward the farther one by the difference of the
@@ -120,7 +120,7 @@ def _pair_arc(a0, a1, a2, b0, b1, b2):
     return f0, f1, f2, la + lb
 
 
-@njit(cache=True, nogil=True, fastmath=False, inline="always")
+@njit(cache=True, nogil=True, fastmath=False)
 def _line_springs(X, N, p, a, b, n0, n1, n2, tangent, fold):
     """Spring vectors from grid point ``p`` to its two neighbours ``a`` and ``b`` along one
     grid line (six scalars, `_spring_vector`). With ``fold``, a vector to a neighbour across
@@ -141,7 +141,7 @@ def _line_springs(X, N, p, a, b, n0, n1, n2, tangent, fold):
     return a0, a1, a2, b0, b1, b2
 
 
-@njit(cache=True, nogil=True, fastmath=False, inline="always")
+@njit(cache=True, nogil=True, fastmath=False)
 def _away_from(x0, x1, x2, y0, y1, y2):
     """The spring vector ``x`` turned to point away from ``y`` (the other neighbour on the
     grid line), keeping its length; ``x`` itself when ``y`` has no length."""
@@ -152,7 +152,7 @@ def _away_from(x0, x1, x2, y0, y1, y2):
     return x0, x1, x2
 
 
-@njit(cache=True, nogil=True, fastmath=False, inline="always")
+@njit(cache=True, nogil=True, fastmath=False)
 def spring_force(X, N, nv, p, w_arc, w_fair, n0, n1, n2, tangent, fold):
     """Resultant force (eq. 5.4) on interior grid point ``p`` and its mean spring length:
     ``(f0, f1, f2, h)``, on scalars (no scratch arrays).
@@ -387,7 +387,7 @@ def _tri_bad(X, N, p, q, r):
     return 1 if _tri_facing(X, N, p, q, r)[0] <= 0.0 else 0
 
 
-@njit(cache=True, nogil=True, fastmath=False, inline="always")
+@njit(cache=True, nogil=True, fastmath=False)
 def _bad_around(X, N, nu, nv, p):
     """Folded triangles (the `folded_cells` test) in the up to four cells around point p."""
     i = p // nv

@@ -35,7 +35,7 @@ def _bary_rate3(V, F, f, u):
     return _bary_rate_of(V, F, f, u[0], u[1], u[2])
 
 
-@njit(cache=True, nogil=True, fastmath=False, inline="always")
+@njit(cache=True, nogil=True, fastmath=False)
 def _bary_rate_of(V, F, f, u0, u1, u2):
     """`_bary_rate` of the in-plane vector ``(u0, u1, u2)``, on scalars."""
     a = F[f, 0]
@@ -212,7 +212,7 @@ def _walk_core(V, F, FN, f, b, u, length, max_faces, bary_eps, tgt, bound):
         crossed += 1
 
 
-@njit(cache=True, nogil=True, fastmath=False, inline="always")
+@njit(cache=True, nogil=True, fastmath=False)
 def _move_in_face(V, F, f, b0, b1, b2, u0, u1, u2, length, bary_eps):
     """`_walk_one` of face point ``(f, (b0, b1, b2))`` by ``length`` along the unit in-plane
     ``(u0, u1, u2)`` when the walk ends in face ``f``, on scalars (the same operations in
@@ -335,7 +335,7 @@ def _clip_at_boundary(V, F, FN, f, b, step, bary_eps):
     return clipped
 
 
-@njit(cache=True, nogil=True, fastmath=False, inline="always")
+@njit(cache=True, nogil=True, fastmath=False)
 def _dist(t, x):
     """|t - x| for (3,) arrays, summed in the order of ``np.sum``."""
     d0 = t[0] - x[0]
