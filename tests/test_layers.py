@@ -63,7 +63,9 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("export", "report", "render", "report_blender"),
     ("pipeline",),
     ("batch", "demo"),
-    ("meshfit",),
+    # the front door, and the second process that compiles a first run's kernels ahead of
+    # need (it records them from the front door's runs)
+    ("meshfit", "_compile_ahead"),
     ("leaves",),
 )
 

@@ -270,30 +270,24 @@ def _run_helper(parent: int, manifest: Path) -> int:
 
 
 def _record_runs() -> None:
-    """What the manifest is recorded from: the commands a first run is most likely to be,
-    on a small demo scan: ``demo``, ``fit`` (the automatic layout), ``wrap``, and a stream
-    encoded and decoded."""
+    """What the manifest is recorded from: what a first run most likely is, on a small demo
+    scan: the demo, a fit with the automatic layout, and a shrink wrap with its report and
+    its stream encoded and decoded."""
     import tempfile
 
-    from meshfit.cli import main as cli
-    from meshfit.demo import demo_mesh
-    from meshfit.mesh import save_mesh
+    from meshfit import fit, wrap
+    from meshfit.demo import demo_mesh, run_demo
+    from meshfit.shrinkwrap import Stream, decode_stream, encode_stream, wrap_report
 
+    mesh = demo_mesh(8000)
     with tempfile.TemporaryDirectory() as tmp:
-        t = Path(tmp)
-        save_mesh(demo_mesh(8000), t / "scan.ply")
-        runs = [
-            ["demo", "--faces", "8000", "--out", str(t / "demo"), "--json"],
-            ["fit", str(t / "scan.ply"), "--out", str(t / "fit"), "--json"],
-            ["wrap", str(t / "scan.ply"), "--levels", "3", "--out", str(t / "wrap"), "--json"],
-            ["stream", "encode", str(t / "scan.ply"), "--levels", "3", "-o", str(t / "s.mfsw")],
-            ["stream", "decode", str(t / "s.mfsw"), "-o", str(t / "s.ply")],
-        ]
-        for argv in runs:
-            with open(os.devnull, "w") as quiet, contextlib.redirect_stdout(quiet):
-                code = cli(argv)
-            if code != 0:
-                raise RuntimeError(f"meshfit {' '.join(argv)} failed")
+        run_demo(Path(tmp) / "demo", faces=8000, quiet=True)
+        fit(mesh, out=Path(tmp) / "fit")
+    res = wrap(mesh, levels=3)
+    wrap_report(res)
+    top = res.levels[-1]
+    stream = encode_stream(top.vertices, res.base.faces, len(res.base.sphere), top.level)
+    decode_stream(Stream.from_bytes(stream.to_bytes()))
 
 
 def main(argv: list[str] | None = None) -> int:
