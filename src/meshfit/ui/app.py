@@ -99,6 +99,10 @@ class App:
         # request is refused on the server too (its handler looks the method up at call time)
         self.server.gui.configure_theme(show_share_button=False)
         self.server.request_share_url = self._refuse_share  # type: ignore[method-assign]
+        # plain lights, no image-based environment and no shadow maps: a browser without a
+        # GPU (software WebGL) spends seconds a frame on those, and first paint waits for them
+        self.server.scene.configure_environment_map(hdri=None)
+        self.server.scene.configure_default_lights(cast_shadow=False)
         self._cap_uploads()
         self.messages: list[str] = []
         self.selected: int | None = None
@@ -623,6 +627,11 @@ class App:
         return xyz + mesh.face_normals[faces] * (0.002 * mesh.bbox_diagonal)
 
     def redraw(self, *, mesh: bool = False) -> None:
+        """Draw the scan (with ``mesh``) and the curves again (one redraw at a time)."""
+        with self.lock:
+            self._redraw(mesh)
+
+    def _redraw(self, mesh: bool) -> None:
         s = self.session
         scene = self.server.scene
         if s.mesh is None:
