@@ -129,20 +129,22 @@ def test_fit_model_shows_the_fit(page, app, shots):
     assert len(app.layers.nodes) == 3 * len(result.patches)  # springs, spline, displaced
     assert "percent of the bounding-box diagonal" in app.gui_legend.content
     assert "validate done" in app.gui_fit_stages.content  # a line per stage
+    # the spline coloured by its deviation, over no scan (it would hide the fit's colours)
+    assert not app.gui_show_scan.value and all(not h.visible for h in app._nodes["/mesh"])
+    assert app.layers.visible["spline"] and not app.layers.visible["displaced"]
     settle(page)
     SEEN["fit"] = snap(page, shots, "01_fit_deviation")
     assert changed(SEEN["start"], SEEN["fit"]) > 0.05  # the deviation colours are drawn
-    page.get_by_label("Scan", exact=True).uncheck()
-    wait_for(lambda: not app.gui_show_scan.value, what="the scan hidden")
-    app.gui_show["springs"].value = True  # (as its checkbox does)
-    app._on_view()
+    page.get_by_label("Scan", exact=True).check()
+    wait_for(lambda: app.gui_show_scan.value, what="the scan shown")
+    app.gui_show["springs"].value = True  # (as its checkbox does: the callbacks run)
     settle(page)
-    bare = snap(page, shots, "02_fit_no_scan_springs")
-    assert all(not h.visible for h in app._nodes["/mesh"])
-    assert changed(SEEN["fit"], bare) > 1e-3
+    both = snap(page, shots, "02_fit_scan_and_springs")
+    assert all(h.visible for h in app._nodes["/mesh"])
+    assert all(app.layers.nodes[("springs", p)].visible for p in range(len(result.patches)))
+    assert changed(SEEN["fit"], both) > 1e-3
     app.gui_show["springs"].value = False
-    app.gui_show_scan.value = True
-    app._on_view()
+    app.gui_show_scan.value = False
 
 
 def test_fit_cancel(page, app, shots, monkeypatch):

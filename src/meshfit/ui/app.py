@@ -119,6 +119,7 @@ class App:
         self._cancel = threading.Event()
         self._fit_thread: threading.Thread | None = None
         self._stages: dict[str, tuple[int, int]] = {}
+        self._quiet = False
         self._build_gui(layout_path)
         self._add_shortcuts()
         self.server.scene.on_click()(self._on_click)
@@ -1063,6 +1064,7 @@ class App:
                     options=opts, progress=self._fit_progress, cancel=self._cancel
                 )
             except FitCancelled as exc:
+                self.gui_fit_stages.content = f"fit: {exc}"
                 self.say(f"{exc}; the view keeps the last fit")
                 return
             except MeshfitError as exc:
@@ -1075,7 +1077,16 @@ class App:
             finally:
                 self.gui_fit_progress.visible = False
             with self.lock:
+                first = self.layers is None or not self.layers.nodes
                 self._draw_fit(result)
+                if first:  # the fit over the scan: the spline's deviation, the scan hidden
+                    self._quiet = True
+                    try:
+                        self.gui_show_scan.value = False
+                        self.gui_show["spline"].value = True
+                        self.gui_show["displaced"].value = False
+                    finally:
+                        self._quiet = False
             e = result.errors
             diag_pc = "percent of the diagonal"
             spline = 100 * e["spline_only"]["hausdorff"]
@@ -1132,8 +1143,17 @@ class App:
                 for name, box in self.gui_show.items():
                     self.layers.set_visible(name, bool(box.value))
                 self.layers.set_labels(bool(self.gui_labels.value))
-        shown = [n for n, b in self._view_boxes() if b]
-        self.say("showing: " + (", ".join(shown) or "nothing"))
+        if not self._quiet:
+            shown = [n for n, b in self._view_boxes() if b]
+            self.say("showing: " + (", ".join(shown) or "nothing"))
+
+    def _show_only_displaced(self) -> None:
+        self._quiet = True  # (the checkboxes' callbacks redraw; the brush says what it did)
+        try:
+            self.gui_show["displaced"].value = True
+            self.gui_show["spline"].value = False
+        finally:
+            self._quiet = False
 
     def _view_boxes(self) -> list[tuple[str, bool]]:
         return [
@@ -1281,7 +1301,7 @@ class App:
             n = c - m.vertices.mean(axis=0)
         n = n / (np.linalg.norm(n) or 1.0)
         lo, hi = centres.min(axis=0), centres.max(axis=0)
-        dist = max(2.0 * float(np.linalg.norm(hi - lo)), 0.3 * m.bbox_diagonal)
+        dist = max(2.0 * float(np.linalg.norm(hi - lo)), 0.15 * m.bbox_diagonal)
         up = np.array([0.0, 1.0, 0.0]) if abs(n[1]) < 0.9 else np.array([0.0, 0.0, 1.0])
         for client in self.server.get_clients().values():
             client.camera.up_direction = tuple(up)
@@ -1333,6 +1353,8 @@ class App:
             return
         if k != self.selected_patch:
             self.select_patch(k)
+        if not self.gui_show["displaced"].value:  # the brush moves the displaced surface
+            self._show_only_displaced()
         diag = s.mesh.bbox_diagonal
         sign = 1.0 if self.gui_brush_dir.value == "raise" else -1.0
         amount = sign * float(self.gui_brush_amount.value) / 100.0 * diag
