@@ -1294,13 +1294,13 @@ class App:
         """Look at the faces from outside, along their mean normal."""
         m = self.session.mesh
         area = m.face_areas[faces]
-        centres = m.vertices[m.faces[faces]].mean(axis=1)
-        c = (centres * area[:, None]).sum(axis=0) / area.sum()
-        n = (m.face_normals[faces] * area[:, None]).sum(axis=0)
+        corner = m.vertices[m.faces[faces, 0]]  # a vertex per face: within an edge of it
+        c = area @ corner / area.sum()
+        n = area @ m.face_normals[faces]
         if np.linalg.norm(n) < 1e-12:
-            n = c - m.vertices.mean(axis=0)
+            n = c - 0.5 * (m.bbox[0] + m.bbox[1])
         n = n / (np.linalg.norm(n) or 1.0)
-        lo, hi = centres.min(axis=0), centres.max(axis=0)
+        lo, hi = corner.min(axis=0), corner.max(axis=0)
         dist = max(2.0 * float(np.linalg.norm(hi - lo)), 0.15 * m.bbox_diagonal)
         up = np.array([0.0, 1.0, 0.0]) if abs(n[1]) < 0.9 else np.array([0.0, 0.0, 1.0])
         for client in self.server.get_clients().values():
