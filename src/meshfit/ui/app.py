@@ -1,8 +1,10 @@
 """The browser side of ``meshfit ui``: viser scene and panels, thin glue over :class:`Session`.
 
 Every panel control calls one :class:`meshfit.ui.state.Session` method and redraws; all
-geometry work happens there. viser serves its three.js client from the installed wheel; the
-server binds to 127.0.0.1 unless told otherwise.
+geometry work happens there. A whole fit runs on a thread (progress per stage, cancel) and
+is drawn by :class:`meshfit.ui.fitview.FitLayers`; clicks paint, edit, select patches and
+curves, or paint on the selected patch's map, by the click mode. viser serves its three.js
+client from the installed wheel; the server binds to 127.0.0.1 unless told otherwise.
 """
 
 from __future__ import annotations
@@ -897,7 +899,11 @@ class App:
         elif what == "step":
             move = self._run(s.snake_step, self.selected, **kw)
             if move is not FAILED:
-                self.say(f"curve {self.selected}: one snake step, largest move {move:.3g}")
+                pc = percent(move, s.mesh.bbox_diagonal)
+                self.say(
+                    f"curve {self.selected}: one snake step, largest move {pc:.3g} % of the "
+                    "diagonal"
+                )
         else:
             sp = self._run(s.fit_space_curve, self.selected, n_control=int(self.gui_ncontrol.value))
             if sp is not FAILED:
