@@ -167,3 +167,15 @@ def test_status_is_concise(app):
     assert lines[0] == "**30 of 40 regions are four-sided patches**"
     assert lines[2:10] == [f"- region {k}: **not a disk**" for k in range(0, 32, 4)]
     assert lines[10] == "- and 2 more regions with a problem" and len(lines) == 11
+
+
+def test_the_first_click_of_a_curve_shows(app):
+    s = app.session
+    app.gui_mode.value = "feature"
+    assert "started" in _click(app, side_picks(s.mesh)[2][1])
+    (dots,) = [h for h in app._nodes["/curves"] if h.name == "/curves/picks"]
+    assert dots.points.shape == (1, 3)  # one dot before there is any line
+    s.cancel_curve()
+    app.redraw()
+    assert not [h for h in app._nodes["/curves"] if h.name == "/curves/picks"]
+    app.gui_mode.value = "boundary"

@@ -679,6 +679,17 @@ class App:
                         thickness=width,
                     ),
                 )
+            # every pick as a dot: the first click of a curve shows before there is a line
+            x = self._lift(m.xyz(st.picks), st.picks.face)
+            self._keep(
+                "/curves",
+                scene.add_point_cloud(
+                    "/curves/picks",
+                    x,
+                    np.tile(np.asarray(_STROKE, np.uint8), (len(x), 1)),
+                    point_size=0.01 * m.bbox_diagonal,
+                ),
+            )
         if len(s.corners):
             x = self._lift(m.xyz(s.corners), s.corners.face)
             self._keep(
