@@ -263,13 +263,18 @@ def test_readable_regions_status_and_fine_springs(page, app, shots):
     app.gui_show["displaced"].value = False
     app._on_view()
     page.get_by_label("Colour regions", exact=True).check()
-    wait_for(lambda: len(app._nodes.get("/mesh", [])) > 1, what="the regions drawn")
+    wait_for(lambda: app.gui_regions.value, what="Colour regions ticked")
     press(page, app, "Check layout")
     head, *problems = app.gui_status.content.splitlines()
     assert head == "**24 of 24 regions are four-sided patches**"
     assert all("tapered" in r or "bulging" in r for r in problems if r)  # problems only
-    wait_for(lambda: len(app._nodes["/mesh"]) == 24, what="a mesh per region")
-    colors = {h.color for h in app._nodes["/mesh"]}
+
+    def scan_nodes() -> list:  # (read between redraws: a redraw replaces them)
+        with app.lock:
+            return list(app._nodes.get("/mesh", []))
+
+    wait_for(lambda: len(scan_nodes()) == 24, what="a mesh per region")
+    colors = {h.color for h in scan_nodes()}
     assert len(colors) == 24  # one colour per patch
     app.gui_level.value = 3
     said = press(page, app, "Spring mesh")
