@@ -60,7 +60,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("stitch",),
     # the HTML report is one of the fit's outputs (DESIGN.md lists it with the exports);
     # report_blender is the script the report runs in Blender's Python (it imports no meshfit)
-    ("export", "report", "render", "report_blender"),
+    ("export", "report", "report_bounds", "report_view", "render", "report_blender"),
     ("pipeline",),
     ("batch", "demo"),
     # the front door, and the second process that compiles a first run's kernels ahead of

@@ -22,12 +22,14 @@ def _rotation(wxyz) -> np.ndarray:
     )
 
 
-def screen_of(app, xyz) -> tuple[int, int]:
-    """Pixel of a 3-D point in the page's view (viser cameras: OpenCV axes, vertical fov)."""
+def screen_of(app, xyz, viewport=None) -> tuple[int, int]:
+    """Pixel of a 3-D point in the page's view (viser cameras: OpenCV axes, vertical fov);
+    ``viewport`` is the page's size (default the browser tests' :data:`VIEWPORT`)."""
     (client,) = app.server.get_clients().values()
     cam = client.camera
     p = _rotation(cam.wxyz).T @ (np.asarray(xyz, float) - np.asarray(cam.position))
-    w, h = VIEWPORT["width"], VIEWPORT["height"]
+    view = VIEWPORT if viewport is None else viewport
+    w, h = view["width"], view["height"]
     f = 0.5 * h / np.tan(0.5 * cam.fov)
     return round(f * p[0] / p[2] + 0.5 * w), round(f * p[1] / p[2] + 0.5 * h)
 

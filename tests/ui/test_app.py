@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from meshfit.ui.app import App
@@ -136,3 +137,45 @@ def test_share_tunnel_is_refused(app):
     # the handler of a client's ShareUrlRequest calls server.request_share_url()
     assert app.server.request_share_url() is None
     assert "sharing through a public tunnel is turned off" in app.messages[-1]
+
+
+def test_a_finished_curve_is_selected(app):
+    s = app.session
+    app.gui_mode.value = "boundary"
+    picks = side_picks(s.mesh)[1]
+    for x in picks[:3]:
+        _click(app, x)
+    app._on_finish()
+    i = len(s.curves) - 1
+    assert app.selected == i and app.messages[-1] == f"curve {i} finished and selected"
+    app._on_curve_action("smooth")  # the edit buttons act on it at once
+    assert app.messages[-1].startswith(f"curve {i} smoothed")
+    app.selected = None
+
+
+def test_status_is_concise(app):
+    from meshfit.ui.app import _status_text
+    from meshfit.ui.network import NetworkStatus, RegionStatus
+
+    def region(k: int, reason: str = "") -> RegionStatus:
+        return RegionStatus(k, not reason, reason, (), np.zeros(0, np.int64), 1.0, 1.0, 1.0)
+
+    ok = NetworkStatus([region(k) for k in range(40)])
+    assert _status_text(ok) == "**40 of 40 regions are four-sided patches**"
+    bad = NetworkStatus([region(k, "not a disk" if k % 4 == 0 else "") for k in range(40)])
+    lines = _status_text(bad).splitlines()
+    assert lines[0] == "**30 of 40 regions are four-sided patches**"
+    assert lines[2:10] == [f"- region {k}: **not a disk**" for k in range(0, 32, 4)]
+    assert lines[10] == "- and 2 more regions with a problem" and len(lines) == 11
+
+
+def test_the_first_click_of_a_curve_shows(app):
+    s = app.session
+    app.gui_mode.value = "feature"
+    assert "started" in _click(app, side_picks(s.mesh)[2][1])
+    (dots,) = [h for h in app._nodes["/curves"] if h.name == "/curves/picks"]
+    assert dots.points.shape == (1, 3)  # one dot before there is any line
+    s.cancel_curve()
+    app.redraw()
+    assert not [h for h in app._nodes["/curves"] if h.name == "/curves/picks"]
+    app.gui_mode.value = "boundary"

@@ -163,3 +163,18 @@ def test_fine_grids_are_thinned_to_lines():
     assert len(xs) == 129 and len(ys) == 97  # lines still follow every grid point
     small = grid_lines(grid[:5, :4])
     assert len(small) == 5 * 3 + 4 * 4  # a coarse level is drawn whole
+
+
+def test_crease_curves_of_a_layout_start_at_c0():
+    from dataclasses import replace
+
+    from tests.ui.helpers import spot_layout
+
+    lay = spot_layout()
+    mask = np.zeros(len(lay.curves), bool)
+    mask[[1, 7]] = True
+    s = Session(real_mesh("spot"))
+    s.set_layout(replace(lay, creases=mask))  # as the automatic layout marks creases
+    got = [s.curves[i].continuity for i in s.state.boundary_ids]
+    assert got == ["C0" if m else None for m in mask]
+    assert_allclose(s.creases(), mask)

@@ -4,8 +4,10 @@
 curves, undo/redo and the autosave file, with one method per user action, each calling the
 public meshfit API. :func:`network_status` tells which regions of a painted network are valid
 four-sided patches and why the others are not. ``meshfit.ui.app.App`` is the thin viser layer
-(imported on demand: it needs ``viser``); :class:`FilePolicy` and :func:`mesh_from_upload`
-keep file access to the files the user names and validate uploads.
+(imported on demand: it needs ``viser``), ``meshfit.ui.fitview`` draws a fit into its scene
+and ``meshfit.ui.fitting`` holds what the app does with a fit (deviation from the scan in
+percent of the diagonal, one-patch re-fits, the map brush); :class:`FilePolicy` and
+:func:`mesh_from_upload` keep file access to the files the user names and validate uploads.
 
 References
 ----------

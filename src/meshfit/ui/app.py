@@ -1,8 +1,10 @@
 """The browser side of ``meshfit ui``: viser scene and panels, thin glue over :class:`Session`.
 
 Every panel control calls one :class:`meshfit.ui.state.Session` method and redraws; all
-geometry work happens there. viser serves its three.js client from the installed wheel; the
-server binds to 127.0.0.1 unless told otherwise.
+geometry work happens there. A whole fit runs on a thread (progress per stage, cancel) and
+is drawn by :class:`meshfit.ui.fitview.FitLayers`; clicks paint, edit, select patches and
+curves, or paint on the selected patch's map, by the click mode. viser serves its three.js
+client from the installed wheel; the server binds to 127.0.0.1 unless told otherwise.
 """
 
 from __future__ import annotations
@@ -99,6 +101,10 @@ class App:
         # request is refused on the server too (its handler looks the method up at call time)
         self.server.gui.configure_theme(show_share_button=False)
         self.server.request_share_url = self._refuse_share  # type: ignore[method-assign]
+        # plain lights, no image-based environment and no shadow maps: a browser without a
+        # GPU (software WebGL) spends seconds a frame on those, and first paint waits for them
+        self.server.scene.configure_environment_map(hdri=None)
+        self.server.scene.configure_default_lights(cast_shadow=False)
         self._cap_uploads()
         self.messages: list[str] = []
         self.selected: int | None = None
@@ -115,6 +121,7 @@ class App:
         self._cancel = threading.Event()
         self._fit_thread: threading.Thread | None = None
         self._stages: dict[str, tuple[int, int]] = {}
+        self._quiet = False
         self._build_gui(layout_path)
         self._add_shortcuts()
         self.server.scene.on_click()(self._on_click)
@@ -623,6 +630,11 @@ class App:
         return xyz + mesh.face_normals[faces] * (0.002 * mesh.bbox_diagonal)
 
     def redraw(self, *, mesh: bool = False) -> None:
+        """Draw the scan (with ``mesh``) and the curves again (one redraw at a time)."""
+        with self.lock:
+            self._redraw(mesh)
+
+    def _redraw(self, mesh: bool) -> None:
         s = self.session
         scene = self.server.scene
         if s.mesh is None:
@@ -667,6 +679,17 @@ class App:
                         thickness=width,
                     ),
                 )
+            # every pick as a dot: the first click of a curve shows before there is a line
+            x = self._lift(m.xyz(st.picks), st.picks.face)
+            self._keep(
+                "/curves",
+                scene.add_point_cloud(
+                    "/curves/picks",
+                    x,
+                    np.tile(np.asarray(_STROKE, np.uint8), (len(x), 1)),
+                    point_size=0.01 * m.bbox_diagonal,
+                ),
+            )
         if len(s.corners):
             x = self._lift(m.xyz(s.corners), s.corners.face)
             self._keep(
@@ -887,7 +910,11 @@ class App:
         elif what == "step":
             move = self._run(s.snake_step, self.selected, **kw)
             if move is not FAILED:
-                self.say(f"curve {self.selected}: one snake step, largest move {move:.3g}")
+                pc = percent(move, s.mesh.bbox_diagonal)
+                self.say(
+                    f"curve {self.selected}: one snake step, largest move {pc:.3g} % of the "
+                    "diagonal"
+                )
         else:
             sp = self._run(s.fit_space_curve, self.selected, n_control=int(self.gui_ncontrol.value))
             if sp is not FAILED:
@@ -1054,6 +1081,7 @@ class App:
                     options=opts, progress=self._fit_progress, cancel=self._cancel
                 )
             except FitCancelled as exc:
+                self.gui_fit_stages.content = f"fit: {exc}"
                 self.say(f"{exc}; the view keeps the last fit")
                 return
             except MeshfitError as exc:
@@ -1066,7 +1094,16 @@ class App:
             finally:
                 self.gui_fit_progress.visible = False
             with self.lock:
+                first = self.layers is None or not self.layers.nodes
                 self._draw_fit(result)
+                if first:  # the fit over the scan: the spline's deviation, the scan hidden
+                    self._quiet = True
+                    try:
+                        self.gui_show_scan.value = False
+                        self.gui_show["spline"].value = True
+                        self.gui_show["displaced"].value = False
+                    finally:
+                        self._quiet = False
             e = result.errors
             diag_pc = "percent of the diagonal"
             spline = 100 * e["spline_only"]["hausdorff"]
@@ -1123,8 +1160,17 @@ class App:
                 for name, box in self.gui_show.items():
                     self.layers.set_visible(name, bool(box.value))
                 self.layers.set_labels(bool(self.gui_labels.value))
-        shown = [n for n, b in self._view_boxes() if b]
-        self.say("showing: " + (", ".join(shown) or "nothing"))
+        if not self._quiet:
+            shown = [n for n, b in self._view_boxes() if b]
+            self.say("showing: " + (", ".join(shown) or "nothing"))
+
+    def _show_only_displaced(self) -> None:
+        self._quiet = True  # (the checkboxes' callbacks redraw; the brush says what it did)
+        try:
+            self.gui_show["displaced"].value = True
+            self.gui_show["spline"].value = False
+        finally:
+            self._quiet = False
 
     def _view_boxes(self) -> list[tuple[str, bool]]:
         return [
@@ -1265,14 +1311,14 @@ class App:
         """Look at the faces from outside, along their mean normal."""
         m = self.session.mesh
         area = m.face_areas[faces]
-        centres = m.vertices[m.faces[faces]].mean(axis=1)
-        c = (centres * area[:, None]).sum(axis=0) / area.sum()
-        n = (m.face_normals[faces] * area[:, None]).sum(axis=0)
+        corner = m.vertices[m.faces[faces, 0]]  # a vertex per face: within an edge of it
+        c = area @ corner / area.sum()
+        n = area @ m.face_normals[faces]
         if np.linalg.norm(n) < 1e-12:
-            n = c - m.vertices.mean(axis=0)
+            n = c - 0.5 * (m.bbox[0] + m.bbox[1])
         n = n / (np.linalg.norm(n) or 1.0)
-        lo, hi = centres.min(axis=0), centres.max(axis=0)
-        dist = max(2.0 * float(np.linalg.norm(hi - lo)), 0.3 * m.bbox_diagonal)
+        lo, hi = corner.min(axis=0), corner.max(axis=0)
+        dist = max(2.0 * float(np.linalg.norm(hi - lo)), 0.15 * m.bbox_diagonal)
         up = np.array([0.0, 1.0, 0.0]) if abs(n[1]) < 0.9 else np.array([0.0, 0.0, 1.0])
         for client in self.server.get_clients().values():
             client.camera.up_direction = tuple(up)
@@ -1324,6 +1370,8 @@ class App:
             return
         if k != self.selected_patch:
             self.select_patch(k)
+        if not self.gui_show["displaced"].value:  # the brush moves the displaced surface
+            self._show_only_displaced()
         diag = s.mesh.bbox_diagonal
         sign = 1.0 if self.gui_brush_dir.value == "raise" else -1.0
         amount = sign * float(self.gui_brush_amount.value) / 100.0 * diag

@@ -78,6 +78,7 @@ class FitLayers:
         self.dev: dict[tuple[str, int], NDArray[np.float64]] = {}
         self.top = 1.0
         self.colors = np.zeros((0, 3), np.uint8)
+        self.show_labels = True
 
     # -------------------------------------------------------------------- drawing
     def draw(self, result) -> None:
@@ -154,8 +155,6 @@ class FitLayers:
             font_screen_scale=0.8,
             visible=self.show_labels,
         )
-
-    show_labels = True
 
     def set_visible(self, layer: str, on: bool) -> None:
         self.visible[layer] = bool(on)
