@@ -3,9 +3,9 @@
 numba checks a kernel's cached machine code against the kernel's own file only, but kernels
 here call helpers of other files of this package, compiled into the caller's machine code
 (the walks of ``walk.py`` in ``springs.py``, ``curves.py``, ``snakes.py`` and ``bvh.py``).
-So a digest of all the files here is kept beside the caches, and when it changes every cache of this package is dropped
-before any is loaded: an edited helper is never run in its old form by a caller whose own
-file did not change.
+So a digest of all the files here is kept beside the caches, and when it changes every
+cache of this package is dropped before any is loaded: an edited helper is never run in
+its old form by a caller whose own file did not change.
 """
 
 from __future__ import annotations
