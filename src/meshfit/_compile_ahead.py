@@ -275,12 +275,13 @@ def _record_runs() -> None:
     its stream encoded and decoded."""
     import tempfile
 
-    from meshfit import fit, wrap
+    from meshfit import fit, load_mesh, save_mesh, wrap
     from meshfit.demo import demo_mesh, run_demo
     from meshfit.shrinkwrap import Stream, decode_stream, encode_stream, wrap_report
 
-    mesh = demo_mesh(8000)
     with tempfile.TemporaryDirectory() as tmp:
+        save_mesh(demo_mesh(8000), Path(tmp) / "scan.ply")
+        mesh = load_mesh(Path(tmp) / "scan.ply", repair=True)  # as the command line does
         run_demo(Path(tmp) / "demo", faces=8000, quiet=True)
         fit(mesh, out=Path(tmp) / "fit")
     res = wrap(mesh, levels=3)
