@@ -216,7 +216,7 @@ def _command(args: argparse.Namespace) -> int:
     """The command, its failures as one line each and an exit code."""
     try:
         refuse_own_input(args)
-        if args.command in COMPILING:
+        if getattr(args, "command", None) in COMPILING:
             from meshfit._compile_ahead import start
 
             start()

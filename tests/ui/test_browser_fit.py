@@ -129,6 +129,10 @@ def test_fit_model_shows_the_fit(page, app, shots):
     assert len(app.layers.nodes) == 3 * len(result.patches)  # springs, spline, displaced
     assert "percent of the bounding-box diagonal" in app.gui_legend.content
     assert "validate done" in app.gui_fit_stages.content  # a line per stage
+    done = [name for name, (d, n) in app._stages.items() if n and d >= n]
+    assert "springs" in done and "fit" in done
+    assert all(app.gui_stage_bars[name].value == 100.0 for name in done)  # a bar per stage
+    assert not app.gui_stage_folder.visible  # shown while a fit runs
     # the spline coloured by its deviation, over no scan (it would hide the fit's colours)
     assert not app.gui_show_scan.value and all(not h.visible for h in app._nodes["/mesh"])
     assert app.layers.visible["spline"] and not app.layers.visible["displaced"]
@@ -159,6 +163,8 @@ def test_fit_cancel(page, app, shots, monkeypatch):
     n = len(app.messages)
     page.get_by_role("button", name="Fit model", exact=True).click()
     wait_for(lambda: app.gui_fit_progress.visible, what="the fit to start")
+    wait_for(lambda: app.gui_stage_folder.visible, what="the stage bars shown")
+    snap(page, shots, "03_fit_running")
     page.get_by_role("button", name="Cancel fit", exact=True).click()
     wait_for(lambda: any("cancelled" in m for m in app.messages[n:]), what="the fit cancelled")
     snap(page, shots, "03_fit_cancelled")

@@ -411,6 +411,14 @@ class App:
             )
             self.gui_fit_progress = gui.add_progress_bar(0.0, visible=False)
             self.gui_fit_stages = gui.add_markdown("")
+            # a bar per stage of the fit, in the pipeline's order, shown while a fit runs
+            from meshfit.pipeline.stages import STAGES
+
+            with gui.add_folder("Fit stages", visible=False) as self.gui_stage_folder:
+                self.gui_stage_bars = {}
+                for name in STAGES:
+                    gui.add_markdown(f"<sub>{name}</sub>")
+                    self.gui_stage_bars[name] = gui.add_progress_bar(0.0)
             gui.add_button(
                 "Re-fit selected patch",
                 hint="Fit the selected patch again at the controls above (its neighbours "
@@ -1072,6 +1080,9 @@ class App:
         self._stages = {}
         self.gui_fit_progress.value = 0.0
         self.gui_fit_progress.visible = True
+        for bar in self.gui_stage_bars.values():
+            bar.value = 0.0
+        self.gui_stage_folder.visible = True
         self.say("fitting the model...")
 
         def work() -> None:
@@ -1093,6 +1104,7 @@ class App:
                 return
             finally:
                 self.gui_fit_progress.visible = False
+                self.gui_stage_folder.visible = False
             with self.lock:
                 first = self.layers is None or not self.layers.nodes
                 self._draw_fit(result)
@@ -1119,10 +1131,13 @@ class App:
         self._fit_thread.start()
 
     def _fit_progress(self, stage: str, done: int, total: int) -> None:
-        """One progress bar for the running stage and a line per stage."""
+        """A progress bar for the running stage, a bar per stage and a line per stage."""
         self._stages[stage] = (done, total)
         frac = done / total if total else 1.0
         self.gui_fit_progress.value = float(100.0 * min(max(frac, 0.0), 1.0))
+        bar = self.gui_stage_bars.get(stage)
+        if bar is not None:
+            bar.value = self.gui_fit_progress.value
         rows = []
         for name, (d, n) in self._stages.items():
             mark = "done" if (n and d >= n) else f"{d}/{n}"
