@@ -56,11 +56,11 @@ def click_canvas(page, app, xy) -> str:
     return app.messages[-1]
 
 
-def press(page, app, name: str, *, until=None) -> str:
+def press(page, app, name: str, *, until=None, timeout: float = 30.0) -> str:
     """Click a panel button and wait for its reply (every button says something)."""
     n = len(app.messages)
     page.get_by_role("button", name=name, exact=True).click()
-    wait_for(lambda: len(app.messages) > n, what=f"the reply to {name!r}")
+    wait_for(lambda: len(app.messages) > n, timeout=timeout, what=f"the reply to {name!r}")
     if until is not None:
         wait_for(until, what=f"the effect of {name!r}")
     return app.messages[-1]
