@@ -15,7 +15,7 @@ import ctypes
 import ctypes.util
 import sys
 
-__all__ = ["tune_malloc"]
+__all__ = ["release_memory", "tune_malloc"]
 
 #: ``mallopt`` parameters (glibc ``malloc.h``)
 _M_TRIM_THRESHOLD = -1
@@ -29,6 +29,21 @@ TRIM_THRESHOLD = 1 << 30
 TOP_PAD = 256 << 20
 
 
+def _libc():
+    """glibc through ctypes (with ``mallopt`` and ``malloc_trim``), or None."""
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        libc.mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
+        libc.mallopt.restype = ctypes.c_int
+        libc.malloc_trim.argtypes = (ctypes.c_size_t,)
+        libc.malloc_trim.restype = ctypes.c_int
+    except (OSError, AttributeError):
+        return None
+    return libc
+
+
 def tune_malloc() -> bool:
     """Apply the settings above through glibc's ``mallopt``.
 
@@ -38,18 +53,27 @@ def tune_malloc() -> bool:
         True if glibc took all three; False elsewhere (other systems or C libraries keep
         their defaults, which only costs speed).
     """
-    if not sys.platform.startswith("linux"):
+    libc = _libc()
+    if libc is None:
         return False
-    try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
-        mallopt = libc.mallopt
-    except (OSError, AttributeError):
-        return False
-    mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
-    mallopt.restype = ctypes.c_int
     settings = (
         (_M_MMAP_THRESHOLD, MMAP_THRESHOLD),
         (_M_TRIM_THRESHOLD, TRIM_THRESHOLD),
         (_M_TOP_PAD, TOP_PAD),
     )
-    return all(mallopt(p, v) == 1 for p, v in settings)
+    return all(libc.mallopt(p, v) == 1 for p, v in settings)
+
+
+def release_memory() -> None:
+    """Collect garbage and hand the heap's free pages back to the system (glibc's
+    ``malloc_trim``; a no-op elsewhere). Called where a fit has just dropped a large working
+    set (the layout's adjacency, one surface's search tree) before it builds the next, so
+    the freed pages count once in the peak instead of twice (freed memory on the heap is
+    otherwise kept up to the trim threshold, and reused only by allocations that fit its
+    gaps)."""
+    import gc
+
+    gc.collect()
+    libc = _libc()
+    if libc is not None:
+        libc.malloc_trim(0)

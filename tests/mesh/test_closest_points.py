@@ -188,7 +188,7 @@ def test_grid_tree_matches_its_reference_and_finds_the_same_distances(rng):
     shapes = [(2, 2), (5, 3), (17, 9), (2, 30), (12, 12)]
     V, F = _grid_soup(rng, shapes)
     tree = grid_tree(V, F, shapes)
-    for got, want in zip(tree[1:], ref.build_grids(V, F, shapes), strict=True):
+    for got, want in zip(tree[1:], ref.build_grids(V, F, shapes, bvh.GRID_LEAF_CELLS), strict=True):
         assert_array_equal(got, want)
     assert_array_equal(np.sort(tree.order), np.arange(len(F)))
     q = rng.uniform(V.min(axis=0) - 0.5, V.max(axis=0) + 0.5, size=(3000, 3))

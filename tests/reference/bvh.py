@@ -131,12 +131,13 @@ def _with_boxes(V, F, order, child, start, stop):
     )
 
 
-def build_grids(V, F, shapes):
+def build_grids(V, F, shapes, leaf_cells: int = 4):
     """The tree of `meshfit._kernels.bvh.build_grids` over stacked grid triangulations
     (first triangles of grid ``g``'s cells, row-major, then their second ones), built
     recursively from explicit node descriptions: a list of grids, split at the median of the
     grid centroids along their longest axis (a stable sort), or one grid's cell rectangle,
-    halved across its longer side; a split node's children take the next two numbers and the
+    halved across its longer side down to ``leaf_cells`` cells (a leaf of their triangles,
+    cell by cell, row-major); a split node's children take the next two numbers and the
     first child's subtree is numbered before the second's. Returns
     ``order, lo, hi, child, start, stop``."""
     shapes = [(int(a), int(b)) for a, b in shapes]
@@ -167,9 +168,13 @@ def build_grids(V, F, shapes):
             halves = [("grids", gs[: len(gs) // 2]), ("grids", gs[len(gs) // 2 :])]
         else:
             _, g, r0, r1, c0, c1 = node
-            if (r1 - r0) * (c1 - c0) == 1:
-                t = tbase[g] + r0 * (shapes[g][1] - 1) + c0
-                order[start[i]], order[start[i] + 1] = t, t + cells[g]
+            if (r1 - r0) * (c1 - c0) <= leaf_cells:
+                ts = [
+                    tbase[g] + r * (shapes[g][1] - 1) + c
+                    for r in range(r0, r1)
+                    for c in range(c0, c1)
+                ]
+                order[start[i] : stop[i]] = [x for t in ts for x in (t, t + cells[g])]
                 return
             if r1 - r0 >= c1 - c0:
                 m = (r0 + r1) // 2

@@ -89,17 +89,31 @@ def test_square_map_is_kept_per_patch_mesh():
     sides = _sides(patch)
     clear_map_cache()
     a = square_map(patch.mesh, sides)
-    assert square_map(patch.mesh, _sides(patch)) is a  # equal sides, new object: kept
+    assert square_map(patch.mesh, _sides(patch)).uv is a.uv  # equal sides, new object: kept
     with pytest.raises(ValueError, match="read-only"):
         a.uv[0, 0] = 0.5  # shared between callers: nobody may change it
     other = param_patch(cap_map(1.0, 0.6), 12, 10)  # equal arrays, another mesh object
     b = square_map(other.mesh, _sides(other))
-    assert b is not a
+    assert b.uv is not a.uv
     assert_allclose(b.uv, a.uv, rtol=0, atol=tol.TEST_ATOL)
     clear_map_cache()
     c = square_map(patch.mesh, sides)
-    assert c is not a
+    assert c.uv is not a.uv
     np.testing.assert_array_equal(c.uv, a.uv)
+
+
+def test_a_kept_square_map_does_not_keep_its_mesh_alive():
+    # the cache is keyed weakly by the mesh: a fit's patch meshes (as large together as
+    # the scan) must go when the fit drops them, not stay for the process's lifetime
+    import gc
+    import weakref
+
+    patch = param_patch(cap_map(1.0, 0.6), 12, 10)
+    square_map(patch.mesh, _sides(patch), balanced=True)
+    gone = weakref.ref(patch.mesh)
+    del patch
+    gc.collect()
+    assert gone() is None
 
 
 def test_locate_inverts_the_map():
@@ -257,7 +271,7 @@ def test_balanced_map_spreads_a_squeezed_patch_and_stays_a_bijection():
     sides = _sides(patch)
     plain = square_map(patch.mesh, sides)
     balanced = square_map(patch.mesh, sides, balanced=True)
-    assert square_map(patch.mesh, sides, balanced=True) is balanced  # kept per mesh
+    assert square_map(patch.mesh, sides, balanced=True).uv is balanced.uv  # kept per mesh
     assert balanced is not plain
     _, before = planar._vertex_stretch(patch.mesh, plain.uv)
     _, after = planar._vertex_stretch(patch.mesh, balanced.uv)

@@ -19,6 +19,10 @@ from meshfit._kernels.walk import _closest_on_face
 #: triangles per leaf: smaller leaves cost a few more box tests and a slightly slower build,
 #: and save more triangle tests, which dominate a query
 LEAF_SIZE = 2
+#: most grid cells per leaf of `build_grids`: a displaced surface's soup has more triangles
+#: than the scan, and single-cell leaves made its tree (about 80 bytes a triangle) the
+#: largest array of the error stage
+GRID_LEAF_CELLS = 4
 #: bits per axis of the Morton codes
 _MORTON_BITS = 21
 
@@ -223,10 +227,10 @@ def build_grids(V, F, shapes, tbase, centroid):
 
     The grids are split at the median of their ``centroid (n_grids, 3)`` along the longest
     axis of those (a stable sort), down to one grid; a grid's cell rectangle in halves across
-    its longer index direction, down to one cell (a leaf of its two triangles). No triangle
-    is sorted. Depth first: a node's two children get the next two numbers when it is split,
-    and the first child's subtree is built before the second's (only the open nodes are
-    kept, on a stack).
+    its longer index direction, down to at most `GRID_LEAF_CELLS` cells (a leaf of their
+    triangles, cell by cell). No triangle is sorted. Depth first: a node's two children get
+    the next two numbers when it is split, and the first child's subtree is built before the
+    second's (only the open nodes are kept, on a stack).
     """
     n_grids = shapes.shape[0]
     cells = np.empty(n_grids, dtype=np.int64)
@@ -253,10 +257,14 @@ def build_grids(V, F, shapes, tbase, centroid):
         if kind == 0 and b - a == 1:  # one grid: its whole cell rectangle
             g = perm[a]
             kind, a, b, c0, c1 = 1, 0, shapes[g, 0] - 1, 0, shapes[g, 1] - 1
-        if kind == 1 and (b - a) * (c1 - c0) == 1:  # one cell: a leaf of its two triangles
-            t = tbase[g] + a * (shapes[g, 1] - 1) + c0
-            order[start[k]] = t
-            order[start[k] + 1] = t + cells[g]
+        if kind == 1 and (b - a) * (c1 - c0) <= GRID_LEAF_CELLS:  # a leaf: its cells'
+            j = start[k]  # two triangles each, cell by cell (row-major)
+            for r in range(a, b):
+                for c in range(c0, c1):
+                    t = tbase[g] + r * (shapes[g, 1] - 1) + c
+                    order[j] = t
+                    order[j + 1] = t + cells[g]
+                    j += 2
             continue
         child[k] = n
         # the second child below the first on the stack: the first one's subtree is built

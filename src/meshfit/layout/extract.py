@@ -65,6 +65,13 @@ _LAST: list = [None]
 _LAST_LOCK = threading.Lock()
 
 
+def forget_partition() -> None:
+    """Drop the kept partition (its regions' meshes are as large as the mesh itself): a fit
+    calls this once its patches are made."""
+    with _LAST_LOCK:
+        _LAST[0] = None
+
+
 def _partition(
     mesh: Mesh,
     layout: Layout,

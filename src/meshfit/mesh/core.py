@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Iterable
+from dataclasses import dataclass, field, fields
 from functools import cached_property
 from typing import TYPE_CHECKING
 
@@ -32,6 +33,21 @@ def _frozen(a: NDArray) -> NDArray:
     a = np.array(a, copy=True, order="C")
     a.flags.writeable = False
     return a.view()  # a view of a read-only base cannot be made writeable again
+
+
+def _sealed(a: NDArray) -> NDArray:
+    """An array the mesh derived (held by it alone, or shared with its edge table) made
+    read-only in place where numpy owns its memory: unlike `_frozen`, no copy, which over
+    a dense scan would double each derived array for a moment."""
+    a = np.ascontiguousarray(a)
+    root = a
+    while isinstance(root.base, np.ndarray):
+        root = root.base
+    if not root.flags.owndata:  # memory held by another object (e.g. a compiled kernel's
+        return _frozen(a)  # result) stays writeable through it: a read-only copy
+    root.flags.writeable = False  # (so no view of it can be made writeable again)
+    a.flags.writeable = False
+    return a.view()
 
 
 def _as_vertices(vertices: ArrayLike) -> NDArray[np.float64]:
@@ -194,6 +210,21 @@ class Mesh:
         label = f"{self.name!r}, " if self.name else ""
         return f"Mesh({label}{self.n_vertices} vertices, {self.n_faces} faces)"
 
+    def drop_caches(self, keep: Iterable[str] = ()) -> None:
+        """Forget what was derived from the arrays (edge table, adjacency, normals, search
+        trees, ...) except the names in ``keep`` and the bounding box; each is derived again
+        on its next use. Over a dense scan these take several times the arrays' own memory,
+        so a fit drops what its later stages do not read (meshes made by :meth:`with_name`
+        keep their own references)."""
+        kept = {*keep, "bbox", "bbox_diagonal", "mean_edge_length"}
+        own = {f.name for f in fields(self)}
+        for name in [k for k in self.__dict__ if k not in own and k not in kept]:
+            if name == "aabb":
+                from meshfit.mesh.locate import _WITH_AABB
+
+                _WITH_AABB.discard(self)
+            self.__dict__.pop(name, None)
+
     # ------------------------------------------------------------- connectivity
     @cached_property
     def _edge_table(self) -> topology.EdgeTable:
@@ -202,36 +233,36 @@ class Mesh:
     @cached_property
     def edges(self) -> NDArray[np.int64]:
         """(ne, 2) int64: unique undirected edges, smaller index first."""
-        return _frozen(self._edge_table.edges)
+        return _sealed(self._edge_table.edges)
 
     @cached_property
     def face_edges(self) -> NDArray[np.int64]:
         """(nf, 3) int64: edge id of edge k of each face (row of :attr:`edges`)."""
-        return _frozen(self._edge_table.halfedge_edge.reshape(-1, 3))
+        return _sealed(self._edge_table.halfedge_edge.reshape(-1, 3))
 
     @cached_property
     def edge_keys(self) -> NDArray[np.int64]:
         """(ne,) int64: ``a * nv + b`` of each edge (a, b) of :attr:`edges`, ascending (edge
         ids of vertex pairs by ``searchsorted``)."""
         e = self.edges
-        return _frozen(e[:, 0] * np.int64(max(self.n_vertices, 1)) + e[:, 1])
+        return _sealed(e[:, 0] * np.int64(max(self.n_vertices, 1)) + e[:, 1])
 
     @cached_property
     def edge_face(self) -> NDArray[np.int64]:
         """(ne,) int64: one face holding each edge (the highest-numbered one)."""
         out = np.empty(self.edges.shape[0], dtype=np.int64)
         out[self.face_edges.reshape(-1)] = np.repeat(np.arange(self.n_faces), 3)
-        return _frozen(out)
+        return _sealed(out)
 
     @cached_property
     def edge_face_count(self) -> NDArray[np.int64]:
         """(ne,) int64: 1 on the boundary, 2 inside."""
-        return _frozen(self._edge_table.edge_count)
+        return _sealed(self._edge_table.edge_count)
 
     @cached_property
     def face_neighbors(self) -> NDArray[np.int64]:
         """(nf, 3) int64: face across edge k = (F[f,k], F[f,(k+1)%3]); -1 on the boundary."""
-        return _frozen(topology.face_neighbors(self.faces, self._edge_table))
+        return _sealed(topology.face_neighbors(self.faces, self._edge_table))
 
     @cached_property
     def _vertex_adjacency(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -245,7 +276,7 @@ class Mesh:
             shape=(n, n),
         ).tocsr()
         m.sort_indices()
-        return _frozen(m.indptr.astype(np.int64)), _frozen(m.indices.astype(np.int64))
+        return _sealed(m.indptr.astype(np.int64)), _sealed(m.indices.astype(np.int64))
 
     @property
     def vertex_adjacency(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -264,7 +295,7 @@ class Mesh:
         order = np.argsort(flat, kind="stable")
         indptr = np.zeros(self.n_vertices + 1, dtype=np.int64)
         np.cumsum(np.bincount(flat, minlength=self.n_vertices), out=indptr[1:])
-        return _frozen(indptr), _frozen(order // 3)
+        return _sealed(indptr), _sealed(order // 3)
 
     @property
     def vertex_faces(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -288,12 +319,12 @@ class Mesh:
     @cached_property
     def boundary_loops(self) -> list[NDArray[np.int64]]:
         """Boundary loops, each a ``(k,) int64`` vertex array in half-edge order."""
-        return [_frozen(loop) for loop in topology.boundary_loops(self.faces, self._edge_table)]
+        return [_sealed(loop) for loop in topology.boundary_loops(self.faces, self._edge_table)]
 
     @cached_property
     def _components(self) -> tuple[int, NDArray[np.int64]]:
         n, labels = topology.face_components(self.n_faces, self.face_neighbors)
-        return n, _frozen(labels)
+        return n, _sealed(labels)
 
     @property
     def n_components(self) -> int:
@@ -310,7 +341,7 @@ class Mesh:
         """(nv,) int64: component label of each vertex."""
         out = np.empty(self.n_vertices, dtype=np.int64)
         out[self.faces.reshape(-1)] = np.repeat(self.face_components, 3)
-        return _frozen(out)
+        return _sealed(out)
 
     @property
     def euler_characteristic(self) -> int:
@@ -335,12 +366,12 @@ class Mesh:
     @cached_property
     def face_areas(self) -> NDArray[np.float64]:
         """(nf,) float64: triangle areas, model units squared."""
-        return _frozen(0.5 * np.linalg.norm(self._face_cross, axis=1))
+        return _sealed(0.5 * np.linalg.norm(self._face_cross, axis=1))
 
     @cached_property
     def face_normals(self) -> NDArray[np.float64]:
         """(nf, 3) float64: unit normals (right-handed with the face winding)."""
-        return _frozen(self._face_cross / (2.0 * self.face_areas[:, None]))
+        return _sealed(self._face_cross / (2.0 * self.face_areas[:, None]))
 
     @cached_property
     def vertex_normals(self) -> NDArray[np.float64]:
@@ -349,7 +380,7 @@ class Mesh:
         # face normals times twice the face areas, summed around each vertex
         acc = _geometry.vertex_sums(self.faces, self._face_cross, self.n_vertices)
         ln = np.linalg.norm(acc, axis=1, keepdims=True)
-        return _frozen(acc / np.where(ln > 0, ln, 1.0))
+        return _sealed(acc / np.where(ln > 0, ln, 1.0))
 
     @cached_property
     def edge_lengths(self) -> NDArray[np.float64]:
@@ -357,7 +388,7 @@ class Mesh:
         e = self.edges
         d = self.vertices[e[:, 1]] - self.vertices[e[:, 0]]
         # the sum np.linalg.norm forms, without its temporaries
-        return _frozen(np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]))
+        return _sealed(np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]))
 
     @cached_property
     def mean_edge_length(self) -> float:
@@ -366,7 +397,7 @@ class Mesh:
     @cached_property
     def bbox(self) -> NDArray[np.float64]:
         """(2, 3) float64: minimum and maximum corner."""
-        return _frozen(np.stack([self.vertices.min(axis=0), self.vertices.max(axis=0)]))
+        return _sealed(np.stack([self.vertices.min(axis=0), self.vertices.max(axis=0)]))
 
     @cached_property
     def bbox_diagonal(self) -> float:

@@ -68,6 +68,10 @@ def edge_table(faces: NDArray[np.int64], n_vertices: int) -> EdgeTable:
     edges, inverse, counts, order, start = _k.edge_table(
         np.ascontiguousarray(faces, dtype=np.int64), int(n_vertices)
     )
+    # numpy-owned copies of the arrays a mesh hands out (``edges``, ``face_edges``,
+    # ``edge_face_count``): a mesh can seal those in place instead of keeping a read-only
+    # copy of each beside the table (memory a kernel's result owns stays writeable)
+    edges, inverse, counts = (np.array(a) for a in (edges, inverse, counts))
     return EdgeTable(edges, inverse, counts, order, start)
 
 

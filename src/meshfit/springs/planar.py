@@ -36,14 +36,14 @@ class PlanarMap:
         ``v = 1`` (top) and ``u = 0`` (left).
     """
 
-    def __init__(self, mesh: Mesh, uv: NDArray[np.float64]):
+    def __init__(self, mesh: Mesh, uv: NDArray[np.float64], _buckets=None):
         self.mesh = mesh
         uv = np.ascontiguousarray(uv, dtype=np.float64)
         uv.flags.writeable = False  # shared by every caller of square_map on this patch
         self.uv = uv
         # about two faces per bucket
         self._g = max(1, int(np.sqrt(mesh.n_faces / 2.0)))
-        self._buckets = _k.uv_buckets(uv, mesh.faces, self._g)
+        self._buckets = _k.uv_buckets(uv, mesh.faces, self._g) if _buckets is None else _buckets
 
     def uv_of(self, face: NDArray[np.int64], bary: NDArray[np.float64]) -> NDArray[np.float64]:
         """(m, 2) parameters of face points (``face`` (m,), ``bary`` (m, 3))."""
@@ -274,7 +274,8 @@ _LU_OPTIONS: dict = {
 }
 
 
-#: square maps already made, per patch mesh (dropped with the mesh) and sides
+#: square maps already made, per patch mesh and sides: their arrays only (``uv``, buckets),
+#: since a value that referred to its mesh would keep the weak key, and the mesh, alive
 _MAPS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 _MAPS_LOCK = threading.Lock()
 
@@ -327,10 +328,10 @@ def square_map(mesh: Mesh, sides: Sides, *, balanced: bool = False) -> PlanarMap
     with _MAPS_LOCK:
         hit = _MAPS.get(mesh, {}).get(key)
     if hit is not None:
-        return hit
+        return PlanarMap(mesh, *hit)
     pmap = _square_map(mesh, sides, balanced=balanced)
     with _MAPS_LOCK:
-        _MAPS.setdefault(mesh, {})[key] = pmap
+        _MAPS.setdefault(mesh, {})[key] = (pmap.uv, pmap._buckets)
     return pmap
 
 
