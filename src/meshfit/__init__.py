@@ -21,6 +21,7 @@ from meshfit.types import SurfaceCurve, SurfacePoints
 #: the front door's names, imported on first use (``import meshfit`` stays quick for the CLI)
 _LAZY = {
     "fit": "meshfit.pipeline",
+    "ClusterOptions": "meshfit.pipeline",
     "load_fit": "meshfit.pipeline",
     "FitOptions": "meshfit.pipeline",
     "FitResult": "meshfit.pipeline",
@@ -31,6 +32,7 @@ _LAZY = {
 }
 
 __all__ = [
+    "ClusterOptions",
     "FitOptions",
     "FitResult",
     "Mesh",

@@ -105,8 +105,14 @@ def fit_one(
                 patch_map = _dask_patch_map
             except ValueError:  # not on a worker: threads
                 patch_map = None
-        summary = fit(
-            mesh, layout or "auto", options=opts, out=folder, resume=True, patch_map=patch_map
+        summary = fit(  # (a task never starts a cluster of its own)
+            mesh,
+            layout or "auto",
+            options=opts,
+            out=folder,
+            resume=True,
+            patch_map=patch_map,
+            cluster=None,
         ).summary
     except MeshfitError as exc:
         return {"status": "failed", "error": f"{type(exc).__name__}: {exc}".splitlines()[0]}

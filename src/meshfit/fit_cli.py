@@ -104,9 +104,16 @@ def cmd_fit(args: argparse.Namespace) -> int:
 
         mesh = fill_holes(mesh)
     out = Path(args.out) if args.out else Path(Path(args.mesh).stem + "-fit")
+    cluster = _cluster(args)
     with stage_progress(quiet=args.json) as prog:
         result = fit(
-            mesh, args.layout or "auto", options=options, out=out, resume=args.resume, progress=prog
+            mesh,
+            args.layout or "auto",
+            options=options,
+            out=out,
+            resume=args.resume,
+            progress=prog,
+            cluster=cluster,
         )
     summary = result.summary
     if args.json:
@@ -122,6 +129,19 @@ def cmd_fit(args: argparse.Namespace) -> int:
         if options.report:
             print(f"report: {out / 'report.html'}")
     return EXIT_OK
+
+
+def _cluster(args: argparse.Namespace):
+    """The fit's ``cluster`` from ``--scheduler`` and ``--processes`` (0: threads)."""
+    scheduler = getattr(args, "scheduler", None)
+    processes = getattr(args, "processes", None)
+    if scheduler:
+        return scheduler
+    if processes is None:
+        return "auto"
+    if processes < 0:
+        raise InputError(f"--processes must be 0 (threads) or more, got {processes}")
+    return processes or None
 
 
 def cmd_rebuild(args: argparse.Namespace) -> int:
@@ -380,6 +400,22 @@ def add_commands(sub) -> None:
     )
     p.add_argument("--resume", action="store_true", help="re-use finished stages in --out")
     p.add_argument("--workers", type=int, default=None, help="threads (default: all cores)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument(
+        "--processes",
+        type=int,
+        default=None,
+        metavar="N",
+        help="make the spring meshes and maps in N worker processes (a Dask LocalCluster on "
+        "127.0.0.1, 4 GiB each; 0: threads of this process) (default: threads)",
+    )
+    where.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="make the spring meshes and maps on a running Dask cluster, e.g. "
+        "tcp://host:8786 (its workers must read --out: a shared file system)",
+    )
     add_repair_option(p)
     p.add_argument(
         "--fill-holes",

@@ -6,8 +6,9 @@ exports -> errors -> report, as a short list of stages run by one runner.
 exports and rebuilds from edited maps. The package holds one idea per module:
 :mod:`.options` (what the user chooses, grouped by stage), :mod:`.runner` (content keys,
 cache, progress), :mod:`.stages` (the stage objects), :mod:`.measure` (errors against the
-input), :mod:`.notes`, :mod:`.springs` (the per-patch task), :mod:`.outputs` (exports and
-the manifest), :mod:`.result` and :mod:`.rebuild`. Continuity lives in :mod:`meshfit.stitch`.
+input), :mod:`.notes`, :mod:`.springs` (the per-patch task), :mod:`.cluster` (the per-patch
+work of one fit as Dask tasks), :mod:`.outputs` (exports and the manifest), :mod:`.result`
+and :mod:`.rebuild`. Continuity lives in :mod:`meshfit.stitch`.
 
 Stitching
 ---------
@@ -22,6 +23,7 @@ the maps are closed with :func:`meshfit.stitch.stitch_displacements`. The seams 
 either way (:func:`meshfit.stitch.layout.seam_metrics`, ``summary["seams"]``).
 """
 
+from meshfit.pipeline.cluster import ClusterOptions
 from meshfit.pipeline.options import (
     FORMATS,
     FitOptions,
@@ -40,6 +42,7 @@ from meshfit.springs import SpringOptions
 __all__ = [
     "FORMATS",
     "STAGES",
+    "ClusterOptions",
     "FitOptions",
     "FitResult",
     "LayoutOptions",

@@ -12,7 +12,9 @@ from typing import Any
 
 from meshfit._threads import n_workers
 from meshfit._version import __version__
+from meshfit.errors import InputError
 from meshfit.mesh import Mesh
+from meshfit.pipeline.cluster import patch_tasks, resolve_cluster
 from meshfit.pipeline.notes import quality_notes
 from meshfit.pipeline.options import FitOptions
 from meshfit.pipeline.outputs import (
@@ -43,6 +45,7 @@ def fit(
     out: str | os.PathLike | None = None,
     resume: bool = False,
     patch_map: Callable | None = None,
+    cluster: Any = "auto",
 ) -> FitResult:
     """Fit B-spline patches with displacement maps to a mesh.
 
@@ -61,12 +64,22 @@ def fit(
     out : path, keyword-only, optional
         Output folder: the fit is saved there (:meth:`FitResult.save`), the options' formats
         exported and the report written, and every stage's result is kept in
-        ``out/stages`` for ``resume``. Default None: in memory only.
+        ``out/.meshfit`` for ``resume``. Default None: in memory only.
     resume : bool, keyword-only
         With ``out``: re-use the stage files whose content key matches (default False).
     patch_map : callable(fn, items) -> list, keyword-only, optional
         Runs the per-patch spring-mesh tasks elsewhere (Dask, :mod:`meshfit.batch`): called
         with :func:`meshfit.pipeline.spring_task` and one picklable item per patch.
+    cluster : "auto", None, int, str, ClusterOptions or distributed.Client, keyword-only
+        Where each patch's spring mesh and displacement map are made
+        (:mod:`meshfit.pipeline.cluster`): None, threads of this process (``options.workers``
+        of them); an int N, a LocalCluster of N worker processes on 127.0.0.1; a str, the
+        address of a running Dask scheduler (its workers must read ``out``); a
+        :class:`~meshfit.pipeline.cluster.ClusterOptions`, with a memory limit and retries;
+        a client, its cluster (left open). ``"auto"`` (default): threads, or a LocalCluster
+        for meshes of at least :data:`meshfit.pipeline.cluster.LOCAL_CLUSTER_FACES` faces.
+        The result is the same bytes either way. With ``patch_map`` (the spring meshes sent
+        elsewhere) the rest runs on threads: ``cluster`` must be "auto" or None.
 
     Returns
     -------
@@ -75,7 +88,7 @@ def fit(
     Raises
     ------
     meshfit.errors.MeshfitError
-        Bad input (mesh, layout, options).
+        Bad input (mesh, layout, options); a scheduler that cannot be reached.
 
     References
     ----------
@@ -83,10 +96,15 @@ def fit(
        (B-spline fitting), ch. 7 (displacement maps), sec. 8.1 (continuity).
     """
     options = options or FitOptions()
+    if patch_map is not None:
+        if cluster is not None and not (isinstance(cluster, str) and cluster == "auto"):
+            raise InputError("give patch_map or cluster, not both")
+        cluster = None
+    resolve_cluster(cluster, 0)  # a wrong value is refused before any work
     folder = None if out is None else Path(out)
     made = _made_folders(folder)
     try:
-        return _fit(mesh, layout, options, folder, resume, progress, patch_map)
+        return _fit(mesh, layout, options, folder, resume, progress, patch_map, cluster)
     except BaseException:
         for d in made:  # a refused or failed run leaves no empty folders of its own
             with contextlib.suppress(OSError):
@@ -104,7 +122,16 @@ def _made_folders(folder: Path | None) -> list[Path]:
     return todo
 
 
-def _fit(mesh, layout, options: FitOptions, folder: Path | None, resume: bool, progress, patch_map):
+def _fit(
+    mesh,
+    layout,
+    options: FitOptions,
+    folder: Path | None,
+    resume: bool,
+    progress,
+    patch_map,
+    cluster,
+):
     t_all = time.perf_counter()
     ctx = Context(options, n_workers(options.workers), progress)
     ctx["input"] = mesh
@@ -117,8 +144,19 @@ def _fit(mesh, layout, options: FitOptions, folder: Path | None, resume: bool, p
         refuse_foreign(folder, planned_files(output_stem(name), options.formats))
     runner = Runner(None if folder is None else folder / CACHE, resume)
     automatic = layout is None or (isinstance(layout, str) and layout == "auto")
-    runner.run([Validate(automatic, None if automatic else _fingerprint(layout))], ctx)
-    runner.run(fit_stages(layout, patch_map, folder), ctx)
+    cache = None if folder is None else folder / CACHE
+    auto = isinstance(cluster, str) and cluster == "auto"  # (decided by the mesh's size)
+    # a cluster asked for is reached (or started, on a thread) before any work
+    ctx.tasks = None if auto else patch_tasks(cluster, 0, cache)
+    try:
+        runner.run([Validate(automatic, None if automatic else _fingerprint(layout))], ctx)
+        if auto:
+            ctx.tasks = patch_tasks(cluster, ctx["mesh"].n_faces, cache)
+        runner.run(fit_stages(layout, patch_map, folder), ctx)
+    finally:
+        if ctx.tasks is not None:
+            ctx.tasks.close()
+            ctx.tasks = None
     ctx.info = {k: ctx.info[k] for k in STAGES if k in ctx.info}  # the stage order
     summary = _summary(ctx)
     if folder is not None and options.report:

@@ -41,6 +41,9 @@ class Context:
         self.saved: dict[str, bool] = {}
         #: the cache file of a stage by name and suffix (None without a cache)
         self.path: Callable[[str, str], Path | None] = lambda name, suffix: None
+        #: where the per-patch stages send their work as Dask tasks
+        #: (:class:`meshfit.pipeline.cluster.PatchTasks`); None: the context's threads
+        self.tasks: Any = None
         self._lazy: dict[str, Callable[[], Any]] = {}
 
     def __getitem__(self, name: str) -> Any:

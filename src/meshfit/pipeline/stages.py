@@ -288,6 +288,7 @@ class Springs(Stage):
 
     def __init__(self, patch_map=None) -> None:
         self.patch_map = patch_map
+        self.tasks = False  # whether the spring meshes were made as tasks
 
     def group(self, ctx: Context) -> Any:
         return ctx.options.springs
@@ -297,8 +298,11 @@ class Springs(Stage):
         o = ctx.options.springs
         if self.patch_map is not None:
             res = self.patch_map(spring_task, [(patch_payload(p), o) for p in ps])
+        elif ctx.tasks is not None:
+            res = ctx.tasks.springs(ps, o, lambda d, n: ctx.tick(self.name, d, n))
         else:
             res = ctx.map(lambda p: spring_patch(p, o), ps, "springs", [p.mesh.n_faces for p in ps])
+        self.tasks = self.patch_map is not None or ctx.tasks is not None
         ctx["grids"] = [g for g, _ in res]
         ctx["spring_info"] = [i for _, i in res]
 
@@ -315,7 +319,7 @@ class Springs(Stage):
         return True
 
     def facts(self, ctx: Context) -> dict[str, Any]:
-        return {"patch_tasks": self.patch_map is not None}
+        return {"patch_tasks": self.tasks}
 
 
 def _refuse_classes(chosen, n_cls: int) -> None:
@@ -480,24 +484,30 @@ class Displacement(Stage):
     outputs = ("maps",)
     after = ("fit",)
 
+    def __init__(self) -> None:
+        self.tasks = False  # whether the maps were made as tasks
+
     def extra(self, ctx: Context) -> Any:
         return [ctx.options.maps.kind, ctx.options.maps.shapes]
 
     def run(self, ctx: Context) -> None:
-        from meshfit.displacement import displacement_map, refine_on_scan
-
         shapes = _settle_map_shapes(ctx)
         self._early(ctx)
         surfaces, grids, kind = ctx["surfaces"], ctx["grids"], ctx.options.maps.kind
         mesh = ctx["mesh"]
+        if ctx.tasks is not None:
+            tick = lambda d, n: ctx.tick(self.name, d, n)  # noqa: E731
+            ctx["maps"] = ctx.tasks.maps(mesh, surfaces, grids, shapes, kind, tick)
+            self.tasks = True
+            return
 
         def one(p: int):
-            g = grids[p]
-            if shapes[p] != g.shape[:2]:
-                g = refine_on_scan(mesh, surfaces[p], g, shapes[p])
-            return displacement_map(surfaces[p], g, kind=kind)
+            return patch_displacement(mesh, surfaces[p], grids[p], shapes[p], kind)
 
         ctx["maps"] = ctx.map(one, list(range(len(grids))), "displacement")
+
+    def facts(self, ctx: Context) -> dict[str, Any]:
+        return {"patch_tasks": self.tasks}
 
     def _early(self, ctx: Context) -> None:
         """With maps at their spring grids' shapes the spline-only surface is known now:
@@ -519,6 +529,17 @@ class Displacement(Stage):
         _settle_map_shapes(ctx)  # (the same choice as when the maps were made)
         ctx["maps"] = _load_maps(path, ctx["layout"].n_patches, ctx.options.maps.kind)
         return True
+
+
+def patch_displacement(mesh, surface, grid, shape: tuple[int, int], kind: str):
+    """One patch's displacement map: its spring ``grid (h, w, 3) float64`` over its spline,
+    at ``shape``; a shape other than the grid's first takes the finer grid from the scan
+    ``mesh`` (:func:`meshfit.displacement.refine_on_scan`; ``mesh`` is read only then)."""
+    from meshfit.displacement import displacement_map, refine_on_scan
+
+    if tuple(shape) != tuple(grid.shape[:2]):
+        grid = refine_on_scan(mesh, surface, grid, shape)
+    return displacement_map(surface, grid, kind=kind)
 
 
 def _settle_map_shapes(ctx: Context) -> list[tuple[int, int]]:
