@@ -244,6 +244,7 @@ class Cut(Stage):
 
         t = time.perf_counter()
         mesh = ctx["mesh"]
+        _release_mesh_memory(mesh, ("_edge_table",))  # the layout's working arrays
         ps = extract_patches(mesh, ctx["layout"], workers=ctx.workers)
         face_patch = np.full(mesh.n_faces, -1, dtype=np.int64)
         for p in ps:
@@ -294,17 +295,33 @@ class Springs(Stage):
         return ctx.options.springs
 
     def run(self, ctx: Context) -> None:
-        ps = ctx["patches"]
+        from meshfit.layout.extract import forget_partition
+
+        ps = list(ctx["patches"])
+        # no later stage reads the patches or the mesh's adjacency: they go now (each patch
+        # as soon as its spring mesh exists), as on a dense scan they are most of the memory
+        ctx.values.pop("patches", None)
+        forget_partition()
+        _release_mesh_memory(ctx["mesh"])
         o = ctx.options.springs
         if self.patch_map is not None:
             res = self.patch_map(spring_task, [(patch_payload(p), o) for p in ps])
         elif ctx.tasks is not None:
             res = ctx.tasks.springs(ps, o, lambda d, n: ctx.tick(self.name, d, n))
         else:
-            res = ctx.map(lambda p: spring_patch(p, o), ps, "springs", [p.mesh.n_faces for p in ps])
+            cost = [p.mesh.n_faces for p in ps]
+
+            def one(i: int):
+                out = spring_patch(ps[i], o)
+                ps[i] = None
+                return out
+
+            res = ctx.map(one, list(range(len(ps))), "springs", cost)
         self.tasks = self.patch_map is not None or ctx.tasks is not None
         ctx["grids"] = [g for g, _ in res]
         ctx["spring_info"] = [i for _, i in res]
+        ps.clear()
+        _release_mesh_memory(ctx["mesh"])
 
     def save(self, ctx: Context, path: Path) -> None:
         arrays = {f"grid_{p}": g for p, g in enumerate(ctx["grids"])}
@@ -320,6 +337,21 @@ class Springs(Stage):
 
     def facts(self, ctx: Context) -> dict[str, Any]:
         return {"patch_tasks": self.tasks}
+
+
+#: what the stages after the cut read of the mesh's derived arrays (closest points for the
+#: maps and the errors, face normals for the maps)
+_MESH_KEPT = ("triangle_tree", "face_normals")
+
+
+def _release_mesh_memory(mesh: Mesh, keep: tuple[str, ...] = ()) -> None:
+    """Drop the mesh's derived arrays but `_MESH_KEPT` and ``keep`` and hand the freed
+    pages back (:func:`meshfit._malloc.release_memory`): the adjacency the layout built is
+    several times the mesh's own size, and the stages after it derive what they need."""
+    from meshfit._malloc import release_memory
+
+    mesh.drop_caches(keep=_MESH_KEPT + keep)
+    release_memory()
 
 
 def _refuse_classes(chosen, n_cls: int) -> None:
@@ -635,14 +667,19 @@ class Stitch(Stage):
         return True
 
 
-def _early_result(ctx: Context):
-    """The early spline-only errors, where they were started and the maps kept its shapes."""
+def _early_future(ctx: Context):
+    """The future of the early spline-only errors, where they were started and the maps
+    kept its shapes; else None."""
     if "early_spline" not in ctx:
         return None
     shapes, future = ctx["early_spline"]
-    if shapes != [d.shape[:2] for d in ctx["maps"]]:
-        return None
-    return future.result()
+    return future if shapes == [d.shape[:2] for d in ctx["maps"]] else None
+
+
+def _early_result(ctx: Context):
+    """The early spline-only errors (`_early_future`, waited for), or None."""
+    future = _early_future(ctx)
+    return None if future is None else future.result()
 
 
 def _spline_grids(ctx: Context) -> list:
@@ -665,16 +702,20 @@ class Errors(Stage):
         return ctx["mesh_hash"]
 
     def run(self, ctx: Context) -> None:
+        from meshfit._malloc import release_memory
+
         mesh, diag = ctx["mesh"], ctx["diag"]
         displaced = ctx["displaced"]
-        # the displaced surface's tree is built (serial work) while the spline-only
-        # surface's searches may still run
+        future = _early_future(ctx)
+        if future is None:  # first, so one surface's soup and tree are in memory at a time
+            spline = measure.spline_errors(mesh, ctx["spline_grids"])
+            release_memory()
+        # (built while the spline-only searches started early may still run on their thread)
         Vd, Fd = measure.soup(displaced)
         tree = grid_tree(Vd, Fd, [g.shape[:2] for g in displaced])
-        done = _early_result(ctx)
-        spline_fig, spline_to_input = (
-            done[1:] if done is not None else measure.spline_errors(mesh, ctx["spline_grids"])
-        )
+        if future is not None:
+            spline = future.result()[1:]
+        spline_fig, spline_to_input = spline
         disp_fig, _, from_input = measure.error_figures(
             mesh, Vd, Fd, tree, measure.spring_bounds(displaced, ctx["grids"])
         )
