@@ -101,6 +101,10 @@ def test_tasks_give_the_same_fit(on_threads, client, tmp_path):
         done = [d for s, d, n in ticks if s == stage and n == 24]
         assert done == list(range(25)), stage
     assert not (tmp_path / CACHE / cl.SCRATCH).exists()  # the scratch folder is gone
+    # the peak memory counts the workers too
+    mem, alone = got.summary["memory"], want.summary["memory"]
+    assert mem["peak_rss_workers"] > 0 and alone["peak_rss_workers"] is None
+    assert mem["peak_rss_total"] == mem["peak_rss_process"] + mem["peak_rss_workers"]
 
 
 def test_own_local_cluster_without_an_output_folder():

@@ -4,6 +4,7 @@ fit's patch meshes outlives the fit."""
 from __future__ import annotations
 
 import gc
+import os
 
 import numpy as np
 from numpy.testing import assert_array_equal
@@ -55,3 +56,39 @@ def test_the_fit_drops_the_meshs_adjacency_after_the_spring_meshes():
     meshfit.fit(mesh, options=FitOptions(report=False))
     kept = set(vars(mesh)) - {"vertices", "faces", "vertex_colors", "name", "repairs"}
     assert "_edge_table" not in kept and "face_neighbors" not in kept, sorted(kept)
+
+
+def test_a_fit_stays_within_its_memory_bound(tmp_path):
+    # the command's peak over its whole life (imports and loading included) stays within
+    # 1 GiB + 0.5 GiB per million input triangles; before the fit let go of the layout's
+    # adjacency and its patch meshes, this scan's fit peaked at 1.75 GiB against 1.14
+    import json
+    import subprocess
+    import sys
+
+    from .conftest import mesh_path
+
+    run = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import sys; from meshfit.cli import main; sys.exit(main(sys.argv[1:]))",
+            "fit",
+            str(mesh_path("igea")),
+            "--out",
+            str(tmp_path / "fit"),
+            "--formats",
+            "obj",
+            "--no-report",
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "MESHFIT_COMPILE_AHEAD": "0"},
+        timeout=1800,
+    )
+    assert run.returncode == 0, run.stderr[-2000:]
+    summary = json.loads(run.stdout)
+    bound = 2**30 + 0.5 * 2**30 * summary["mesh"]["faces"] / 1e6
+    peak = summary["memory"]["peak_rss_total"]
+    assert peak <= bound, f"{peak / 2**30:.2f} GiB > {bound / 2**30:.2f} GiB"

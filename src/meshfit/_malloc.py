@@ -15,7 +15,7 @@ import ctypes
 import ctypes.util
 import sys
 
-__all__ = ["release_memory", "tune_malloc"]
+__all__ = ["peak_rss", "release_memory", "tune_malloc"]
 
 #: ``mallopt`` parameters (glibc ``malloc.h``)
 _M_TRIM_THRESHOLD = -1
@@ -77,3 +77,14 @@ def release_memory() -> None:
     libc = _libc()
     if libc is not None:
         libc.malloc_trim(0)
+
+
+def peak_rss() -> int | None:
+    """This process's peak resident set size so far, in bytes (``getrusage``; None where
+    the system has no such call)."""
+    try:
+        import resource
+    except ImportError:  # (not on Windows)
+        return None
+    peak = int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+    return peak if sys.platform == "darwin" else peak * 1024  # (Linux: KiB)

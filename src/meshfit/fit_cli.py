@@ -75,6 +75,10 @@ def _options(args: argparse.Namespace):
     )
 
 
+def _gib(n: int | None) -> str:
+    return "unknown" if n is None else f"{n / 2**30:.2f} GiB"
+
+
 def _short_summary(summary: dict) -> dict:
     e = summary["errors"]
     return {
@@ -88,6 +92,7 @@ def _short_summary(summary: dict) -> dict:
         "seam_gap": summary["seams"]["spline_gap_max"],
         "folded_cells": sum(p["folded"] for p in summary["patches"]),
         "seconds": summary["seconds_total"],
+        "peak_memory": _gib(summary.get("memory", {}).get("peak_rss_total")),
         "stages_reused": [s for s, i in summary["stages"].items() if i["cached"]],
     }
 

@@ -392,6 +392,19 @@ class PatchTasks:
                 "the workers more memory or use fewer processes per machine"
             ) from None
 
+    def workers_peak_rss(self) -> int | None:
+        """The peak resident set sizes of the workers summed, in bytes (None when they
+        cannot be asked): of the fit's own LocalCluster, or of a running cluster's workers
+        over their lifetimes (which may include other work)."""
+        from meshfit._malloc import peak_rss
+
+        try:
+            peaks = self.client.run(peak_rss)
+        except (OSError, TimeoutError, MeshfitError):
+            return None
+        values = [v for v in peaks.values() if v is not None]
+        return int(sum(values)) if values else None
+
     # ---------------------------------------------------------------------- closing
     def close(self) -> None:
         """Remove the scratch folder; on a cluster we did not start, the workers let go of

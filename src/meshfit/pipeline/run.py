@@ -153,6 +153,7 @@ def _fit(
         if auto:
             ctx.tasks = patch_tasks(cluster, ctx["mesh"].n_faces, cache)
         runner.run(fit_stages(layout, patch_map, folder), ctx)
+        workers_peak = None if ctx.tasks is None else ctx.tasks.workers_peak_rss()
     finally:
         if ctx.tasks is not None:
             ctx.tasks.close()
@@ -165,6 +166,7 @@ def _fit(
         summary["outputs"]["report"] = ["report.html"]
     summary["stages"] = ctx.info
     summary["seconds_total"] = round(time.perf_counter() - t_all, 4)
+    summary["memory"] = _memory(workers_peak)
     summary["work_done"] = [s for s, i in ctx.info.items() if not i["cached"] and s != "validate"]
     result = _result(ctx, summary)
     if folder is not None:
@@ -193,6 +195,16 @@ def _fingerprint(layout: Any) -> str | None:
     mesh = doc.get("mesh") if isinstance(doc, dict) else None
     fp = mesh.get("sha256") if isinstance(mesh, dict) else None
     return fp if isinstance(fp, str) else None
+
+
+def _memory(workers_peak: int | None) -> dict[str, int | None]:
+    """Peak resident memory in bytes: this process's (over its lifetime so far), the
+    workers' summed when the per-patch work ran as tasks, and the two together."""
+    from meshfit._malloc import peak_rss
+
+    own = peak_rss()
+    total = None if own is None else own + (workers_peak or 0)
+    return {"peak_rss_process": own, "peak_rss_workers": workers_peak, "peak_rss_total": total}
 
 
 def _summary(ctx: Context) -> dict[str, Any]:
