@@ -744,15 +744,17 @@ class Errors(Stage):
 
 
 class Exports(Stage):
-    """The chosen formats written to the output folder, beside the error searches; the
-    record keeps every file's hash, so a resumed run re-writes only what changed."""
+    """The chosen formats written to the output folder, before the error searches (beside
+    them, the exports' arrays and the searches' add up to a dense scan's peak memory, and
+    the searches already use every core); the record keeps every file's hash, so a resumed
+    run re-writes only what changed."""
 
     name = "exports"
     inputs = ("surfaces", "maps", "network")
     outputs = ("outputs",)
     after = ("stitch",)
     suffix = ".json"
-    background = True
+    background = False
 
     def __init__(self, out: Path) -> None:
         self.out = out
