@@ -18,3 +18,15 @@ def test_glibc_takes_the_settings():
 def test_other_systems_keep_their_defaults(monkeypatch):
     monkeypatch.setattr(_malloc.sys, "platform", "darwin")
     assert _malloc.tune_malloc() is False
+
+
+def test_a_child_reports_its_own_peak_not_its_parents():
+    # a command started by a large process (a test run, a notebook) must not report that
+    # process's size as its own peak (getrusage's figure carries over fork and exec)
+    import numpy as np
+
+    big = np.ones(2**27)  # 1 GiB, touched
+    assert _malloc.peak_rss() >= big.nbytes
+    code = "from meshfit._malloc import peak_rss; print(peak_rss())"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert int(out.stdout) < big.nbytes // 2

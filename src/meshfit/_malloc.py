@@ -80,11 +80,20 @@ def release_memory() -> None:
 
 
 def peak_rss() -> int | None:
-    """This process's peak resident set size so far, in bytes (``getrusage``; None where
-    the system has no such call)."""
+    """This process's peak resident set size so far, in bytes: Linux's ``VmHWM``, else
+    ``getrusage`` (None where the system has neither). Not ``getrusage`` on Linux: its
+    figure carries over a fork and an exec, so a command started by a large process would
+    report that process's size."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) * 1024  # (kB)
+    except (OSError, ValueError, IndexError):
+        pass
     try:
         import resource
     except ImportError:  # (not on Windows)
         return None
     peak = int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
-    return peak if sys.platform == "darwin" else peak * 1024  # (Linux: KiB)
+    return peak if sys.platform == "darwin" else peak * 1024  # (other systems: KiB)
