@@ -219,10 +219,6 @@ class Mesh:
         kept = {*keep, "bbox", "bbox_diagonal", "mean_edge_length"}
         own = {f.name for f in fields(self)}
         for name in [k for k in self.__dict__ if k not in own and k not in kept]:
-            if name == "aabb":
-                from meshfit.mesh.locate import _WITH_AABB
-
-                _WITH_AABB.discard(self)
             self.__dict__.pop(name, None)
 
     # ------------------------------------------------------------- connectivity

@@ -142,9 +142,9 @@ def _fit(
         else:
             name = getattr(mesh, "name", None)
         refuse_foreign(folder, planned_files(output_stem(name), options.formats))
-    runner = Runner(None if folder is None else folder / CACHE, resume)
-    automatic = layout is None or (isinstance(layout, str) and layout == "auto")
     cache = None if folder is None else folder / CACHE
+    runner = Runner(cache, resume)
+    automatic = layout is None or (isinstance(layout, str) and layout == "auto")
     auto = isinstance(cluster, str) and cluster == "auto"  # (decided by the mesh's size)
     # a cluster asked for is reached (or started, on a thread) before any work
     ctx.tasks = None if auto else patch_tasks(cluster, 0, cache)

@@ -295,6 +295,7 @@ class Springs(Stage):
         return ctx.options.springs
 
     def run(self, ctx: Context) -> None:
+        from meshfit._malloc import release_memory
         from meshfit.layout.extract import forget_partition
 
         ps = list(ctx["patches"])
@@ -321,7 +322,7 @@ class Springs(Stage):
         ctx["grids"] = [g for g, _ in res]
         ctx["spring_info"] = [i for _, i in res]
         ps.clear()
-        _release_mesh_memory(ctx["mesh"])
+        release_memory()  # (the patches' pages)
 
     def save(self, ctx: Context, path: Path) -> None:
         arrays = {f"grid_{p}": g for p, g in enumerate(ctx["grids"])}
@@ -340,8 +341,9 @@ class Springs(Stage):
 
 
 #: what the stages after the cut read of the mesh's derived arrays (closest points for the
-#: maps and the errors, face normals for the maps)
-_MESH_KEPT = ("triangle_tree", "face_normals")
+#: maps and the errors, face normals for the maps), and the ray-hit tree, which no stage
+#: builds but a caller may have (the app's picking)
+_MESH_KEPT = ("triangle_tree", "face_normals", "aabb")
 
 
 def _release_mesh_memory(mesh: Mesh, keep: tuple[str, ...] = ()) -> None:
