@@ -98,9 +98,9 @@ def run_one(size: str, patches: int) -> dict:
     }
 
 
-def _median_run(runs: list[dict]) -> dict:
-    """Median seconds per stage and in total over runs; the other figures of the first run
-    (they do not depend on the run) and every run's total."""
+def _median_run(runs: list[dict], peak_key: str = "peak_memory_mib") -> dict:
+    """Median seconds per stage and in total over runs, the largest ``peak_key`` memory; the
+    other figures of the first run (they do not depend on the run) and every run's total."""
     out = dict(runs[0])
     out["seconds_total"] = round(statistics.median(r["seconds_total"] for r in runs), 3)
     out["seconds_total_runs"] = [r["seconds_total"] for r in runs]
@@ -108,7 +108,7 @@ def _median_run(runs: list[dict]) -> dict:
         k: round(statistics.median(r["seconds_per_stage"][k] for r in runs), 4)
         for k in runs[0]["seconds_per_stage"]
     }
-    out["peak_memory_mib"] = max(r["peak_memory_mib"] for r in runs)
+    out[peak_key] = max(r[peak_key] for r in runs)
     return out
 
 

@@ -34,7 +34,7 @@ import threading
 import time
 
 from _common import mesh_path, write_result
-from pipeline import midpoint_subdivide
+from pipeline import _median_run, midpoint_subdivide
 
 #: subdivision steps of igea per size name
 SIZES = {"1m": 1, "4m": 2, "17m": 3}
@@ -143,21 +143,14 @@ def _fresh(size: str, processes: int, patches: int) -> dict:
 
 
 def _median(runs: list[dict]) -> dict:
-    """The first run's figures with the median total and stage times and the largest peak
-    memory over the runs (and every run's total)."""
-    out = dict(runs[0])
-    out["seconds_total"] = round(statistics.median(r["seconds_total"] for r in runs), 3)
-    out["seconds_total_runs"] = [r["seconds_total"] for r in runs]
+    """`pipeline._median_run` (median times, largest peak) with the task stages' median
+    time and every run's load average."""
+    out = _median_run(runs, peak_key="peak_rss_mib")
     out["seconds_tasks_stages"] = round(
         statistics.median(r["seconds_tasks_stages"] for r in runs), 3
     )
     out["seconds_tasks_stages_runs"] = [r["seconds_tasks_stages"] for r in runs]
     out["load_average_at_start"] = [r["load_average_at_start"] for r in runs]
-    out["seconds_per_stage"] = {
-        k: round(statistics.median(r["seconds_per_stage"][k] for r in runs), 4)
-        for k in runs[0]["seconds_per_stage"]
-    }
-    out["peak_rss_mib"] = max(r["peak_rss_mib"] for r in runs)
     return out
 
 
