@@ -215,7 +215,13 @@ class Mesh:
         trees, ...) except the names in ``keep`` and the bounding box; each is derived again
         on its next use. Over a dense scan these take several times the arrays' own memory,
         so a fit drops what its later stages do not read (meshes made by :meth:`with_name`
-        keep their own references)."""
+        keep their own references).
+
+        Parameters
+        ----------
+        keep : iterable of str
+            Names of cached values to keep, e.g. ``"triangle_tree"``, ``"face_normals"``.
+        """
         kept = {*keep, "bbox", "bbox_diagonal", "mean_edge_length"}
         own = {f.name for f in fields(self)}
         for name in [k for k in self.__dict__ if k not in own and k not in kept]:
