@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from meshfit._kernels.textio import face_lines
 from meshfit.bspline import BSplineSurface
 from meshfit.displacement import DisplacementMap
 from meshfit.errors import InputError
@@ -68,6 +69,16 @@ def _write_rows(fh, fmt: str, cols: NDArray) -> None:
         fh.write("".join(map((fmt + "\n").format, *chunk)))
 
 
+def _write_faces(fh, cols: NDArray[np.int64]) -> None:
+    """The face lines ``f a/d/a b/e/b c/f/c`` of ``cols (k, 6)`` (1-based vertex and
+    texture indices), `ROWS` at a time, formatted by a kernel (the same bytes as
+    `_write_rows` with that format)."""
+    fh.flush()
+    for a in range(0, len(cols), ROWS):
+        fh.buffer.write(face_lines(np.ascontiguousarray(cols[a : a + ROWS])).tobytes())
+    fh.buffer.flush()
+
+
 def _write_uv(fh, UV: NDArray) -> None:
     """``vt`` lines of ``UV (k, 2)``: each distinct coordinate formatted once (a grid has
     few), the same text as formatting every pair."""
@@ -112,7 +123,7 @@ def _write_obj(fh, pm: PatchMesh, names: list[str], mtl: str | None, shared) -> 
             if src:
                 _copy(src, shared["faces"][p], fh)
             else:
-                _write_rows(fh, "f {0}/{3}/{0} {1}/{4}/{1} {2}/{5}/{2}", cols[f0:f1])
+                _write_faces(fh, cols[f0:f1])
             fh.flush()
             ranges["faces"].append((a, fh.buffer.tell()))
     finally:

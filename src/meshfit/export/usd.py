@@ -248,7 +248,7 @@ def _define_mesh(stage, prim_path: str, mesh, names: list[str]):
     V = np.asarray(mesh.vertices, dtype=np.float64)
     F = np.asarray(mesh.faces, dtype=np.int64)
     geom.CreatePointsAttr(_vt(V, "f3"))
-    geom.CreateFaceVertexCountsAttr(_vt(np.full(len(F), 3), "i"))
+    geom.CreateFaceVertexCountsAttr(_vt(np.full(len(F), 3, dtype=np.int32), "i"))
     geom.CreateFaceVertexIndicesAttr(_vt(F, "i"))
     geom.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
     geom.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)

@@ -301,6 +301,7 @@ def _weld(
         [np.bincount(vertex_of, weights=points[:, c], minlength=nv) / count for c in range(3)],
         axis=1,
     )
+    del points, count  # (a dense network's largest temporaries, before the faces)
     cells = {sh: grid_faces(*sh) for sh in set(grids)}
     face_uv = np.concatenate([cells[sh] + o for sh, o in zip(grids, offs[:-1], strict=True)])
     face_patch = np.repeat(np.arange(n, dtype=np.int64), [2 * (h - 1) * (w - 1) for h, w in grids])
@@ -400,9 +401,12 @@ def _vertex_normals(vertices: NDArray, vertex_of: NDArray, grids, offs) -> NDArr
     acc = np.stack(
         [np.bincount(vertex_of, weights=node_sum[:, c], minlength=nv) for c in range(3)], axis=1
     )
-    norm = np.sqrt(np.einsum("ij,ij->i", acc, acc))[:, None]
+    del node_sum
+    norm = np.sqrt(np.einsum("ij,ij->i", acc, acc))
     with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(norm > 0, acc / norm, np.nan)
+        acc /= norm[:, None]  # (in place: the normals are as large as the vertices)
+    acc[~(norm > 0)] = np.nan
+    return acc
 
 
 def _cross(x: NDArray, y: NDArray) -> NDArray:

@@ -639,6 +639,7 @@ def _layout_on_proxy(
                 if fine_iters > 0:
                     curves = _relax_all(mesh, curves, fine_iters)
                 out = layout_from_curves(mesh, corners, curves, ends, quads)
+                _drop_fine(mesh)
                 check_layout_topology(mesh, out)
             except MeshfitError:
                 continue
@@ -769,6 +770,17 @@ def _prepare_fine(mesh: Mesh) -> None:
     last two where a carried pair is joined by a graph path)."""
     _ = mesh.triangle_tree, mesh.vertex_normals, mesh.vertex_faces, mesh.mean_edge_length
     _ = mesh.edge_face, mesh.vertex_adjacency
+
+
+#: what `_prepare_fine` builds that neither the cut nor the stages after it read
+_FINE_ONLY = ("vertex_normals", "_vertex_adjacency", "edge_face", "edge_lengths", "edge_graph")
+
+
+def _drop_fine(mesh: Mesh) -> None:
+    """Forget the full mesh's `_FINE_ONLY` arrays once the curves are carried and relaxed:
+    the partition that checks the layout is as large as the mesh's adjacency, and the two
+    side by side were a dense scan's peak (a later try derives them again)."""
+    mesh.drop_caches(keep=[k for k in vars(mesh) if k not in _FINE_ONLY])
 
 
 def _network(

@@ -92,9 +92,12 @@ def _partition(
 
 def _piece(
     mesh: Mesh, cut: NetworkCutArrays, faces: NDArray[np.int64], c: int
-) -> tuple[Mesh, NDArray[np.int64]] | MeshfitError:
+) -> tuple[Mesh, NDArray[np.int64], int] | MeshfitError:
     """Region ``c`` (split-mesh ``faces``) as a checked mesh with its boundary loops traced,
-    and the split-mesh vertex of each of its vertices; or the error the check raised."""
+    the split-mesh vertex of each of its vertices and its Euler characteristic; or the error
+    the check raised. The region's adjacency is dropped once the loops are traced: over a
+    dense scan the regions' tables together are as large as the mesh's own, and the patch
+    that keeps the region derives what it needs when its spring mesh is made."""
     F = cut.faces[faces]
     used, inv = np.unique(F.reshape(-1), return_inverse=True)
     colors = None if cut.colors is None else cut.colors[used]
@@ -108,7 +111,9 @@ def _piece(
     except MeshfitError as exc:
         return exc
     _ = sub.boundary_loops
-    return sub, used
+    chi = sub.euler_characteristic
+    sub.drop_caches(keep=("boundary_loops",))
+    return sub, used, chi
 
 
 def _compute_partition(
@@ -170,8 +175,8 @@ def _compute_partition(
         got = pieces[c]
         if isinstance(got, MeshfitError):
             raise got
-        sub, used = got
-        boundary = _disk_boundary(layout, along, copy_of, sub, used, orig_face(c))
+        sub, used, chi = got
+        boundary = _disk_boundary(layout, along, copy_of, sub, used, chi, orig_face(c))
         seq, pos = chains(boundary, c)
         match = _match(layout, by_set, seq)
         if match is None:
@@ -200,10 +205,12 @@ def _disk_boundary(
     copy_of: NDArray[np.int64],
     sub: Mesh,
     used: NDArray[np.int64],
+    chi: int,
     face: int,
 ) -> NDArray[np.int64]:
     """The one boundary loop (split-mesh vertices) of a region (``sub``, its vertices
-    ``used``, containing original face ``face``); LayoutError where the region is no disk,
+    ``used``, Euler characteristic ``chi``, containing original face ``face``); LayoutError
+    where the region is no disk,
     naming the patch whose curves all bound it if there is one such patch."""
     loops = [used[loop] for loop in sub.boundary_loops]  # split-mesh vertices
     curves_seen: set[int] = set()
@@ -229,7 +236,6 @@ def _disk_boundary(
             f"{name()} is not a disk: its region has {len(loops)} boundary loops "
             "(a hole of the mesh inside it, or curves that do not close around it)"
         )
-    chi = sub.euler_characteristic
     if chi != 1:
         raise LayoutError(
             f"{name()} is not a disk: Euler characteristic {chi} instead of 1 (a handle inside it)"

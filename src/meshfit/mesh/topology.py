@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from meshfit._kernels import frozen
 from meshfit._kernels import topology as _k
 
 __all__ = ["EdgeTable", "corner_fans", "edge_table"]
@@ -65,9 +66,8 @@ def edge_table(faces: NDArray[np.int64], n_vertices: int) -> EdgeTable:
     n_vertices : int
         Number of vertices.
     """
-    edges, inverse, counts, order, start = _k.edge_table(
-        np.ascontiguousarray(faces, dtype=np.int64), int(n_vertices)
-    )
+    (f,) = frozen(np.ascontiguousarray(faces, dtype=np.int64))  # (one signature)
+    edges, inverse, counts, order, start = _k.edge_table(f, int(n_vertices))
     # numpy-owned copies of the arrays a mesh hands out (``edges``, ``face_edges``,
     # ``edge_face_count``): a mesh can seal those in place instead of keeping a read-only
     # copy of each beside the table (memory a kernel's result owns stays writeable)

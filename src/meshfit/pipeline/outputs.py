@@ -336,6 +336,7 @@ def write_exports(
     A map the user edited since the last run (:func:`edited_maps`) is put back as the user
     left it after the writers run, and ``notes`` says so: a re-fit never loses an edit.
     """
+    from meshfit._malloc import release_memory
     from meshfit.mesh.measures import up_axis as guess_up
 
     out = Path(out)
@@ -355,6 +356,7 @@ def write_exports(
     for i, fmt in enumerate(todo):
         if fmt not in ("exr", "png"):
             outputs[fmt] = outputs.get(fmt, []) + _write_format(job, fmt, images)
+            release_memory()  # (one tessellation's pages, before the next format's)
         if progress is not None:
             progress(i + 1, len(todo))
     outputs = {f: outputs[f] for f in todo if f in outputs}
