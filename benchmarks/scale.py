@@ -1,6 +1,7 @@
 """Benchmark: one large fit on the threads of one process against a LocalCluster.
 
-Usage: ``python benchmarks/scale.py [--sizes 1m,4m] [--processes 2] [--repeats 1]``
+Usage: ``python benchmarks/scale.py [--sizes 1m,4m] [--modes threads,cluster] [--processes 2]
+[--repeats 1]``
 
 igea (269K triangles) refined by 1-to-4 midpoint subdivision at run time, once (1.07M
 triangles, ``1m``), twice (4.3M, ``4m``) or three times (17.2M, ``17m``: on request, it needs
@@ -154,12 +155,32 @@ def _median(runs: list[dict]) -> dict:
     return out
 
 
+def _compare(row: dict) -> None:
+    """The cluster's figures over the threads' (the peer), into ``row``."""
+    t, c = row["threads"], row["cluster"]
+    row["cluster_over_threads_seconds"] = round(c["seconds_total"] / t["seconds_total"], 3)
+    row["cluster_over_threads_tasks_stages"] = round(
+        c["seconds_tasks_stages"] / t["seconds_tasks_stages"], 3
+    )
+    row["cluster_over_threads_peak_rss"] = round(c["peak_rss_mib"] / t["peak_rss_mib"], 3)
+    row["same_errors"] = (c["displaced_rms"], c["displaced_hausdorff"]) == (
+        t["displaced_rms"],
+        t["displaced_hausdorff"],
+    )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", default="1m,4m", help="of 1m, 4m, 17m (default: %(default)s)")
     ap.add_argument("--processes", type=int, default=2, help="LocalCluster workers (default 2)")
     ap.add_argument("--patches", type=int, default=100)
     ap.add_argument("--repeats", type=int, default=1)
+    ap.add_argument(
+        "--modes",
+        default="threads,cluster",
+        help="threads, cluster or both (default: %(default)s; a 17m cluster run needs the "
+        "memory of the threads run and more)",
+    )
     ap.add_argument("--one", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one:
@@ -169,23 +190,18 @@ def main() -> None:
     unknown = [s for s in sizes if s not in SIZES]
     if unknown:
         sys.exit(f"unknown sizes {unknown}: choose among {list(SIZES)}")
+    modes = [m for m in ("threads", "cluster") if m in args.modes.split(",")]
+    if not modes:
+        sys.exit(f"--modes {args.modes!r}: choose threads, cluster or both")
     results: dict[str, dict] = {}
     for size in sizes:
-        runs: dict[str, list[dict]] = {"threads": [], "cluster": []}
+        runs: dict[str, list[dict]] = {m: [] for m in modes}
         for _ in range(max(1, args.repeats)):  # alternating, so both meet the same load
-            runs["threads"].append(_fresh(size, 0, args.patches))
-            runs["cluster"].append(_fresh(size, args.processes, args.patches))
+            for m in modes:
+                runs[m].append(_fresh(size, 0 if m == "threads" else args.processes, args.patches))
         row = {k: _median(v) for k, v in runs.items()}
-        t, c = row["threads"], row["cluster"]
-        row["cluster_over_threads_seconds"] = round(c["seconds_total"] / t["seconds_total"], 3)
-        row["cluster_over_threads_tasks_stages"] = round(
-            c["seconds_tasks_stages"] / t["seconds_tasks_stages"], 3
-        )
-        row["cluster_over_threads_peak_rss"] = round(c["peak_rss_mib"] / t["peak_rss_mib"], 3)
-        row["same_errors"] = (c["displaced_rms"], c["displaced_hausdorff"]) == (
-            t["displaced_rms"],
-            t["displaced_hausdorff"],
-        )
+        if len(modes) == 2:
+            _compare(row)
         results[size] = row
         print(size, json.dumps(row), flush=True)
     out = {
@@ -209,11 +225,17 @@ def main() -> None:
                 mode: round(
                     results[b][mode]["seconds_total"] / results[a][mode]["seconds_total"], 3
                 )
-                for mode in ("threads", "cluster")
+                for mode in modes
             },
         }
     out["growth"] = growth
-    write_result("scale", out)
+    # (another choice of sizes or modes keeps the default run's file)
+    name = (
+        "scale"
+        if (sizes, modes) == (["1m", "4m"], ["threads", "cluster"])
+        else "_".join(["scale", *sizes, *modes])
+    )
+    write_result(name, out)
 
 
 if __name__ == "__main__":

@@ -8,8 +8,9 @@ file written from the same patches.
 
 from __future__ import annotations
 
+import hashlib
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from itertools import pairwise
 from pathlib import Path
 
@@ -37,10 +38,12 @@ Displacements = DisplacementMap | Sequence[DisplacementMap | None] | None
 
 def _patch_meshes(
     outputs: Sequence[Displacements], surfaces, shape, network, scale
-) -> list[PatchMesh]:
-    """One PatchMesh per entry of ``outputs`` (displacements of the patches, or None): the
-    same network for all, and texture coordinates addressing each patch's first map among
-    the outputs, so spline-only and displaced meshes of one fit carry the same ones."""
+) -> Iterator[PatchMesh]:
+    """One PatchMesh per entry of ``outputs`` (displacements of the patches, or None), made
+    as the caller asks for it (one dense tessellation in memory at a time): the same network
+    for all, and texture coordinates addressing each patch's first map among the outputs,
+    so spline-only and displaced meshes of one fit carry the same ones. The arguments are
+    checked before the first is made."""
     n = len(surfaces)
     maps = [as_displacements(d, n) for d in outputs]
     texels: list[tuple[int, int] | None] = [None] * n
@@ -48,7 +51,7 @@ def _patch_meshes(
         texels = [t if m is None else m.shape for t, m in zip(texels, ms, strict=True)]
     if network is None:
         network = spline_network(surfaces)
-    return [_weld(surfaces, ms, network, shape, scale, texels) for ms in maps]
+    return (_weld(surfaces, ms, network, shape, scale, texels) for ms in maps)
 
 
 def _patch_ranges(pm: PatchMesh) -> np.ndarray:
@@ -270,19 +273,11 @@ def export_objs(
     names_ = as_names(names, len(surfaces))
     mats = _as_materials(materials, len(surfaces))
     meshes = _patch_meshes(list(outputs.values()), surfaces, shape, network, scale)
-    written: list[tuple[PatchMesh, dict]] = []  # (mesh, ranges and path) of each file
+    written: list[tuple[bytes, dict]] = []  # (`_shared_key`, ranges and path) of each file
     out = []
     for (path, displacements), pm in zip(outputs.items(), meshes, strict=True):
-        shared = next(
-            (
-                w
-                for m, w in written
-                if np.array_equal(m.faces, pm.faces)
-                and np.array_equal(m.face_uv, pm.face_uv)
-                and np.array_equal(m.uv, pm.uv)
-            ),
-            None,
-        )
+        key = _shared_key(pm)
+        shared = next((w for k, w in written if k == key), None)
         path = Path(path)
         # the maps complete a spline-only file; a displaced file holds the detail already
         mtl = None
@@ -296,8 +291,20 @@ def export_objs(
                 ranges.update(_write_obj(fh, pm, names_, mtl, shared))
 
         out.append(atomic_write(path, write))
-        written.append((pm, {**ranges, "path": path}))
+        written.append((key, {**ranges, "path": path}))
+        del pm, write  # (before the next file's tessellation is made)
     return out
+
+
+def _shared_key(pm: PatchMesh) -> bytes:
+    """A digest of what two OBJ files with equal ``vt`` and face lines share: the faces,
+    the texture indices and coordinates (with their shapes and types)."""
+    h = hashlib.sha256()
+    for a in (pm.faces, pm.face_uv, pm.uv):
+        a = np.ascontiguousarray(a)
+        h.update(f"{a.dtype.str}{a.shape}".encode())
+        h.update(memoryview(a).cast("B"))
+    return h.digest()
 
 
 def _write_mtl(path: Path, names: list[str], images: list[str]) -> Path:
@@ -353,7 +360,7 @@ def export_gltf(
 
     surfaces = as_surfaces(surfaces)
     names_ = as_names(names, len(surfaces))
-    pm = _patch_meshes([displacements], surfaces, shape, network, scale)[0]
+    pm = next(_patch_meshes([displacements], surfaces, shape, network, scale))
     uv_vertex = pm.uv_vertex
     material = PBRMaterial(name="meshfit", baseColorFactor=[204, 204, 204, 255])
     r = _patch_ranges(pm)
@@ -411,7 +418,7 @@ def export_ply(
     UDIM coordinates are left to the OBJ and glTF files.
     """
     surfaces = as_surfaces(surfaces)
-    pm = _patch_meshes([displacements], surfaces, shape, network, scale)[0]
+    pm = next(_patch_meshes([displacements], surfaces, shape, network, scale))
     n, m = len(pm.vertices), len(pm.faces)
     if n > np.iinfo(np.int32).max:
         raise InputError(f"{n} vertices: PLY's int vertex indices hold at most 2**31 - 1")

@@ -1,5 +1,5 @@
 """The whole fit: layout -> cut -> spring meshes -> B-spline fit -> displacement -> stitch ->
-exports -> errors -> report, as a short list of stages run by one runner.
+errors -> exports -> report, as a short list of stages run by one runner.
 
 :func:`fit` is the front door (in memory, or into a folder with a stage cache for
 ``resume``); it returns a :class:`FitResult`, which saves, loads (:func:`load_fit`),

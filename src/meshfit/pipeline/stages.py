@@ -1,5 +1,5 @@
 """The stages of the fit, in order: validate, layout, cut, springs, fit, displacement, stitch,
-exports, errors (and the report, after the summary).
+errors, exports (and the report, after the summary).
 
 Each stage reads named values from the :class:`~meshfit.pipeline.runner.Context` and writes
 its own; the continuity logic lives in :mod:`meshfit.stitch`, the error figures in
@@ -45,8 +45,8 @@ STAGES = (
     "fit",
     "displacement",
     "stitch",
-    "exports",
     "errors",
+    "exports",
     "report",
 )
 
@@ -346,13 +346,14 @@ class Springs(Stage):
 _MESH_KEPT = ("triangle_tree", "face_normals", "aabb")
 
 
-def _release_mesh_memory(mesh: Mesh, keep: tuple[str, ...] = ()) -> None:
-    """Drop the mesh's derived arrays but `_MESH_KEPT` and ``keep`` and hand the freed
-    pages back (:func:`meshfit._malloc.release_memory`): the adjacency the layout built is
-    several times the mesh's own size, and the stages after it derive what they need."""
+def _release_mesh_memory(mesh: Mesh, keep: tuple[str, ...] = (), search: bool = True) -> None:
+    """Drop the mesh's derived arrays but ``keep``, the caller's ray-hit tree and (with
+    ``search``) the rest of `_MESH_KEPT`, and hand the freed pages back
+    (:func:`meshfit._malloc.release_memory`): the adjacency the layout built is several
+    times the mesh's own size, and the stages after it derive what they need."""
     from meshfit._malloc import release_memory
 
-    mesh.drop_caches(keep=_MESH_KEPT + keep)
+    mesh.drop_caches(keep=(_MESH_KEPT if search else ("aabb",)) + keep)
     release_memory()
 
 
@@ -746,10 +747,11 @@ class Errors(Stage):
 
 
 class Exports(Stage):
-    """The chosen formats written to the output folder, before the error searches (beside
+    """The chosen formats written to the output folder, after the error searches (beside
     them, the exports' arrays and the searches' add up to a dense scan's peak memory, and
-    the searches already use every core); the record keeps every file's hash, so a resumed
-    run re-writes only what changed."""
+    the searches already use every core), without the scan's search structures, which no
+    later stage needs (the report derives them again); the record keeps every file's hash,
+    so a resumed run re-writes only what changed."""
 
     name = "exports"
     inputs = ("surfaces", "maps", "network")
@@ -781,6 +783,7 @@ class Exports(Stage):
     def run(self, ctx: Context) -> None:
         from meshfit.pipeline.outputs import output_stem, write_exports
 
+        _release_mesh_memory(ctx["mesh"], keep=(), search=False)
         ctx["outputs"] = write_exports(
             self.out,
             ctx["surfaces"],
@@ -882,9 +885,9 @@ def fit_stages(layout: Any, patch_map=None, out: Path | None = None) -> list[Sta
         Displacement(),
         Stitch(),
     ]
+    stages.append(Errors())
     if out is not None:
         stages.append(Exports(out))
-    stages.append(Errors())
     return stages
 
 
