@@ -15,7 +15,6 @@ import trimesh
 
 import meshfit
 from meshfit.errors import InputError
-from meshfit.mesh import load_mesh
 from meshfit.pipeline import FitOptions
 from meshfit.pipeline.outputs import edited_maps, map_patch, output_stem, read_manifest
 
@@ -123,12 +122,11 @@ def assert_obj_watertight(path, closed: bool) -> None:
 
 
 @pytest.mark.slow
-def test_the_bunny_obj_is_watertight_but_for_its_holes(tmp_path):
+def test_the_bunny_obj_is_watertight_but_for_its_holes(bunny_fit):
     # open, with unreferenced vertices: the command line's defaults (the other shared meshes:
     # tests/test_pipeline.py and tests/layout/test_regions.py)
-    mesh = load_mesh(mesh_path("bunny"), repair=True)
-    meshfit.fit(mesh, options=FitOptions(formats=("obj",), report=False), out=tmp_path)
-    assert_obj_watertight(tmp_path / "bunny.obj", closed=False)
+    _, _, out = bunny_fit
+    assert_obj_watertight(out / "bunny.obj", closed=False)
 
 
 def test_the_3dm_spline_and_the_exr_map_rebuild_the_displaced_surface(spot, tmp_path):
