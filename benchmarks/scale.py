@@ -4,8 +4,8 @@ Usage: ``python benchmarks/scale.py [--sizes 1m,4m] [--modes threads,cluster] [-
 [--repeats 1]``
 
 igea (269K triangles) refined by 1-to-4 midpoint subdivision at run time, once (1.07M
-triangles, ``1m``), twice (4.3M, ``4m``) or three times (17.2M, ``17m``: on request, it needs
-more memory than a 24 GiB machine has for the in-process run), fitted with the automatic
+triangles, ``1m``), twice (4.3M, ``4m``) or three times (17.2M, ``17m``: on request, as it
+takes minutes; ``--modes threads`` skips the LocalCluster), fitted with the automatic
 layout of about 100 patches, USD + EXR outputs, no report. Each size is fitted twice, each
 fit in a fresh process: on the threads of the process (``cluster=None``, the peer) and with
 the spring meshes and maps as tasks on a LocalCluster of ``--processes`` workers
