@@ -210,8 +210,8 @@ def _disk_boundary(
 ) -> NDArray[np.int64]:
     """The one boundary loop (split-mesh vertices) of a region (``sub``, its vertices
     ``used``, Euler characteristic ``chi``, containing original face ``face``); LayoutError
-    where the region is no disk,
-    naming the patch whose curves all bound it if there is one such patch."""
+    where the region is no disk, naming the patch whose curves all bound it if there is one
+    such patch."""
     loops = [used[loop] for loop in sub.boundary_loops]  # split-mesh vertices
     curves_seen: set[int] = set()
     for loop in loops:

@@ -749,9 +749,9 @@ class Errors(Stage):
 class Exports(Stage):
     """The chosen formats written to the output folder, after the error searches (beside
     them, the exports' arrays and the searches' add up to a dense scan's peak memory, and
-    the searches already use every core), without the scan's search structures, which no
-    later stage needs (the report derives them again); the record keeps every file's hash,
-    so a resumed run re-writes only what changed."""
+    the searches already use every core), without the scan's search tree and face normals
+    (of the later stages only the report reads them, and derives them again); the record
+    keeps every file's hash, so a resumed run re-writes only what changed."""
 
     name = "exports"
     inputs = ("surfaces", "maps", "network")
