@@ -177,6 +177,27 @@ def test_the_model_is_the_displaced_surface_with_its_deviation(report):
     assert 0 < page["error_scale"]["displaced"] <= page["error_max"]["displaced"]
 
 
+def test_the_heat_map_reads_the_errors_own_scan_distances(report):
+    """The displaced surface's heat map reuses the errors stage's distance of every scan
+    vertex to the displaced surface (no second search): the array kept is the one a
+    search over the fit's displaced grids finds."""
+    from meshfit import load_fit
+    from meshfit.mesh.locate import grid_tree, triangle_distances
+    from meshfit.report import _grid_soup
+
+    out, summary = report
+    (npz,) = (out / ".meshfit").glob("errors-*.npz")
+    with np.load(npz) as z:
+        kept = z["input_to_displaced"]
+    mesh = real_mesh("spot")
+    disp = [p.displaced() for p in load_fit(out, mesh=mesh).patches]
+    Vd, Fd, _, _ = _grid_soup(disp)
+    tree = grid_tree(Vd, Fd, [d.shape[:2] for d in disp])
+    want, _ = triangle_distances(mesh.vertices, Vd, Fd, tree=tree)
+    assert kept.shape == (mesh.n_vertices,)
+    assert_allclose(kept, want, rtol=0, atol=1e-12 * summary["mesh"]["bbox_diagonal"])
+
+
 def test_glb_colours_follow_the_deviation():
     u, v = np.meshgrid(np.linspace(0, 1, 9), np.linspace(0, 1, 7), indexing="ij")
     grid = np.stack([u, v, np.zeros_like(u)], axis=-1)

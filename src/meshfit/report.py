@@ -361,6 +361,10 @@ class ReportInputs:
     spline_distance : (n,) float64, optional
         Distance of each spline-only grid vertex (patches in order, row-major) to the input,
         model units, when already measured; default measured here.
+    displaced_distance : (nv,) float64, optional
+        Distance of each input vertex to the displaced surface (its grids as triangle
+        pairs), model units, when already measured (the fit's error figures); default
+        measured here.
     """
 
     mesh: Any
@@ -372,6 +376,7 @@ class ReportInputs:
     face_patch: NDArray[np.int64] | None = None
     spline: Callable[[], list[NDArray[np.float64]]] | list[NDArray[np.float64]] | None = None
     spline_distance: NDArray[np.float64] | None = None
+    displaced_distance: NDArray[np.float64] | None = None
 
 
 def _view_size(image_size: int) -> int:
@@ -391,7 +396,10 @@ def _deviations(fit: ReportInputs, Vs, Fs, Vd, Fd, shapes) -> tuple[NDArray, NDA
     if dist is None or len(dist) != len(Vs):
         dist = mesh.closest_points(Vs).distance
     if len(Fd):
-        from_input, _ = triangle_distances(mesh.vertices, Vd, Fd, tree=grid_tree(Vd, Fd, shapes))
+        from_input = fit.displaced_distance
+        if from_input is None or len(from_input) != mesh.n_vertices:
+            tree = grid_tree(Vd, Fd, shapes)
+            from_input, _ = triangle_distances(mesh.vertices, Vd, Fd, tree=tree)
         dev = near_max(Vd, mesh.vertices, from_input)
     else:
         dev = np.zeros(len(Vd))

@@ -697,7 +697,7 @@ class Errors(Stage):
 
     name = "errors"
     inputs = ("mesh", "displaced", "spline_grids", "grids", "face_patch")
-    outputs = ("errors", "spline_distance")
+    outputs = ("errors", "spline_distance", "displaced_distance")
     after = ("stitch",)
     suffix = ".json"
 
@@ -734,15 +734,24 @@ class Errors(Stage):
             ],
         }
         ctx["spline_distance"] = spline_to_input
+        ctx["displaced_distance"] = from_input  # (the report's heat map reads it)
 
     def save(self, ctx: Context, path: Path) -> None:
-        save_npz(path.with_suffix(".npz"), {"spline_to_input": ctx["spline_distance"]})
+        save_npz(
+            path.with_suffix(".npz"),
+            {
+                "spline_to_input": ctx["spline_distance"],
+                "input_to_displaced": ctx["displaced_distance"],
+            },
+        )
         write_json(path, ctx["errors"])
 
     def load(self, ctx: Context, path: Path) -> bool:
         ctx["errors"] = read_json_file(path)
         dist = path.with_suffix(".npz")
-        ctx["spline_distance"] = load_npz(dist)["spline_to_input"] if dist.is_file() else None
+        z = load_npz(dist) if dist.is_file() else {}
+        ctx["spline_distance"] = z.get("spline_to_input")
+        ctx["displaced_distance"] = z.get("input_to_displaced")
         return True
 
 
@@ -861,6 +870,7 @@ class Report(Stage):
             face_patch=ctx["face_patch"],
             spline=lambda: ctx["spline_grids"],
             spline_distance=ctx["spline_distance"],
+            displaced_distance=ctx["displaced_distance"],
         )
         ctx["report"] = write_report(
             self.out,
