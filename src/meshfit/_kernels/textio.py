@@ -38,7 +38,8 @@ def _put_int(buf, pos, x):
 def face_lines(cols):
     """The bytes of the OBJ face lines ``f a/d/a b/e/b c/f/c`` of the rows ``(a, b, c, d,
     e, f)`` of ``cols (k, 6) int64`` (vertex and texture indices, 1-based; the normal index is
-    the vertex's), one line each, ``\\n``-terminated."""
+    the vertex's), one line each, ``\\n``-terminated. Any value but
+    int64's minimum (whose magnitude int64 cannot hold) is written as Python writes it."""
     k = cols.shape[0]
     big = 1
     for i in range(k):
