@@ -6,6 +6,8 @@ from functools import cache
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
 from meshfit.curves.base import check_sampling, densify_curve
@@ -467,3 +469,79 @@ def test_curves_put_back_are_checked_with_their_patches_first():
         at = {j for j, e in enumerate(layout.curve_ends.tolist()) if set(e) & set(ends.tolist())}
         assert hood == patches | at | {i}
         assert i in hood and len(hood) < len(layout.curves)
+
+
+def _plane_curve(mesh, xy):
+    from meshfit.types import SurfaceCurve
+
+    pts = np.column_stack([xy, np.zeros(len(xy))])
+    return SurfaceCurve(mesh.closest_points(pts).points)
+
+
+def _turns_back(x: np.ndarray) -> bool:
+    d = np.diff(x, axis=0)
+    return bool(((d[1:] * d[:-1]).sum(axis=1) < 0).any())
+
+
+@given(
+    steps=st.lists(
+        st.tuples(st.floats(-0.05, 0.12), st.floats(-0.05, 0.05)), min_size=1, max_size=12
+    )
+)
+@settings(max_examples=80, deadline=None)
+def test_polyline_points_that_turn_back_are_dropped(steps):
+    from meshfit.layout.auto import forward_points
+
+    x = np.column_stack([np.cumsum([(0.0, 0.0), *steps], axis=0), np.zeros(len(steps) + 1)])
+    keep = forward_points(x)
+    assert not _turns_back(x[keep])
+    assert keep[0] == 0 and keep[-1] == len(x) - 1 and np.all(np.diff(keep) > 0)
+    if not _turns_back(x):
+        assert_array_equal(keep, np.arange(len(x)))
+
+
+def test_a_point_stepping_back_across_a_curve_is_dropped_whatever_the_pose():
+    from meshfit.layout.auto import _without_reversals
+    from meshfit.mesh import Mesh
+
+    mesh = plane(10, jitter=0.2)
+    # out and back at row 3; row 5 steps back behind row 4
+    xy = [[0.1, 0.5], [0.3, 0.5], [0.4, 0.7], [0.5, 0.5], [0.7, 0.5], [0.65, 0.52], [0.9, 0.5]]
+    curve = _plane_curve(mesh, np.array(xy))
+    rot = np.linalg.qr(np.random.default_rng(4).normal(size=(3, 3)))[0]
+    for scale in (1e-4, 1.0, 1e3):
+        moved = Mesh(scale * mesh.vertices @ rot.T + 5.0, mesh.faces)
+        out = _without_reversals(moved, curve)
+        assert_array_equal(out.points.face, curve.points.face[[0, 1, 3, 5, 6]])
+    straight = _plane_curve(mesh, np.array(xy)[[0, 1, 3, 6]])
+    assert _without_reversals(mesh, straight) is straight
+
+
+def test_curves_carried_from_a_proxy_have_no_spikes():
+    """A curve relaxed on the proxy, carried to the closest points of the full mesh, does
+    not come back on itself within a few edges (a spike that the fine relaxation removes
+    only slowly on a dense scan, and that folds the spring grid of the patch it bounds)."""
+    import meshfit.layout.auto as auto
+
+    mesh = real_mesh("igea")  # 268,686 faces, laid out on a proxy of 2,000
+    carried = []
+    real = auto._carry_curves
+
+    def spy(*args):
+        carried.extend(out := real(*args))
+        return out
+
+    h = mesh.mean_edge_length
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(auto, "_carry_curves", spy)
+        auto_layout(mesh, LayoutOptions(proxy_faces=2000))
+    assert carried
+    for c in carried:
+        x = mesh.xyz(c.points)
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(x, axis=0), axis=1))])
+        for i in range(len(x)):
+            j = np.arange(i + 1, np.searchsorted(s, s[i] + 20 * h, side="right"))
+            arc = s[j] - s[i]
+            far = arc > 3 * h  # over 3 to 20 edges of arc, the chord is at least half of it
+            chord = np.linalg.norm(x[j[far]] - x[i], axis=1)
+            assert np.all(chord >= 0.5 * arc[far])

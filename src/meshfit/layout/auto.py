@@ -104,8 +104,9 @@ FINE_RELAX_ITERATIONS = 50
 #: split edges balanced by flips; 6: another rotation of the base mesh tried where a patch
 #: is a sliver; 7: meshes of any other topology laid out by :mod:`meshfit.layout.regions`;
 #: 8: a mesh with a protrusion a quad would hold, or whose curves cross, goes there too;
-#: 9: only the relaxed curves that meet another are put back, not the whole network)
-AUTO_LAYOUT_REVISION = 9
+#: 9: only the relaxed curves that meet another are put back, not the whole network;
+#: 10: points of a carried curve that turn back are dropped before it is densified)
+AUTO_LAYOUT_REVISION = 10
 #: rounds of putting back relaxed curves that meet another (`_keep_relaxed`)
 UNRELAX_ROUNDS = 8
 #: ``shape=None`` of `auto_layout` shapes base meshes of more than this many triangles. The
@@ -1164,7 +1165,39 @@ def _carry_curves(
     carried = _between_corners(
         moved, [n - 2 for n in sizes], corners, ends, [c.kind for c in curves]
     )
-    return densify_curves(mesh, carried)
+    return densify_curves(mesh, [_without_reversals(mesh, c) for c in carried])
+
+
+def _without_reversals(mesh: Mesh, curve: SurfaceCurve) -> SurfaceCurve:
+    """``curve`` without the points where it turns back (`forward_points`), ends kept.
+
+    Consecutive points of a curve relaxed on the proxy turn little, but their closest
+    points on the full mesh can step back and forth across the curve where the proxy lies
+    off a curved surface. Densified, such a step is a spike a few fine edges long that the
+    fine relaxation removes only slowly (a spike of the proxy's size spans more fine edges
+    the denser the scan), and a patch side with a spike folds its spring grid.
+    """
+    keep = forward_points(mesh.xyz(curve.points))
+    if keep.size == len(curve):
+        return curve
+    return SurfaceCurve(curve.points[keep], curve.closed, curve.kind)
+
+
+def forward_points(x: NDArray[np.float64]) -> NDArray[np.int64]:
+    """Rows of the polyline ``x`` (n, 3) kept so that no chord turns back against the one
+    before (a negative dot product), first and last always kept, in order.
+
+    One pass with a stack: when the chord to the next point turns back against the last
+    kept chord, the last kept point is dropped, and the test repeats against the chord
+    before it. A lone point off to one side (out and back) is dropped; of a point and one
+    that steps back behind it, the first goes.
+    """
+    keep = [0]
+    for k in range(1, len(x)):
+        while len(keep) >= 2 and float(np.dot(x[keep[-1]] - x[keep[-2]], x[k] - x[keep[-1]])) < 0:
+            keep.pop()
+        keep.append(k)
+    return np.array(keep, dtype=np.int64)
 
 
 def _checked(mesh: Mesh, layout: Layout, tries: int = 1) -> Layout:
