@@ -21,6 +21,8 @@ import numpy as np
 import png
 import pytest
 import trimesh
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from meshfit.errors import RenderError
@@ -196,6 +198,55 @@ def test_the_heat_map_reads_the_errors_own_scan_distances(report):
     want, _ = triangle_distances(mesh.vertices, Vd, Fd, tree=tree)
     assert kept.shape == (mesh.n_vertices,)
     assert_allclose(kept, want, rtol=0, atol=1e-12 * summary["mesh"]["bbox_diagonal"])
+
+
+def test_figures_come_from_every_grid_vertex_and_renders_from_fewer(report, tmp_path):
+    """The renders draw the grids thinned to the image's pixels; the figures on the page
+    are still those of every vertex of the grids, whatever the thinning."""
+    import meshfit.report as rep
+    from meshfit import load_fit
+
+    out, summary = report
+    disp = [p.displaced() for p in load_fit(out, mesh=real_mesh("spot")).patches]
+    drawn: list[int] = []
+    real = rep.render
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(rep, "RENDER_POINTS_PER_PIXEL", 0.05)  # (this fit's grids are small)
+        m.setattr(rep, "render", lambda V, F, **k: drawn.append(len(V)) or real(V, F, **k))
+        step = rep._render_step(disp, 160 * 160)
+        opts = FitOptions(controls=(6, 6), spring_level=1, formats=(), image_size=160)
+        again = run_fit(
+            real_mesh("spot"), tmp_path, layout=ROOT / "examples/layouts/spot.json", options=opts
+        )
+    thinned = sum(g.shape[0] * g.shape[1] for g in rep._thinned(disp, step)[0])
+    assert step > 1 and thinned in drawn
+    assert sum(d.shape[0] * d.shape[1] for d in disp) not in drawn
+    for key in ("error_max", "error_scale"):
+        assert _page(again)[key] == _page(summary)[key]
+
+
+@given(
+    shape=st.tuples(st.integers(2, 40), st.integers(2, 40)),
+    step=st.integers(1, 9),
+    seed=st.integers(0, 2**16),
+)
+@settings(max_examples=60, deadline=None)
+def test_thinned_grids_keep_their_sides_and_their_peaks(shape, step, seed):
+    from meshfit.report import _thinned
+
+    rng = np.random.default_rng(seed)
+    grids = [rng.normal(size=(*shape, 3)), rng.normal(size=(shape[1], shape[0], 3))]
+    values = rng.random(2 * shape[0] * shape[1])
+    thin, kept = _thinned(grids, step, values)
+    base = 0
+    for G, T in zip(grids, thin, strict=True):
+        for i, j in [(0, 0), (0, -1), (-1, 0), (-1, -1)]:  # its corners, so patches meet
+            assert_allclose(T[i, j], G[i, j])
+        n, m = T.shape[0] * T.shape[1], G.shape[0] * G.shape[1]
+        # every value lies within the pooling of a kept vertex: the peak survives
+        assert kept[:n].max() == values[base : base + m].max()
+        kept, base = kept[n:], base + m
+    assert kept.size == 0
 
 
 def test_glb_colours_follow_the_deviation():

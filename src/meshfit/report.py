@@ -53,6 +53,8 @@ from meshfit.report_view import (
     fixed_views,
     in_sight,
     near_max,
+    pool_max,
+    thin_indices,
     write_model,
 )
 
@@ -94,6 +96,10 @@ VIEW_ROWS = (
 VIEW_NAMES = ("front", "right", "back", "left")
 #: smallest side of the fixed viewpoints' images, pixels
 VIEW_MIN_SIZE = 120
+#: the surfaces of the renders are grids thinned to at most about this many points per
+#: pixel of the main render: the rasteriser keeps one triangle per pixel, so a finer grid
+#: costs memory and time (at the density of a dense scan's maps) and draws no more
+RENDER_POINTS_PER_PIXEL = 2
 #: the page's own data (scales, viewpoints, labels) beside the images, for a resumed run
 PAGE_FILE = "page.json"
 #: the columns of the report's patch table
@@ -384,8 +390,9 @@ def _view_size(image_size: int) -> int:
     return max(VIEW_MIN_SIZE, int(image_size) // 2)
 
 
-def _deviations(fit: ReportInputs, Vs, Fs, Vd, Fd, shapes) -> tuple[NDArray, NDArray]:
-    """Deviation from the scan at each spline-only and each displaced grid vertex, model
+def _deviations(fit: ReportInputs, spline, disp) -> tuple[NDArray, NDArray]:
+    """Deviation from the scan at each spline-only and each displaced grid vertex (the
+    grids ``spline`` and ``disp``, one row of the result per vertex in grid order), model
     units: the spline's own distance to the scan, and for the displaced surface (which
     passes through scan points at its vertices) the scan's distance to it, carried to the
     nearest vertices (:func:`meshfit.report_view.near_max`)."""
@@ -393,17 +400,51 @@ def _deviations(fit: ReportInputs, Vs, Fs, Vd, Fd, shapes) -> tuple[NDArray, NDA
 
     mesh = fit.mesh
     dist = fit.spline_distance
-    if dist is None or len(dist) != len(Vs):
-        dist = mesh.closest_points(Vs).distance
-    if len(Fd):
+    if dist is None or len(dist) != sum(g.shape[0] * g.shape[1] for g in spline):
+        dist = mesh.closest_points(_grid_points(spline)).distance
+    Vd = _grid_points(disp)
+    if len(Vd):
         from_input = fit.displaced_distance
         if from_input is None or len(from_input) != mesh.n_vertices:
-            tree = grid_tree(Vd, Fd, shapes)
-            from_input, _ = triangle_distances(mesh.vertices, Vd, Fd, tree=tree)
+            shapes = [d.shape[:2] for d in disp]
+            _, Fd, _, _ = _grid_soup(disp)
+            from_input, _ = triangle_distances(
+                mesh.vertices, Vd, Fd, tree=grid_tree(Vd, Fd, shapes)
+            )
         dev = near_max(Vd, mesh.vertices, from_input)
     else:
-        dev = np.zeros(len(Vd))
+        dev = np.zeros(0)
     return np.asarray(dist, dtype=np.float64), dev
+
+
+def _grid_points(grids: list[NDArray[np.float64]]) -> NDArray[np.float64]:
+    """The points of ``grids`` as one (n, 3) array, in grid order."""
+    return np.concatenate([X.reshape(-1, 3) for X in grids]) if grids else np.zeros((0, 3))
+
+
+def _render_step(grids: list[NDArray[np.float64]], pixels: int) -> int:
+    """The thinning step of grids drawn on an image of ``pixels`` pixels: at most about
+    `RENDER_POINTS_PER_PIXEL` grid points per pixel."""
+    total = sum(g.shape[0] * g.shape[1] for g in grids)
+    return max(1, int(np.ceil(np.sqrt(total / (RENDER_POINTS_PER_PIXEL * max(pixels, 1))))))
+
+
+def _thinned(
+    grids: list[NDArray[np.float64]], step: int, values: NDArray[np.float64] | None = None
+) -> tuple[list[NDArray[np.float64]], NDArray[np.float64]]:
+    """Every ``step``-th row and column of each grid (`thin_indices`), and ``values`` (one
+    per grid vertex, in grid order) pooled to the largest around each kept vertex
+    (`pool_max`) and thinned alike (empty when ``values`` is None)."""
+    out, kept, base = [], [], 0
+    for G in grids:
+        nu, nv = G.shape[:2]
+        rows, cols = thin_indices(nu, nv, step)
+        out.append(G[np.ix_(rows, cols)])
+        if values is not None:
+            v = values[base : base + nu * nv].reshape(nu, nv)
+            kept.append(pool_max(v, step)[np.ix_(rows, cols)].reshape(-1))
+        base += nu * nv
+    return out, (np.concatenate(kept) if kept else np.zeros(0))
 
 
 def _top(values: NDArray[np.float64]) -> float:
@@ -438,8 +479,9 @@ def _render_views(fit: ReportInputs, folder: Path, size: int, view, up, page: di
     if face_patch is None:
         face_patch = np.full(mesh.n_faces, -1, dtype=np.int64)
     layout_colors = patch_colors(face_patch)
-    topology: dict = {}  # the grids, splines and displaced grids share their triangles
-    V, F, P, UV = _grid_soup(grids, topology)
+    # the surfaces are drawn thinned to the largest render's pixels; the figures, the heat
+    # map's scale and the model come from every grid vertex
+    V, F, P, UV = _grid_soup(_thinned(grids, _render_step(grids, size * size))[0])
     cols = patch_colors(P)
     vcol = np.zeros((V.shape[0], 3))
     for k in range(3):
@@ -451,18 +493,22 @@ def _render_views(fit: ReportInputs, folder: Path, size: int, view, up, page: di
             for s, g in zip(fit.surfaces, grids, strict=True)
         ]
     spline = spline() if callable(spline) else spline
-    Vs, Fs, _, _ = _grid_soup(spline, topology)
     disp = fit.displaced() if callable(fit.displaced) else fit.displaced
-    Vd, Fd, _, _ = _grid_soup(disp, topology)
-    dist, dev = _deviations(fit, Vs, Fs, Vd, Fd, [d.shape[:2] for d in disp])
+    dist, dev = _deviations(fit, spline, disp)
     top_s, top_d = _top(dist), _top(dev)
+    topology: dict = {}  # the thinned splines and displaced grids share their triangles
+    spline_drawn, dist_drawn = _thinned(spline, _render_step(spline, size * size), dist)
+    Vs, Fs, _, _ = _grid_soup(spline_drawn, topology)
+    disp_drawn, dev_drawn = _thinned(disp, _render_step(disp, size * size), dev)
+    Vd, Fd, _, _ = _grid_soup(disp_drawn, topology)
+    del spline_drawn, disp_drawn
     page["error_scale"] = {"spline": top_s / diag, "displaced": top_d / diag}
     page["error_max"] = {
         "spline": float(dist.max()) / diag if dist.size else 0.0,
         "displaced": float(dev.max()) / diag if dev.size else 0.0,
     }
     page["views"] = [{"name": v.name, "view": list(v.view), "up": list(v.up)} for v in views]
-    heat_s, heat_d = heat_colors(dist, top_s), heat_colors(dev, top_d)
+    heat_s, heat_d = heat_colors(dist_drawn, top_s), heat_colors(dev_drawn, top_d)
 
     jobs: dict[str, Callable[[], NDArray[np.uint8]]] = {
         "springs": lambda: render(

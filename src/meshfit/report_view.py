@@ -33,6 +33,8 @@ __all__ = [
     "fixed_views",
     "in_sight",
     "near_max",
+    "pool_max",
+    "thin_indices",
     "write_model",
 ]
 
@@ -142,16 +144,16 @@ def near_max(
     return np.asarray(values)[idx.reshape(len(targets), k)].max(axis=1)
 
 
-def _thin(nu: int, nv: int, step: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+def thin_indices(nu: int, nv: int, step: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Every ``step``-th row and column of a grid, its last ones kept."""
     rows = np.unique(np.append(np.arange(0, nu, step), nu - 1))
     cols = np.unique(np.append(np.arange(0, nv, step), nv - 1))
     return rows, cols
 
 
-def _pool(values: NDArray[np.float64], step: int) -> NDArray[np.float64]:
+def pool_max(values: NDArray[np.float64], step: int) -> NDArray[np.float64]:
     """Each grid value replaced by the largest within ``step // 2`` rows and columns of it,
-    so that a thinned grid keeps the peaks between its kept vertices."""
+    so that a thinned grid (`thin_indices`) keeps the peaks between its kept vertices."""
     if step <= 1:
         return values
     from scipy.ndimage import maximum_filter
@@ -212,9 +214,9 @@ def deviation_glb(
         return len(accessors) - 1
 
     for p, (G, D) in enumerate(zip(grids, deviation, strict=True)):
-        rows, cols = _thin(G.shape[0], G.shape[1], step)
+        rows, cols = thin_indices(G.shape[0], G.shape[1], step)
         X = G[np.ix_(rows, cols)].reshape(-1, 3).astype(np.float32)
-        dev = _pool(np.asarray(D, dtype=np.float64), step)[np.ix_(rows, cols)].reshape(-1)
+        dev = pool_max(np.asarray(D, dtype=np.float64), step)[np.ix_(rows, cols)].reshape(-1)
         rgb = _srgb_to_linear(heat_colors(dev, vmax))
         rgba = np.rint(np.concatenate([rgb, np.ones((len(rgb), 1))], axis=1) * 255)
         F = grid_triangles(len(rows), len(cols))
