@@ -662,6 +662,50 @@ def test_known_distances_skip_only_points_on_the_input(rng):
     np.testing.assert_array_equal(back, want_back)
 
 
+@pytest.mark.parametrize("shapes", ["matched", "native"])
+def test_displaced_errors_taken_from_texel_bounds_are_a_full_search(shapes):
+    """The errors stage takes a displaced texel's distance to the input from its bound
+    (`texel_bounds`: a texel made from a point on the input reproduces it) instead of
+    searching; the figures are a full search's, to the tolerance, and most texels are
+    not searched."""
+    import meshfit.pipeline.measure as measure
+    from meshfit import fit
+    from meshfit.mesh.locate import grid_tree
+
+    mesh = real_mesh("spot")
+    diag = mesh.bbox_diagonal
+    seen = []
+    real = measure.surface_distance
+
+    def spy(mesh, V, F, tree, known=None):
+        seen.append(known)
+        return real(mesh, V, F, tree, known)
+
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(measure, "surface_distance", spy)
+        opts = FitOptions(formats=(), report=False, map_shapes=shapes)
+        r = fit(mesh, "auto", options=opts, cluster=None)
+    disp = [p.displaced() for p in r.patches]
+    if shapes == "matched":  # (maps finer than the spring grids: points from the scan)
+        assert any(d.shape[:2] != p.spring.shape[:2] for d, p in zip(disp, r.patches, strict=True))
+    V, F = measure.soup(disp)
+    want, _, _ = real_error_figures(mesh, V, F, grid_tree(V, F, [d.shape[:2] for d in disp]))
+    got = r.summary["errors"]["displaced"]
+    assert got.keys() == want.keys()
+    for k in want:
+        assert abs(got[k] - want[k]) <= tol.KNOWN_DISTANCE, k
+    known = [k for k in seen if k is not None]
+    assert len(known) == 1 and len(known[0]) == len(V)
+    assert np.mean(known[0] <= tol.KNOWN_DISTANCE * diag) > 0.5  # (spot: 91 % matched, 87 % native)
+
+
+def real_error_figures(mesh, V, F, tree):
+    """`measure.error_figures` with every distance searched (no bounds)."""
+    from meshfit.pipeline.measure import error_figures
+
+    return error_figures(mesh, V, F, tree, None)
+
+
 def _layout_stage(mesh, options):
     """The layout stage of a fit of ``mesh`` with ``options``, and its content key."""
     from meshfit.pipeline.runner import Context

@@ -32,9 +32,9 @@ CUT_SNAP = 1e-7
 CUT_MIN_AREA = 2e-14
 #: absolute-position agreement in tests, times bbox_diagonal
 TEST_ATOL = 1e-9
-#: a displaced-surface vertex within this, times bbox_diagonal, of the spring point it
-#: reproduces (a point of the input surface) is given that distance to the input, no search
-#: (the exact distance lies between 0 and it)
+#: a displaced-surface vertex within this, times bbox_diagonal, of the point on the input
+#: its texel was made from (a spring point, or a closest point of a finer map) is given that
+#: distance to the input, no search (the exact distance lies between 0 and it)
 KNOWN_DISTANCE = 1e-12
 #: relative margin inside a distance limit within which a yes-or-no search
 #: (`meshfit.mesh.triangles_within`) settles a point as within the limit; the points it does

@@ -27,6 +27,7 @@ from meshfit.displacement.maps import (
     refine_on_scan,
     resample_map,
     sample_bilinear,
+    scan_points,
     shading_normals,
     vector_values,
 )
@@ -49,6 +50,7 @@ __all__ = [
     "refine_on_scan",
     "resample_map",
     "sample_bilinear",
+    "scan_points",
     "shading_normals",
     "vector_values",
     "write_exr",

@@ -440,6 +440,14 @@ def refine_on_scan(
     .. [1] Krishnamurthy 2000, sec. 7.1 (the displacement map as the scan over the spline)
        and sec. 8.2 (equal texel counts along shared boundaries).
     """
+    return scan_points(mesh, surface, grid, shape)[0]
+
+
+def scan_points(
+    mesh, surface: BSplineSurface, grid: NDArray, shape: tuple[int, int]
+) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """:func:`refine_on_scan`'s points ``(h', w', 3)`` and which of them lie on the scan
+    ``(h', w') bool`` (the closest points taken; the others stayed on the interpolation)."""
     X = _filtered(np.asarray(grid, dtype=np.float64), shape)
     cp = mesh.closest_points(X.reshape(-1, 3))
     u, v = np.meshgrid(grid_parameters(shape[0]), grid_parameters(shape[1]), indexing="ij")
@@ -447,7 +455,7 @@ def refine_on_scan(
     facing = (mesh.face_normals[cp.points.face] * normal).sum(axis=1) > 0
     out = X.reshape(-1, 3).copy()
     out[facing] = cp.xyz[facing]
-    return out.reshape(X.shape)
+    return out.reshape(X.shape), facing.reshape(X.shape[:2])
 
 
 def resample_map(

@@ -326,7 +326,8 @@ class PatchTasks:
         kind: str,
         progress: Callable[[int, int], None],
     ) -> list:
-        """Each patch's displacement map (:func:`meshfit.pipeline.stages.patch_displacement`),
+        """Each patch's displacement map and its texels' bounds
+        (:func:`meshfit.pipeline.stages.patch_displacement`),
         one task per patch reading the patch's ``map-<p>.npz`` (and the scan, where the map is
         finer than the spring grid)."""
         from meshfit.displacement import DisplacementMap
@@ -348,8 +349,8 @@ class PatchTasks:
             )
             items.append((map_file_task, str(path), kind, str(scan) if finer[p] else None))
         self._readable(Path(items[0][1]))
-        values = self._run("displacement", items, [sh[0] * sh[1] for sh in shapes], progress)
-        return [DisplacementMap(v, kind) for v in values]
+        res = self._run("displacement", items, [sh[0] * sh[1] for sh in shapes], progress)
+        return [(DisplacementMap(v, kind), b) for v, b in res]
 
     def _run(self, stage: str, items: list, cost: Sequence[float], progress) -> list:
         """Submit one task per item ``(fn, *args)``, the costliest first; the results in
@@ -481,10 +482,13 @@ def spring_file_task(path: str, options) -> tuple[NDArray[np.float64], dict]:
     return spring_task((payload, options))
 
 
-def map_file_task(path: str, kind: str, scan: str | None) -> NDArray[np.float64]:
+def map_file_task(
+    path: str, kind: str, scan: str | None
+) -> tuple[NDArray[np.float64], NDArray[np.float32]]:
     """Task body: the values of the displacement map described by the ``.npz`` at ``path``
-    (written by :meth:`PatchTasks.maps`); ``scan``: the folder of the scan, for a map finer
-    than its spring grid."""
+    (written by :meth:`PatchTasks.maps`) and its texels' bounds
+    (:func:`meshfit.pipeline.stages.texel_bounds`); ``scan``: the folder of the scan, for a
+    map finer than its spring grid."""
     from meshfit.bspline import BSplineSurface
     from meshfit.pipeline.stages import patch_displacement
 
@@ -492,7 +496,8 @@ def map_file_task(path: str, kind: str, scan: str | None) -> NDArray[np.float64]
     surface = BSplineSurface(z["control_points"], z["knots_u"], z["knots_v"])
     shape = (int(z["shape"][0]), int(z["shape"][1]))
     mesh = None if scan is None else _scan(scan)
-    return patch_displacement(mesh, surface, z["grid"], shape, kind).values
+    dmap, bounds = patch_displacement(mesh, surface, z["grid"], shape, kind)
+    return dmap.values, bounds
 
 
 #: the scan's arrays in its folder, each an ``.npy`` file: the mesh, its face normals and the

@@ -83,21 +83,6 @@ def early_spline(mesh: Mesh, surfaces: list, shapes: list[tuple[int, ...]]):
     return (grids, *spline_errors(mesh, grids))
 
 
-def spring_bounds(
-    displaced: list[NDArray[np.float64]], grids: list[NDArray[np.float64]]
-) -> NDArray[np.float64]:
-    """Upper bounds of the displaced grids' vertices' distances to the input (stacked as
-    `soup` stacks them): a map with its spring grid's shape puts each texel where it
-    reproduces that grid's point, which lies on the input (inf for other shapes)."""
-    out = []
-    for D, G in zip(displaced, grids, strict=True):
-        if D.shape == G.shape:
-            out.append(np.linalg.norm(D - G, axis=2).reshape(-1))
-        else:
-            out.append(np.full(D.shape[0] * D.shape[1], np.inf))
-    return np.concatenate(out) if out else np.zeros(0)
-
-
 def per_patch_max(
     mesh: Mesh, face_patch: NDArray[np.int64] | None, value: NDArray, n: int
 ) -> list[float | None]:

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from meshfit._jsonio import read_json_file
 from meshfit.errors import InputError, LayoutError
@@ -516,7 +517,7 @@ class Displacement(Stage):
 
     name = "displacement"
     inputs = ("mesh", "network", "surfaces", "grids")
-    outputs = ("maps",)
+    outputs = ("maps", "map_bounds")
     after = ("fit",)
 
     def __init__(self) -> None:
@@ -532,14 +533,16 @@ class Displacement(Stage):
         mesh = ctx["mesh"]
         if ctx.tasks is not None:
             tick = lambda d, n: ctx.tick(self.name, d, n)  # noqa: E731
-            ctx["maps"] = ctx.tasks.maps(mesh, surfaces, grids, shapes, kind, tick)
+            res = ctx.tasks.maps(mesh, surfaces, grids, shapes, kind, tick)
             self.tasks = True
-            return
+        else:
 
-        def one(p: int):
-            return patch_displacement(mesh, surfaces[p], grids[p], shapes[p], kind)
+            def one(p: int):
+                return patch_displacement(mesh, surfaces[p], grids[p], shapes[p], kind)
 
-        ctx["maps"] = ctx.map(one, list(range(len(grids))), "displacement")
+            res = ctx.map(one, list(range(len(grids))), "displacement")
+        ctx["maps"] = [m for m, _ in res]
+        ctx["map_bounds"] = [b for _, b in res]
 
     def facts(self, ctx: Context) -> dict[str, Any]:
         return {"patch_tasks": self.tasks}
@@ -558,23 +561,55 @@ class Displacement(Stage):
         pool.shutdown(wait=False)
 
     def save(self, ctx: Context, path: Path) -> None:
-        save_npz(path, {f"map_{p}": d.values for p, d in enumerate(ctx["maps"])})
+        arrays = {f"map_{p}": d.values for p, d in enumerate(ctx["maps"])}
+        arrays.update({f"bounds_{p}": b for p, b in enumerate(ctx["map_bounds"])})
+        save_npz(path, arrays)
 
     def load(self, ctx: Context, path: Path) -> bool:
         _settle_map_shapes(ctx)  # (the same choice as when the maps were made)
-        ctx["maps"] = _load_maps(path, ctx["layout"].n_patches, ctx.options.maps.kind)
+        n = ctx["layout"].n_patches
+        ctx["maps"] = _load_maps(path, n, ctx.options.maps.kind)
+        ctx["map_bounds"] = _load_bounds(path, ctx["maps"])
         return True
 
 
 def patch_displacement(mesh, surface, grid, shape: tuple[int, int], kind: str):
-    """One patch's displacement map: its spring ``grid (h, w, 3) float64`` over its spline,
-    at ``shape``; a shape other than the grid's first takes the finer grid from the scan
-    ``mesh`` (:func:`meshfit.displacement.refine_on_scan`; ``mesh`` is read only then)."""
-    from meshfit.displacement import displacement_map, refine_on_scan
+    """One patch's displacement map and its texels' `texel_bounds`: its spring ``grid (h,
+    w, 3) float64`` over its spline, at ``shape``; a shape other than the grid's first
+    takes the finer grid from the scan ``mesh`` (:func:`meshfit.displacement.scan_points`;
+    ``mesh`` is read only then)."""
+    from meshfit.displacement import displacement_map, scan_points
 
+    on_scan = None  # (a spring grid's points all lie on the scan)
     if tuple(shape) != tuple(grid.shape[:2]):
-        grid = refine_on_scan(mesh, surface, grid, shape)
-    return displacement_map(surface, grid, kind=kind)
+        grid, on_scan = scan_points(mesh, surface, grid, shape)
+    dmap = displacement_map(surface, grid, kind=kind)
+    return dmap, texel_bounds(surface, dmap, grid, on_scan)
+
+
+def texel_bounds(surface, dmap, points, on_scan=None) -> NDArray[np.float32]:
+    """Per texel of ``dmap`` an upper bound of its displaced point's distance to the scan,
+    ``(h, w) float32``: the distance to the texel's ``points`` ``(h, w, 3)`` where they lie
+    on the scan (``on_scan``, default all), inf elsewhere; rounded up.
+
+    The errors stage takes a bound below `tol.KNOWN_DISTANCE` as the distance instead of
+    searching the scan: a vector map reproduces the points it was made from to round-off.
+    """
+    from meshfit.displacement import reconstruct
+
+    r = np.linalg.norm(reconstruct(surface, dmap) - points, axis=2)
+    if on_scan is not None:
+        r[~on_scan] = np.inf
+    return (r * (1.0 + 2.0**-20)).astype(np.float32)  # (float32 rounds by at most 2**-24)
+
+
+def _load_bounds(path: Path, maps: list) -> list:
+    """The texel bounds saved beside ``maps`` (inf where a file has none: searched)."""
+    z = load_npz(path)
+    return [
+        z[f"bounds_{p}"] if f"bounds_{p}" in z else np.full(d.values.shape[:2], np.inf, np.float32)
+        for p, d in enumerate(maps)
+    ]
 
 
 def _settle_map_shapes(ctx: Context) -> list[tuple[int, int]]:
@@ -636,8 +671,8 @@ class Stitch(Stage):
     """The displacement seams closed and every seam measured."""
 
     name = "stitch"
-    inputs = ("layout", "network", "surfaces", "maps")
-    outputs = ("maps", "seams", "displaced", "spline_grids")
+    inputs = ("layout", "network", "surfaces", "maps", "map_bounds")
+    outputs = ("maps", "seams", "displaced", "spline_grids", "map_bounds")
     after = ("displacement",)
 
     def extra(self, ctx: Context) -> Any:
@@ -648,6 +683,7 @@ class Stitch(Stage):
 
         match = ctx.options.maps.shapes == "matched"
         maps = close_seams(ctx["network"], ctx["surfaces"], ctx["maps"], match)
+        ctx["map_bounds"] = _moved_unbounded(ctx["maps"], maps, ctx["map_bounds"])
         ctx["maps"] = maps
         self._derived(ctx)
         seams = seam_metrics(ctx["layout"], ctx["surfaces"], ctx["displaced"], ctx["diag"])
@@ -660,14 +696,31 @@ class Stitch(Stage):
 
     def save(self, ctx: Context, path: Path) -> None:
         arrays = {f"map_{p}": d.values for p, d in enumerate(ctx["maps"])}
+        arrays.update({f"bounds_{p}": b for p, b in enumerate(ctx["map_bounds"])})
         arrays["seams"] = as_bytes(ctx["seams"])
         save_npz(path, arrays)
 
     def load(self, ctx: Context, path: Path) -> bool:
         ctx["maps"] = _load_maps(path, ctx["layout"].n_patches, ctx.options.maps.kind)
+        ctx["map_bounds"] = _load_bounds(path, ctx["maps"])
         ctx["seams"] = from_bytes(load_npz(path)["seams"])
         self._derived(ctx)
         return True
+
+
+def _moved_unbounded(before: list, after: list, bounds: list) -> list:
+    """The texel bounds of the maps ``after`` stitching: a texel whose values the stitch
+    changed, or every texel of a map it resampled, has none (inf); the others keep theirs
+    (their displaced points are computed as before, to the bit)."""
+    out = []
+    for a, b, k in zip(before, after, bounds, strict=True):
+        if a.values.shape != b.values.shape:
+            out.append(np.full(b.values.shape[:2], np.inf, dtype=np.float32))
+            continue
+        moved = a.values != b.values
+        moved = moved.any(axis=2) if moved.ndim == 3 else moved
+        out.append(np.where(moved, np.float32(np.inf), k) if moved.any() else k)
+    return out
 
 
 def _early_future(ctx: Context):
@@ -696,7 +749,7 @@ class Errors(Stage):
     """Two-sided distances of the spline-only and the displaced surfaces to the input."""
 
     name = "errors"
-    inputs = ("mesh", "displaced", "spline_grids", "grids", "face_patch")
+    inputs = ("mesh", "displaced", "spline_grids", "map_bounds", "face_patch")
     outputs = ("errors", "spline_distance", "displaced_distance")
     after = ("stitch",)
     suffix = ".json"
@@ -719,9 +772,8 @@ class Errors(Stage):
         if future is not None:
             spline = future.result()[1:]
         spline_fig, spline_to_input = spline
-        disp_fig, _, from_input = measure.error_figures(
-            mesh, Vd, Fd, tree, measure.spring_bounds(displaced, ctx["grids"])
-        )
+        known = np.concatenate([b.reshape(-1) for b in ctx["map_bounds"]]).astype(np.float64)
+        disp_fig, _, from_input = measure.error_figures(mesh, Vd, Fd, tree, known)
         n = len(displaced)
         ctx["errors"] = {
             "spline_only": spline_fig,
