@@ -44,13 +44,15 @@ SAMPLE_SECONDS = 0.02
 
 
 class PeakMemory:
-    """Peak resident memory of this process plus all its children, sampled on a thread."""
+    """Peak resident memory of this process plus all its children, sampled on a thread;
+    also the largest of any one child (a cluster worker's bound)."""
 
     def __init__(self) -> None:
         import psutil
 
         self.proc = psutil.Process()
         self.peak = 0
+        self.child_peak = 0
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
 
@@ -60,9 +62,11 @@ class PeakMemory:
         total = self.proc.memory_info().rss
         for child in self.proc.children(recursive=True):
             try:
-                total += child.memory_info().rss
+                rss = child.memory_info().rss
             except psutil.Error:  # a worker that ended between the listing and the read
-                pass
+                continue
+            total += rss
+            self.child_peak = max(self.child_peak, rss)
         return total
 
     def _run(self) -> None:
@@ -116,6 +120,7 @@ def run_one(size: str, processes: int, patches: int) -> dict:
             s["stages"]["springs"]["seconds"] + s["stages"]["displacement"]["seconds"], 3
         ),
         "peak_rss_mib": round(mem.peak / 2**20, 1),
+        "peak_rss_one_child_mib": round(mem.child_peak / 2**20, 1),
         "displaced_rms": s["errors"]["displaced"]["rms"],
         "displaced_hausdorff": s["errors"]["displaced"]["hausdorff"],
         "folded_cells": int(sum(p["folded"] for p in s["patches"])),
@@ -147,6 +152,7 @@ def _median(runs: list[dict]) -> dict:
     """`pipeline._median_run` (median times, largest peak) with the task stages' median
     time and every run's load average."""
     out = _median_run(runs, peak_key="peak_rss_mib")
+    out["peak_rss_one_child_mib"] = max(r["peak_rss_one_child_mib"] for r in runs)
     out["seconds_tasks_stages"] = round(
         statistics.median(r["seconds_tasks_stages"] for r in runs), 3
     )
