@@ -306,7 +306,7 @@ def _grid_soup(grids: list[NDArray[np.float64]], topology: dict | None = None):
     """
     from meshfit.springs import grid_triangles
 
-    V = np.concatenate([X.reshape(-1, 3) for X in grids]) if grids else np.zeros((0, 3))
+    V = _grid_points(grids)
     shapes = tuple(X.shape[:2] for X in grids)
     if topology is not None and shapes in topology:
         return (V, *topology[shapes])

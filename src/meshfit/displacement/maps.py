@@ -446,8 +446,26 @@ def refine_on_scan(
 def scan_points(
     mesh, surface: BSplineSurface, grid: NDArray, shape: tuple[int, int]
 ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-    """:func:`refine_on_scan`'s points ``(h', w', 3)`` and which of them lie on the scan
-    ``(h', w') bool`` (the closest points taken; the others stayed on the interpolation)."""
+    """:func:`refine_on_scan`'s points, and which of them lie on the scan.
+
+    Parameters
+    ----------
+    mesh, surface, grid, shape
+        As for :func:`refine_on_scan`.
+
+    Returns
+    -------
+    points : (h', w', 3) float64
+        :func:`refine_on_scan`'s result.
+    on_scan : (h', w') bool
+        True where the point is the scan's closest point (within round-off of the scan,
+        so a displaced texel made from it can be measured without a search); False where
+        the scan faced away and the point stayed on the interpolation.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 7.1.
+    """
     X = _filtered(np.asarray(grid, dtype=np.float64), shape)
     cp = mesh.closest_points(X.reshape(-1, 3))
     u, v = np.meshgrid(grid_parameters(shape[0]), grid_parameters(shape[1]), indexing="ij")

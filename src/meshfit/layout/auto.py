@@ -1184,13 +1184,23 @@ def _without_reversals(mesh: Mesh, curve: SurfaceCurve) -> SurfaceCurve:
 
 
 def forward_points(x: NDArray[np.float64]) -> NDArray[np.int64]:
-    """Rows of the polyline ``x`` (n, 3) kept so that no chord turns back against the one
-    before (a negative dot product), first and last always kept, in order.
+    """The points of a polyline kept so that no chord turns back against the one before.
 
     One pass with a stack: when the chord to the next point turns back against the last
-    kept chord, the last kept point is dropped, and the test repeats against the chord
-    before it. A lone point off to one side (out and back) is dropped; of a point and one
-    that steps back behind it, the first goes.
+    kept chord (a negative dot product), the last kept point is dropped, and the test
+    repeats against the chord before it. A lone point off to one side (out and back) is
+    dropped; of a point and one that steps back behind it, the first goes. Invariant under
+    rigid motions and scalings.
+
+    Parameters
+    ----------
+    x : (n, 3) float64
+        The polyline's points, n >= 1.
+
+    Returns
+    -------
+    (k,) int64
+        Increasing row indices of ``x``, with the first and the last.
     """
     keep = [0]
     for k in range(1, len(x)):

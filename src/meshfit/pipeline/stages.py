@@ -567,9 +567,7 @@ class Displacement(Stage):
 
     def load(self, ctx: Context, path: Path) -> bool:
         _settle_map_shapes(ctx)  # (the same choice as when the maps were made)
-        n = ctx["layout"].n_patches
-        ctx["maps"] = _load_maps(path, n, ctx.options.maps.kind)
-        ctx["map_bounds"] = _load_bounds(path, ctx["maps"])
+        _load_maps(ctx, load_npz(path))
         return True
 
 
@@ -588,12 +586,27 @@ def patch_displacement(mesh, surface, grid, shape: tuple[int, int], kind: str):
 
 
 def texel_bounds(surface, dmap, points, on_scan=None) -> NDArray[np.float32]:
-    """Per texel of ``dmap`` an upper bound of its displaced point's distance to the scan,
-    ``(h, w) float32``: the distance to the texel's ``points`` ``(h, w, 3)`` where they lie
-    on the scan (``on_scan``, default all), inf elsewhere; rounded up.
+    """Per texel of ``dmap``, an upper bound of its displaced point's distance to the scan.
 
     The errors stage takes a bound below `tol.KNOWN_DISTANCE` as the distance instead of
-    searching the scan: a vector map reproduces the points it was made from to round-off.
+    searching the scan: a vector map reproduces the points it was made from to round-off
+    (Krishnamurthy 2000, sec. 7.1), so a texel made from a point on the scan is on it.
+
+    Parameters
+    ----------
+    surface : BSplineSurface
+    dmap : DisplacementMap
+        The map made from ``points`` over ``surface``, (h, w) texels.
+    points : (h, w, 3) float64
+        The points the map was made from.
+    on_scan : (h, w) bool, optional
+        Which of ``points`` lie on the scan; default all (a spring grid).
+
+    Returns
+    -------
+    (h, w) float32
+        The distance from each displaced texel to its point where that lies on the scan,
+        rounded up; inf elsewhere.
     """
     from meshfit.displacement import reconstruct
 
@@ -601,15 +614,6 @@ def texel_bounds(surface, dmap, points, on_scan=None) -> NDArray[np.float32]:
     if on_scan is not None:
         r[~on_scan] = np.inf
     return (r * (1.0 + 2.0**-20)).astype(np.float32)  # (float32 rounds by at most 2**-24)
-
-
-def _load_bounds(path: Path, maps: list) -> list:
-    """The texel bounds saved beside ``maps`` (inf where a file has none: searched)."""
-    z = load_npz(path)
-    return [
-        z[f"bounds_{p}"] if f"bounds_{p}" in z else np.full(d.values.shape[:2], np.inf, np.float32)
-        for p, d in enumerate(maps)
-    ]
 
 
 def _settle_map_shapes(ctx: Context) -> list[tuple[int, int]]:
@@ -640,11 +644,18 @@ def _settle_map_shapes(ctx: Context) -> list[tuple[int, int]]:
     return native
 
 
-def _load_maps(path: Path, n: int, kind: str) -> list:
+def _load_maps(ctx: Context, z: dict) -> None:
+    """The maps and their texel bounds from a stage file's arrays ``z`` into ``ctx`` (a
+    file without bounds gives inf: every texel is searched)."""
     from meshfit.displacement import DisplacementMap
 
-    z = load_npz(path)
-    return [DisplacementMap(z[f"map_{p}"], kind) for p in range(n)]
+    kind = ctx.options.maps.kind
+    maps = [DisplacementMap(z[f"map_{p}"], kind) for p in range(ctx["layout"].n_patches)]
+    ctx["maps"] = maps
+    ctx["map_bounds"] = [
+        z.get(f"bounds_{p}", np.full(d.values.shape[:2], np.inf, np.float32))
+        for p, d in enumerate(maps)
+    ]
 
 
 def displaced_grids(surfaces, maps) -> list:
@@ -701,9 +712,9 @@ class Stitch(Stage):
         save_npz(path, arrays)
 
     def load(self, ctx: Context, path: Path) -> bool:
-        ctx["maps"] = _load_maps(path, ctx["layout"].n_patches, ctx.options.maps.kind)
-        ctx["map_bounds"] = _load_bounds(path, ctx["maps"])
-        ctx["seams"] = from_bytes(load_npz(path)["seams"])
+        z = load_npz(path)
+        _load_maps(ctx, z)
+        ctx["seams"] = from_bytes(z["seams"])
         self._derived(ctx)
         return True
 
