@@ -52,7 +52,9 @@ class PeakMemory:
 
         self.proc = psutil.Process()
         self.peak = 0
+        self.peak_at = 0.0  # seconds after the start at which the peak was sampled
         self.child_peak = 0
+        self._start = time.perf_counter()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
 
@@ -71,10 +73,13 @@ class PeakMemory:
 
     def _run(self) -> None:
         while not self._stop.is_set():
-            self.peak = max(self.peak, self._sample())
+            rss = self._sample()
+            if rss > self.peak:
+                self.peak, self.peak_at = rss, time.perf_counter() - self._start
             self._stop.wait(SAMPLE_SECONDS)
 
     def __enter__(self) -> PeakMemory:
+        self._start = time.perf_counter()
         self.peak = self._sample()
         self._thread.start()
         return self
@@ -121,12 +126,24 @@ def run_one(size: str, processes: int, patches: int) -> dict:
         ),
         "peak_rss_mib": round(mem.peak / 2**20, 1),
         "peak_rss_one_child_mib": round(mem.child_peak / 2**20, 1),
+        "peak_rss_stage": _stage_at(s["stages"], mem.peak_at),
         "displaced_rms": s["errors"]["displaced"]["rms"],
         "displaced_hausdorff": s["errors"]["displaced"]["hausdorff"],
         "folded_cells": int(sum(p["folded"] for p in s["patches"])),
         "patch_tasks": bool(s["stages"]["springs"].get("patch_tasks")),
         "load_average_at_start": round(load, 2),
     }
+
+
+def _stage_at(stages: dict, seconds: float) -> str:
+    """The stage running ``seconds`` after the fit started (stages run one after another,
+    in the summary's order; ``before`` and ``after`` fall outside them)."""
+    end = 0.0
+    for name, stage in stages.items():
+        end += stage["seconds"]
+        if seconds <= end:
+            return name if end > 0 else "before"
+    return "after"
 
 
 def _fresh(size: str, processes: int, patches: int) -> dict:

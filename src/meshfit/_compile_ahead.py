@@ -4,16 +4,23 @@ A first run (a fresh install, a new machine) spends most of its time in numba co
 kernels, one after another, on one core. ``signatures.json`` lists the kernels a fit calls
 from Python with the argument types of each call, in the order a fit first meets them
 (recorded by ``python -m meshfit._compile_ahead --record``; a test keeps it true).
-:func:`start` launches ``python -m meshfit._compile_ahead``, which compiles them from the
-last to the first into numba's on-disk cache while the run compiles from the first: a
-kernel the helper has finished is loaded from the cache when the run gets to it, and the two
-meet in the middle. Nothing depends on the helper: a kernel it has not reached, or a
-signature it does not list, is compiled by the run as before.
+:func:`start` launches ``python -m meshfit._compile_ahead``, which works through that list
+in order into numba's on-disk cache, ahead of the run. The list is a queue shared by every
+process compiling it: an entry is claimed (a lock on its byte of a claims file in the cache
+folder) by whichever process compiles it, the helper skips entries a run has claimed, and a
+run that needs an entry the helper is compiling waits for it and loads it from the cache
+rather than compiling it a second time. So each kernel is compiled once, by the helper
+while the run does other work, or by the run when it gets there first. Nothing depends on
+the helper: an entry it has not claimed, or a signature it does not list, is compiled by the
+run as before.
 
 The helper holds a lock in the cache folder while it works (one helper at a time, however
 many runs start), leaves a stamp there when every listed kernel is cached (no helper is
-started after that), runs at a lower priority than the run, and stops as soon as the
-process that started it is gone.
+started after that), and stops as soon as the process that started it is gone; a claim is
+a POSIX record lock, so it goes with its process, whatever ends it. It runs at the run's
+priority: it compiles what the run is about to need, and at a lower one it would progress
+only while the run itself compiles or waits. A command lists its scope of the manifest
+(:data:`SCOPES`): a fit's first run compiles none of a shrink wrap's kernels.
 """
 
 from __future__ import annotations
@@ -38,7 +45,7 @@ ENV_SWITCH = "MESHFIT_COMPILE_AHEAD"
 
 _PACKAGE = "meshfit._kernels."
 _LOCK = "meshfit-compile-ahead.lock"
-_DONE = "meshfit-compile-ahead.done"
+_DONE = "meshfit-compile-ahead.done"  # .<scope>
 
 
 def encode_type(t) -> str:
@@ -77,11 +84,28 @@ def _scalar(name: str):
     return t
 
 
-def read_manifest(path: Path = MANIFEST) -> list[tuple[str, tuple[str, ...]]]:
-    """The manifest's entries: (kernel as ``module.name`` under ``meshfit._kernels``,
-    encoded argument types)."""
+#: what a run compiles: a fit's kernels (``fit``), a shrink wrap's (``wrap``) or both (``all``)
+SCOPES = ("fit", "wrap", "all")
+
+
+def read_manifest(path: Path = MANIFEST, scope: str = "all") -> list[tuple[str, tuple[str, ...]]]:
+    """The manifest's entries for ``scope``, in the order its runs meet them: (kernel as
+    ``module.name`` under ``meshfit._kernels``, encoded argument types). ``all`` is the
+    fit's entries, then the shrink wrap's that a fit does not meet. A manifest of one list
+    (``kernels``) has it for every scope."""
+    if scope not in SCOPES:
+        raise ValueError(f"scope {scope!r}: one of {SCOPES}")
     data = json.loads(path.read_text())
-    return [(e["kernel"], tuple(e["args"])) for e in data["kernels"]]
+    if "kernels" in data:
+        return [(e["kernel"], tuple(e["args"])) for e in data["kernels"]]
+    lists = {
+        name: [(e["kernel"], tuple(e["args"])) for e in data["scopes"][name]]
+        for name in ("fit", "wrap")
+    }
+    if scope != "all":
+        return lists[scope]
+    seen = set(lists["fit"])
+    return lists["fit"] + [e for e in lists["wrap"] if e not in seen]
 
 
 @contextlib.contextmanager
@@ -115,25 +139,37 @@ def recording() -> Iterator[list[tuple[str, tuple[str, ...]]]]:
         Dispatcher._compile_for_args = first_call
 
 
-def record_manifest(run: Callable[[], object], path: Path = MANIFEST) -> int:
-    """Run ``run`` while :func:`recording` and write what it met to ``path``; returns the
-    number of entries."""
+def record_scope(run: Callable[[], object]) -> list[tuple[str, tuple[str, ...]]]:
+    """What ``run`` meets while :func:`recording` (in a process that has called no kernel
+    yet, so that it meets every one)."""
     with recording() as seen:
         run()
-    text = json.dumps(
-        {"version": 1, "kernels": [{"kernel": k, "args": list(a)} for k, a in seen]},
-        indent=1,
-    )
-    path.write_text(text + "\n")
-    return len(seen)
+    return seen
+
+
+def write_manifest(scopes: dict[str, list[tuple[str, tuple[str, ...]]]], path: Path) -> None:
+    """Write the entries of the ``fit`` and ``wrap`` scopes to ``path``."""
+    data = {
+        "version": 2,
+        "scopes": {
+            name: [{"kernel": k, "args": list(a)} for k, a in scopes[name]]
+            for name in ("fit", "wrap")
+        },
+    }
+    path.write_text(json.dumps(data, indent=1) + "\n")
 
 
 def _digest(manifest: Path) -> str:
-    """The kernels' sources and the manifest: a stamp of one is void for the other."""
+    """The kernels' sources, the manifest and the compiler: a stamp of one is void for
+    another."""
+    import numba
+
     from meshfit._kernels import sources_digest
 
     here = MANIFEST.parent
-    return hashlib.sha256(sources_digest(here).encode() + manifest.read_bytes()).hexdigest()
+    h = hashlib.sha256(sources_digest(here).encode() + manifest.read_bytes())
+    h.update(f"numba {numba.__version__}, python {sys.version}".encode())  # new compiler: new code
+    return h.hexdigest()
 
 
 def _cache_folder() -> Path | None:
@@ -142,18 +178,191 @@ def _cache_folder() -> Path | None:
     return folder()
 
 
-def compile_ahead(entries: list[tuple[str, tuple[str, ...]]]) -> int:
-    """Compile ``entries`` last first (each into numba's cache, its helpers with it);
-    returns how many were compiled or found cached."""
+def _kernel(name: str):
+    """The dispatcher of ``module.name`` under :mod:`meshfit._kernels`."""
     import importlib
 
+    module, _, attr = name.rpartition(".")
+    return getattr(importlib.import_module(_PACKAGE + module), attr)
+
+
+class Queue:
+    """The manifest as a queue shared by the processes compiling it, in a claims file of
+    the cache folder: byte ``i`` is entry ``i``. A process compiling an entry holds a POSIX
+    record lock on its byte (released however the process ends), and writes 1 there once
+    the entry is in the cache."""
+
+    def __init__(self, entries: list[tuple[str, tuple[str, ...]]], fd: int) -> None:
+        self.entries = entries
+        self.fd = fd
+        self.failed: set[int] = set()  # entries this process could not compile
+
+    @classmethod
+    def open(cls, entries: list[tuple[str, tuple[str, ...]]], path: Path) -> Queue | None:
+        """The queue of ``entries`` kept in ``path`` (None when it cannot be opened)."""
+        try:
+            return cls(entries, os.open(path, os.O_RDWR | os.O_CREAT, 0o644))
+        except OSError:
+            return None
+
+    def claim(self, i: int, *, wait: bool) -> bool:
+        """Lock entry ``i`` for this process (waiting for the process holding it when
+        ``wait``); False when another process holds it."""
+        import fcntl
+
+        flags = fcntl.LOCK_EX if wait else fcntl.LOCK_EX | fcntl.LOCK_NB
+        try:
+            fcntl.lockf(self.fd, flags, 1, i)
+        except OSError:
+            return False
+        return True
+
+    def release(self, i: int) -> None:
+        import fcntl
+
+        with contextlib.suppress(OSError):
+            fcntl.lockf(self.fd, fcntl.LOCK_UN, 1, i)
+
+    def done(self, i: int) -> bool:
+        """Whether entry ``i`` is marked as cached."""
+        try:
+            return os.pread(self.fd, 1, i) == b"\1"
+        except OSError:
+            return False
+
+    def compile(self, i: int) -> None:
+        """Compile entry ``i`` (this process holds its claim) and mark it cached."""
+        kernel, args = self.entries[i]
+        _kernel(kernel).compile(tuple(decode_type(a) for a in args))
+        with contextlib.suppress(OSError):
+            os.pwrite(self.fd, b"\1", i)
+
+    def take_last(self, but: int) -> int | None:
+        """Claim the last entry, other than ``but``, that is neither cached nor claimed;
+        None when there is none."""
+        for j in range(len(self.entries) - 1, -1, -1):
+            if j == but or j in self.failed or self.done(j) or not self.claim(j, wait=False):
+                continue
+            if not self.done(j):
+                return j
+            self.release(j)
+        return None
+
+
+def _kernel(name: str):
+    """The dispatcher of ``module.name`` under :mod:`meshfit._kernels`."""
+    import importlib
+
+    module, _, attr = name.rpartition(".")
+    return getattr(importlib.import_module(_PACKAGE + module), attr)
+
+
+def compile_ahead(entries: list[tuple[str, tuple[str, ...]]], queue: Queue | None = None) -> int:
+    """Compile ``entries`` in order, each into numba's cache with its helpers; returns how
+    many were compiled or found cached.
+
+    With ``queue``, an entry marked cached is passed over, and an entry another process
+    has claimed is taken up again at the end, once that process is done with it."""
+    if queue is None:
+        for kernel, args in entries:
+            _kernel(kernel).compile(tuple(decode_type(a) for a in args))
+        return len(entries)
     done = 0
-    for kernel, args in reversed(entries):
-        module, _, name = kernel.rpartition(".")
-        dispatcher = getattr(importlib.import_module(_PACKAGE + module), name)
-        dispatcher.compile(tuple(decode_type(a) for a in args))
-        done += 1
+    skipped: list[int] = []
+    for i in range(len(entries)):
+        if queue.done(i):
+            done += 1
+        elif not queue.claim(i, wait=False):
+            skipped.append(i)
+        else:
+            try:
+                queue.compile(i)
+                done += 1
+            finally:
+                queue.release(i)
+    for i in skipped:
+        queue.claim(i, wait=True)
+        try:
+            queue.compile(i)  # cached by the process that held it: loaded, not compiled
+            done += 1
+        finally:
+            queue.release(i)
     return done
+
+
+def _queue_path(folder: Path, manifest: Path, scope: str) -> Path:
+    """The claims file of the queue of ``manifest``'s ``scope`` in the cache ``folder``
+    (named by the stamp, so that a changed manifest or changed sources start an empty
+    one)."""
+    from meshfit._kernels import QUEUES
+
+    return folder / f"{QUEUES}{scope}.{_digest(manifest)[:16]}"
+
+
+def _stamped(folder: Path, scope: str, stamp: str) -> bool:
+    """Whether the cache ``folder`` holds every entry of ``scope`` (or of all scopes)."""
+    for name in {scope, "all"}:
+        try:
+            if (folder / f"{_DONE}.{name}").read_text() == stamp:
+                return True
+        except OSError:
+            pass
+    return False
+
+
+def claiming(queue: Queue) -> None:
+    """From now on, this process takes its part of ``queue``: it claims each listed entry
+    it calls while it compiles it; when the helper holds that entry's claim, it compiles
+    the queue's last free entry meanwhile (the helper works from the first), and when none
+    is left it waits, then loads the entry from the cache. Set up once per process."""
+    global _queue
+    if _queue is not None:
+        return
+    from numba import typeof
+    from numba.core.dispatcher import Dispatcher
+
+    index = {key: i for i, key in enumerate(queue.entries)}
+    compile_for_args = Dispatcher._compile_for_args
+
+    def claimed(self, *args, **kws):
+        f = self.py_func
+        i = None
+        if f.__module__.startswith(_PACKAGE) and not kws:
+            try:
+                key = (
+                    f"{f.__module__[len(_PACKAGE) :]}.{f.__qualname__}",
+                    tuple(encode_type(typeof(a)) for a in args),
+                )
+                i = index.get(key)
+            except ValueError:  # an argument type the manifest cannot list
+                i = None
+        if i is None:
+            return compile_for_args(self, *args, **kws)
+        while not queue.done(i) and not queue.claim(i, wait=False):
+            j = queue.take_last(but=i)
+            if j is None:
+                queue.claim(i, wait=True)
+                break
+            try:
+                queue.compile(j)
+            except Exception:  # not this call's kernel: whoever needs it meets the error
+                queue.failed.add(j)
+            finally:
+                queue.release(j)
+        try:
+            out = compile_for_args(self, *args, **kws)
+            with contextlib.suppress(OSError):
+                os.pwrite(queue.fd, b"\1", i)
+            return out
+        finally:
+            queue.release(i)
+
+    Dispatcher._compile_for_args = claimed
+    _queue = queue
+
+
+#: the queue this process takes part in, once :func:`claiming` is set up
+_queue: Queue | None = None
 
 
 def _cores() -> int:
@@ -180,26 +389,27 @@ def _held(lock: Path) -> bool:
         return True  # a folder that cannot be written: no helper could cache anything
 
 
-def start(manifest: Path = MANIFEST) -> subprocess.Popen | None:
-    """Launch the helper unless it has nothing to do: the cache holds every listed kernel
-    (its stamp), another helper is at work, or ``MESHFIT_COMPILE_AHEAD=0``. Returns the
-    process, or None."""
+def start(manifest: Path = MANIFEST, scope: str = "all") -> subprocess.Popen | None:
+    """Take part in the queue of ``scope`` (:func:`claiming`) and launch the helper, unless
+    it has nothing to do: the cache holds every entry of the scope (its stamp), another
+    helper is at work, or ``MESHFIT_COMPILE_AHEAD=0``. Returns the helper, or None."""
     if os.environ.get(ENV_SWITCH, "1") == "0" or _cores() < 2:
         return None
-    if sys.platform == "win32":  # the lock is a POSIX file lock
+    if sys.platform == "win32":  # the locks are POSIX file locks
         return None
     folder = _cache_folder()
     if folder is None:
         return None
     try:
         stamp = _digest(manifest)
-    except OSError:  # no manifest: nothing to compile ahead
+        entries = read_manifest(manifest, scope)
+    except (OSError, ValueError, KeyError):  # no manifest, or not one: nothing to compile
         return None
-    try:
-        if (folder / _DONE).read_text() == stamp:
-            return None
-    except OSError:
-        pass
+    if _stamped(folder, scope, stamp):
+        return None
+    queue = Queue.open(entries, _queue_path(folder, manifest, scope))
+    if queue is not None:
+        claiming(queue)
     if _held(folder / _LOCK):
         return None
     global _helper
@@ -212,6 +422,8 @@ def start(manifest: Path = MANIFEST) -> subprocess.Popen | None:
             str(os.getpid()),
             "--manifest",
             str(manifest),
+            "--scope",
+            scope,
         ],
         stdin=subprocess.DEVNULL,
         stdout=subprocess.DEVNULL,
@@ -245,50 +457,89 @@ def _watch(parent: int) -> None:
     os._exit(0)
 
 
-def _run_helper(parent: int, manifest: Path) -> int:
-    """The helper process: take the lock, compile the manifest last first, stamp."""
+def _run_helper(parent: int, manifest: Path, scope: str) -> int:
+    """The helper process: take the lock, work through the queue of ``scope``, stamp."""
     import fcntl
 
     folder = _cache_folder()
     if folder is None:
         return 0
     threading.Thread(target=_watch, args=(parent,), daemon=True).start()
-    with contextlib.suppress(OSError):
-        os.nice(10)
     try:
         lock = open(folder / _LOCK, "a")
         fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except OSError:
         return 0  # another helper is at work
     with lock:
-        entries = read_manifest(manifest)
-        if compile_ahead(entries) == len(entries):
-            tmp = folder / f"{_DONE}.{os.getpid()}.tmp"
+        entries = read_manifest(manifest, scope)
+        queue = Queue.open(entries, _queue_path(folder, manifest, scope))
+        if compile_ahead(entries, queue) == len(entries):
+            tmp = folder / f"{_DONE}.{scope}.{os.getpid()}.tmp"
             tmp.write_text(_digest(manifest))
-            os.replace(tmp, folder / _DONE)
+            os.replace(tmp, folder / f"{_DONE}.{scope}")
     return 0
 
 
-def _record_runs() -> None:
-    """What the manifest is recorded from: what a first run most likely is, on a small demo
-    scan: the demo, a fit with the automatic layout, and a shrink wrap with its report and
-    its stream encoded and decoded."""
+def _demo_scan(folder: Path):
+    """A small demo scan, saved and loaded with repair as the command line does."""
+    from meshfit import load_mesh, save_mesh
+    from meshfit.demo import demo_mesh
+
+    save_mesh(demo_mesh(8000), folder / "scan.ply")
+    return load_mesh(folder / "scan.ply", repair=True)
+
+
+def _record_fit() -> None:
+    """What the fit scope is recorded from: what a first run most likely is, on a small
+    demo scan: the demo, and a fit with the automatic layout."""
     import tempfile
 
-    from meshfit import fit, load_mesh, save_mesh, wrap
-    from meshfit.demo import demo_mesh, run_demo
+    from meshfit import fit
+    from meshfit.demo import run_demo
+
+    with tempfile.TemporaryDirectory() as tmp:
+        mesh = _demo_scan(Path(tmp))
+        run_demo(Path(tmp) / "demo", faces=8000, quiet=True)
+        fit(mesh, out=Path(tmp) / "fit")
+
+
+def _record_wrap() -> None:
+    """What the wrap scope is recorded from: a shrink wrap of a small demo scan with its
+    report, and its stream encoded and decoded."""
+    import tempfile
+
+    from meshfit import wrap
     from meshfit.shrinkwrap import Stream, decode_stream, encode_stream, wrap_report
 
     with tempfile.TemporaryDirectory() as tmp:
-        save_mesh(demo_mesh(8000), Path(tmp) / "scan.ply")
-        mesh = load_mesh(Path(tmp) / "scan.ply", repair=True)  # as the command line does
-        run_demo(Path(tmp) / "demo", faces=8000, quiet=True)
-        fit(mesh, out=Path(tmp) / "fit")
+        mesh = _demo_scan(Path(tmp))
     res = wrap(mesh, levels=3)
     wrap_report(res)
     top = res.levels[-1]
     stream = encode_stream(top.vertices, res.base.faces, len(res.base.sphere), top.level)
     decode_stream(Stream.from_bytes(stream.to_bytes()))
+
+
+_RECORDERS = {"fit": _record_fit, "wrap": _record_wrap}
+
+
+def _record(path: Path) -> int:
+    """Record each scope in a fresh process (one that has met no kernel) and write the
+    manifest; returns the number of entries over all scopes."""
+    env = {**os.environ, ENV_SWITCH: "0"}  # the runs recorded start no helper of their own
+    scopes = {}
+    for name in _RECORDERS:
+        run = subprocess.run(
+            [sys.executable, "-m", "meshfit._compile_ahead", "--record-scope", name],
+            env=env,
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+        rows = json.loads(run.stdout.strip().splitlines()[-1])
+        scopes[name] = [(k, tuple(a)) for k, a in rows]
+    write_manifest(scopes, path)
+    return sum(len(v) for v in scopes.values())
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -297,14 +548,20 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m meshfit._compile_ahead")
     ap.add_argument("--parent", type=int, help="stop when this process is gone")
     ap.add_argument("--manifest", type=Path, default=MANIFEST, help="kernels to compile")
+    ap.add_argument("--scope", choices=SCOPES, default="all", help="which of its kernels")
     ap.add_argument("--record", action="store_true", help="record the manifest again")
+    ap.add_argument("--record-scope", choices=sorted(_RECORDERS), help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args.record_scope:
+        seen = record_scope(_RECORDERS[args.record_scope])
+        print(json.dumps(seen))
+        return 0
     if args.record:
-        os.environ[ENV_SWITCH] = "0"  # the runs recorded start no helper of their own
-        n = record_manifest(_record_runs, args.manifest)
+        n = _record(args.manifest)
         print(f"{n} kernel signatures recorded in {args.manifest}")
         return 0
-    return _run_helper(args.parent if args.parent is not None else os.getppid(), args.manifest)
+    parent = args.parent if args.parent is not None else os.getppid()
+    return _run_helper(parent, args.manifest, args.scope)
 
 
 if __name__ == "__main__":

@@ -208,18 +208,29 @@ def _show_warnings(caught: list) -> None:
         sys.stderr.write(f"meshfit: warning: {len(seen) - SHOWN_WARNINGS} more kinds\n")
 
 
-#: commands that run kernels: on a first run a second process compiles them ahead of need
-COMPILING = frozenset({"demo", "layout", "wrap", "stream", "springs", "fit", "rebuild", "ui"})
+#: commands that run kernels, with the kernels they run (a scope of
+#: :mod:`meshfit._compile_ahead`): on a first run a second process compiles them ahead of need
+COMPILING = {
+    "demo": "fit",
+    "layout": "fit",
+    "springs": "fit",
+    "fit": "fit",
+    "rebuild": "fit",
+    "wrap": "wrap",
+    "stream": "wrap",
+    "ui": "fit",
+}
 
 
 def _command(args: argparse.Namespace) -> int:
     """The command, its failures as one line each and an exit code."""
     try:
         refuse_own_input(args)
-        if getattr(args, "command", None) in COMPILING:
+        scope = COMPILING.get(getattr(args, "command", None) or "")
+        if scope is not None:
             from meshfit._compile_ahead import start
 
-            start()
+            start(scope=scope)
         return int(args.func(args))
     except errors.MeshfitError as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__

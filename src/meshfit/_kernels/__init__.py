@@ -32,6 +32,9 @@ def frozen(*arrays):
 #: the file beside the caches holding the digest of the sources they were compiled from
 STAMP = "meshfit-kernels.sha256"
 
+#: files beside the caches marking what they hold (the queues of ``meshfit._compile_ahead``)
+QUEUES = "meshfit-compile-ahead.claims."
+
 
 def sources_digest(folder: Path) -> str:
     """SHA-256 over the names and contents of the ``*.py`` files of ``folder``, in name
@@ -43,8 +46,9 @@ def sources_digest(folder: Path) -> str:
 
 
 def drop_stale_caches(sources: Path, caches: Path) -> bool:
-    """Delete numba's cache files (``*.nbi``, ``*.nbc``) in ``caches`` unless the digest of
-    ``sources`` is the one stamped there, then stamp it. Returns whether files were dropped.
+    """Delete numba's cache files (``*.nbi``, ``*.nbc``) and the queues marking them
+    (:data:`QUEUES`) in ``caches`` unless the digest of ``sources`` is the one stamped
+    there, then stamp it. Returns whether files were dropped.
 
     Best effort: a folder that cannot be read or written is left as it is (numba then
     compiles into its own fallback location).
@@ -60,7 +64,7 @@ def drop_stale_caches(sources: Path, caches: Path) -> bool:
         caches.mkdir(parents=True, exist_ok=True)
         dropped = False
         for f in caches.iterdir():
-            if f.suffix in (".nbi", ".nbc"):
+            if f.suffix in (".nbi", ".nbc") or f.name.startswith(QUEUES):
                 f.unlink(missing_ok=True)
                 dropped = True
         tmp = caches / f"{STAMP}.{os.getpid()}.tmp"

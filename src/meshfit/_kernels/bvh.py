@@ -160,9 +160,10 @@ def build(V, F, order, leaf_size):
     child = np.full(total, -1, dtype=np.int64)
     lo = np.empty((total, 3))
     hi = np.empty((total, 3))
-    start[:n_top] = tstart[:n_top]
-    stop[:n_top] = tstop[:n_top]
-    child[:n_top] = tchild[:n_top]
+    for q in range(n_top):
+        start[q] = tstart[q]
+        stop[q] = tstop[q]
+        child[q] = tchild[q]
     used = np.empty(n_wait, dtype=np.int64)  # end of each slice's used part
     for w in prange(n_wait):
         q = first_wait + w

@@ -26,6 +26,7 @@ from meshfit._kernels.walk import (
     CAPPED,
     DONE,
     _attract_one_buf,
+    _copy3,
     _position,
     _start_direction,
     _walk_one,
@@ -514,7 +515,8 @@ def subdivide_steps(
                     fail_at = ai + d * (j - 0.5) / k
                     break
                 fprev = fcur
-                prev[:] = cur
+                for c in range(prev.shape[0]):
+                    prev[c] = cur[c]
             if ok:
                 out[i] = k
                 break
@@ -692,9 +694,11 @@ def _grow(face, bary, pair, need):
     f2 = np.empty(cap, dtype=np.int64)
     b2 = np.empty((cap, 3))
     p2 = np.empty(cap, dtype=np.int64)
-    f2[: face.size] = face
-    b2[: face.size] = bary
-    p2[: face.size] = pair
+    for i in range(face.size):
+        f2[i] = face[i]
+        p2[i] = pair[i]
+        for c in range(3):
+            b2[i, c] = bary[i, c]
     return f2, b2, p2
 
 
@@ -757,7 +761,8 @@ def bridge_pairs(
             if s_kind[top] == 1:
                 out_face, out_bary, out_pair = _grow(out_face, out_bary, out_pair, k + 1)
                 out_face[k] = f0
-                out_bary[k] = s_bary[top, 0]
+                for c in range(3):
+                    out_bary[k, c] = s_bary[top, 0, c]
                 out_pair[k] = i
                 k += 1
                 continue
@@ -796,31 +801,34 @@ def bridge_pairs(
                 s_depth[top] = depth + 1
                 s_face[top, 0] = fm
                 s_face[top, 1] = f1
-                s_bary[top, 0] = mb
-                s_bary[top, 1] = b1
+                _copy3(mb, s_bary[top, 0])
+                _copy3(b1, s_bary[top, 1])
                 s_kind[top + 1] = 1
                 s_face[top + 1, 0] = fm
                 s_face[top + 1, 1] = fm
-                s_bary[top + 1, 0] = mb
+                _copy3(mb, s_bary[top + 1, 0])
                 s_kind[top + 2] = 0
                 s_depth[top + 2] = depth + 1
                 s_face[top + 2, 0] = f0
                 s_face[top + 2, 1] = fm
-                s_bary[top + 2, 0] = b0
-                s_bary[top + 2, 1] = mb
+                _copy3(b0, s_bary[top + 2, 0])
+                _copy3(mb, s_bary[top + 2, 1])
                 top += 3
                 continue
             if ng == g_face.shape[0]:
                 gf2 = np.empty((2 * ng, 2), dtype=np.int64)
                 gb2 = np.empty((2 * ng, 2, 3))
-                gf2[:ng] = g_face
-                gb2[:ng] = g_bary
+                for r in range(ng):
+                    for s in range(2):
+                        gf2[r, s] = g_face[r, s]
+                        for c in range(3):
+                            gb2[r, s, c] = g_bary[r, s, c]
                 g_face = gf2
                 g_bary = gb2
             g_face[ng, 0] = f0
             g_face[ng, 1] = f1
-            g_bary[ng, 0] = b0
-            g_bary[ng, 1] = b1
+            _copy3(b0, g_bary[ng, 0])
+            _copy3(b1, g_bary[ng, 1])
             out_face, out_bary, out_pair = _grow(out_face, out_bary, out_pair, k + 1)
             out_face[k] = -1 - ng
             out_bary[k] = 0.0
@@ -887,8 +895,10 @@ def straighten_chain(
     )  # fmt: skip
     out_f = face.copy()
     out_b = bary.copy()
-    out_f[1 : m - 1] = af
-    out_b[1 : m - 1] = ab
+    for i in range(m - 2):
+        out_f[i + 1] = af[i]
+        for c in range(3):
+            out_b[i + 1, c] = ab[i, c]
     keep = np.ones(m, dtype=np.bool_)
     keep[0] = False
     keep[m - 1] = False
@@ -956,11 +966,11 @@ def splice(face, bary, after, new_face, new_bary):
     e = 0
     for i in range(m):
         out_f[r] = face[i]
-        out_b[r] = bary[i]
+        _copy3(bary[i], out_b[r])
         r += 1
         while e < k and after[e] == i:
             out_f[r] = new_face[e]
-            out_b[r] = new_bary[e]
+            _copy3(new_bary[e], out_b[r])
             r += 1
             e += 1
     return out_f, out_b

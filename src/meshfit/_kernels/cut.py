@@ -157,6 +157,16 @@ def edge_slot(H, a, b):
 
 
 @njit(cache=True, nogil=True)
+def _copy_rows(src, dst, n):
+    """dst[:n] = src[:n] for 2-D arrays of one width, element by element (an array slice
+    assignment compiles numba's shape-mismatch error path, with its string formatting,
+    into every first run)."""
+    for i in range(n):
+        for c in range(src.shape[1]):
+            dst[i, c] = src[i, c]
+
+
+@njit(cache=True, nogil=True)
 def reserve(S, TR, FL, NV, NI, OP0, H, P, n_vertices, n_edges):
     """The state with room for ``n_vertices`` more vertices, twice as many more triangles and
     ``n_edges`` more edges (arrays reallocated only when short)."""
@@ -164,15 +174,15 @@ def reserve(S, TR, FL, NV, NI, OP0, H, P, n_vertices, n_edges):
     if nt > TR.shape[0]:
         cap = max(2 * TR.shape[0], nt)
         T2 = np.empty((cap, 4), dtype=np.int64)
-        T2[: S[N_TRI]] = TR[: S[N_TRI]]
+        _copy_rows(TR, T2, S[N_TRI])
         TR = T2
     nv = S[N_NEW] + n_vertices
     if nv > NV.shape[0]:
         cap = max(2 * NV.shape[0], nv)
         V2 = np.zeros((cap, 6), dtype=np.float64)
-        V2[: S[N_NEW]] = NV[: S[N_NEW]]
+        _copy_rows(NV, V2, S[N_NEW])
         I2 = np.zeros((cap, 2), dtype=np.int64)
-        I2[: S[N_NEW]] = NI[: S[N_NEW]]
+        _copy_rows(NI, I2, S[N_NEW])
         NV = V2
         NI = I2
     ne = S[N_EDGE] + n_edges
@@ -195,7 +205,8 @@ def reserve(S, TR, FL, NV, NI, OP0, H, P, n_vertices, n_edges):
     npool = S[N_POOL] + _POOL_ROOM + 64 * n_vertices
     if npool > P.shape[0]:
         P2 = np.full(max(2 * P.shape[0], npool), -1, dtype=np.int64)
-        P2[: S[N_POOL]] = P[: S[N_POOL]]
+        for i in range(S[N_POOL]):
+            P2[i] = P[i]
         P = P2
     return S, TR, FL, NV, NI, OP0, H, P
 
@@ -979,7 +990,8 @@ def insert_curve(
 def _push(a, n, v):
     if n == a.shape[0]:
         b = np.empty(2 * n, dtype=np.int64)
-        b[:n] = a
+        for i in range(n):
+            b[i] = a[i]
         a = b
     a[n] = v
     return a, n + 1
@@ -1451,8 +1463,11 @@ def _grow_points(PI, PF, n, extra):
     cap = max(2 * PI.shape[0], n + extra)
     I2 = np.empty((cap, 4), dtype=np.int64)
     F2 = np.empty((cap, 6), dtype=np.float64)
-    I2[:n] = PI[:n]
-    F2[:n] = PF[:n]
+    for i in range(n):
+        for c in range(4):
+            I2[i, c] = PI[i, c]
+        for c in range(6):
+            F2[i, c] = PF[i, c]
     return I2, F2
 
 
@@ -1609,7 +1624,8 @@ def expand_path(H, path, closed):
             else:  # first the piece up to x
                 if top == stack.shape[0]:
                     s2 = np.empty(2 * top, dtype=np.int64)
-                    s2[:top] = stack
+                    for i in range(top):
+                        s2[i] = stack[i]
                     stack = s2
                 stack[top] = x
                 top += 1

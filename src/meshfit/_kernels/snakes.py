@@ -13,11 +13,20 @@ import numpy as np
 from numba import njit, prange
 
 from meshfit._kernels.snake import capped_moves, positions, snake_forces
-from meshfit._kernels.walk import DONE, _start_direction, _walk_one
+from meshfit._kernels.walk import DONE, _copy3, _start_direction, _walk_one
 
 #: times the moves of the points on a segment whose faces stop sharing a vertex are halved
 #: before those points are put back
 HALVINGS = 6
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def _put_rows(out, a, rows):
+    """out[a : a + len(rows)] = rows for (n, 3) arrays, element by element (an array slice
+    assignment compiles numba's shape-mismatch error path into every first run)."""
+    for r in range(rows.shape[0]):
+        for c in range(3):
+            out[a + r, c] = rows[r, c]
 
 
 @njit(cache=True, nogil=True, fastmath=False)
@@ -30,7 +39,7 @@ def forces_many(x, start, levels, w_fair, w_curv, w_arc):
     for c in range(start.shape[0] - 1):
         a = start[c]
         b = start[c + 1]
-        out[a:b] = snake_forces(x[a:b], False, w_fair, w_curv, w_arc, levels[c])
+        _put_rows(out, a, snake_forces(x[a:b], False, w_fair, w_curv, w_arc, levels[c]))
     return out
 
 
@@ -46,8 +55,12 @@ def moves_many(x, force, nrm, fixed, start, gain, step, floor):
         a = start[c]
         b = start[c + 1]
         ids = np.arange(b - a)
-        out[a:b] = capped_moves(
-            x[a:b], force[a:b], ids, nrm[a:b], fixed[a:b], False, gain, step, floor[c]
+        _put_rows(
+            out,
+            a,
+            capped_moves(
+                x[a:b], force[a:b], ids, nrm[a:b], fixed[a:b], False, gain, step, floor[c]
+            ),
         )
     return out
 
@@ -199,13 +212,13 @@ def _relax_curve(
                 for p in range(m):
                     if mark[p]:
                         nf[p] = face[p]
-                        nb[p] = bary[p]
+                        _copy3(bary[p], nb[p])
                         ln[p] = 0.0
                         reverted += 1
         moved = 0.0
         for p in range(1, m - 1):
             face[p] = nf[p]
-            bary[p] = nb[p]
+            _copy3(nb[p], bary[p])
             if ln[p] > moved:
                 moved = ln[p]
         active = moved >= stop

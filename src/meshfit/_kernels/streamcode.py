@@ -52,7 +52,8 @@ def _put(buf, st, byte):
     n = st[4]
     if n == buf.shape[0]:
         nb = np.empty(2 * buf.shape[0], np.uint8)
-        nb[:n] = buf[:n]
+        for i in range(n):
+            nb[i] = buf[i]
         buf = nb
     buf[n] = byte
     st[4] = n + 1

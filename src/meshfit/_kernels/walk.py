@@ -24,6 +24,15 @@ _ATTRACT_SCRATCH = 7
 
 
 @njit(cache=True, nogil=True, fastmath=False)
+def _copy3(src, dst):
+    """dst[:3] = src[:3], element by element (an array slice assignment compiles numba's
+    shape-mismatch error path, with its string formatting, into every first run)."""
+    dst[0] = src[0]
+    dst[1] = src[1]
+    dst[2] = src[2]
+
+
+@njit(cache=True, nogil=True, fastmath=False)
 def _bary_rate(V, F, f, u, out):
     """Barycentric change per unit length along the in-plane vector ``u`` in face ``f``; (3,)."""
     out[0], out[1], out[2] = _bary_rate3(V, F, f, u)
@@ -430,7 +439,7 @@ def _descend(V, F, FN, VFp, VF, f, b, tgt, dist, tmp, best, x):
     _position(V, F, f, best, x)
     dc = _dist(tgt, x)
     if dc < dist:
-        b[:] = best
+        _copy3(best, b)
         return f, dc, True
     nz = 0
     for j in range(3):
@@ -449,7 +458,7 @@ def _descend(V, F, FN, VFp, VF, f, b, tgt, dist, tmp, best, x):
                     if d < best_d:
                         best_d = d
                         best_face = g
-                        best[:] = tmp
+                        _copy3(tmp, best)
     elif nz == 2:
         v = F[f, 0]
         for j in range(3):
@@ -465,10 +474,10 @@ def _descend(V, F, FN, VFp, VF, f, b, tgt, dist, tmp, best, x):
             if d < best_d:
                 best_d = d
                 best_face = g
-                best[:] = tmp
+                _copy3(tmp, best)
     if best_face < 0:
         return f, dist, False
-    b[:] = best
+    _copy3(best, b)
     return best_face, best_d, True
 
 
@@ -514,7 +523,7 @@ def _attract_one_buf(V, F, FN, VFp, VF, f, b, tgt, max_iter, max_faces, eps_len,
         moved = False
         if np.sqrt(step[0] * step[0] + step[1] * step[1] + step[2] * step[2]) >= eps_len:
             total = _start_direction(V, F, f, step, u)
-            cb[:] = b
+            _copy3(b, cb)
             # a walk that cannot end closer than `dist` is cut short: it would be rejected
             # (the margin keeps the decision exact under rounding)
             g, _, status, _ = _walk_core(
@@ -526,7 +535,7 @@ def _attract_one_buf(V, F, FN, VFp, VF, f, b, tgt, max_iter, max_faces, eps_len,
                 cand = _dist(tgt, nrm)
             if cand < dist:
                 f = g
-                b[:] = cb
+                _copy3(cb, b)
                 dist = cand
                 h = min(1.0, 2.0 * h)
                 moved = True
