@@ -145,3 +145,35 @@ def test_the_display_says_when_kernels_are_compiled(capsys):
     with stage_progress() as quiet_run:
         assert add_one(3) == 4  # compiled already: nothing to say
     assert quiet_run.compiled == 0
+
+
+def test_the_kernels_line_counts_the_compile_ahead_queue(tmp_path, monkeypatch):
+    """With a compile-ahead queue, the kernels line shows how many of its entries every
+    process sharing it has cached, out of its length: how far a first run has to go."""
+    import os
+
+    from numba import njit
+
+    from meshfit import _compile_ahead as warm
+    from meshfit._progress import stage_progress
+
+    entries = [("m.a", ()), ("m.b", ()), ("m.c", ())]
+    queue = warm.Queue.open(entries, tmp_path / "claims")
+    assert queue is not None
+    os.pwrite(queue.fd, b"\1", 1)  # another process cached entry 1
+    monkeypatch.setattr(warm, "_queue", queue)
+    assert warm.queue_progress() == (1, 3)
+
+    @njit  # no cache: compiled here
+    def twice(x):
+        return 2 * x
+
+    with stage_progress() as prog:
+        prog("layout", 0, 1)
+        assert twice(2) == 4
+        kernels = lambda: next(t for t in prog.bar.tasks if t.id == prog.tasks["kernels"])  # noqa: E731
+        assert (kernels().completed, kernels().total) == (1, 3)
+        os.pwrite(queue.fd, b"\1", 0)
+        prog("layout", 1, 1)  # a stage's progress looks again
+        assert (kernels().completed, kernels().total) == (2, 3)
+    os.close(queue.fd)

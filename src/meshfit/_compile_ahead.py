@@ -365,6 +365,15 @@ def claiming(queue: Queue) -> None:
 _queue: Queue | None = None
 
 
+def queue_progress() -> tuple[int, int] | None:
+    """(entries cached, entries) of the queue this process takes part in, counting what
+    every process sharing it has compiled; None when it takes part in none."""
+    q = _queue
+    if q is None:
+        return None
+    return sum(q.done(i) for i in range(len(q.entries))), len(q.entries)
+
+
 def _cores() -> int:
     """Cores this process may run on."""
     try:

@@ -6,7 +6,7 @@ import time
 
 #: said once, when the first kernel of a run is compiled rather than loaded from the cache
 COMPILING = (
-    "compiling meshfit's numba kernels for this machine (a first run: a few minutes on two "
+    "compiling meshfit's numba kernels for this machine (a first run: about a minute on two "
     "cores; they are cached, and later runs skip this)"
 )
 
@@ -15,9 +15,12 @@ class stage_progress:
     """A rich progress display with one bar per pipeline stage (stderr; silent if quiet).
 
     While it is open, numba compiling a kernel (a first run, or a new machine; a kernel
-    loaded from its cache is not compiled) shows as a ``kernels`` line with the count and
-    the seconds spent, and `COMPILING` is printed once: otherwise a first run sits
-    silently in a stage for minutes.
+    loaded from its cache is not compiled) shows as a ``kernels`` line with the seconds
+    spent, and `COMPILING` is printed once: otherwise a first run sits silently in a stage
+    for a minute. The line counts the kernels of the run's compile-ahead queue cached so
+    far by every process compiling them, out of the queue's length (how far the first run
+    has to go; :func:`meshfit._compile_ahead.queue_progress`), or, without a queue, the
+    kernels compiled here.
     """
 
     def __init__(self, quiet: bool = False) -> None:
@@ -56,6 +59,8 @@ class stage_progress:
         if stage not in self.tasks:
             self.tasks[stage] = self.bar.add_task(stage, total=max(total, 1))
         self.bar.update(self.tasks[stage], completed=done, total=max(total, 1))
+        if "kernels" in self.tasks:  # the other process compiles while this one works
+            self._show_kernels()
 
     def _compiling(self, seconds: float | None) -> None:
         """A kernel's compilation began (``seconds`` None) or ended after ``seconds``."""
@@ -63,12 +68,21 @@ class stage_progress:
             if self.compiled == 0:
                 self.console.print(COMPILING)
                 self.tasks["kernels"] = self.bar.add_task("kernels", total=None)
+                self._show_kernels()
             return
         self.compiled += 1
         self.compile_seconds += seconds
+        self._show_kernels()
+
+    def _show_kernels(self) -> None:
+        from meshfit._compile_ahead import queue_progress
+
+        queued = queue_progress()
+        done, total = queued if queued is not None else (self.compiled, None)
         self.bar.update(
             self.tasks["kernels"],
-            completed=self.compiled,
+            completed=done,
+            total=total,
             description=f"kernels ({self.compile_seconds:.0f} s compiling)",
         )
 

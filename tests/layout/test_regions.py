@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from meshfit.errors import InputError
-from meshfit.layout import extract_patches
+from meshfit.layout import extract_patches, regions
 from meshfit.layout.auto import LayoutOptions, auto_layout
 from meshfit.layout.regions import crease_corners, crease_edges, region_layout
 from meshfit.mesh import Mesh, load_mesh
@@ -171,6 +171,41 @@ def test_repairs_are_noted_in_the_summary(tmp_path):
     assert any("split" in n and "duplicate face" in n for n in s["notes"])
     s = _fit("inside_out_sphere", str(tmp_path / "b"))
     assert any("inside out: 1 component" in n for n in s["notes"])
+
+
+def _sharp_brute(mesh: Mesh, angle: float) -> tuple[np.ndarray, np.ndarray]:
+    """Edges whose two faces' normals turn by more than ``angle`` degrees, face pair by
+    face pair (the definition), and the edges within round-off of the angle."""
+    faces_of: dict[tuple[int, int], list[int]] = {}
+    for f, tri in enumerate(mesh.faces.tolist()):
+        for k in range(3):
+            a, b = tri[k], tri[(k + 1) % 3]
+            faces_of.setdefault((min(a, b), max(a, b)), []).append(f)
+    n = mesh.face_normals
+    limit = np.cos(np.radians(angle))
+    sharp = np.zeros(mesh.edges.shape[0], dtype=bool)
+    close = np.zeros(mesh.edges.shape[0], dtype=bool)
+    for e, (a, b) in enumerate(mesh.edges.tolist()):
+        fs = faces_of[(a, b)]
+        if len(fs) == 2:
+            c = float(n[fs[0]] @ n[fs[1]])
+            sharp[e] = c < limit
+            close[e] = abs(c - limit) < 1e-12
+    return sharp, close
+
+
+@pytest.mark.parametrize("name", ["sharp_cube", "open_cylinder", "genus3_solid"])
+@pytest.mark.parametrize("chunk", [1, 97, 1 << 20])
+def test_sharp_edges_are_the_face_pairs_turning_past_the_angle(name, chunk, monkeypatch):
+    """Whatever the chunk of edges taken at a time, boundary edges included."""
+    mesh = generated(name)
+    monkeypatch.setattr(regions, "SHARP_CHUNK", chunk)
+    for angle in (5.0, 40.0):
+        want, close = _sharp_brute(mesh, angle)
+        got = regions.sharp_edges(mesh, angle)
+        assert np.array_equal(got[~close], want[~close]), (name, angle)
+        if name != "open_cylinder":
+            assert want.any()
 
 
 def test_sharp_cube_edges_lie_on_crease_curves():

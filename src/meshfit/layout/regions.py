@@ -663,21 +663,32 @@ def _crease_nodes(clip: _Clip, mesh: Mesh, label, parent, orig: Mesh, corner_ver
 # ----------------------------------------------------------------------------- creases
 
 
+#: edges whose dihedral angles are taken at a time (bounds the gathered normals' memory)
+SHARP_CHUNK = 1 << 20
+
+
 def sharp_edges(mesh: Mesh, angle: float) -> NDArray[np.bool_]:
     """Interior edges (over ``mesh.edges``) whose two faces' normals differ by more than
     ``angle`` degrees, each on its own: no chains, lengths or pruning (see
-    :func:`crease_edges` for the creases a layout follows)."""
-    ne = mesh.edges.shape[0]
-    fe = mesh.face_edges.reshape(-1)
-    fid = np.repeat(np.arange(mesh.n_faces), 3)
-    order = np.argsort(fe, kind="stable")
-    first = np.searchsorted(fe[order], np.arange(ne))
-    fa = fid[order][first]
-    fb = fid[order][np.minimum(first + 1, fe.size - 1)]
+    :func:`crease_edges` for the creases a layout follows).
+
+    The two faces of an edge are its first two half-edges in the edge table's order (no
+    sort), and the normals are gathered a chunk of edges at a time: on a scan of tens of
+    millions of faces, the whole gather would hold two normals per edge at once."""
+    table = mesh._edge_table
+    ne = table.edges.shape[0]
+    two = table.edge_count == 2
+    last = max(table.order.size - 1, 0)
     n = mesh.face_normals
-    return (mesh.edge_face_count == 2) & (
-        np.einsum("ij,ij->i", n[fa], n[fb]) < np.cos(np.radians(angle))
-    )
+    limit = np.cos(np.radians(angle))
+    out = np.zeros(ne, dtype=bool)
+    for a in range(0, ne, SHARP_CHUNK):
+        b = min(a + SHARP_CHUNK, ne)
+        first = table.start[a:b]
+        fa = table.order[first] // 3
+        fb = table.order[np.minimum(first + 1, last)] // 3
+        out[a:b] = two[a:b] & (np.einsum("ij,ij->i", n[fa], n[fb]) < limit)
+    return out
 
 
 def crease_edges(mesh: Mesh, angle: float = CREASE_ANGLE) -> NDArray[np.bool_]:
