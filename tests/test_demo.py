@@ -155,6 +155,7 @@ def test_the_kernels_line_counts_the_compile_ahead_queue(tmp_path, monkeypatch):
     from numba import njit
 
     from meshfit import _compile_ahead as warm
+    from meshfit import _progress
     from meshfit._progress import stage_progress
 
     entries = [("m.a", ()), ("m.b", ()), ("m.c", ())]
@@ -162,6 +163,7 @@ def test_the_kernels_line_counts_the_compile_ahead_queue(tmp_path, monkeypatch):
     assert queue is not None
     os.pwrite(queue.fd, b"\1", 1)  # another process cached entry 1
     monkeypatch.setattr(warm, "_queue", queue)
+    monkeypatch.setattr(_progress, "queue_counts", warm.queue_progress)  # as claiming() does
     assert warm.queue_progress() == (1, 3)
 
     @njit  # no cache: compiled here

@@ -359,6 +359,9 @@ def claiming(queue: Queue) -> None:
 
     Dispatcher._compile_for_args = claimed
     _queue = queue
+    from meshfit import _progress
+
+    _progress.queue_counts = queue_progress  # the display counts the queue
 
 
 #: the queue this process takes part in, once :func:`claiming` is set up

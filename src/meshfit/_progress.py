@@ -3,12 +3,18 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 #: said once, when the first kernel of a run is compiled rather than loaded from the cache
 COMPILING = (
     "compiling meshfit's numba kernels for this machine (a first run: about a minute on two "
     "cores; they are cached, and later runs skip this)"
 )
+
+
+#: counts (cached, length) of the compile-ahead queue this process takes part in, or None:
+#: set by :func:`meshfit._compile_ahead.claiming` (which sits above this module)
+queue_counts: Callable[[], tuple[int, int] | None] | None = None
 
 
 class stage_progress:
@@ -19,7 +25,7 @@ class stage_progress:
     spent, and `COMPILING` is printed once: otherwise a first run sits silently in a stage
     for a minute. The line counts the kernels of the run's compile-ahead queue cached so
     far by every process compiling them, out of the queue's length (how far the first run
-    has to go; :func:`meshfit._compile_ahead.queue_progress`), or, without a queue, the
+    has to go; :data:`queue_counts`), or, without a queue, the
     kernels compiled here.
     """
 
@@ -75,9 +81,7 @@ class stage_progress:
         self._show_kernels()
 
     def _show_kernels(self) -> None:
-        from meshfit._compile_ahead import queue_progress
-
-        queued = queue_progress()
+        queued = queue_counts() if queue_counts is not None else None
         done, total = queued if queued is not None else (self.compiled, None)
         self.bar.update(
             self.tasks["kernels"],
