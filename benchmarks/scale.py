@@ -137,12 +137,13 @@ def run_one(size: str, processes: int, patches: int) -> dict:
 
 def _stage_at(stages: dict, seconds: float) -> str:
     """The stage running ``seconds`` after the fit started (stages run one after another,
-    in the summary's order; ``before`` and ``after`` fall outside them)."""
+    in the summary's order; the fit's set-up counts as the first stage's, and ``after`` is
+    past the last)."""
     end = 0.0
     for name, stage in stages.items():
         end += stage["seconds"]
         if seconds <= end:
-            return name if end > 0 else "before"
+            return name
     return "after"
 
 

@@ -161,7 +161,7 @@ def test_the_kernels_line_counts_the_compile_ahead_queue(tmp_path, monkeypatch):
     entries = [("m.a", ()), ("m.b", ()), ("m.c", ())]
     queue = warm.Queue.open(entries, tmp_path / "claims")
     assert queue is not None
-    os.pwrite(queue.fd, b"\1", 1)  # another process cached entry 1
+    queue.mark(1)  # another process cached entry 1
     monkeypatch.setattr(warm, "_queue", queue)
     monkeypatch.setattr(_progress, "queue_counts", warm.queue_progress)  # as claiming() does
     assert warm.queue_progress() == (1, 3)
@@ -175,7 +175,7 @@ def test_the_kernels_line_counts_the_compile_ahead_queue(tmp_path, monkeypatch):
         assert twice(2) == 4
         kernels = lambda: next(t for t in prog.bar.tasks if t.id == prog.tasks["kernels"])  # noqa: E731
         assert (kernels().completed, kernels().total) == (1, 3)
-        os.pwrite(queue.fd, b"\1", 0)
+        queue.mark(0)
         prog("layout", 1, 1)  # a stage's progress looks again
         assert (kernels().completed, kernels().total) == (2, 3)
     os.close(queue.fd)

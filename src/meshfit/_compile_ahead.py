@@ -230,12 +230,24 @@ class Queue:
         except OSError:
             return False
 
+    def mark(self, i: int) -> None:
+        """Mark entry ``i`` as cached."""
+        with contextlib.suppress(OSError):
+            os.pwrite(self.fd, b"\1", i)
+
+    def counts(self) -> tuple[int, int]:
+        """(entries marked cached, entries)."""
+        try:
+            cached = os.pread(self.fd, len(self.entries), 0).count(b"\1")
+        except OSError:
+            cached = 0
+        return cached, len(self.entries)
+
     def compile(self, i: int) -> None:
         """Compile entry ``i`` (this process holds its claim) and mark it cached."""
         kernel, args = self.entries[i]
         _kernel(kernel).compile(tuple(decode_type(a) for a in args))
-        with contextlib.suppress(OSError):
-            os.pwrite(self.fd, b"\1", i)
+        self.mark(i)
 
     def take_last(self, but: int) -> int | None:
         """Claim the last entry, other than ``but``, that is neither cached nor claimed;
@@ -247,14 +259,6 @@ class Queue:
                 return j
             self.release(j)
         return None
-
-
-def _kernel(name: str):
-    """The dispatcher of ``module.name`` under :mod:`meshfit._kernels`."""
-    import importlib
-
-    module, _, attr = name.rpartition(".")
-    return getattr(importlib.import_module(_PACKAGE + module), attr)
 
 
 def compile_ahead(entries: list[tuple[str, tuple[str, ...]]], queue: Queue | None = None) -> int:
@@ -290,13 +294,13 @@ def compile_ahead(entries: list[tuple[str, tuple[str, ...]]], queue: Queue | Non
     return done
 
 
-def _queue_path(folder: Path, manifest: Path, scope: str) -> Path:
-    """The claims file of the queue of ``manifest``'s ``scope`` in the cache ``folder``
-    (named by the stamp, so that a changed manifest or changed sources start an empty
-    one)."""
+def _queue_path(folder: Path, stamp: str, scope: str) -> Path:
+    """The claims file of the queue of ``scope`` in the cache ``folder``, named by the
+    manifest's ``stamp`` (:func:`_digest`), so that a changed manifest, changed sources or
+    another compiler start an empty one."""
     from meshfit._kernels import QUEUES
 
-    return folder / f"{QUEUES}{scope}.{_digest(manifest)[:16]}"
+    return folder / f"{QUEUES}{scope}.{stamp[:16]}"
 
 
 def _stamped(folder: Path, scope: str, stamp: str) -> bool:
@@ -351,8 +355,7 @@ def claiming(queue: Queue) -> None:
                 queue.release(j)
         try:
             out = compile_for_args(self, *args, **kws)
-            with contextlib.suppress(OSError):
-                os.pwrite(queue.fd, b"\1", i)
+            queue.mark(i)
             return out
         finally:
             queue.release(i)
@@ -371,10 +374,7 @@ _queue: Queue | None = None
 def queue_progress() -> tuple[int, int] | None:
     """(entries cached, entries) of the queue this process takes part in, counting what
     every process sharing it has compiled; None when it takes part in none."""
-    q = _queue
-    if q is None:
-        return None
-    return sum(q.done(i) for i in range(len(q.entries))), len(q.entries)
+    return None if _queue is None else _queue.counts()
 
 
 def _cores() -> int:
@@ -419,7 +419,7 @@ def start(manifest: Path = MANIFEST, scope: str = "all") -> subprocess.Popen | N
         return None
     if _stamped(folder, scope, stamp):
         return None
-    queue = Queue.open(entries, _queue_path(folder, manifest, scope))
+    queue = Queue.open(entries, _queue_path(folder, stamp, scope))
     if queue is not None:
         claiming(queue)
     if _held(folder / _LOCK):
@@ -484,10 +484,11 @@ def _run_helper(parent: int, manifest: Path, scope: str) -> int:
         return 0  # another helper is at work
     with lock:
         entries = read_manifest(manifest, scope)
-        queue = Queue.open(entries, _queue_path(folder, manifest, scope))
+        stamp = _digest(manifest)
+        queue = Queue.open(entries, _queue_path(folder, stamp, scope))
         if compile_ahead(entries, queue) == len(entries):
             tmp = folder / f"{_DONE}.{scope}.{os.getpid()}.tmp"
-            tmp.write_text(_digest(manifest))
+            tmp.write_text(stamp)
             os.replace(tmp, folder / f"{_DONE}.{scope}")
     return 0
 

@@ -25,8 +25,7 @@ class stage_progress:
     spent, and `COMPILING` is printed once: otherwise a first run sits silently in a stage
     for a minute. The line counts the kernels of the run's compile-ahead queue cached so
     far by every process compiling them, out of the queue's length (how far the first run
-    has to go; :data:`queue_counts`), or, without a queue, the
-    kernels compiled here.
+    has to go; :data:`queue_counts`), or, without a queue, the kernels compiled here.
     """
 
     def __init__(self, quiet: bool = False) -> None:

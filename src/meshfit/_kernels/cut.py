@@ -1463,11 +1463,8 @@ def _grow_points(PI, PF, n, extra):
     cap = max(2 * PI.shape[0], n + extra)
     I2 = np.empty((cap, 4), dtype=np.int64)
     F2 = np.empty((cap, 6), dtype=np.float64)
-    for i in range(n):
-        for c in range(4):
-            I2[i, c] = PI[i, c]
-        for c in range(6):
-            F2[i, c] = PF[i, c]
+    _copy_rows(PI, I2, n)
+    _copy_rows(PF, F2, n)
     return I2, F2
 
 
