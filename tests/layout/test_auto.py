@@ -409,16 +409,29 @@ def test_slivers_on_a_proxy_are_retried_like_on_the_mesh(monkeypatch):
     mesh = real_mesh("spot")  # 5,856 faces: over 4 times a proxy of 1,000
     monkeypatch.setattr(auto, "THIN", 10.0)
     tries = auto.SEED_TRIES
+    single: dict[int, tuple] = {}  # seed -> (layout, its thinnest patch), made on the proxy
+    on_proxy = auto._layout_on_proxy
+    made: list = []
     with monkeypatch.context() as m:
         m.setattr(auto, "SEED_TRIES", 1)
-        each = [
-            auto_layout(mesh, LayoutOptions(seed=3 + s, proxy_faces=1000, protrusions=False))
-            for s in range(tries)
-        ]
-    thinnest = [patch_bulges(mesh, x).min() for x in each]
-    assert int(np.argmax(thinnest)) == tries - 1  # 0.31, 0.04, 0.44: the last one wins
+        m.setattr(auto, "_layout_on_proxy", lambda *a: made.append(on_proxy(*a)) or made[-1])
+        for seed in range(3, 3 + 4 * tries):
+            x = auto_layout(mesh, LayoutOptions(seed=seed, proxy_faces=1000, protrusions=False))
+            if made[-1] is not None:  # (else the rotation's carried network did not cut)
+                single[seed] = (x, patch_bulges(mesh, x).min())
+    # the first run of rotations, all laid out on the proxy, where a later one wins
+    for first in range(3, 3 + 3 * tries + 1):
+        if not all(first + k in single for k in range(tries)):
+            continue
+        thinnest = [single[first + k][1] for k in range(tries)]
+        if int(np.argmax(thinnest)) > 0:
+            break
+    else:
+        pytest.fail("no run of rotations on the proxy where a later one is the thickest")
+    assert len(set(thinnest)) == len(thinnest)
     _same_layout(
-        auto_layout(mesh, LayoutOptions(seed=3, proxy_faces=1000, protrusions=False)), each[-1]
+        auto_layout(mesh, LayoutOptions(seed=first, proxy_faces=1000, protrusions=False)),
+        single[first + int(np.argmax(thinnest))][0],
     )
 
 

@@ -144,3 +144,29 @@ def test_vertex_face_components_match_scipy(name, rng):
     count, labels = kernel.vertex_face_components(mesh.faces, nv)
     assert count == mesh.n_components
     np.testing.assert_array_equal(labels, mesh.face_components)
+
+
+def _stars_cases(rng):
+    """Real scans, a scan with faces dropped and its vertices shuffled (unused vertices,
+    holes), non-manifold soups and a fan of high valence."""
+    for name in ("spot", "bunny"):
+        mesh = real_mesh(name)
+        yield mesh.faces, mesh.n_vertices
+        perm = rng.permutation(mesh.n_vertices)
+        yield perm[mesh.faces[rng.random(mesh.n_faces) > 0.1]], mesh.n_vertices + 3
+    for _ in range(20):
+        nv = int(rng.integers(3, 30))
+        faces = np.array(
+            [rng.choice(nv, 3, replace=False) for _ in range(int(rng.integers(1, 60)))]
+        )
+        yield faces.astype(np.int64), nv
+    k = 200
+    yield np.array([[0, i, i + 1] for i in range(1, k)], dtype=np.int64), k + 1
+
+
+def test_vertex_faces_and_adjacency_match_references(rng):
+    for faces, nv in _stars_cases(rng):
+        faces = np.ascontiguousarray(faces, dtype=np.int64)
+        _same(kernel.vertex_faces(faces, nv), ref.vertex_faces(faces, nv))
+        edges = topology.edge_table(faces, nv).edges
+        _same(kernel.vertex_adjacency(edges, nv), ref.vertex_adjacency(edges, nv))

@@ -102,3 +102,18 @@ def collapse_pass(V, F, alive, max_collapses, max_valence, min_cos, min_quality)
             done += 1
             break
     return np.asarray(F, dtype=np.int64), np.asarray(alive, dtype=bool), done
+
+
+def compact(V, F, alive, kept):
+    """The alive faces and the vertices they use, in their order (numpy indexing)."""
+    F = F[alive]
+    used = np.unique(F.reshape(-1))
+    remap = np.full(len(V), -1, dtype=np.int64)
+    remap[used] = np.arange(used.size)
+    return V[used], remap[F], kept[used]
+
+
+def faces_by_vertex(F, nv):
+    """Rows of F in the stable order of their smallest vertex."""
+    del nv
+    return F[np.argsort(F.min(axis=1), kind="stable")]

@@ -53,3 +53,23 @@ def components(n, a, b):
     graph = sparse.coo_matrix((np.ones(a.size, dtype=np.int8), (a, b)), shape=(n, n))
     count, labels = connected_components(graph, directed=False)
     return int(count), labels.astype(np.int64)
+
+
+def vertex_faces(faces, nv):
+    """Faces around each vertex, ascending, as CSR: a dict of sets read off face by face."""
+    around: list[list[int]] = [[] for _ in range(nv)]
+    for f, row in enumerate(faces.tolist()):
+        for v in row:
+            around[v].append(f)
+    indptr = np.cumsum([0] + [len(a) for a in around]).astype(np.int64)
+    return indptr, np.array([f for a in around for f in sorted(a)], dtype=np.int64)
+
+
+def vertex_adjacency(edges, nv):
+    """Neighbours of each vertex, ascending, as CSR, from unique undirected edges."""
+    around: list[set[int]] = [set() for _ in range(nv)]
+    for a, b in edges.tolist():
+        around[a].add(b)
+        around[b].add(a)
+    indptr = np.cumsum([0] + [len(a) for a in around]).astype(np.int64)
+    return indptr, np.array([w for a in around for w in sorted(a)], dtype=np.int64)

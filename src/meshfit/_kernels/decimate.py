@@ -1,4 +1,5 @@
-"""Numba kernel of mesh simplification: one pass of independent half-edge collapses.
+"""Numba kernels of mesh simplification: one pass of independent half-edge collapses, and
+the compaction and spatial ordering of the arrays between passes.
 
 No validation here: :func:`meshfit.shrinkwrap.proxy.simplify_mesh` checks the input (one
 closed manifold surface) and passes contiguous arrays. ``fastmath`` stays off: the normal
@@ -260,3 +261,59 @@ def collapse_pass(V, F, alive, max_collapses, max_valence, min_cos, min_quality)
             done += 1
             break
     return done
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def compact(V, F, alive, kept):
+    """The alive faces and the vertices they use, both in their order: ``(V', F', kept')``
+    with ``F'`` renumbered and ``kept'`` the entry of ``kept`` of each remaining vertex (a
+    monotone renumbering, so a pass on the result breaks ties as on the input)."""
+    nv = V.shape[0]
+    remap = np.full(nv, -1, dtype=np.int64)
+    m = 0
+    for f in range(F.shape[0]):
+        if alive[f]:
+            m += 1
+            for k in range(3):
+                remap[F[f, k]] = 0
+    n = 0
+    for v in range(nv):
+        if remap[v] == 0:
+            remap[v] = n
+            n += 1
+    V2 = np.empty((n, 3))
+    kept2 = np.empty(n, dtype=np.int64)
+    for v in range(nv):
+        r = remap[v]
+        if r >= 0:
+            for d in range(3):
+                V2[r, d] = V[v, d]
+            kept2[r] = kept[v]
+    F2 = np.empty((m, 3), dtype=np.int64)
+    m = 0
+    for f in range(F.shape[0]):
+        if alive[f]:
+            for k in range(3):
+                F2[m, k] = remap[F[f, k]]
+            m += 1
+    return V2, F2, kept2
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def faces_by_vertex(F, nv):
+    """The rows of ``F`` ordered by their smallest vertex, ties in input order (a counting
+    sort): with the vertices in a spatial order, so are the faces."""
+    cnt = np.zeros(nv + 1, dtype=np.int64)
+    low = np.empty(F.shape[0], dtype=np.int64)
+    for f in range(F.shape[0]):
+        low[f] = min(F[f, 0], min(F[f, 1], F[f, 2]))
+        cnt[low[f] + 1] += 1
+    for v in range(nv):
+        cnt[v + 1] += cnt[v]
+    out = np.empty_like(F)
+    for f in range(F.shape[0]):
+        r = cnt[low[f]]
+        cnt[low[f]] += 1
+        for k in range(3):
+            out[r, k] = F[f, k]
+    return out

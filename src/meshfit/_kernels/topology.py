@@ -324,3 +324,56 @@ def manifold_ok(vertices, faces, edge_count, order, start, area2_floor):
                 c = t
                 seen[c] = True
     return True
+
+
+@njit(cache=True, nogil=True)
+def vertex_faces(faces, nv):
+    """Faces around each vertex as CSR ``(indptr (nv + 1,), faces (3 nf,))``, each vertex's
+    faces ascending: ``np.argsort(faces.ravel(), kind="stable") // 3`` by a counting sort, in
+    linear time (the comparison sort of three indices per face was seconds on a dense scan).
+    """
+    indptr = np.zeros(nv + 1, dtype=np.int64)
+    for f in range(faces.shape[0]):
+        for k in range(3):
+            indptr[faces[f, k] + 1] += 1
+    for v in range(nv):
+        indptr[v + 1] += indptr[v]
+    out = np.empty(indptr[nv], dtype=np.int64)
+    fill = indptr[:nv].copy()
+    for f in range(faces.shape[0]):
+        for k in range(3):
+            v = faces[f, k]
+            out[fill[v]] = f
+            fill[v] += 1
+    return indptr, out
+
+
+@njit(cache=True, nogil=True)
+def vertex_adjacency(edges, nv):
+    """Neighbours of each vertex as CSR ``(indptr (nv + 1,), indices (2 ne,))``, each row
+    ascending, from unique undirected ``edges (ne, 2)``: a counting sort by the first end,
+    then an insertion sort of each (short) row."""
+    indptr = np.zeros(nv + 1, dtype=np.int64)
+    for i in range(edges.shape[0]):
+        indptr[edges[i, 0] + 1] += 1
+        indptr[edges[i, 1] + 1] += 1
+    for v in range(nv):
+        indptr[v + 1] += indptr[v]
+    out = np.empty(indptr[nv], dtype=np.int64)
+    fill = indptr[:nv].copy()
+    for i in range(edges.shape[0]):
+        a = edges[i, 0]
+        b = edges[i, 1]
+        out[fill[a]] = b
+        fill[a] += 1
+        out[fill[b]] = a
+        fill[b] += 1
+    for v in range(nv):
+        for j in range(indptr[v] + 1, indptr[v + 1]):
+            x = out[j]
+            i = j
+            while i > indptr[v] and out[i - 1] > x:
+                out[i] = out[i - 1]
+                i -= 1
+            out[i] = x
+    return indptr, out

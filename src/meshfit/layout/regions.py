@@ -719,7 +719,9 @@ def crease_edges(mesh: Mesh, angle: float = CREASE_ANGLE) -> NDArray[np.bool_]:
     nv = mesh.n_vertices
     g = sparse.coo_matrix((np.ones(e.shape[0]), (e[:, 0], e[:, 1])), shape=(nv, nv))
     _, comp = csgraph.connected_components(g, directed=False)
-    length = np.bincount(comp[e[:, 0]], weights=mesh.edge_lengths[sharp])
+    lengths = np.zeros(ne)  # of the sharp edges only: all of them are not needed here
+    lengths[sharp] = mesh.lengths_of(np.flatnonzero(sharp))
+    length = np.bincount(comp[e[:, 0]], weights=lengths[sharp])
     ok = length[comp[e[:, 0]]] >= CREASE_MIN_LENGTH * mesh.bbox_diagonal
     idx = np.flatnonzero(sharp)[ok]
     anchor = np.zeros(nv, dtype=bool)
@@ -736,9 +738,9 @@ def crease_edges(mesh: Mesh, angle: float = CREASE_ANGLE) -> NDArray[np.bool_]:
         ee = mesh.edges[idx]
         g = sparse.coo_matrix((np.ones(idx.size), (ee[:, 0], ee[:, 1])), shape=(nv, nv))
         _, comp = csgraph.connected_components(g, directed=False)
-        length = np.bincount(comp[ee[:, 0]], weights=mesh.edge_lengths[idx])
+        length = np.bincount(comp[ee[:, 0]], weights=lengths[idx])
         idx = idx[length[comp[ee[:, 0]]] >= CREASE_MIN_LENGTH * mesh.bbox_diagonal]
-    if mesh.edge_lengths[idx].sum() < CREASE_MIN_TOTAL * mesh.bbox_diagonal:
+    if lengths[idx].sum() < CREASE_MIN_TOTAL * mesh.bbox_diagonal:
         idx = idx[:0]
     out = np.zeros(ne, dtype=bool)
     out[idx] = True

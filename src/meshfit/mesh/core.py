@@ -28,6 +28,9 @@ if TYPE_CHECKING:
 
 __all__ = ["Mesh"]
 
+#: edges whose lengths `_lengths` gathers at a time (bounds its temporaries)
+LENGTH_CHUNK = 1 << 20
+
 
 def _frozen(a: NDArray) -> NDArray:
     a = np.array(a, copy=True, order="C")
@@ -92,6 +95,20 @@ def _as_colors(colors: ArrayLike | None, nv: int) -> NDArray[np.uint8] | None:
             c = np.round(c * 255.0)
         c = np.clip(c, 0, 255).astype(np.uint8)
     return c
+
+
+def _lengths(V: NDArray[np.float64], e: NDArray[np.int64]) -> NDArray[np.float64]:
+    """Lengths of the segments ``V[e[:, 0]] V[e[:, 1]]``, `LENGTH_CHUNK` rows at a time: on a
+    dense scan the end points of every edge gathered at once are over a gigabyte."""
+    out = np.empty(e.shape[0])
+    for a in range(0, e.shape[0], LENGTH_CHUNK):
+        ee = e[a : a + LENGTH_CHUNK]
+        d = V[ee[:, 1]] - V[ee[:, 0]]
+        # the sum np.linalg.norm forms, without its temporaries
+        out[a : a + LENGTH_CHUNK] = np.sqrt(
+            d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]
+        )
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -268,17 +285,8 @@ class Mesh:
 
     @cached_property
     def _vertex_adjacency(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-        e = self.edges
-        n = self.n_vertices
-        m = sparse.coo_matrix(
-            (
-                np.ones(2 * e.shape[0], dtype=np.int8),
-                (np.concatenate([e[:, 0], e[:, 1]]), np.concatenate([e[:, 1], e[:, 0]])),
-            ),
-            shape=(n, n),
-        ).tocsr()
-        m.sort_indices()
-        return _sealed(m.indptr.astype(np.int64)), _sealed(m.indices.astype(np.int64))
+        indptr, indices = topology.vertex_adjacency(self.edges, self.n_vertices)
+        return _sealed(indptr), _sealed(indices)
 
     @property
     def vertex_adjacency(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -293,11 +301,8 @@ class Mesh:
 
     @cached_property
     def _vertex_faces(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-        flat = self.faces.reshape(-1)
-        order = np.argsort(flat, kind="stable")
-        indptr = np.zeros(self.n_vertices + 1, dtype=np.int64)
-        np.cumsum(np.bincount(flat, minlength=self.n_vertices), out=indptr[1:])
-        return _sealed(indptr), _sealed(order // 3)
+        indptr, faces = topology.vertex_faces(self.faces, self.n_vertices)
+        return _sealed(indptr), _sealed(faces)
 
     @property
     def vertex_faces(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -387,10 +392,14 @@ class Mesh:
     @cached_property
     def edge_lengths(self) -> NDArray[np.float64]:
         """(ne,) float64: length of each row of :attr:`edges`."""
-        e = self.edges
-        d = self.vertices[e[:, 1]] - self.vertices[e[:, 0]]
-        # the sum np.linalg.norm forms, without its temporaries
-        return _sealed(np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]))
+        return _sealed(_lengths(self.vertices, self.edges))
+
+    def lengths_of(self, edges: NDArray[np.int64]) -> NDArray[np.float64]:
+        """Lengths of the rows ``edges`` of :attr:`edges`, without making
+        :attr:`edge_lengths` (read from it when it is cached)."""
+        if "edge_lengths" in vars(self):
+            return self.edge_lengths[edges]
+        return _lengths(self.vertices, self.edges[edges])
 
     @cached_property
     def mean_edge_length(self) -> float:

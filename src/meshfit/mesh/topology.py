@@ -75,6 +75,24 @@ def edge_table(faces: NDArray[np.int64], n_vertices: int) -> EdgeTable:
     return EdgeTable(edges, inverse, counts, order, start)
 
 
+def vertex_faces(
+    faces: NDArray[np.int64], n_vertices: int
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Faces around each vertex as CSR ``(indptr (nv + 1,), faces (3 nf,))`` int64, each
+    vertex's faces ascending (a linear-time counting sort)."""
+    (f,) = frozen(np.ascontiguousarray(faces, dtype=np.int64))
+    return _k.vertex_faces(f, int(n_vertices))
+
+
+def vertex_adjacency(
+    edges: NDArray[np.int64], n_vertices: int
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Neighbours of each vertex as CSR ``(indptr (nv + 1,), indices (2 ne,))`` int64, each
+    row ascending, from unique undirected edges (rows of :attr:`EdgeTable.edges`)."""
+    (e,) = frozen(np.ascontiguousarray(edges, dtype=np.int64))
+    return _k.vertex_adjacency(e, int(n_vertices))
+
+
 def face_neighbors(faces: NDArray[np.int64], table: EdgeTable) -> NDArray[np.int64]:
     """Neighbour across each face edge, ``(nf, 3) int64``, -1 where the edge is a boundary or
     non-manifold edge. Edge k of face f joins ``faces[f, k]`` and ``faces[f, (k + 1) % 3]``."""
