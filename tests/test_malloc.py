@@ -30,3 +30,23 @@ def test_a_child_reports_its_own_peak_not_its_parents():
     code = "from meshfit._malloc import peak_rss; print(peak_rss())"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert int(out.stdout) < big.nbytes // 2
+
+
+def test_the_c_library_is_found_without_a_child_process(monkeypatch):
+    # a fork of a process holding gigabytes (ctypes.util.find_library runs ldconfig) would
+    # double its resident size for a moment and copy its page tables
+    import os
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a child process was started")
+
+    monkeypatch.setattr(subprocess, "Popen", refuse)
+    monkeypatch.setattr(os, "fork", refuse)
+    _malloc._glibc.cache_clear()
+    try:
+        libc = _malloc._libc()
+        _malloc.release_memory()
+    finally:
+        _malloc._glibc.cache_clear()
+    assert (libc is not None) == sys.platform.startswith("linux")
+    assert libc is None or _malloc._libc() is not None

@@ -12,7 +12,7 @@ somewhat faster fit of a dense scan, at the same peak memory (see
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
+import functools
 import sys
 
 __all__ = ["peak_rss", "release_memory", "tune_malloc"]
@@ -30,18 +30,27 @@ TOP_PAD = 256 << 20
 
 
 def _libc():
-    """glibc through ctypes (with ``mallopt`` and ``malloc_trim``), or None."""
-    if not sys.platform.startswith("linux"):
-        return None
-    try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
-        libc.mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
-        libc.mallopt.restype = ctypes.c_int
-        libc.malloc_trim.argtypes = (ctypes.c_size_t,)
-        libc.malloc_trim.restype = ctypes.c_int
-    except (OSError, AttributeError):
-        return None
-    return libc
+    """glibc through ctypes (with ``mallopt`` and ``malloc_trim``) on Linux, else None."""
+    return _glibc() if sys.platform.startswith("linux") else None
+
+
+@functools.cache
+def _glibc():
+    """The C library with the two functions, looked up once, or None: the process's own
+    symbols first (the interpreter is linked against it), then ``libc.so.6`` by name. Never
+    ``ctypes.util.find_library``, which runs ``ldconfig`` in a child process: a fork of a
+    process that may hold gigabytes at that moment."""
+    for name in (None, "libc.so.6"):
+        try:
+            libc = ctypes.CDLL(name)
+            libc.mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
+            libc.mallopt.restype = ctypes.c_int
+            libc.malloc_trim.argtypes = (ctypes.c_size_t,)
+            libc.malloc_trim.restype = ctypes.c_int
+        except (OSError, AttributeError):
+            continue
+        return libc
+    return None
 
 
 def tune_malloc() -> bool:
