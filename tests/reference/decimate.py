@@ -111,9 +111,3 @@ def compact(V, F, alive, kept):
     remap = np.full(len(V), -1, dtype=np.int64)
     remap[used] = np.arange(used.size)
     return V[used], remap[F], kept[used]
-
-
-def faces_by_vertex(F, nv):
-    """Rows of F in the stable order of their smallest vertex."""
-    del nv
-    return F[np.argsort(F.min(axis=1), kind="stable")]

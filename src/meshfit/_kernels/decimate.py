@@ -1,5 +1,5 @@
 """Numba kernels of mesh simplification: one pass of independent half-edge collapses, and
-the compaction and spatial ordering of the arrays between passes.
+the compaction of the arrays between passes.
 
 No validation here: :func:`meshfit.shrinkwrap.proxy.simplify_mesh` checks the input (one
 closed manifold surface) and passes contiguous arrays. ``fastmath`` stays off: the normal
@@ -297,23 +297,3 @@ def compact(V, F, alive, kept):
                 F2[m, k] = remap[F[f, k]]
             m += 1
     return V2, F2, kept2
-
-
-@njit(cache=True, nogil=True, fastmath=False)
-def faces_by_vertex(F, nv):
-    """The rows of ``F`` ordered by their smallest vertex, ties in input order (a counting
-    sort): with the vertices in a spatial order, so are the faces."""
-    cnt = np.zeros(nv + 1, dtype=np.int64)
-    low = np.empty(F.shape[0], dtype=np.int64)
-    for f in range(F.shape[0]):
-        low[f] = min(F[f, 0], min(F[f, 1], F[f, 2]))
-        cnt[low[f] + 1] += 1
-    for v in range(nv):
-        cnt[v + 1] += cnt[v]
-    out = np.empty_like(F)
-    for f in range(F.shape[0]):
-        r = cnt[low[f]]
-        cnt[low[f]] += 1
-        for k in range(3):
-            out[r, k] = F[f, k]
-    return out

@@ -29,10 +29,6 @@ MAX_VALENCE = 12
 MIN_QUALITY = 0.15
 #: passes of independent collapses before giving up on the target
 _MAX_PASSES = 200
-#: meshes of more faces are simplified in a spatial order of their own (`_spatial_order`):
-#: beyond the processor's caches, a pass's scattered visits miss them on almost every
-#: neighbour; below, the reordering would cost more than it saves
-SPATIAL_ORDER_FACES = 1 << 20
 
 
 @dataclass(frozen=True, eq=False)
@@ -95,8 +91,10 @@ def simplify_mesh(mesh: Mesh, target_faces: int) -> SimplifiedMesh:
         raise errors.TopologyError(
             f"simplify_mesh needs a closed surface; {mesh.name or 'the mesh'} has boundary loops"
         )
-    V, F, kept = _spatial_order(mesh)
+    V = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
+    F = np.array(mesh.faces, dtype=np.int64, order="C")
     alive = np.ones(F.shape[0], dtype=np.bool_)
+    kept = np.arange(V.shape[0], dtype=np.int64)
     n_alive = F.shape[0]
     min_cos = float(np.cos(np.radians(MAX_NORMAL_TURN_DEG)))
     passes = 0
@@ -115,22 +113,3 @@ def simplify_mesh(mesh: Mesh, target_faces: int) -> SimplifiedMesh:
     V, F, kept = _k.compact(V, F, alive, kept)
     coarse = Mesh(V, F, name=f"{mesh.name}_proxy" if mesh.name else "proxy")
     return SimplifiedMesh(coarse, kept, passes)
-
-
-def _spatial_order(mesh: Mesh) -> tuple[NDArray, NDArray, NDArray[np.int64]]:
-    """The arrays the passes work on, with the input index of each vertex. Above
-    `SPATIAL_ORDER_FACES`: the vertices in the Morton order of their positions and the
-    faces in the order of their smallest vertex, so a vertex's neighbours lie near it in
-    memory and the passes' visits in order of edge length, scattered over the surface,
-    miss the cache far less often than in the file's order (which may be any). Else the
-    mesh's own arrays and order."""
-    from meshfit._kernels import bvh
-
-    V = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
-    if mesh.n_faces <= SPATIAL_ORDER_FACES:
-        return V, np.array(mesh.faces, dtype=np.int64, order="C"), np.arange(V.shape[0])
-    perm = np.argsort(bvh.point_morton_codes(V), kind="stable")
-    rank = np.empty_like(perm)
-    rank[perm] = np.arange(perm.size)
-    F = _k.faces_by_vertex(rank[np.asarray(mesh.faces, dtype=np.int64)], perm.size)
-    return np.ascontiguousarray(V[perm]), F, perm.astype(np.int64)
