@@ -170,3 +170,13 @@ def test_vertex_faces_and_adjacency_match_references(rng):
         _same(kernel.vertex_faces(faces, nv), ref.vertex_faces(faces, nv))
         edges = topology.edge_table(faces, nv).edges
         _same(kernel.vertex_adjacency(edges, nv), ref.vertex_adjacency(edges, nv))
+
+
+def test_lengths_of_some_edges_match_all_lengths(rng):
+    mesh = real_mesh("spot")
+    pick = rng.choice(mesh.edges.shape[0], 500, replace=False)
+    fresh = type(mesh)(mesh.vertices, mesh.faces)
+    got = fresh.lengths_of(pick)
+    assert "edge_lengths" not in vars(fresh)  # (not made for all edges)
+    np.testing.assert_array_equal(got, mesh.edge_lengths[pick])
+    np.testing.assert_array_equal(mesh.lengths_of(pick), got)  # (read from the cache)

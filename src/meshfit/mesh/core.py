@@ -395,8 +395,19 @@ class Mesh:
         return _sealed(_lengths(self.vertices, self.edges))
 
     def lengths_of(self, edges: NDArray[np.int64]) -> NDArray[np.float64]:
-        """Lengths of the rows ``edges`` of :attr:`edges`, without making
-        :attr:`edge_lengths` (read from it when it is cached)."""
+        """Lengths of some edges, without making :attr:`edge_lengths` for all of them (read
+        from it when it is cached): on a dense scan a few sharp edges need not cost a
+        length per edge.
+
+        Parameters
+        ----------
+        edges : (k,) int64 or (ne,) bool
+            Rows of :attr:`edges`.
+
+        Returns
+        -------
+        (k,) float64
+        """
         if "edge_lengths" in vars(self):
             return self.edge_lengths[edges]
         return _lengths(self.vertices, self.edges[edges])

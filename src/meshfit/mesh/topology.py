@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 from meshfit._kernels import frozen
 from meshfit._kernels import topology as _k
 
-__all__ = ["EdgeTable", "corner_fans", "edge_table"]
+__all__ = ["EdgeTable", "corner_fans", "edge_table", "vertex_adjacency", "vertex_faces"]
 
 
 @dataclass(frozen=True)
