@@ -180,3 +180,12 @@ def test_lengths_of_some_edges_match_all_lengths(rng):
     assert "edge_lengths" not in vars(fresh)  # (not made for all edges)
     np.testing.assert_array_equal(got, mesh.edge_lengths[pick])
     np.testing.assert_array_equal(mesh.lengths_of(pick), got)  # (read from the cache)
+
+
+def test_faces_around_keeps_only_the_alive_faces(rng):
+    mesh = real_mesh("spot")
+    faces = np.ascontiguousarray(mesh.faces, dtype=np.int64)
+    alive = rng.random(len(faces)) < 0.7
+    got = kernel.faces_around(faces, alive, mesh.n_vertices)
+    want = ref.vertex_faces(faces, mesh.n_vertices, alive)
+    _same(got, want)

@@ -55,10 +55,13 @@ def components(n, a, b):
     return int(count), labels.astype(np.int64)
 
 
-def vertex_faces(faces, nv):
-    """Faces around each vertex, ascending, as CSR: a dict of sets read off face by face."""
+def vertex_faces(faces, nv, alive=None):
+    """Faces around each vertex (only the ``alive`` ones, when given), ascending, as CSR:
+    lists read off face by face."""
     around: list[list[int]] = [[] for _ in range(nv)]
     for f, row in enumerate(faces.tolist()):
+        if alive is not None and not alive[f]:
+            continue
         for v in row:
             around[v].append(f)
     indptr = np.cumsum([0] + [len(a) for a in around]).astype(np.int64)

@@ -14,27 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-
-@njit(cache=True, nogil=True, fastmath=False)
-def _star(F, alive, nv):
-    """Vertex -> alive faces as CSR ``(indptr (nv + 1,), faces)``."""
-    cnt = np.zeros(nv + 1, dtype=np.int64)
-    for f in range(F.shape[0]):
-        if alive[f]:
-            for k in range(3):
-                cnt[F[f, k] + 1] += 1
-    for i in range(nv):
-        cnt[i + 1] += cnt[i]
-    out = np.empty(cnt[nv], dtype=np.int64)
-    fill = cnt[:nv].copy()
-    for f in range(F.shape[0]):
-        if alive[f]:
-            for k in range(3):
-                v = F[f, k]
-                out[fill[v]] = f
-                fill[v] += 1
-    return cnt, out
-
+from meshfit._kernels.topology import faces_around
 
 _DIGIT = 16  # bits per radix pass of `stable_order`
 
@@ -138,7 +118,7 @@ def collapse_pass(V, F, alive, max_collapses, max_valence, min_cos, min_quality)
     ``meshfit.shrinkwrap.proxy.simplify_mesh``.
     """
     nv = V.shape[0]
-    indptr, star = _star(F, alive, nv)
+    indptr, star = faces_around(F, alive, nv)
     # shortest incident edge per vertex: the visiting order
     short = np.full(nv, np.inf)
     for f in range(F.shape[0]):

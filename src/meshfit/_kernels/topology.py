@@ -327,25 +327,33 @@ def manifold_ok(vertices, faces, edge_count, order, start, area2_floor):
 
 
 @njit(cache=True, nogil=True)
-def vertex_faces(faces, nv):
-    """Faces around each vertex as CSR ``(indptr (nv + 1,), faces (3 nf,))``, each vertex's
-    faces ascending: ``np.argsort(faces.ravel(), kind="stable") // 3`` by a counting sort, in
-    linear time (the comparison sort of three indices per face was seconds on a dense scan).
-    """
+def faces_around(faces, alive, nv):
+    """The ``alive`` faces around each vertex as CSR ``(indptr (nv + 1,), faces)``, each
+    vertex's faces ascending, by a counting sort in linear time."""
     indptr = np.zeros(nv + 1, dtype=np.int64)
     for f in range(faces.shape[0]):
-        for k in range(3):
-            indptr[faces[f, k] + 1] += 1
+        if alive[f]:
+            for k in range(3):
+                indptr[faces[f, k] + 1] += 1
     for v in range(nv):
         indptr[v + 1] += indptr[v]
     out = np.empty(indptr[nv], dtype=np.int64)
     fill = indptr[:nv].copy()
     for f in range(faces.shape[0]):
-        for k in range(3):
-            v = faces[f, k]
-            out[fill[v]] = f
-            fill[v] += 1
+        if alive[f]:
+            for k in range(3):
+                v = faces[f, k]
+                out[fill[v]] = f
+                fill[v] += 1
     return indptr, out
+
+
+@njit(cache=True, nogil=True)
+def vertex_faces(faces, nv):
+    """Faces around each vertex as CSR ``(indptr (nv + 1,), faces (3 nf,))``, each vertex's
+    faces ascending: ``np.argsort(faces.ravel(), kind="stable") // 3`` in linear time (the
+    comparison sort of three indices per face was seconds on a dense scan)."""
+    return faces_around(faces, np.ones(faces.shape[0], dtype=np.bool_), nv)
 
 
 @njit(cache=True, nogil=True)

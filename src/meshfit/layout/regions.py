@@ -719,11 +719,12 @@ def crease_edges(mesh: Mesh, angle: float = CREASE_ANGLE) -> NDArray[np.bool_]:
     nv = mesh.n_vertices
     g = sparse.coo_matrix((np.ones(e.shape[0]), (e[:, 0], e[:, 1])), shape=(nv, nv))
     _, comp = csgraph.connected_components(g, directed=False)
+    sharp_idx = np.flatnonzero(sharp)
     lengths = np.zeros(ne)  # of the sharp edges only: all of them are not needed here
-    lengths[sharp] = mesh.lengths_of(np.flatnonzero(sharp))
-    length = np.bincount(comp[e[:, 0]], weights=lengths[sharp])
+    lengths[sharp_idx] = mesh.lengths_of(sharp_idx)
+    length = np.bincount(comp[e[:, 0]], weights=lengths[sharp_idx])
     ok = length[comp[e[:, 0]]] >= CREASE_MIN_LENGTH * mesh.bbox_diagonal
-    idx = np.flatnonzero(sharp)[ok]
+    idx = sharp_idx[ok]
     anchor = np.zeros(nv, dtype=bool)
     anchor[mesh.edges[mesh.edge_face_count == 1].reshape(-1)] = True
     while idx.size:  # prune dangling ends until every end is anchored
