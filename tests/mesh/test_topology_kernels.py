@@ -189,3 +189,18 @@ def test_faces_around_keeps_only_the_alive_faces(rng):
     got = kernel.faces_around(faces, alive, mesh.n_vertices)
     want = ref.vertex_faces(faces, mesh.n_vertices, alive)
     _same(got, want)
+
+
+def test_star_builders_refuse_bad_indices():
+    from meshfit.errors import InputError
+
+    faces = np.array([[0, 1, 2], [0, 2, 3]])
+    with pytest.raises(InputError, match=r"faces: an index is outside 0\.\.2"):
+        topology.vertex_faces(faces, 3)
+    with pytest.raises(InputError, match="shape"):
+        topology.vertex_faces(faces[:, :2], 4)
+    with pytest.raises(InputError, match="edges: an index is outside"):
+        topology.vertex_adjacency(np.array([[0, -1]]), 3)
+    indptr, around = topology.vertex_faces(faces, 4)
+    np.testing.assert_array_equal(indptr, [0, 2, 3, 5, 6])
+    np.testing.assert_array_equal(around, [0, 1, 0, 0, 1, 1])

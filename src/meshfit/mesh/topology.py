@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 
 from meshfit._kernels import frozen
 from meshfit._kernels import topology as _k
+from meshfit.errors import InputError
 
 __all__ = ["EdgeTable", "corner_fans", "edge_table", "vertex_adjacency", "vertex_faces"]
 
@@ -79,8 +80,14 @@ def vertex_faces(
     faces: NDArray[np.int64], n_vertices: int
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Faces around each vertex as CSR ``(indptr (nv + 1,), faces (3 nf,))`` int64, each
-    vertex's faces ascending (a linear-time counting sort)."""
-    (f,) = frozen(np.ascontiguousarray(faces, dtype=np.int64))
+    vertex's faces ascending (a linear-time counting sort).
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        ``faces`` not ``(nf, 3)``, or an index outside ``[0, n_vertices)``.
+    """
+    (f,) = frozen(_indices(faces, n_vertices, "faces"))
     return _k.vertex_faces(f, int(n_vertices))
 
 
@@ -88,9 +95,27 @@ def vertex_adjacency(
     edges: NDArray[np.int64], n_vertices: int
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Neighbours of each vertex as CSR ``(indptr (nv + 1,), indices (2 ne,))`` int64, each
-    row ascending, from unique undirected edges (rows of :attr:`EdgeTable.edges`)."""
-    (e,) = frozen(np.ascontiguousarray(edges, dtype=np.int64))
+    row ascending, from unique undirected edges (rows of :attr:`EdgeTable.edges`).
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        ``edges`` not ``(ne, 2)``, or an index outside ``[0, n_vertices)``.
+    """
+    (e,) = frozen(_indices(edges, n_vertices, "edges"))
     return _k.vertex_adjacency(e, int(n_vertices))
+
+
+def _indices(a, n_vertices: int, name: str) -> NDArray[np.int64]:
+    """``a`` as contiguous int64 rows of vertex indices (3 for faces, 2 for edges), checked
+    to lie in ``[0, n_vertices)``: the kernels index with them unchecked."""
+    out = np.ascontiguousarray(a, dtype=np.int64)
+    width = 3 if name == "faces" else 2
+    if out.ndim != 2 or out.shape[1] != width:
+        raise InputError(f"{name} must have shape (n, {width}), got {out.shape}")
+    if out.size and (out.min() < 0 or out.max() >= int(n_vertices)):
+        raise InputError(f"{name}: an index is outside 0..{int(n_vertices) - 1}")
+    return out
 
 
 def face_neighbors(faces: NDArray[np.int64], table: EdgeTable) -> NDArray[np.int64]:
