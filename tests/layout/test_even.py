@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from meshfit.errors import InputError, MeshfitError
-from meshfit.layout.even import NEEDLE_SHARE, even_remesh, needle_share
+from meshfit.layout.even import NEEDLE_SHARE, collapse_short_edges, even_remesh, needle_share
 from meshfit.layout.regions import crease_edges
+from meshfit.mesh import Mesh
 from meshfit.pipeline import FitOptions, fit
 
 from .. import shapes
@@ -136,3 +137,70 @@ def test_remesh_on_remeshes_an_even_mesh_too():
     assert s["mesh"]["remeshed"]["faces"] == s["mesh"]["faces"] != sphere.n_faces
     with pytest.raises(InputError, match="remesh must be"):
         FitOptions(remesh="sometimes")
+
+
+def _split_edge(mesh: Mesh, edge: int, t: float) -> Mesh:
+    """``mesh`` with edge ``edge`` split at ``t`` of its length from its first end (the two
+    faces on it split in two each)."""
+    a, b = (int(x) for x in mesh.edges[edge])
+    V = np.vstack([mesh.vertices, mesh.vertices[a] + t * (mesh.vertices[b] - mesh.vertices[a])])
+    m = V.shape[0] - 1
+    F = []
+    for f in mesh.faces.tolist():
+        if a in f and b in f:
+            k = f.index(a)
+            rolled = f[k:] + f[:k]  # a first
+            if rolled[1] == b:  # a -> b in this face: (a, m, c) and (m, b, c)
+                F += [[a, m, rolled[2]], [m, b, rolled[2]]]
+            else:  # (a, c, b): (a, c, m) and (m, c, b)
+                F += [[a, rolled[1], m], [m, rolled[1], b]]
+        else:
+            F.append(f)
+    return Mesh(V, np.asarray(F, dtype=np.int64))
+
+
+@pytest.mark.parametrize("shape", ["icosphere", "cube"])
+def test_an_edge_far_shorter_than_the_rest_is_collapsed(shape):
+    """A split a millionth of an edge from its end is undone: the new vertex goes into its
+    neighbour (on the cube, where the split edge is a crease, the corner is kept)."""
+    mesh = shapes.icosphere(2) if shape == "icosphere" else shapes.cube(n=4)
+    e, t = 7, 1e-6
+    if shape == "cube":  # a crease edge at a corner (three crease edges), split by it
+        sharp = np.flatnonzero(crease_edges(mesh))
+        degree = np.bincount(mesh.edges[sharp].reshape(-1), minlength=mesh.n_vertices)
+        e = int(next(i for i in sharp if degree[mesh.edges[i]].max() == 3))
+        t = 1e-6 if degree[mesh.edges[e, 0]] == 3 else 1.0 - 1e-6
+    split = _split_edge(mesh, e, t)
+    assert split.edge_lengths.min() < 1e-5 * mesh.edge_lengths.mean()
+    out = collapse_short_edges(split, 0.1 * float(mesh.edge_lengths.min()))
+    assert (out.n_faces, out.euler_characteristic) == (mesh.n_faces, mesh.euler_characteristic)
+    # the surviving vertices are the mesh's own, unmoved
+    assert {tuple(v) for v in out.vertices.tolist()} == {tuple(v) for v in mesh.vertices.tolist()}
+    assert out.edge_lengths.min() >= 0.1 * mesh.edge_lengths.min()
+    # nothing that short: the mesh itself comes back
+    assert collapse_short_edges(mesh, 0.1 * float(mesh.edge_lengths.min())) is mesh
+
+
+def test_a_remesh_that_pinches_the_surface_is_refused():
+    """Where a thin ear grazes the head of the generated animal, the remesher joins two kept
+    seams into a neck of three edges a millionth of the target long (a layout there put two
+    corners on one point: "corners 0 and 317 fall on the same point"). No collapse removes
+    such a neck without changing the topology, so the remesh is refused."""
+    with pytest.raises(MeshfitError, match="pinches the surface"):
+        even_remesh(shapes.quadruped())
+
+
+def test_a_refused_remesh_leaves_the_input_to_the_fit(monkeypatch):
+    import meshfit.layout.even as even
+
+    def refuse(mesh, crease_angle=None):
+        raise MeshfitError("the remesh pinches the surface at (0, 0, 0)")
+
+    monkeypatch.setattr(even, "even_remesh", refuse)
+    sphere = shapes.icosphere(3)
+    s = fit(sphere, options=FitOptions(formats=(), report=False, remesh="on")).summary
+    assert "remeshed" not in s["mesh"] and s["mesh"]["faces"] == sphere.n_faces
+    assert any(
+        "could not be remeshed evenly (the remesh pinches the surface" in n and "as it is" in n
+        for n in s["notes"]
+    )

@@ -25,7 +25,7 @@ from meshfit.errors import MeshfitError
 from meshfit.layout.regions import CREASE_ANGLE, sharp_edges
 from meshfit.mesh import Mesh
 
-__all__ = ["EvenRemesh", "even_remesh", "needle_share"]
+__all__ = ["EvenRemesh", "collapse_short_edges", "even_remesh", "needle_share"]
 
 #: a triangle whose longest edge is more than this many times its height over that edge is
 #: a needle (about a 7 degree smallest angle)
@@ -43,6 +43,15 @@ MIN_FACES = 20_000
 FEATURE_SHARE = 0.75
 #: split, collapse, flip and smoothing rounds of the remesh
 ITERATIONS = 10
+#: edges of the remesh shorter than this share of its target length are collapsed after it:
+#: where two kept feature lines meet at a glancing angle the remesher may not collapse
+#: between them and can leave edges a millionth of the target long, at which the layout's
+#: cells put two corners on one point (its own collapses stop at 4/5 of the target)
+SHORT_EDGE = 0.1
+#: an edge shorter than this share of the target length that no collapse can remove (the
+#: link condition refuses it: three such edges round a neck where the surface is pinched to
+#: a point) makes the remesh unfit to stand in for the input
+PINCH_EDGE = 0.01
 
 
 @dataclass(frozen=True)
@@ -101,6 +110,9 @@ _CHUNK = 1 << 16
 def even_remesh(mesh: Mesh, crease_angle: float | None = CREASE_ANGLE) -> EvenRemesh:
     """``mesh`` remeshed into even triangles of about its face count (at least `MIN_FACES`).
 
+    Edges the remesher leaves shorter than `SHORT_EDGE` of its target length are collapsed
+    afterwards (`collapse_short_edges`).
+
     Parameters
     ----------
     mesh : Mesh
@@ -118,7 +130,9 @@ def even_remesh(mesh: Mesh, crease_angle: float | None = CREASE_ANGLE) -> EvenRe
     ------
     meshfit.errors.MeshfitError
         The remesh is not a valid mesh of the input's topology (Euler characteristic,
-        boundary loops and components compared), so it cannot stand in for it.
+        boundary loops and components compared), or it pinches the surface (an edge
+        shorter than `PINCH_EDGE` of the target length that no collapse removes: a layout
+        would put two corners on one point there), so it cannot stand in for it.
     """
     with warnings.catch_warnings():  # (its package imports deprecated scipy and numpy names)
         warnings.simplefilter("ignore", DeprecationWarning)
@@ -141,10 +155,115 @@ def even_remesh(mesh: Mesh, crease_angle: float | None = CREASE_ANGLE) -> EvenRe
     )  # fmt: skip
     try:
         out = Mesh(np.asarray(U, dtype=np.float64), np.asarray(G, dtype=np.int64), name=mesh.name)
+        out = collapse_short_edges(out, SHORT_EDGE * h, crease_angle)
     except MeshfitError as exc:
         raise MeshfitError(f"the even remesh is not a valid mesh ({exc})") from None
+    _refuse_pinches(out, PINCH_EDGE * h)
     _same_topology(mesh, out)
     return EvenRemesh(out, needle_share(mesh), _distance(mesh, out))
+
+
+def collapse_short_edges(
+    mesh: Mesh, length: float, crease_angle: float | None = CREASE_ANGLE
+) -> Mesh:
+    """``mesh`` with its interior edges shorter than ``length`` collapsed, shortest first.
+
+    A half-edge collapse ``v -> u`` (``u`` stays where it is, so the surface moves by less
+    than ``length``) keeps the vertex on more feature edges (edges turning by more than
+    `FEATURE_SHARE` of ``crease_angle``), and is made only under the link condition (``u``
+    and ``v`` share exactly the two vertices opposite their edge, so the topology is kept),
+    when both opposite vertices keep three neighbours and no surviving face turns its
+    normal by a right angle or more; otherwise the other direction is tried, then the edge
+    is left. Edges with an end on the boundary are left. Returns ``mesh`` itself when no
+    edge is that short.
+    """
+    el = mesh.edge_lengths
+    short = np.flatnonzero(el < length)
+    if short.size == 0:
+        return mesh
+    E = mesh.edges
+    V = mesh.vertices
+    F = np.array(mesh.faces, dtype=np.int64)
+    nv = mesh.n_vertices
+    rim = np.zeros(nv, dtype=bool)
+    for loop in mesh.boundary_loops:
+        rim[np.asarray(loop, dtype=np.int64)] = True
+    degree = np.zeros(nv, dtype=np.int64)
+    if crease_angle is not None:
+        sharp = sharp_edges(mesh, FEATURE_SHARE * crease_angle)
+        np.add.at(degree, E[sharp].reshape(-1), 1)
+    indptr, vf = mesh.vertex_faces
+    star = {}  # the faces around each vertex a collapse touched (others: the mesh's stars)
+
+    def faces_of(v: int) -> set:
+        if v not in star:
+            star[v] = set(vf[indptr[v] : indptr[v + 1]].tolist())
+        return star[v]
+
+    def ring(v: int) -> set:
+        return set(F[list(faces_of(v))].reshape(-1).tolist()) - {v}
+
+    alive = np.ones(F.shape[0], dtype=bool)
+    gone = np.zeros(nv, dtype=bool)
+    for e in short[np.argsort(el[short], kind="stable")]:
+        a, b = (int(x) for x in E[e])
+        if gone[a] or gone[b] or rim[a] or rim[b]:
+            continue
+        order = ((b, a), (a, b)) if degree[a] >= degree[b] else ((a, b), (b, a))
+        for v, u in order:  # collapse v into u
+            if _collapse(F, V, alive, faces_of, ring, v, u):
+                gone[v] = True
+                break
+    keep = np.zeros(nv, dtype=bool)
+    keep[F[alive].reshape(-1)] = True
+    new_id = np.cumsum(keep) - 1
+    return Mesh(V[keep], new_id[F[alive]], name=mesh.name)
+
+
+def _collapse(F, V, alive, faces_of, ring, v: int, u: int) -> bool:
+    """Collapse ``v`` into ``u`` in ``F`` (in place) if the link condition holds, both
+    opposite vertices keep three neighbours and no face around ``v`` that survives turns
+    its normal by a right angle or more; whether it was made."""
+    rv, ru = ring(v), ring(u)
+    if u not in rv:
+        return False
+    common = rv & ru
+    if len(common) != 2 or any(len(ring(o)) <= 3 for o in common):
+        return False
+    fv = faces_of(v)
+    both = [f for f in fv if u in F[f]]
+    moved = [f for f in fv if u not in F[f]]
+    for f in moved:
+        p = V[F[f]]
+        q = np.where((F[f] == v)[:, None], V[u], p)
+        n0 = np.cross(p[1] - p[0], p[2] - p[0])
+        n1 = np.cross(q[1] - q[0], q[2] - q[0])
+        if float(n0 @ n1) <= 0.0:
+            return False
+    for f in both:
+        alive[f] = False
+        for w in F[f].tolist():
+            faces_of(w).discard(f)
+    for f in moved:
+        F[f][F[f] == v] = u
+        faces_of(u).add(f)
+    fv.clear()
+    return True
+
+
+def _refuse_pinches(mesh: Mesh, length: float) -> None:
+    """MeshfitError naming the shortest edge of ``mesh`` when it is shorter than ``length``
+    (after `collapse_short_edges`, such an edge is a pinch of the surface)."""
+    el = mesh.edge_lengths
+    e = int(np.argmin(el))
+    if el[e] < length:
+        at = ", ".join(f"{x:.6g}" for x in mesh.vertices[mesh.edges[e]].mean(axis=0))
+        n = int((el < length).sum())
+        raise MeshfitError(
+            f"the remesh pinches the surface at ({at}): {n} edge(s) shorter than "
+            f"{length:.3g} that no collapse removes without changing the topology (the "
+            f"shortest {el[e]:.3g})"
+        )
 
 
 def _same_topology(a: Mesh, b: Mesh) -> None:
