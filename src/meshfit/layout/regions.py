@@ -704,7 +704,11 @@ def crease_edges(mesh: Mesh, angle: float = CREASE_ANGLE) -> NDArray[np.bool_]:
     -------
     (ne,) bool
         Over ``mesh.edges``: sharp interior edges in chains at least `CREASE_MIN_LENGTH` of
-        the bbox diagonal long (shorter runs are scan noise, not features), and only when
+        the bbox diagonal long (shorter runs are scan noise, not features), whose loops
+        are as long on average (each chain's length over its independent cycles, ``edges
+        - vertices + 1``: a loop of creases bounds a face of the part, while scan noise that
+        folds the triangles by more than ``angle`` makes a net of loops a few edges
+        long), and only when
         they add up to `CREASE_MIN_TOTAL` of the diagonal; without their dangling ends: a
         chain is kept where it closes, meets another or reaches the mesh boundary, so that
         the creases cut the surface into pieces without slits (a crease fading out inside
@@ -740,7 +744,15 @@ def crease_edges(mesh: Mesh, angle: float = CREASE_ANGLE) -> NDArray[np.bool_]:
         g = sparse.coo_matrix((np.ones(idx.size), (ee[:, 0], ee[:, 1])), shape=(nv, nv))
         _, comp = csgraph.connected_components(g, directed=False)
         length = np.bincount(comp[ee[:, 0]], weights=lengths[idx])
-        idx = idx[length[comp[ee[:, 0]]] >= CREASE_MIN_LENGTH * mesh.bbox_diagonal]
+        on = np.zeros(nv, dtype=bool)
+        on[ee.reshape(-1)] = True
+        loops = (
+            np.bincount(comp[ee[:, 0]], minlength=length.size)
+            - np.bincount(comp[on], minlength=length.size)
+            + 1
+        )
+        per_loop = length / np.maximum(loops, 1)
+        idx = idx[per_loop[comp[ee[:, 0]]] >= CREASE_MIN_LENGTH * mesh.bbox_diagonal]
     if lengths[idx].sum() < CREASE_MIN_TOTAL * mesh.bbox_diagonal:
         idx = idx[:0]
     out = np.zeros(ne, dtype=bool)
