@@ -190,6 +190,18 @@ def test_a_remesh_that_pinches_the_surface_is_refused():
         even_remesh(shapes.quadruped())
 
 
+def test_a_short_edge_on_the_boundary_is_no_pinch():
+    """The boundary is the input's own: a boundary edge a millionth of the others long stays
+    in the remesh, and the remesh is not refused for it."""
+    disk = shapes.disk()
+    rim = int(np.flatnonzero(disk.edge_face_count == 1)[0])
+    cut = _split_edge(disk, rim, 1e-6)
+    out = even_remesh(cut).mesh
+    assert len(out.boundary_loops) == 1
+    on_rim = out.edge_lengths[out.edge_face_count == 1]
+    assert on_rim.min() < 1e-4 * out.edge_lengths.mean()
+
+
 def test_a_refused_remesh_leaves_the_input_to_the_fit(monkeypatch):
     import meshfit.layout.even as even
 

@@ -252,9 +252,10 @@ def _collapse(F, V, alive, faces_of, ring, v: int, u: int) -> bool:
 
 
 def _refuse_pinches(mesh: Mesh, length: float) -> None:
-    """MeshfitError naming the shortest edge of ``mesh`` when it is shorter than ``length``
-    (after `collapse_short_edges`, such an edge is a pinch of the surface)."""
-    el = mesh.edge_lengths
+    """MeshfitError naming the shortest interior edge of ``mesh`` when it is shorter than
+    ``length`` (after `collapse_short_edges`, such an edge is a pinch of the surface; the
+    boundary is the input's own, short edges and all)."""
+    el = np.where(mesh.edge_face_count == 2, mesh.edge_lengths, np.inf)
     e = int(np.argmin(el))
     if el[e] < length:
         at = ", ".join(f"{x:.6g}" for x in mesh.vertices[mesh.edges[e]].mean(axis=0))
