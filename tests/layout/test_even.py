@@ -179,6 +179,9 @@ def test_an_edge_far_shorter_than_the_rest_is_collapsed(shape):
     assert out.edge_lengths.min() >= 0.1 * mesh.edge_lengths.min()
     # nothing that short: the mesh itself comes back
     assert collapse_short_edges(mesh, 0.1 * float(mesh.edge_lengths.min())) is mesh
+    for bad in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(InputError, match="length must be"):
+            collapse_short_edges(mesh, bad)
 
 
 def test_a_remesh_that_pinches_the_surface_is_refused():

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from meshfit.errors import MeshfitError
+from meshfit.errors import InputError, MeshfitError
 from meshfit.layout.regions import CREASE_ANGLE, sharp_edges
 from meshfit.mesh import Mesh
 
@@ -174,9 +174,38 @@ def collapse_short_edges(
     and ``v`` share exactly the two vertices opposite their edge, so the topology is kept),
     when both opposite vertices keep three neighbours and no surviving face turns its
     normal by a right angle or more; otherwise the other direction is tried, then the edge
-    is left. Edges with an end on the boundary are left. Returns ``mesh`` itself when no
-    edge is that short.
+    is left. Edges with an end on the boundary are left (the boundary is the input's).
+    Meant for the few edges a remesher leaves far below its target length: each collapse
+    is checked in Python, so the cost grows with the number of short edges.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        A valid manifold mesh.
+    length : float
+        Edges shorter than this (model units, finite, >= 0) are collapsed where they can be.
+    crease_angle : float or None
+        Degrees, as for `even_remesh`; None: every vertex counts as on no feature edge.
+
+    Returns
+    -------
+    Mesh
+        ``mesh`` itself when no edge is that short; else a new mesh (same name) whose
+        vertices are a subset of ``mesh``'s, unmoved, renumbered in their order.
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        ``length`` negative or not finite.
+
+    References
+    ----------
+    .. [1] Hoppe, "Progressive meshes", SIGGRAPH 1996 (half-edge collapses); Dey,
+       Edelsbrunner, Guha & Nekhayev, "Topology preserving edge contraction", 1999 (the
+       link condition).
     """
+    if not (np.isfinite(length) and length >= 0.0):
+        raise InputError(f"length must be a finite distance >= 0, got {length}")
     el = mesh.edge_lengths
     short = np.flatnonzero(el < length)
     if short.size == 0:
@@ -186,8 +215,7 @@ def collapse_short_edges(
     F = np.array(mesh.faces, dtype=np.int64)
     nv = mesh.n_vertices
     rim = np.zeros(nv, dtype=bool)
-    for loop in mesh.boundary_loops:
-        rim[np.asarray(loop, dtype=np.int64)] = True
+    rim[E[mesh.edge_face_count == 1].reshape(-1)] = True
     degree = np.zeros(nv, dtype=np.int64)
     if crease_angle is not None:
         sharp = sharp_edges(mesh, FEATURE_SHARE * crease_angle)
