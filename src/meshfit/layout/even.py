@@ -20,12 +20,21 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
+from meshfit import tol
 from meshfit.errors import InputError, MeshfitError
 from meshfit.layout.regions import CREASE_ANGLE, sharp_edges
-from meshfit.mesh import Mesh
+from meshfit.mesh import Mesh, find_problems, topology
+from meshfit.mesh.validate import raise_first
 
-__all__ = ["EvenRemesh", "collapse_short_edges", "even_remesh", "needle_share"]
+__all__ = [
+    "EvenRemesh",
+    "collapse_short_edges",
+    "even_remesh",
+    "mend_degenerate_faces",
+    "needle_share",
+]
 
 #: a triangle whose longest edge is more than this many times its height over that edge is
 #: a needle (about a 7 degree smallest angle)
@@ -52,6 +61,10 @@ SHORT_EDGE = 0.1
 #: link condition refuses it: three such edges round a neck where the surface is pinched to
 #: a point) makes the remesh unfit to stand in for the input
 PINCH_EDGE = 0.01
+#: rounds of `mend_degenerate_faces`, each mending what it can of the degenerate faces the
+#: round before left (a collapse may leave a neighbour degenerate, a cap beside a degenerate
+#: face waits for it to be mended); a round that mends nothing ends it earlier
+MEND_ROUNDS = 8
 
 
 @dataclass(frozen=True)
@@ -110,8 +123,11 @@ _CHUNK = 1 << 16
 def even_remesh(mesh: Mesh, crease_angle: float | None = CREASE_ANGLE) -> EvenRemesh:
     """``mesh`` remeshed into even triangles of about its face count (at least `MIN_FACES`).
 
-    Edges the remesher leaves shorter than `SHORT_EDGE` of its target length are collapsed
-    afterwards (`collapse_short_edges`).
+    The remesher projects its vertices onto the input and may leave a few faces of zero
+    area there (two vertices on one point, or one on the edge across from it): those are
+    mended first (`mend_degenerate_faces`), as a mesh cannot hold them. Edges it leaves
+    shorter than `SHORT_EDGE` of its target length are then collapsed
+    (`collapse_short_edges`). A remesh with no degenerate face is not touched by the mend.
 
     Parameters
     ----------
@@ -130,7 +146,8 @@ def even_remesh(mesh: Mesh, crease_angle: float | None = CREASE_ANGLE) -> EvenRe
     ------
     meshfit.errors.MeshfitError
         The remesh is not a valid mesh of the input's topology (Euler characteristic,
-        boundary loops and components compared), or it pinches the surface (an edge
+        boundary loops and components compared; degenerate faces no collapse or flip mends
+        count as invalid), or it pinches the surface (an edge
         shorter than `PINCH_EDGE` of the target length that no collapse removes: a layout
         would put two corners on one point there), so it cannot stand in for it.
     """
@@ -154,7 +171,11 @@ def even_remesh(mesh: Mesh, crease_angle: float | None = CREASE_ANGLE) -> EvenRe
         feature_edges=features,
     )  # fmt: skip
     try:
-        out = Mesh(np.asarray(U, dtype=np.float64), np.asarray(G, dtype=np.int64), name=mesh.name)
+        U, G = mend_degenerate_faces(
+            np.asarray(U, dtype=np.float64), np.asarray(G, dtype=np.int64), SHORT_EDGE * h,
+            crease_angle,
+        )  # fmt: skip
+        out = Mesh(U, G, name=mesh.name)
         out = collapse_short_edges(out, SHORT_EDGE * h, crease_angle)
     except MeshfitError as exc:
         raise MeshfitError(f"the even remesh is not a valid mesh ({exc})") from None
@@ -204,79 +225,301 @@ def collapse_short_edges(
        Edelsbrunner, Guha & Nekhayev, "Topology preserving edge contraction", 1999 (the
        link condition).
     """
-    if not (np.isfinite(length) and length >= 0.0):
-        raise InputError(f"length must be a finite distance >= 0, got {length}")
+    _check_length(length)
     el = mesh.edge_lengths
     short = np.flatnonzero(el < length)
     if short.size == 0:
         return mesh
     E = mesh.edges
-    V = mesh.vertices
-    F = np.array(mesh.faces, dtype=np.int64)
-    nv = mesh.n_vertices
-    rim = np.zeros(nv, dtype=bool)
+    rim = np.zeros(mesh.n_vertices, dtype=bool)
     rim[E[mesh.edge_face_count == 1].reshape(-1)] = True
-    degree = np.zeros(nv, dtype=np.int64)
+    degree = np.zeros(mesh.n_vertices, dtype=np.int64)
     if crease_angle is not None:
         sharp = sharp_edges(mesh, FEATURE_SHARE * crease_angle)
         np.add.at(degree, E[sharp].reshape(-1), 1)
-    indptr, vf = mesh.vertex_faces
-    star = {}  # the faces around each vertex a collapse touched (others: the mesh's stars)
-
-    def faces_of(v: int) -> set:
-        if v not in star:
-            star[v] = set(vf[indptr[v] : indptr[v + 1]].tolist())
-        return star[v]
-
-    def ring(v: int) -> set:
-        return set(F[list(faces_of(v))].reshape(-1).tolist()) - {v}
-
-    alive = np.ones(F.shape[0], dtype=bool)
-    gone = np.zeros(nv, dtype=bool)
+    edit = _Edit(mesh.vertices, mesh.faces, mesh.vertex_faces, flat=-np.inf)
     for e in short[np.argsort(el[short], kind="stable")]:
         a, b = (int(x) for x in E[e])
-        if gone[a] or gone[b] or rim[a] or rim[b]:
-            continue
-        order = ((b, a), (a, b)) if degree[a] >= degree[b] else ((a, b), (b, a))
+        if not (edit.gone[a] or edit.gone[b] or rim[a] or rim[b]):
+            edit.collapse_edge(a, b, degree)
+    return Mesh(*edit.arrays(), name=mesh.name)
+
+
+def mend_degenerate_faces(
+    vertices: ArrayLike,
+    faces: ArrayLike,
+    length: float,
+    crease_angle: float | None = CREASE_ANGLE,
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """A triangle list's degenerate faces mended by edge collapses and flips, topology kept.
+
+    A face is degenerate by the mesh validator's own test (a repeated index, or an area at
+    most `meshfit.tol.DEGENERATE_AREA` times the squared bbox diagonal): a remesher that
+    projects its vertices onto a surface leaves such faces where two vertices land on one
+    point or one lands on the edge across from it, and a `Mesh` cannot hold them. Each is
+    mended the standard way, a few rounds at most (`MEND_ROUNDS`):
+
+    - a needle, its shortest edge shorter than ``length`` (zero when two corners are one
+      point), is collapsed as in `collapse_short_edges`: a half-edge collapse under the
+      link condition, keeping the end on the boundary if one is (an edge with both ends on
+      it is left), else the end on more feature edges; its moved faces of nonzero area may
+      not turn their normals by a right angle or more;
+    - else, or when no such collapse is allowed, a cap (its third corner on its longest
+      edge) has that edge flipped: made only when the edge is interior, the new edge is not
+      an edge already, and both new faces have nonzero area and the normal of the face
+      across. Such a flip moves no point of the surface (the two new faces tile the face
+      across) and the flipped edge's line stays covered by the cap's two other edges, so a
+      crease along it stays edges. Two caps back to back (all four corners on one line)
+      are flipped onto their shorter diagonal, which leaves two caps that each have a
+      face of area across their longest edge.
+
+    Parameters
+    ----------
+    vertices : (nv, 3) float64
+        Vertex positions, model units.
+    faces : (nf, 3) int64
+        Consistently oriented triangles with indices in ``[0, nv)``, every edge on one or
+        two of them (what a remesher gives, degenerate faces and all).
+    length : float
+        A degenerate face's shortest edge is collapsed when shorter than this (model units,
+        finite, >= 0).
+    crease_angle : float or None
+        Degrees, as for `even_remesh`: a collapse keeps the end on more edges turning by
+        more than `FEATURE_SHARE` of it (between faces of nonzero area); None: no feature
+        edges.
+
+    Returns
+    -------
+    vertices : (nv2, 3) float64
+    faces : (nf2, 3) int64
+        ``vertices`` and ``faces`` themselves (as float64 and int64) when no face is
+        degenerate; else the mended list, whose vertices are a subset of ``vertices``,
+        unmoved, renumbered in their order, and which has the same Euler characteristic,
+        boundary and components.
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        ``length`` negative or not finite, or ``faces`` not ``(nf, 3)`` indices into
+        ``vertices``.
+    meshfit.errors.MeshValidationError
+        ``faces`` has degenerate faces and an edge on more than two of them.
+    meshfit.errors.MeshfitError
+        Degenerate faces that no collapse or flip mends (named with their count and the
+        first one, as the validator would).
+
+    References
+    ----------
+    .. [1] Botsch & Kobbelt, "A remeshing approach to multiresolution modeling", SGP 2004
+       (the remesher, its collapses and flips); Hoppe, "Progressive meshes", SIGGRAPH 1996
+       (half-edge collapses); Dey, Edelsbrunner, Guha & Nekhayev, "Topology preserving edge
+       contraction", 1999 (the link condition).
+    """
+    _check_length(length)
+    V = np.asarray(vertices, dtype=np.float64)
+    F = np.asarray(faces, dtype=np.int64)
+    if V.ndim != 2 or V.shape[1] != 3:
+        raise InputError(f"vertices must have shape (n, 3), got {V.shape}")
+    vf = topology.vertex_faces(F, V.shape[0])  # (checks the indices)
+    used = V[np.unique(F)]
+    # the validator's limit on the squared cross product, for the bbox of the used vertices:
+    # a mend only drops vertices, so the mended list's bbox, and limit, are no larger
+    diag = float(np.linalg.norm(used.max(axis=0) - used.min(axis=0))) if used.size else 0.0
+    flat = (2.0 * tol.DEGENERATE_AREA * diag * diag) ** 2
+    bad = np.flatnonzero(_degenerate(V, F, flat))
+    if bad.size == 0:
+        return V, F
+    table = topology.edge_table(F, V.shape[0])
+    if (table.edge_count > 2).any():
+        raise_first(find_problems(V, F))
+    rim = np.zeros(V.shape[0], dtype=bool)
+    rim[table.edges[table.edge_count == 1].reshape(-1)] = True
+    degree = _feature_degree(V, F, table, flat, crease_angle)
+    edit = _Edit(V, F, vf, flat=flat)
+    for _ in range(MEND_ROUNDS):
+        if not any([edit.mend(int(f), length, rim, degree) for f in bad]):
+            break  # (nothing changed: ``bad`` is still the list's)
+        live = np.flatnonzero(edit.alive)
+        bad = live[_degenerate(V, edit.F[live], flat)]
+        if bad.size == 0:
+            break
+    if bad.size:
+        f = int(bad[0])
+        raise MeshfitError(
+            f"{bad.size} degenerate face(s) (zero area or repeated vertex) that no collapse "
+            f"or flip mends (first: face {f} of the list, now {edit.F[f].tolist()})"
+        )
+    return edit.arrays()
+
+
+def _check_length(length: float) -> None:
+    if not (np.isfinite(length) and length >= 0.0):
+        raise InputError(f"length must be a finite distance >= 0, got {length}")
+
+
+def _degenerate(V: NDArray, F: NDArray, flat: float) -> NDArray[np.bool_]:
+    """The validator's degenerate faces: a repeated index, or a squared cross product of
+    at most ``flat``."""
+    rep = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0])
+    p = V[F]
+    cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    return rep | ~(np.einsum("ij,ij->i", cross, cross) > flat)
+
+
+def _feature_degree(V, F, table, flat: float, crease_angle: float | None) -> NDArray[np.int64]:
+    """Per vertex, how many of its interior edges turn by more than `FEATURE_SHARE` of
+    ``crease_angle`` between two faces whose squared cross products exceed ``flat`` (as
+    :func:`meshfit.layout.regions.sharp_edges` on a mesh; a face of no area has no normal)."""
+    degree = np.zeros(V.shape[0], dtype=np.int64)
+    if crease_angle is None:
+        return degree
+    p = V[F]
+    cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    norm2 = np.einsum("ij,ij->i", cross, cross)
+    ok = norm2 > flat
+    n = cross / np.sqrt(np.where(ok, norm2, 1.0))[:, None]
+    two = np.flatnonzero(table.edge_count == 2)
+    fa = table.order[table.start[two]] // 3
+    fb = table.order[table.start[two] + 1] // 3
+    limit = np.cos(np.radians(FEATURE_SHARE * crease_angle))
+    sharp = ok[fa] & ok[fb] & (np.einsum("ij,ij->i", n[fa], n[fb]) < limit)
+    np.add.at(degree, table.edges[two[sharp]].reshape(-1), 1)
+    return degree
+
+
+class _Edit:
+    """A triangle list edited in place by half-edge collapses and edge flips; the faces
+    around each vertex an edit touched are kept as sets (the others: the list's own CSR).
+
+    Faces whose squared cross product is at most ``flat`` have no normal a collapse must
+    keep (-inf: every face has one)."""
+
+    def __init__(self, V: NDArray, F: NDArray, vertex_faces: tuple, *, flat: float) -> None:
+        self.V = V
+        self.F = np.array(F, dtype=np.int64)
+        self.alive = np.ones(self.F.shape[0], dtype=bool)
+        self.gone = np.zeros(V.shape[0], dtype=bool)
+        self.flat = flat
+        self._indptr, self._vf = vertex_faces
+        self._star: dict[int, set[int]] = {}
+
+    def faces_of(self, v: int) -> set[int]:
+        if v not in self._star:
+            self._star[v] = set(self._vf[self._indptr[v] : self._indptr[v + 1]].tolist())
+        return self._star[v]
+
+    def ring(self, v: int) -> set[int]:
+        return set(self.F[list(self.faces_of(v))].reshape(-1).tolist()) - {v}
+
+    def arrays(self) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+        """The surviving faces and the vertices on them, renumbered in their order."""
+        keep = np.zeros(self.V.shape[0], dtype=bool)
+        keep[self.F[self.alive].reshape(-1)] = True
+        new_id = np.cumsum(keep) - 1
+        return self.V[keep], new_id[self.F[self.alive]]
+
+    def collapse_edge(
+        self, a: int, b: int, degree: NDArray[np.int64], rim: NDArray[np.bool_] | None = None
+    ) -> bool:
+        """Collapse edge ``a b`` into the end on more feature edges (``degree``), else the
+        other way; only into the end on the boundary when one is (``rim``); whether it was
+        made."""
+        order: tuple[tuple[int, int], ...] = (
+            ((b, a), (a, b)) if degree[a] >= degree[b] else ((a, b), (b, a))
+        )
+        if rim is not None and (rim[a] or rim[b]):
+            order = ((b, a),) if rim[a] else ((a, b),)
         for v, u in order:  # collapse v into u
-            if _collapse(F, V, alive, faces_of, ring, v, u):
-                gone[v] = True
-                break
-    keep = np.zeros(nv, dtype=bool)
-    keep[F[alive].reshape(-1)] = True
-    new_id = np.cumsum(keep) - 1
-    return Mesh(V[keep], new_id[F[alive]], name=mesh.name)
-
-
-def _collapse(F, V, alive, faces_of, ring, v: int, u: int) -> bool:
-    """Collapse ``v`` into ``u`` in ``F`` (in place) if the link condition holds, both
-    opposite vertices keep three neighbours and no face around ``v`` that survives turns
-    its normal by a right angle or more; whether it was made."""
-    rv, ru = ring(v), ring(u)
-    if u not in rv:
+            if self.collapse(v, u):
+                self.gone[v] = True
+                return True
         return False
-    common = rv & ru
-    if len(common) != 2 or any(len(ring(o)) <= 3 for o in common):
-        return False
-    fv = faces_of(v)
-    both = [f for f in fv if u in F[f]]
-    moved = [f for f in fv if u not in F[f]]
-    for f in moved:
-        p = V[F[f]]
-        q = np.where((F[f] == v)[:, None], V[u], p)
-        n0 = np.cross(p[1] - p[0], p[2] - p[0])
-        n1 = np.cross(q[1] - q[0], q[2] - q[0])
-        if float(n0 @ n1) <= 0.0:
+
+    def collapse(self, v: int, u: int) -> bool:
+        """Collapse ``v`` into ``u`` if the link condition holds, both opposite vertices keep
+        three neighbours and no face around ``v`` that survives turns its normal (if it has
+        one) by a right angle or more; whether it was made."""
+        F, V = self.F, self.V
+        rv, ru = self.ring(v), self.ring(u)
+        if u not in rv:
             return False
-    for f in both:
-        alive[f] = False
-        for w in F[f].tolist():
-            faces_of(w).discard(f)
-    for f in moved:
-        F[f][F[f] == v] = u
-        faces_of(u).add(f)
-    fv.clear()
-    return True
+        common = rv & ru
+        if len(common) != 2 or any(len(self.ring(o)) <= 3 for o in common):
+            return False
+        fv = self.faces_of(v)
+        both = [f for f in fv if u in F[f]]
+        moved = [f for f in fv if u not in F[f]]
+        for f in moved:
+            p = V[F[f]]
+            q = np.where((F[f] == v)[:, None], V[u], p)
+            n0 = np.cross(p[1] - p[0], p[2] - p[0])
+            n1 = np.cross(q[1] - q[0], q[2] - q[0])
+            if float(n0 @ n0) > self.flat and float(n0 @ n1) <= 0.0:
+                return False
+        for f in both:
+            self.alive[f] = False
+            for w in F[f].tolist():
+                self.faces_of(w).discard(f)
+        for f in moved:
+            F[f][F[f] == v] = u
+            self.faces_of(u).add(f)
+        fv.clear()
+        return True
+
+    def flip(self, f: int, k: int) -> bool:
+        """Flip edge ``k`` of face ``f`` if it is interior, the new edge is not an edge
+        already and both new faces have nonzero area and the normal of the face across (or,
+        when that face has no area either, the new edge is the shorter); whether it was
+        made."""
+        F, V = self.F, self.V
+        p, q, m = (int(F[f, (k + j) % 3]) for j in range(3))
+        across = (self.faces_of(p) & self.faces_of(q)) - {f}
+        if len(across) != 1:
+            return False
+        (g,) = across
+        j = [int(x) for x in F[g]].index(q)
+        if int(F[g, (j + 1) % 3]) != p:  # (not the other way round: a fold)
+            return False
+        x = int(F[g, (j + 2) % 3])
+        if x == m or x in self.ring(m):
+            return False
+        normal = np.cross(V[p] - V[q], V[x] - V[q])
+        new = ((p, x, m), (x, q, m))  # the quad p x q m split along x m
+        if float(normal @ normal) <= self.flat:
+            # two caps back to back, all four corners on one line: the flip moves the pair
+            # onto the shorter diagonal, whose new caps each have a face of area across
+            # their longest edge (the edge shortens, so no flip is undone)
+            if np.linalg.norm(V[x] - V[m]) >= np.linalg.norm(V[p] - V[q]):
+                return False
+        else:
+            for a, b, c in new:
+                n = np.cross(V[b] - V[a], V[c] - V[a])
+                if not (float(n @ n) > self.flat and float(n @ normal) > 0.0):
+                    return False
+        F[f], F[g] = new
+        self.faces_of(p).discard(g)
+        self.faces_of(q).discard(f)
+        self.faces_of(m).add(g)
+        self.faces_of(x).add(f)
+        return True
+
+    def mend(self, f: int, length: float, rim: NDArray[np.bool_], degree: NDArray) -> bool:
+        """Collapse the shortest edge of face ``f`` if shorter than ``length`` and not both
+        ends on the boundary (the one on it stays), else flip its longest edge (see
+        `mend_degenerate_faces`); whether either was made (none when ``f`` is gone or no
+        longer degenerate)."""
+        if not self.alive[f] or not _degenerate(self.V, self.F[f : f + 1], self.flat)[0]:
+            return False
+        c = self.F[f]
+        if len(set(c.tolist())) < 3:
+            return False  # (no edges to collapse or flip)
+        p = self.V[c]
+        el = np.linalg.norm(p[[1, 2, 0]] - p, axis=1)  # edge k: c[k] -> c[k + 1]
+        k = int(np.argmin(el))
+        a, b = int(c[k]), int(c[(k + 1) % 3])
+        if el[k] < length and not (rim[a] and rim[b]) and self.collapse_edge(a, b, degree, rim):
+            return True
+        return self.flip(f, int(np.argmax(el)))
 
 
 def _refuse_pinches(mesh: Mesh, length: float) -> None:
