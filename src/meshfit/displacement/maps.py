@@ -203,6 +203,17 @@ def _grid_frames(surface: BSplineSurface, h: int, w: int):
     return S, T, B, N
 
 
+def _grid_normals(surface: BSplineSurface, h: int, w: int) -> NDArray[np.float64]:
+    """The unit normals of `_grid_frames` at an ``(h, w)`` map's texels, without the frames'
+    other axes: the banded grid products, not a spline evaluation per texel."""
+    from meshfit.bspline.surface import _unit_normals
+
+    u, v = grid_parameters(h), grid_parameters(w)
+    _, Su, Sv = surface.evaluate_grid(u, v, derivatives=1)
+    U, V = np.meshgrid(u, v, indexing="ij")
+    return _unit_normals(surface, U, V, Su, Sv)
+
+
 def _ray_distances(X: NDArray, S: NDArray, N: NDArray, cells: int = RAY_CELLS) -> NDArray:
     """Signed distance ``t`` along each line ``S[i, j] + t N[i, j]`` to the triangles of the
     grid ``X`` (two per cell, split along the (i, j)-(i+1, j+1) diagonal) in the cells
@@ -468,8 +479,7 @@ def scan_points(
     """
     X = _filtered(np.asarray(grid, dtype=np.float64), shape)
     cp = mesh.closest_points(X.reshape(-1, 3))
-    u, v = np.meshgrid(grid_parameters(shape[0]), grid_parameters(shape[1]), indexing="ij")
-    normal = surface.points_and_frames(u, v)[3].reshape(-1, 3)
+    normal = _grid_normals(surface, *shape).reshape(-1, 3)
     facing = (mesh.face_normals[cp.points.face] * normal).sum(axis=1) > 0
     out = X.reshape(-1, 3).copy()
     out[facing] = cp.xyz[facing]

@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from meshfit._jsonio import read_json_file
+from meshfit._threads import map_threads
 from meshfit.errors import InputError, LayoutError
 from meshfit.mesh import Mesh
 from meshfit.mesh.locate import grid_tree
@@ -658,11 +659,14 @@ def _load_maps(ctx: Context, z: dict) -> None:
     ]
 
 
-def displaced_grids(surfaces, maps) -> list:
-    """Each spline plus its map at the map's texels."""
+def displaced_grids(surfaces, maps, workers: int = 1) -> list:
+    """Each spline plus its map at the map's texels, patches on up to ``workers`` threads
+    (the frames' array arithmetic releases the interpreter lock)."""
     from meshfit.displacement import reconstruct
 
-    return [reconstruct(s, d) for s, d in zip(surfaces, maps, strict=True)]
+    pairs = list(zip(surfaces, maps, strict=True))
+    cost = [float(np.prod(d.shape[:2])) for _, d in pairs]
+    return map_threads(lambda sd: reconstruct(*sd), pairs, workers, cost=cost)
 
 
 def close_seams(network, surfaces, maps, match: bool) -> list:
@@ -702,7 +706,7 @@ class Stitch(Stage):
         ctx["seams"] = seams
 
     def _derived(self, ctx: Context) -> None:
-        ctx.lazy("displaced", lambda: displaced_grids(ctx["surfaces"], ctx["maps"]))
+        ctx.lazy("displaced", lambda: displaced_grids(ctx["surfaces"], ctx["maps"], ctx.workers))
         ctx.lazy("spline_grids", lambda: _spline_grids(ctx))
 
     def save(self, ctx: Context, path: Path) -> None:
