@@ -70,3 +70,28 @@ def test_label_corner_max_matches_the_reference(seed):
     want = ref.label_corner_max(mesh.faces, label, value, n)
     np.testing.assert_array_equal(got, want)
     assert got[-1] == -np.inf
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_needle_areas_match_the_reference(seed):
+    rng = np.random.default_rng(seed)
+    V, F = _random_soup(rng, nf=3 * (1 << 14) + 7)  # three blocks and a part of one
+    F[0] = [0, 0, 1]  # a face of zero area with an edge: a needle
+    F[1] = [2, 2, 2]  # a face on one point: none
+    got = _g.needle_areas(V, F, 8.0)
+    want = ref.needle_areas(V, F, 8.0)
+    np.testing.assert_allclose(got, want, rtol=1e-12)
+    assert 0.0 < got[1] < got[0]  # random triangles: some needles, not all
+
+
+def test_needle_share_of_a_mesh_matches_the_numpy_expression():
+    from meshfit.layout.even import NEEDLE_RATIO, needle_share
+
+    mesh = real_mesh("nefertiti")
+    P = mesh.vertices[mesh.faces]
+    longest = np.linalg.norm(P[:, [1, 2, 0]] - P, axis=2).max(axis=1)
+    area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
+    needles = longest * longest > NEEDLE_RATIO * 2.0 * np.maximum(area, np.finfo(float).tiny)
+    share = needle_share(mesh)
+    assert share > 0.0  # (the scan has some needles)
+    assert share == pytest.approx(area[needles].sum() / area.sum(), rel=1e-12)

@@ -44,3 +44,17 @@ def label_corner_max(F, label, value, n):
         if label[f] >= 0:
             out[label[f]] = max(out[label[f]], *(value[v] for v in tri))
     return out
+
+
+def needle_areas(V, F, ratio):
+    """Total and needle area, one face at a time: a needle's longest edge is more than
+    ``ratio`` times its height over it (height: twice the area over that edge)."""
+    total = needle = 0.0
+    for tri in F.tolist():
+        P = V[tri]
+        area = 0.5 * np.linalg.norm(np.cross(P[1] - P[0], P[2] - P[0]))
+        longest = max(np.linalg.norm(P[(c + 1) % 3] - P[c]) for c in range(3))
+        total += area
+        if longest > 0.0 and longest > ratio * (2.0 * area / longest):
+            needle += area
+    return total, needle

@@ -92,3 +92,53 @@ def label_corner_max(F, label, value, n):
             if x > out[p]:
                 out[p] = x
     return out
+
+
+#: faces per block of `needle_areas`: the blocks' sums are added in block order, so the
+#: result does not depend on how many threads ran them
+_NEEDLE_BLOCK = 1 << 14
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def needle_areas(V, F, ratio):
+    """Total area of the triangles and the area of the needles among them: (2,) float64.
+
+    A needle's longest edge is more than ``ratio`` times its height over that edge, i.e.
+    ``longest**2 > ratio * |cross|`` (``|cross|`` twice the area; a face of zero area with
+    an edge of any length is a needle). One pass over the faces without the corner arrays
+    a numpy expression needs (some 250 bytes per face of a dense scan).
+    """
+    nf = F.shape[0]
+    nb = (nf + _NEEDLE_BLOCK - 1) // _NEEDLE_BLOCK
+    part = np.zeros((nb, 2))
+    tiny = np.finfo(np.float64).tiny
+    for blk in prange(nb):
+        total = 0.0
+        needle = 0.0
+        for f in range(blk * _NEEDLE_BLOCK, min(nf, (blk + 1) * _NEEDLE_BLOCK)):
+            i, j, k = F[f, 0], F[f, 1], F[f, 2]
+            a0 = V[j, 0] - V[i, 0]
+            a1 = V[j, 1] - V[i, 1]
+            a2 = V[j, 2] - V[i, 2]
+            b0 = V[k, 0] - V[i, 0]
+            b1 = V[k, 1] - V[i, 1]
+            b2 = V[k, 2] - V[i, 2]
+            c0 = V[k, 0] - V[j, 0]
+            c1 = V[k, 1] - V[j, 1]
+            c2 = V[k, 2] - V[j, 2]
+            x0 = a1 * b2 - a2 * b1
+            x1 = a2 * b0 - a0 * b2
+            x2 = a0 * b1 - a1 * b0
+            twice = np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+            longest = max(a0 * a0 + a1 * a1 + a2 * a2, b0 * b0 + b1 * b1 + b2 * b2)
+            longest = max(longest, c0 * c0 + c1 * c1 + c2 * c2)
+            total += 0.5 * twice
+            if longest > ratio * max(twice, tiny):
+                needle += 0.5 * twice
+        part[blk, 0] = total
+        part[blk, 1] = needle
+    out = np.zeros(2)
+    for blk in range(nb):
+        out[0] += part[blk, 0]
+        out[1] += part[blk, 1]
+    return out

@@ -98,26 +98,17 @@ class EvenRemesh:
 
 def needle_share(mesh: Mesh) -> float:
     """Share of the surface's area in needles: triangles whose longest edge is more than
-    `NEEDLE_RATIO` times their height over it."""
-    nf = mesh.n_faces
-    area = np.empty(nf)
-    needles = np.empty(nf, dtype=bool)
-    for a in range(0, nf, _CHUNK):  # (the corner arrays of a dense scan's every face at once
-        b = min(a + _CHUNK, nf)  # would take some 250 bytes per face)
-        P = mesh.vertices[mesh.faces[a:b]]
-        longest = np.linalg.norm(P[:, [1, 2, 0]] - P, axis=2).max(axis=1)
-        area[a:b] = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
-        needles[a:b] = longest * longest > NEEDLE_RATIO * 2.0 * np.maximum(
-            area[a:b], np.finfo(float).tiny
-        )
-    total = float(area.sum())
+    `NEEDLE_RATIO` times their height over it (one parallel pass over the faces,
+    :func:`meshfit._kernels.geometry.needle_areas`)."""
+    from meshfit._kernels import frozen
+    from meshfit._kernels.geometry import needle_areas
+
+    V = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
+    F = np.ascontiguousarray(mesh.faces, dtype=np.int64)
+    total, needles = needle_areas(*frozen(V, F), NEEDLE_RATIO)
     if total <= 0.0:
         return 0.0
-    return float(area[needles].sum() / total)
-
-
-#: faces per block of `needle_share`
-_CHUNK = 1 << 16
+    return float(needles / total)
 
 
 def even_remesh(mesh: Mesh, crease_angle: float | None = CREASE_ANGLE) -> EvenRemesh:
