@@ -677,9 +677,9 @@ def test_displaced_errors_taken_from_texel_bounds_are_a_full_search(shapes):
     seen = []
     real = measure.surface_distance
 
-    def spy(mesh, V, F, tree, known=None):
+    def spy(mesh, V, F, tree, known=None, order=None):
         seen.append(known)
-        return real(mesh, V, F, tree, known)
+        return real(mesh, V, F, tree, known, order)
 
     with pytest.MonkeyPatch.context() as m:
         m.setattr(measure, "surface_distance", spy)

@@ -301,3 +301,18 @@ def test_a_ray_tree_alive_at_exit_is_freed_before_libigl_is_torn_down():
     )
     assert out.returncode == 0, out.stderr
     assert "leaked" not in out.stderr, out.stderr
+
+
+def test_triangle_distances_are_the_same_in_any_query_order(spot, rng):
+    """`query_order` is only a speed-up: any permutation of the queries gives the same
+    distances, and an order of another length is refused."""
+    from meshfit.mesh.locate import query_order, triangle_distances
+
+    Q = spot.vertices + rng.normal(scale=1e-2 * spot.bbox_diagonal, size=spot.vertices.shape)
+    d0, _ = triangle_distances(Q, spot.vertices, spot.faces)
+    for order in (query_order(Q), rng.permutation(len(Q)), np.arange(len(Q))[::-1]):
+        d, _ = triangle_distances(Q, spot.vertices, spot.faces, qorder=order)
+        assert_array_equal(d, d0)  # (a tie may name another triangle: f is not compared)
+    assert sorted(query_order(Q).tolist()) == list(range(len(Q)))
+    with pytest.raises(errors.InputError, match="qorder"):
+        triangle_distances(Q, spot.vertices, spot.faces, qorder=np.arange(len(Q) - 1))

@@ -28,6 +28,7 @@ __all__ = [
     "TriangleTree",
     "barycentric",
     "closest_points",
+    "query_order",
     "ray_first_hit",
     "triangle_distances",
     "triangles_within",
@@ -181,6 +182,7 @@ def triangle_distances(
     faces: ArrayLike,
     *,
     tree: TriangleTree | None = None,
+    qorder: NDArray[np.int64] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Distance from each point to the nearest of a set of triangles (any soup: no
     connectivity is needed), on all cores.
@@ -199,6 +201,9 @@ def triangle_distances(
     tree : TriangleTree, keyword-only, optional
         A tree already built over these ``vertices`` and ``faces`` (e.g.
         :attr:`meshfit.mesh.Mesh.triangle_tree` with the mesh's arrays); default: build one.
+    qorder : (n,) int64, keyword-only, optional
+        `query_order` of these ``points``, when one set of points is searched in several
+        soups; default: computed here. Any permutation gives the same distances.
 
     Returns
     -------
@@ -211,7 +216,7 @@ def triangle_distances(
     ------
     meshfit.errors.InputError
         Points or vertices not (k, 3) finite numbers, no faces, a face index out of range, a
-        ``tree`` over another number of triangles.
+        ``tree`` over another number of triangles, a ``qorder`` of another length.
 
     References
     ----------
@@ -223,9 +228,24 @@ def triangle_distances(
     Q, V, F, tree = _soup_query(points, vertices, faces, tree)
     if Q.shape[0] == 0:
         return np.empty(0), np.empty(0, dtype=np.int64)
-    qorder = np.argsort(bvh.point_morton_codes(*frozen(Q)), kind="stable")
-    sq, face, _ = bvh.closest_points(*frozen(V, F, *tree, Q, qorder))
+    if qorder is None:
+        qorder = query_order(Q)
+    elif qorder.shape != (Q.shape[0],):
+        raise InputError(f"qorder has shape {qorder.shape}, points {Q.shape[0]}")
+    sq, face, _ = bvh.closest_points(
+        *frozen(V, F, *tree, Q, np.ascontiguousarray(qorder, dtype=np.int64))
+    )
     return np.sqrt(sq), face
+
+
+def query_order(points: NDArray[np.float64]) -> NDArray[np.int64]:
+    """The order in which the searches take ``points (n, 3)``: the Morton order in their
+    bounding box, so consecutive queries are near each other and each one's search starts
+    from the last one's answer."""
+    from meshfit._kernels import bvh, frozen
+
+    Q = np.ascontiguousarray(points, dtype=np.float64)
+    return np.argsort(bvh.point_morton_codes(*frozen(Q)), kind="stable")
 
 
 def triangles_within(

@@ -18,12 +18,14 @@ from meshfit.springs import grid_triangles
 
 
 def surface_distance(
-    mesh: Mesh, V: NDArray[np.float64], F: NDArray[np.int64], tree, known=None
+    mesh: Mesh, V: NDArray[np.float64], F: NDArray[np.int64], tree, known=None, order=None
 ) -> tuple[NDArray, NDArray]:
     """Two-sided distances: reconstruction vertices to the input, input vertices to the
     reconstruction (a triangle soup ``V, F`` and its tree). ``known`` (per vertex of ``V``,
     optional): an upper bound of each one's distance to the input; where it is below
-    ``tol.KNOWN_DISTANCE`` of the diagonal it is the distance (no search)."""
+    ``tol.KNOWN_DISTANCE`` of the diagonal it is the distance (no search). ``order``
+    (optional): :func:`meshfit.mesh.locate.query_order` of the input's vertices, when they
+    are searched in several soups."""
     todo = np.arange(V.shape[0])
     to_input = np.zeros(V.shape[0])
     if known is not None:
@@ -34,17 +36,17 @@ def surface_distance(
         to_input[todo], _ = triangle_distances(
             V[todo], mesh.vertices, mesh.faces, tree=mesh.triangle_tree
         )
-    from_input, _ = triangle_distances(mesh.vertices, V, F, tree=tree)
+    from_input, _ = triangle_distances(mesh.vertices, V, F, tree=tree, qorder=order)
     return to_input, from_input
 
 
 def error_figures(
-    mesh: Mesh, V, F, tree, known=None
+    mesh: Mesh, V, F, tree, known=None, order=None
 ) -> tuple[dict[str, float], NDArray[np.float64], NDArray[np.float64]]:
     """Error figures over the bbox diagonal, each reconstruction vertex's distance to the
-    input and each input vertex's distance to the reconstruction (``known``: see
+    input and each input vertex's distance to the reconstruction (``known``, ``order``: see
     `surface_distance`)."""
-    a, b = surface_distance(mesh, V, F, tree, known)
+    a, b = surface_distance(mesh, V, F, tree, known, order)
     diag = mesh.bbox_diagonal
     both = np.concatenate([a, b])
     return (
@@ -69,11 +71,13 @@ def texel_grids(surfaces: list, shapes: list[tuple[int, ...]]) -> list[NDArray[n
     ]
 
 
-def spline_errors(mesh: Mesh, grids: list[NDArray[np.float64]]):
+def spline_errors(mesh: Mesh, grids: list[NDArray[np.float64]], faces=None, order=None):
     """Error figures of the spline grids (`texel_grids`) against the input, and each grid
-    vertex's distance to the input."""
-    V, F = soup(grids)
-    fig, to_input, _ = error_figures(mesh, V, F, grid_tree(V, F, [g.shape[:2] for g in grids]))
+    vertex's distance to the input (``faces``: see `soup`; ``order``: see
+    `surface_distance`)."""
+    V, F = soup(grids, faces)
+    tree = grid_tree(V, F, [g.shape[:2] for g in grids])
+    fig, to_input, _ = error_figures(mesh, V, F, tree, order=order)
     return fig, to_input
 
 
@@ -99,12 +103,17 @@ def per_patch_max(
     return np.maximum(worst, 0.0).tolist()
 
 
-def soup(arrays: list[NDArray[np.float64]]) -> tuple[NDArray, NDArray]:
-    """Grids ``(nu, nv, 3)`` as one triangle soup: stacked vertices and faces."""
-    Vs, Fs, base = [], [], 0
-    for X in arrays:
-        nu, nv = X.shape[:2]
-        Vs.append(X.reshape(-1, 3))
-        Fs.append(grid_triangles(nu, nv) + base)
-        base += nu * nv
-    return np.vstack(Vs), np.vstack(Fs)
+def soup(arrays: list[NDArray[np.float64]], faces=None) -> tuple[NDArray, NDArray]:
+    """Grids ``(nu, nv, 3)`` as one triangle soup: stacked vertices and faces (``faces``:
+    `soup_faces` of the grids' shapes, made once for several soups of one layout)."""
+    F = soup_faces([X.shape[:2] for X in arrays]) if faces is None else faces
+    return np.vstack([X.reshape(-1, 3) for X in arrays]), F
+
+
+def soup_faces(shapes: list[tuple[int, int]]) -> NDArray[np.int64]:
+    """The triangles of `soup` for grids of these ``(nu, nv)`` shapes."""
+    Fs, base = [], 0
+    for nu, nv in shapes:
+        Fs.append(grid_triangles(int(nu), int(nv)) + base)
+        base += int(nu) * int(nv)
+    return np.vstack(Fs)

@@ -22,7 +22,7 @@ from meshfit._jsonio import read_json_file
 from meshfit._threads import map_threads
 from meshfit.errors import InputError, LayoutError
 from meshfit.mesh import Mesh
-from meshfit.mesh.locate import grid_tree
+from meshfit.mesh.locate import grid_tree, query_order
 from meshfit.pipeline import measure
 from meshfit.pipeline.notes import small_components
 from meshfit.pipeline.runner import Context, Stage
@@ -778,17 +778,20 @@ class Errors(Stage):
         mesh, diag = ctx["mesh"], ctx["diag"]
         displaced = ctx["displaced"]
         future = _early_future(ctx)
+        # the input's vertices are searched in both surfaces, whose grids share their shapes
+        order = query_order(mesh.vertices)
+        faces = measure.soup_faces([g.shape[:2] for g in displaced])
         if future is None:  # first, so one surface's soup and tree are in memory at a time
-            spline = measure.spline_errors(mesh, ctx["spline_grids"])
+            spline = measure.spline_errors(mesh, ctx["spline_grids"], faces, order)
             release_memory()
         # (built while the spline-only searches started early may still run on their thread)
-        Vd, Fd = measure.soup(displaced)
+        Vd, Fd = measure.soup(displaced, faces)
         tree = grid_tree(Vd, Fd, [g.shape[:2] for g in displaced])
         if future is not None:
             spline = future.result()[1:]
         spline_fig, spline_to_input = spline
         known = np.concatenate([b.reshape(-1) for b in ctx["map_bounds"]]).astype(np.float64)
-        disp_fig, _, from_input = measure.error_figures(mesh, Vd, Fd, tree, known)
+        disp_fig, _, from_input = measure.error_figures(mesh, Vd, Fd, tree, known, order)
         n = len(displaced)
         ctx["errors"] = {
             "spline_only": spline_fig,
