@@ -94,25 +94,27 @@ def label_corner_max(F, label, value, n):
     return out
 
 
-#: faces per block of `needle_areas`: the blocks' sums are added in block order, so the
-#: result does not depend on how many threads ran them
+#: faces per block of `needle_areas`: the sums of blocks are added in block order (pairs of
+#: running sums of a few thousand faces, not one over millions)
 _NEEDLE_BLOCK = 1 << 14
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(cache=True, nogil=True)
 def needle_areas(V, F, ratio):
     """Total area of the triangles and the area of the needles among them: (2,) float64.
 
     A needle's longest edge is more than ``ratio`` times its height over that edge, i.e.
     ``longest**2 > ratio * |cross|`` (``|cross|`` twice the area; a face of zero area with
     an edge of any length is a needle). One pass over the faces without the corner arrays
-    a numpy expression needs (some 250 bytes per face of a dense scan).
+    a numpy expression needs (some 250 bytes per face of a dense scan), on one thread: it
+    is met at the start of a first run, where a parallel kernel's compilation would cost
+    more than it saves.
     """
     nf = F.shape[0]
     nb = (nf + _NEEDLE_BLOCK - 1) // _NEEDLE_BLOCK
     part = np.zeros((nb, 2))
     tiny = np.finfo(np.float64).tiny
-    for blk in prange(nb):
+    for blk in range(nb):
         total = 0.0
         needle = 0.0
         for f in range(blk * _NEEDLE_BLOCK, min(nf, (blk + 1) * _NEEDLE_BLOCK)):
