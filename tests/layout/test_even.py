@@ -144,6 +144,9 @@ def test_remesh_on_remeshes_an_even_mesh_too():
     sphere = shapes.icosphere(3)
     s = fit(sphere, options=FitOptions(formats=(), report=False, remesh="on")).summary
     assert s["mesh"]["remeshed"]["faces"] == s["mesh"]["faces"] != sphere.n_faces
+    # the note gives the option as the reason, not the needles an even mesh does not have
+    assert any("remeshed evenly" in n and "as remesh on asks for it" in n for n in s["notes"])
+    assert not any("needle triangles" in n for n in s["notes"])
     with pytest.raises(InputError, match="remesh must be"):
         FitOptions(remesh="sometimes")
 

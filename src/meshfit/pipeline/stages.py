@@ -118,6 +118,8 @@ def _even(ctx: Context, mesh: Mesh, fingerprint: str | None) -> Mesh:
     why = (
         "the layout was made on its even remesh"
         if fingerprint is not None
+        else "remesh on asks for it"
+        if o.remesh == "on"
         else f"{share:.0%} of its area is in needle triangles (as a CAD program tessellates)"
     )
     ctx.notes.append(
