@@ -356,3 +356,22 @@ def test_vector_map_files_of_format_2_read_as_written(tmp_path):
     old = read_exr(tmp_path / "old.exr")
     assert old.kind == "vector"
     np.testing.assert_array_equal(old.values, d.values)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_grid_normals_are_the_per_point_normals(seed):
+    """The facing test of a finer map reads the spline's normals on the texel grid by
+    banded products (`_grid_normals`); they are `points_and_frames`' normals, evaluated
+    point by point, to round-off."""
+    from meshfit.bspline import BSplineSurface
+    from meshfit.displacement.maps import _grid_normals
+
+    rng = np.random.default_rng(seed)
+    s = BSplineSurface(rng.normal(size=(9, 11, 3)))
+    h, w = 57, 73
+    u, v = np.meshgrid(grid_parameters(h), grid_parameters(w), indexing="ij")
+    want = s.points_and_frames(u, v)[3]
+    got = _grid_normals(s, h, w)
+    assert got.shape == want.shape
+    assert_allclose(got, want, rtol=0, atol=1e-12)
+    assert_allclose(np.linalg.norm(got, axis=-1), 1.0, atol=1e-14)
