@@ -305,7 +305,8 @@ def test_a_ray_tree_alive_at_exit_is_freed_before_libigl_is_torn_down():
 
 def test_triangle_distances_are_the_same_in_any_query_order(spot, rng):
     """`query_order` is only a speed-up: any permutation of the queries gives the same
-    distances, and an order of another length is refused."""
+    distances, and anything but a permutation of the points' indices is refused (the
+    kernel indexes with it)."""
     from meshfit.mesh.locate import query_order, triangle_distances
 
     Q = spot.vertices + rng.normal(scale=1e-2 * spot.bbox_diagonal, size=spot.vertices.shape)
@@ -314,5 +315,8 @@ def test_triangle_distances_are_the_same_in_any_query_order(spot, rng):
         d, _ = triangle_distances(Q, spot.vertices, spot.faces, qorder=order)
         assert_array_equal(d, d0)  # (a tie may name another triangle: f is not compared)
     assert sorted(query_order(Q).tolist()) == list(range(len(Q)))
-    with pytest.raises(errors.InputError, match="qorder"):
-        triangle_distances(Q, spot.vertices, spot.faces, qorder=np.arange(len(Q) - 1))
+    bad = query_order(Q)
+    bad[bad == 0] = -1  # every other index once: still not a permutation
+    for order in (np.arange(len(Q) - 1), bad, np.zeros(len(Q), dtype=np.int64), Q[:, 0]):
+        with pytest.raises(errors.InputError, match="qorder must be a permutation"):
+            triangle_distances(Q, spot.vertices, spot.faces, qorder=order)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from meshfit._kernels.geometry import _cross
 from meshfit._kernels.topology import faces_around
 
 _DIGIT = 16  # bits per radix pass of `stable_order`
@@ -77,20 +78,9 @@ def _neighbors(F, indptr, star, v, buf):
 
 
 @njit(cache=True, nogil=True, fastmath=False)
-def _normal(V, a, b, c):
-    ux = V[b, 0] - V[a, 0]
-    uy = V[b, 1] - V[a, 1]
-    uz = V[b, 2] - V[a, 2]
-    wx = V[c, 0] - V[a, 0]
-    wy = V[c, 1] - V[a, 1]
-    wz = V[c, 2] - V[a, 2]
-    return uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
-
-
-@njit(cache=True, nogil=True, fastmath=False)
 def _quality(V, a, b, c):
     """``4 sqrt(3) area / (l0^2 + l1^2 + l2^2)``: 1 equilateral, 0 degenerate."""
-    nx, ny, nz = _normal(V, a, b, c)
+    nx, ny, nz = _cross(V, a, b, c)
     area2 = np.sqrt(nx * nx + ny * ny + nz * nz)
     s = 0.0
     for p, q in ((a, b), (b, c), (c, a)):
@@ -202,11 +192,11 @@ def collapse_pass(V, F, alive, max_collapses, max_valence, min_cos, min_quality)
                 c = F[f, 2]
                 if a == u or b == u or c == u:
                     continue
-                ox, oy, oz = _normal(V, a, b, c)
+                ox, oy, oz = _cross(V, a, b, c)
                 a2 = u if a == v else a
                 b2 = u if b == v else b
                 c2 = u if c == v else c
-                nx, ny, nz = _normal(V, a2, b2, c2)
+                nx, ny, nz = _cross(V, a2, b2, c2)
                 on = np.sqrt(ox * ox + oy * oy + oz * oz)
                 nn = np.sqrt(nx * nx + ny * ny + nz * nz)
                 if nn <= 0.0 or on <= 0.0:

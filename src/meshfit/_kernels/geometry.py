@@ -6,26 +6,36 @@ import numpy as np
 from numba import njit, prange
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _cross(V, i, j, k):
+    """``(V[j] - V[i]) x (V[k] - V[i])`` as three floats, with the products and differences
+    of ``np.cross`` in its order (``a1 b2 - a2 b1``, ...): bitwise the numpy expression's."""
+    a0 = V[j, 0] - V[i, 0]
+    a1 = V[j, 1] - V[i, 1]
+    a2 = V[j, 2] - V[i, 2]
+    b0 = V[k, 0] - V[i, 0]
+    b1 = V[k, 1] - V[i, 1]
+    b2 = V[k, 2] - V[i, 2]
+    return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _sq_dist(V, i, j):
+    """Squared distance between vertices ``i`` and ``j``."""
+    d0 = V[j, 0] - V[i, 0]
+    d1 = V[j, 1] - V[i, 1]
+    d2 = V[j, 2] - V[i, 2]
+    return d0 * d0 + d1 * d1 + d2 * d2
+
+
 @njit(cache=True, nogil=True, parallel=True)
 def face_cross(V, F):
-    """``(p1 - p0) x (p2 - p0)`` per face: (nf, 3) float64, twice the area along the normal.
-
-    The products and differences of ``np.cross`` in its order (``a1 b2 - a2 b1``, ...), so
-    the result is bitwise the numpy expression's.
-    """
+    """``(p1 - p0) x (p2 - p0)`` per face: (nf, 3) float64, twice the area along the normal,
+    bitwise the numpy expression's (`_cross`)."""
     nf = F.shape[0]
     out = np.empty((nf, 3))
     for f in prange(nf):
-        i, j, k = F[f, 0], F[f, 1], F[f, 2]
-        a0 = V[j, 0] - V[i, 0]
-        a1 = V[j, 1] - V[i, 1]
-        a2 = V[j, 2] - V[i, 2]
-        b0 = V[k, 0] - V[i, 0]
-        b1 = V[k, 1] - V[i, 1]
-        b2 = V[k, 2] - V[i, 2]
-        out[f, 0] = a1 * b2 - a2 * b1
-        out[f, 1] = a2 * b0 - a0 * b2
-        out[f, 2] = a0 * b1 - a1 * b0
+        out[f, 0], out[f, 1], out[f, 2] = _cross(V, F[f, 0], F[f, 1], F[f, 2])
     return out
 
 
@@ -119,21 +129,9 @@ def needle_areas(V, F, ratio):
         needle = 0.0
         for f in range(blk * _NEEDLE_BLOCK, min(nf, (blk + 1) * _NEEDLE_BLOCK)):
             i, j, k = F[f, 0], F[f, 1], F[f, 2]
-            a0 = V[j, 0] - V[i, 0]
-            a1 = V[j, 1] - V[i, 1]
-            a2 = V[j, 2] - V[i, 2]
-            b0 = V[k, 0] - V[i, 0]
-            b1 = V[k, 1] - V[i, 1]
-            b2 = V[k, 2] - V[i, 2]
-            c0 = V[k, 0] - V[j, 0]
-            c1 = V[k, 1] - V[j, 1]
-            c2 = V[k, 2] - V[j, 2]
-            x0 = a1 * b2 - a2 * b1
-            x1 = a2 * b0 - a0 * b2
-            x2 = a0 * b1 - a1 * b0
+            x0, x1, x2 = _cross(V, i, j, k)
             twice = np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
-            longest = max(a0 * a0 + a1 * a1 + a2 * a2, b0 * b0 + b1 * b1 + b2 * b2)
-            longest = max(longest, c0 * c0 + c1 * c1 + c2 * c2)
+            longest = max(_sq_dist(V, i, j), _sq_dist(V, i, k), _sq_dist(V, j, k))
             total += 0.5 * twice
             if longest > ratio * max(twice, tiny):
                 needle += 0.5 * twice

@@ -22,11 +22,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from meshfit import tol
 from meshfit.errors import InputError, MeshfitError
 from meshfit.layout.regions import CREASE_ANGLE, sharp_edges
 from meshfit.mesh import Mesh, find_problems, topology
-from meshfit.mesh.validate import raise_first
+from meshfit.mesh.validate import area2_limit, degenerate_faces, raise_first
 
 __all__ = [
     "EvenRemesh",
@@ -316,8 +315,8 @@ def mend_degenerate_faces(
     # the validator's limit on the squared cross product, for the bbox of the used vertices:
     # a mend only drops vertices, so the mended list's bbox, and limit, are no larger
     diag = float(np.linalg.norm(used.max(axis=0) - used.min(axis=0))) if used.size else 0.0
-    flat = (2.0 * tol.DEGENERATE_AREA * diag * diag) ** 2
-    bad = np.flatnonzero(_degenerate(V, F, flat))
+    flat = area2_limit(diag)
+    bad = np.flatnonzero(degenerate_faces(V, F, flat))
     if bad.size == 0:
         return V, F
     table = topology.edge_table(F, V.shape[0])
@@ -331,7 +330,7 @@ def mend_degenerate_faces(
         if not any([edit.mend(int(f), length, rim, degree) for f in bad]):
             break  # (nothing changed: ``bad`` is still the list's)
         live = np.flatnonzero(edit.alive)
-        bad = live[_degenerate(V, edit.F[live], flat)]
+        bad = live[degenerate_faces(V, edit.F[live], flat)]
         if bad.size == 0:
             break
     if bad.size:
@@ -346,15 +345,6 @@ def mend_degenerate_faces(
 def _check_length(length: float) -> None:
     if not (np.isfinite(length) and length >= 0.0):
         raise InputError(f"length must be a finite distance >= 0, got {length}")
-
-
-def _degenerate(V: NDArray, F: NDArray, flat: float) -> NDArray[np.bool_]:
-    """The validator's degenerate faces: a repeated index, or a squared cross product of
-    at most ``flat``."""
-    rep = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0])
-    p = V[F]
-    cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-    return rep | ~(np.einsum("ij,ij->i", cross, cross) > flat)
 
 
 def _feature_degree(V, F, table, flat: float, crease_angle: float | None) -> NDArray[np.int64]:
@@ -499,7 +489,7 @@ class _Edit:
         ends on the boundary (the one on it stays), else flip its longest edge (see
         `mend_degenerate_faces`); whether either was made (none when ``f`` is gone or no
         longer degenerate)."""
-        if not self.alive[f] or not _degenerate(self.V, self.F[f : f + 1], self.flat)[0]:
+        if not self.alive[f] or not degenerate_faces(self.V, self.F[f : f + 1], self.flat)[0]:
             return False
         c = self.F[f]
         if len(set(c.tolist())) < 3:

@@ -203,7 +203,8 @@ def triangle_distances(
         :attr:`meshfit.mesh.Mesh.triangle_tree` with the mesh's arrays); default: build one.
     qorder : (n,) int64, keyword-only, optional
         `query_order` of these ``points``, when one set of points is searched in several
-        soups; default: computed here. Any permutation gives the same distances.
+        soups; default: computed here. Any permutation gives the same distances; the
+        kernel indexes with it, so anything else is refused.
 
     Returns
     -------
@@ -216,7 +217,8 @@ def triangle_distances(
     ------
     meshfit.errors.InputError
         Points or vertices not (k, 3) finite numbers, no faces, a face index out of range, a
-        ``tree`` over another number of triangles, a ``qorder`` of another length.
+        ``tree`` over another number of triangles, a ``qorder`` that is not a permutation of
+        the points' indices.
 
     References
     ----------
@@ -228,14 +230,21 @@ def triangle_distances(
     Q, V, F, tree = _soup_query(points, vertices, faces, tree)
     if Q.shape[0] == 0:
         return np.empty(0), np.empty(0, dtype=np.int64)
-    if qorder is None:
-        qorder = query_order(Q)
-    elif qorder.shape != (Q.shape[0],):
-        raise InputError(f"qorder has shape {qorder.shape}, points {Q.shape[0]}")
-    sq, face, _ = bvh.closest_points(
-        *frozen(V, F, *tree, Q, np.ascontiguousarray(qorder, dtype=np.int64))
-    )
+    qorder = query_order(Q) if qorder is None else _permutation(qorder, Q.shape[0])
+    sq, face, _ = bvh.closest_points(*frozen(V, F, *tree, Q, qorder))
     return np.sqrt(sq), face
+
+
+def _permutation(order: ArrayLike, n: int) -> NDArray[np.int64]:
+    """``order`` as int64 when it is a permutation of ``range(n)`` (a kernel indexes the
+    points with it unchecked); else InputError."""
+    q = np.asarray(order)
+    ok = q.shape == (n,) and np.issubdtype(q.dtype, np.integer)
+    if ok and n:
+        ok = bool(q.min() >= 0 and q.max() < n and (np.bincount(q, minlength=n) == 1).all())
+    if not ok:
+        raise InputError(f"qorder must be a permutation of the {n} points' indices")
+    return np.ascontiguousarray(q, dtype=np.int64)
 
 
 def query_order(points: NDArray[np.float64]) -> NDArray[np.int64]:

@@ -20,7 +20,9 @@ from meshfit.mesh import topology
 __all__ = [
     "Finding",
     "RepairReport",
+    "area2_limit",
     "clean_edge_table",
+    "degenerate_faces",
     "find_problems",
     "inside_out_finding",
     "raise_first",
@@ -92,28 +94,46 @@ _ERRORS: dict[str, type[errors.MeshValidationError]] = {
 }
 
 
-def _area2_limit(diag: float) -> float:
+def area2_limit(diag: float) -> float:
     """Largest squared cross-product norm of a degenerate face (twice its area, squared), for
-    a bounding-box diagonal ``diag``."""
+    a bounding-box diagonal ``diag`` (model units): ``(2 tol.DEGENERATE_AREA diag^2)^2``."""
     return (2.0 * tol.DEGENERATE_AREA * diag * diag) ** 2
 
 
-def _degenerate_faces(vertices: NDArray, faces: NDArray) -> NDArray[np.bool_]:
-    """Faces with a repeated index or (near-)zero area, relative to the bbox diagonal."""
+def degenerate_faces(vertices: NDArray, faces: NDArray, limit: float) -> NDArray[np.bool_]:
+    """The validator's degenerate faces: a repeated index, or a squared cross product (twice
+    the area, squared) of at most ``limit`` (`area2_limit`), or not a number.
+
+    Parameters
+    ----------
+    vertices : (nv, 3) float64
+    faces : (nf, 3) int64
+        Indices in range.
+    limit : float
+        Model units to the fourth power.
+
+    Returns
+    -------
+    (nf,) bool
+    """
     rep = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
     p = vertices[faces]
     with np.errstate(invalid="ignore", over="ignore"):  # inf coordinates give inf / nan areas
         cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
         area2 = np.einsum("ij,ij->i", cross, cross)
+        small = ~(area2 > limit)
+    return rep | small
+
+
+def _degenerate_faces(vertices: NDArray, faces: NDArray) -> NDArray[np.bool_]:
+    """Faces with a repeated index or (near-)zero area, relative to the bbox diagonal of the
+    used, finite vertices."""
     mask = np.zeros(vertices.shape[0], dtype=bool)
     mask[faces.reshape(-1)] = True
     used = vertices[mask]
     finite = used[np.isfinite(used).all(axis=1)]
     diag = float(np.linalg.norm(finite.max(axis=0) - finite.min(axis=0))) if finite.size else 0.0
-    limit = _area2_limit(diag)
-    with np.errstate(invalid="ignore"):
-        small = ~(area2 > limit)
-    return rep | small
+    return degenerate_faces(vertices, faces, area2_limit(diag))
 
 
 def _row_keys(rows: NDArray[np.int64]) -> NDArray:
@@ -191,7 +211,7 @@ def clean_edge_table(
     if not _kt.simple_ok(v, f) or np.abs(v).max() > tol.MAX_COORDINATE:
         return None
     diag = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
-    floor = _area2_limit(diag) * (1.0 + _AREA_MARGIN)
+    floor = area2_limit(diag) * (1.0 + _AREA_MARGIN)
     table = topology.edge_table(f, nv)
     if not _kt.manifold_ok(v, f, table.edge_count, table.order, table.start, floor):
         return None
