@@ -248,9 +248,26 @@ def _permutation(order: ArrayLike, n: int) -> NDArray[np.int64]:
 
 
 def query_order(points: NDArray[np.float64]) -> NDArray[np.int64]:
-    """The order in which the searches take ``points (n, 3)``: the Morton order in their
-    bounding box, so consecutive queries are near each other and each one's search starts
-    from the last one's answer."""
+    """The order in which the tree searches take a set of query points: their Morton order in
+    their own bounding box, so consecutive queries are near each other and each search
+    starts from the last one's answer. Made once, it serves every soup the same points are
+    searched in (`triangle_distances`' ``qorder``).
+
+    Parameters
+    ----------
+    points : (n, 3) float64
+        Finite query points.
+
+    Returns
+    -------
+    (n,) int64
+        A permutation of ``range(n)`` (stable for equal codes).
+
+    References
+    ----------
+    .. [1] Ericson, "Real-Time Collision Detection", 2005, sec. 7.3.5 (Morton order) and
+       ch. 6 (bounding-volume hierarchies).
+    """
     from meshfit._kernels import bvh, frozen
 
     Q = np.ascontiguousarray(points, dtype=np.float64)

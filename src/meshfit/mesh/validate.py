@@ -95,8 +95,19 @@ _ERRORS: dict[str, type[errors.MeshValidationError]] = {
 
 
 def area2_limit(diag: float) -> float:
-    """Largest squared cross-product norm of a degenerate face (twice its area, squared), for
-    a bounding-box diagonal ``diag`` (model units): ``(2 tol.DEGENERATE_AREA diag^2)^2``."""
+    """Largest squared cross-product norm of a degenerate face (twice its area, squared):
+    ``(2 tol.DEGENERATE_AREA diag^2)^2``, an area scaled to the mesh rather than a constant.
+
+    Parameters
+    ----------
+    diag : float
+        Bounding-box diagonal of the used vertices, model units.
+
+    Returns
+    -------
+    float
+        Model units to the fourth power.
+    """
     return (2.0 * tol.DEGENERATE_AREA * diag * diag) ** 2
 
 
