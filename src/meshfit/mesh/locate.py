@@ -265,7 +265,8 @@ def query_order(points: NDArray[np.float64]) -> NDArray[np.int64]:
 
     References
     ----------
-    .. [1] Ericson, "Real-Time Collision Detection", 2005, sec. 7.3.5 (Morton order) and
+    .. [1] Morton, "A computer oriented geodetic data base and a new technique in file
+       sequencing", IBM, 1966 (the order); Ericson, "Real-Time Collision Detection", 2005,
        ch. 6 (bounding-volume hierarchies).
     """
     from meshfit._kernels import bvh, frozen
