@@ -699,6 +699,21 @@ def test_displaced_errors_taken_from_texel_bounds_are_a_full_search(shapes):
     assert np.mean(known[0] <= tol.KNOWN_DISTANCE * diag) > 0.5  # (spot: 91 % matched, 87 % native)
 
 
+def test_soup_faces_are_the_grids_triangles_offset_grid_by_grid():
+    from meshfit.pipeline.measure import soup_faces
+    from meshfit.springs import grid_triangles
+
+    shapes = [(2, 2), (5, 3), (3, 7), (2, 9), (9, 2), (4, 4)]
+    want, base = [], 0
+    for nu, nv in shapes:
+        want.append(grid_triangles(nu, nv) + base)
+        base += nu * nv
+    got = soup_faces(shapes)
+    np.testing.assert_array_equal(got, np.vstack(want))
+    assert got.dtype == np.int64 and got.flags.c_contiguous
+    np.testing.assert_array_equal(soup_faces([(np.int64(3), np.int64(4))]), grid_triangles(3, 4))
+
+
 def real_error_figures(mesh, V, F, tree):
     """`measure.error_figures` with every distance searched (no bounds)."""
     from meshfit.pipeline.measure import error_figures
