@@ -10,7 +10,9 @@ Method
    A cell must be a disk: its vertex-induced subcomplex has Euler characteristic 1 (a cell
    that wraps round a handle or a hole has a lower one). And it must hold a shape one patch
    can: no more than `CONE_SHARE` of its area may turn more than `NORMAL_CONE` from its
-   mean normal (an ear, a horn, a fold back), unless it is too small to split. A cell that
+   mean normal (an ear, a horn, a fold back), unless it is too small to split (on a mesh
+   whose noise folds its triangles, :func:`noisy_folds`, the normals are first averaged
+   over a few rings: the noise is no turn of the shape). A cell that
    fails gets a second seed (on the hole or slit inside it, on its turned part, else at its
    vertex farthest from its seed), and the round repeats within a budget (`MAX_ROUNDS`
    rounds, a cell count): at its end every cell is a disk, or the layout is refused.
@@ -62,6 +64,7 @@ from scipy.sparse import csgraph
 from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
+from meshfit._kernels import geometry as _geometry
 from meshfit._kernels.locate2d import walk_locate
 from meshfit.errors import InputError, LayoutError, MeshfitError
 from meshfit.layout.layout import Layout, layout_from_curves
@@ -86,6 +89,13 @@ CONE_SHARE = 0.02
 #: split: within it the cell is a height field over its mean plane, so none of its quads
 #: folds over itself
 NORMAL_CONE = 90.0
+#: rounds of face-vertex averaging of the normals the normal-cone test reads on a noisy
+#: mesh (`_cone_normals`, `noisy_folds`): each round reaches one ring of faces further, so
+#: the test sees a turn a few rings wide, as a patch's spring grid does, and not a scan's
+#: noise of the order of its edge length, which turns single triangles any way (and would
+#: split the cells into thousands more without the surface turning). A clean mesh's own
+#: normals are read: there a turn a ring or two wide is the shape's
+CONE_SMOOTHING = 3
 #: default ``crease_angle`` (degrees): an edge whose faces' normals differ by more is sharp
 CREASE_ANGLE = 40.0
 #: shortest chain of sharp edges kept as a crease, share of the bbox diagonal
@@ -277,10 +287,23 @@ def _not_disks(mesh: Mesh, graph, seeds: NDArray[np.int64]) -> int:
     return int((_euler_per_cell(mesh, label, seeds.size) != 1).sum())
 
 
-def _cone_fails(mesh: Mesh, label: NDArray[np.int64], k: int, vareas):
-    """Cells with more than `CONE_SHARE` of their area beyond `NORMAL_CONE` of their mean
-    normal, and the mask of the vertices beyond it."""
+def _cone_normals(mesh: Mesh, rounds: int = CONE_SMOOTHING) -> NDArray[np.float64]:
+    """Unit vertex normals after ``rounds`` of averaging: each face takes the sum of its
+    corners' normals times its area, each vertex the sum over its faces (a diffusion along
+    the surface, so the two sides of a thin sheet mix only round its rim). A vertex whose
+    sum vanishes keeps its own normal."""
     n = mesh.vertex_normals
+    f, w = mesh.faces, mesh.face_areas[:, None]
+    for _ in range(rounds):
+        acc = _geometry.vertex_sums(f, (n[f[:, 0]] + n[f[:, 1]] + n[f[:, 2]]) * w, n.shape[0])
+        ln = np.linalg.norm(acc, axis=1, keepdims=True)
+        n = np.where(ln > 0, acc / np.where(ln > 0, ln, 1.0), n)
+    return n
+
+
+def _cone_fails(mesh: Mesh, label: NDArray[np.int64], k: int, vareas, n):
+    """Cells with more than `CONE_SHARE` of their area beyond `NORMAL_CONE` of their mean
+    normal (of the vertex normals ``n``), and the mask of the vertices beyond it."""
     ok = label >= 0
     lab = np.where(ok, label, 0)
     mean = np.stack(
@@ -304,6 +327,7 @@ def _cells(mesh: Mesh, n_cells: int, max_cells: int):
     """
     graph = _graph(mesh)
     vareas = _vertex_areas(mesh)
+    normals = _cone_normals(mesh, CONE_SMOOTHING) if noisy_folds(mesh) else mesh.vertex_normals
     seeds = _initial_seeds(mesh, graph, n_cells)
     max_cells += 2 * max(0, seeds.size - n_cells)
     seeds = _lloyd(mesh, graph, seeds, LLOYD_STEPS, vareas)
@@ -315,7 +339,7 @@ def _cells(mesh: Mesh, n_cells: int, max_cells: int):
         k = seeds.size
         chi = _euler_per_cell(mesh, label, k)
         not_disk = chi != 1
-        cone, far = _cone_fails(mesh, label, k, vareas)
+        cone, far = _cone_fails(mesh, label, k, vareas, normals)
         # (a cell too small to give two cells of patches is not split for its turn: a thin
         # rim turns back within any cell that holds it)
         size = np.bincount(label[label >= 0], minlength=k)
@@ -665,6 +689,16 @@ def _crease_nodes(clip: _Clip, mesh: Mesh, label, parent, orig: Mesh, corner_ver
 
 #: edges whose dihedral angles are taken at a time (bounds the gathered normals' memory)
 SHARP_CHUNK = 1 << 20
+#: the folds of a mesh's edges below the crease angle are told apart in this many bins
+FOLD_BINS = 400
+#: the median fold is taken over about this many edges at most, evenly spread over the
+#: edge table (a median of a million folds is as good as one of tens of millions)
+FOLD_SAMPLE = 1 << 20
+#: sharp edges make creases only where the median fold of the mesh's other edges is at
+#: most this share of the crease angle: a scan whose noise folds its triangles by a quarter
+#: of the crease angle as a rule folds many by the whole of it, in nets that cling to the
+#: true creases and make new ones (clean scans and parts measure well under it)
+CREASE_NOISE = 0.25
 
 
 def sharp_edges(mesh: Mesh, angle: float) -> NDArray[np.bool_]:
@@ -675,20 +709,48 @@ def sharp_edges(mesh: Mesh, angle: float) -> NDArray[np.bool_]:
     The two faces of an edge are its first two half-edges in the edge table's order (no
     sort), and the normals are gathered a chunk of edges at a time: on a scan of tens of
     millions of faces, the whole gather would hold two normals per edge at once."""
+    return _folds(mesh, angle, with_median=False)[0]
+
+
+def _folds(mesh: Mesh, angle: float, *, with_median: bool) -> tuple[NDArray[np.bool_], float]:
+    """`sharp_edges`, and (``with_median``) the median fold in degrees of the other
+    interior edges (of every stride-th edge when there are over `FOLD_SAMPLE`), from a
+    histogram of `FOLD_BINS` bins: no per-edge angles are kept."""
     table = mesh._edge_table
     ne = table.edges.shape[0]
     two = table.edge_count == 2
     last = max(table.order.size - 1, 0)
     n = mesh.face_normals
     limit = np.cos(np.radians(angle))
+    # bin edges in cosine, ascending: folds from ``angle`` down to 0 degrees
+    cut = np.cos(np.radians(np.linspace(angle, 0.0, FOLD_BINS + 1)))
+    counts = np.zeros(FOLD_BINS + 2, dtype=np.int64)
+    stride = max(1, ne // FOLD_SAMPLE)  # every stride-th edge, at most some FOLD_SAMPLE
     out = np.zeros(ne, dtype=bool)
     for a in range(0, ne, SHARP_CHUNK):
         b = min(a + SHARP_CHUNK, ne)
         first = table.start[a:b]
         fa = table.order[first] // 3
         fb = table.order[np.minimum(first + 1, last)] // 3
-        out[a:b] = two[a:b] & (np.einsum("ij,ij->i", n[fa], n[fb]) < limit)
-    return out
+        dot = np.einsum("ij,ij->i", n[fa], n[fb])
+        out[a:b] = two[a:b] & (dot < limit)
+        if with_median:
+            take = slice((-a) % stride, None, stride)
+            d, t = dot[take], two[a:b][take]
+            rest = d[t & (d >= limit)]
+            counts += np.bincount(np.searchsorted(cut, rest), minlength=counts.size)
+    if not with_median or counts.sum() == 0:
+        return out, 0.0
+    # bin i of ``cut`` (1..FOLD_BINS) holds folds between its two edges, largest first
+    half = np.searchsorted(np.cumsum(counts[::-1]), 0.5 * counts.sum())
+    return out, float(angle) * min(half, FOLD_BINS) / FOLD_BINS
+
+
+def noisy_folds(mesh: Mesh) -> bool:
+    """Whether ``mesh`` is noisy at the scale of its edges: the median fold of its interior
+    edges that fold by at most `CREASE_ANGLE` is over `CREASE_NOISE` of it (the test by
+    which :func:`crease_edges` finds no creases at the default angle)."""
+    return _folds(mesh, CREASE_ANGLE, with_median=True)[1] > CREASE_NOISE * CREASE_ANGLE
 
 
 def crease_edges(mesh: Mesh, angle: float = CREASE_ANGLE) -> NDArray[np.bool_]:
@@ -713,12 +775,14 @@ def crease_edges(mesh: Mesh, angle: float = CREASE_ANGLE) -> NDArray[np.bool_]:
         chain is kept where it closes, meets another or reaches the mesh boundary, so that
         the creases cut the surface into pieces without slits (a crease fading out inside
         the surface stays inside a patch, where a slit would leave a patch bordering
-        itself).
+        itself). None on a mesh whose other interior edges fold by more than
+        `CREASE_NOISE` of ``angle`` at the median: there a fold of ``angle`` is scan
+        noise as often as a crease, and the chains above would be nets of noise.
     """
     ne = mesh.edges.shape[0]
-    sharp = sharp_edges(mesh, angle)
-    if not sharp.any():
-        return sharp
+    sharp, fold = _folds(mesh, angle, with_median=True)
+    if not sharp.any() or fold > CREASE_NOISE * angle:
+        return np.zeros(ne, dtype=bool)
     e = mesh.edges[sharp]
     nv = mesh.n_vertices
     g = sparse.coo_matrix((np.ones(e.shape[0]), (e[:, 0], e[:, 1])), shape=(nv, nv))
