@@ -1140,11 +1140,14 @@ def _radius(mesh: Mesh, clip: _Clip, cell: _Cell, loc: _Locator, start, end):
     """Face points of the image of the 2-d segment ``start -> end``.
 
     Sampled until consecutive samples lie in the same or edge-adjacent sub-triangles and at
-    most `TRACE_GAP_EDGES` apart; where two consecutive samples lie in different input
-    faces, the point where the segment crosses their shared edge is inserted, so that
-    consecutive points always share an input face and the curve follows the map exactly
-    (the cut would otherwise join them by unfolding the two faces, which is another path
-    where the surface bends)."""
+    most `TRACE_GAP_EDGES` apart; where two consecutive samples lie in different
+    sub-triangles, the point where the segment crosses their shared sub-edge is inserted,
+    so that consecutive points always share a sub-triangle and the curve follows the map
+    exactly, as the map is affine on each sub-triangle only. Between two input faces the
+    cut would otherwise join the samples by unfolding the faces, another path where the
+    surface bends; inside one face a chord across a sub-edge is another path where the map
+    bends, and two radii close to their common centre could cross (on noisy scans, whose
+    folded triangles bend the map sharply)."""
     gap = TRACE_GAP_EDGES * mesh.mean_edge_length
     nbr = loc.neighbors
     ts = np.linspace(0.0, 1.0, 17)
@@ -1162,10 +1165,9 @@ def _radius(mesh: Mesh, clip: _Clip, cell: _Cell, loc: _Locator, start, end):
         t_loc, b = loc.locate(start[None] + ts[:, None] * (end - start)[None])
         f, bary = _face_points(clip, cell, t_loc, b)
     faces_out, bary_out = [int(f[0])], [bary[0]]
-    g = cell.tris[t_loc]
     for i in range(1, ts.size):
         ta, tc = int(t_loc[i - 1]), int(t_loc[i])
-        if clip.tri_face[g[i - 1]] != clip.tri_face[g[i]] and ta != tc:
+        if ta != tc:
             qa = start + ts[i - 1] * (end - start)
             qc = start + ts[i] * (end - start)
             cross = _crossing(clip, cell, loc, ta, tc, qa, qc)
