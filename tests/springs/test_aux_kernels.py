@@ -8,7 +8,7 @@ import pytest
 from numpy.testing import assert_array_equal
 
 from meshfit._kernels import springs_aux as K
-from meshfit.springs.grid import dilate_grid
+from meshfit.springs.grid import dilate_grid, grid_triangles
 from meshfit.springs.init import chain_arc, chain_edge_faces
 from meshfit.springs.planar import square_map
 from meshfit.springs.resample import _sides
@@ -107,6 +107,20 @@ def test_chain_arc_and_edge_faces_match_oracle(patches, name):
     inner = np.setdiff1d(np.arange(mesh.n_vertices), np.concatenate(chains))
     with pytest.raises(AssertionError, match="follow the patch boundary"):
         chain_edge_faces(mesh, [np.array([chains[0][0], inner[0]])])
+
+
+@pytest.mark.parametrize(("nu", "nv"), [(2, 2), (3, 5), (7, 2), (6, 6)])
+def test_grid_triangles_split_each_cell_along_its_diagonal(nu, nv):
+    """Against the cells written out one by one: the first triangles, then the second ones;
+    ``base`` offsets every index and ``out`` is filled in place."""
+    cells = [(i * nv + j, (i + 1) * nv + j) for i in range(nu - 1) for j in range(nv - 1)]
+    want = np.array([(a, b, b + 1) for a, b in cells] + [(a, b + 1, a + 1) for a, b in cells])
+    assert_array_equal(grid_triangles(nu, nv), want)
+    out = np.full_like(want, -1)
+    assert grid_triangles(nu, nv, base=17, out=out) is out
+    assert_array_equal(out, want + 17)
+    with pytest.raises(ValueError, match="out has shape"):
+        grid_triangles(nu, nv, out=out[1:])
 
 
 def test_dilate_grid_matches_binary_dilation(rng):

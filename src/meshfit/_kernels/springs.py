@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from meshfit._kernels.geometry import _cross
 from meshfit._kernels.walk import (
     DONE,
     _face_normal,
@@ -365,15 +366,7 @@ def _point_normals(V, F, face):
 def _tri_facing(X, N, p, q, r):
     """Dot product of triangle (p, q, r)'s normal ``(q - p) x (r - p)`` with the summed
     normals at its corners, and the product of the two vectors' lengths."""
-    ux = X[q, 0] - X[p, 0]
-    uy = X[q, 1] - X[p, 1]
-    uz = X[q, 2] - X[p, 2]
-    wx = X[r, 0] - X[p, 0]
-    wy = X[r, 1] - X[p, 1]
-    wz = X[r, 2] - X[p, 2]
-    cx = uy * wz - uz * wy
-    cy = uz * wx - ux * wz
-    cz = ux * wy - uy * wx
+    cx, cy, cz = _cross(X, p, q, r)
     sx = N[p, 0] + N[q, 0] + N[r, 0]
     sy = N[p, 1] + N[q, 1] + N[r, 1]
     sz = N[p, 2] + N[q, 2] + N[r, 2]

@@ -14,6 +14,7 @@ from meshfit import tol
 from meshfit._kernels.geometry import label_corner_max
 from meshfit.mesh import Mesh
 from meshfit.mesh.locate import grid_tree, triangle_distances
+from meshfit.springs import grid_triangles
 
 
 def surface_distance(
@@ -112,20 +113,14 @@ def soup(arrays: list[NDArray[np.float64]], faces=None) -> tuple[NDArray, NDArra
 def soup_faces(shapes: list[tuple[int, int]]) -> NDArray[np.int64]:
     """The triangles of `soup` for grids of these ``(nu, nv)`` shapes: each grid's
     :func:`meshfit.springs.grid_triangles`, offset by the points before it, written in place
-    (a soup of a large fit has tens of millions of triangles: no per-grid copies)."""
-    cells = [(int(nu) - 1) * (int(nv) - 1) for nu, nv in shapes]
-    F = np.empty((2 * sum(cells), 3), dtype=np.int64)
+    into one array (a soup of a large fit has tens of millions of triangles: no per-grid
+    copies and no stacking)."""
+    sizes = [(int(nu), int(nv)) for nu, nv in shapes]
+    F = np.empty((sum(2 * (nu - 1) * (nv - 1) for nu, nv in sizes), 3), dtype=np.int64)
     t = base = 0
-    for (nu, nv), c in zip(shapes, cells, strict=True):
-        nu, nv = int(nu), int(nv)
-        a = (base + nv * np.arange(nu - 1, dtype=np.int64)[:, None] + np.arange(nv - 1)).ravel()
-        first, second = F[t : t + c], F[t + c : t + 2 * c]
-        first[:, 0] = a
-        np.add(a, nv, out=first[:, 1])
-        np.add(a, nv + 1, out=first[:, 2])
-        second[:, 0] = a
-        second[:, 1] = first[:, 2]
-        np.add(a, 1, out=second[:, 2])
-        t += 2 * c
+    for nu, nv in sizes:
+        n = 2 * (nu - 1) * (nv - 1)
+        grid_triangles(nu, nv, base=base, out=F[t : t + n])
+        t += n
         base += nu * nv
     return F

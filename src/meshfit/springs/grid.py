@@ -75,23 +75,44 @@ class SpringMesh:
         return grid_triangles(*self.shape)
 
 
-def grid_triangles(nu: int, nv: int) -> NDArray[np.int64]:
+def grid_triangles(
+    nu: int, nv: int, *, base: int = 0, out: NDArray[np.int64] | None = None
+) -> NDArray[np.int64]:
     """Triangulate an ``(nu, nv)`` row-major grid, two triangles per cell.
 
     Each cell ``(i, j)`` splits along its ``(i, j)``-``(i + 1, j + 1)`` diagonal into
     ``(i, j), (i + 1, j), (i + 1, j + 1)`` and ``(i, j), (i + 1, j + 1), (i, j + 1)``: counter-
-    clockwise in ``(u, v)``, so the normals agree with the patch's face normals.
+    clockwise in ``(u, v)``, so the normals agree with the patch's face normals. All first
+    triangles come before all second ones.
+
+    Parameters
+    ----------
+    nu, nv : int
+        Grid shape.
+    base : int, keyword-only
+        Added to every index (the grid's first point in a soup of several grids).
+    out : (2 (nu - 1) (nv - 1), 3) int64, keyword-only, optional
+        Written in place and returned (a soup of many grids fills one array, with no
+        per-grid copies); default: a new array.
 
     Returns
     -------
     (2 (nu - 1) (nv - 1), 3) int64
     """
-    idx = np.arange(nu * nv, dtype=np.int64).reshape(nu, nv)
-    a = idx[:-1, :-1].ravel()
-    b = idx[1:, :-1].ravel()
-    c = idx[1:, 1:].ravel()
-    d = idx[:-1, 1:].ravel()
-    return np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    c = (nu - 1) * (nv - 1)
+    if out is None:
+        out = np.empty((2 * c, 3), dtype=np.int64)
+    elif out.shape != (2 * c, 3):
+        raise ValueError(f"out has shape {out.shape}, the grid's triangles {(2 * c, 3)}")
+    a = (base + nv * np.arange(nu - 1, dtype=np.int64)[:, None] + np.arange(nv - 1)).ravel()
+    first, second = out[:c], out[c:]
+    first[:, 0] = a
+    np.add(a, nv, out=first[:, 1])
+    np.add(a, nv + 1, out=first[:, 2])
+    second[:, 0] = a
+    second[:, 1] = first[:, 2]
+    np.add(a, 1, out=second[:, 2])
+    return out
 
 
 def dilate_grid(mask: NDArray[np.bool_], reach: int) -> NDArray[np.bool_]:
