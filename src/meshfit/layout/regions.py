@@ -749,7 +749,24 @@ def _folds(mesh: Mesh, angle: float, *, with_median: bool) -> tuple[NDArray[np.b
 def noisy_folds(mesh: Mesh) -> bool:
     """Whether ``mesh`` is noisy at the scale of its edges: the median fold of its interior
     edges that fold by at most `CREASE_ANGLE` is over `CREASE_NOISE` of it (the test by
-    which :func:`crease_edges` finds no creases at the default angle)."""
+    which :func:`crease_edges` finds no creases at the default angle, and on which the
+    normal-cone test of the cells reads smoothed normals).
+
+    Parameters
+    ----------
+    mesh : Mesh
+
+    Returns
+    -------
+    bool
+        A fold is the angle in degrees between the normals of an edge's two faces; the
+        median is taken over at most about `FOLD_SAMPLE` edges.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 1.3 (patch layouts follow the features of the shape,
+       not those of the scan's noise).
+    """
     return _folds(mesh, CREASE_ANGLE, with_median=True)[1] > CREASE_NOISE * CREASE_ANGLE
 
 
