@@ -764,8 +764,7 @@ def noisy_folds(mesh: Mesh) -> bool:
 
     References
     ----------
-    .. [1] Krishnamurthy 2000, sec. 1.3 (patch layouts follow the features of the shape,
-       not those of the scan's noise).
+    .. [1] Krishnamurthy 2000, sec. 1.3 (four-sided patch layouts).
     """
     return _folds(mesh, CREASE_ANGLE, with_median=True)[1] > CREASE_NOISE * CREASE_ANGLE
 
