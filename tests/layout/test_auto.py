@@ -16,6 +16,7 @@ from meshfit.errors import InputError, LayoutError
 from meshfit.layout import extract_patches, layout_from_json, layout_to_json
 from meshfit.layout.auto import LayoutOptions, auto_layout, quad_network
 from meshfit.shrinkwrap import icosahedron
+from meshfit.types import SurfacePoints
 
 from ..conftest import real_mesh
 from ..shapes import icosphere, plane, torus
@@ -128,13 +129,21 @@ def _record_region_route(monkeypatch) -> list:
     return calls
 
 
+def _no_crossings(mesh, sphere, arc, face):
+    # traced curves joined straight between samples (no edge crossing put between them)
+    return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0)
+
+
 def test_crossing_curves_hand_the_mesh_to_the_region_route(monkeypatch):
-    # spot has about 2,900 vertices: 180 patches put several traced curves through one face
-    # (with the unshaped base meshes of seeds 0 and 1 as they come; the shaped ones do not
-    # cross); the region route lays it out instead of an error
+    # spot has about 2,900 vertices: 180 patches put several traced curves through one face.
+    # Traced exactly they do not cross (test_traced_curves_are_the_exact_images_of_their_arcs);
+    # joined straight across the mesh edges between samples instead, as traces were once,
+    # curves of the unshaped base meshes of seeds 0 and 1 cross, and the region route lays
+    # the mesh out instead of an error
     import meshfit.layout.auto as auto
 
     monkeypatch.setattr(auto, "SEED_TRIES", 2)
+    monkeypatch.setattr(auto, "_edge_crossings", _no_crossings)
     mesh = real_mesh("spot")
     calls = _record_region_route(monkeypatch)
     layout = auto_layout(
@@ -156,10 +165,11 @@ def test_crossing_curves_hand_the_mesh_to_the_region_route(monkeypatch):
 
 
 def test_crossing_curves_are_retried_with_other_rotations(monkeypatch):
-    # spot with 150 patches, traced curves: the base mesh of seed 0 gives curves that cross,
-    # seed 1 does not
+    # spot with 150 patches, traced curves joined straight across the mesh edges between
+    # samples: the base mesh of seed 0 gives curves that cross, seed 1 does not
     import meshfit.layout.auto as auto
 
+    monkeypatch.setattr(auto, "_edge_crossings", _no_crossings)
     mesh = real_mesh("spot")
     with monkeypatch.context() as m:
         m.setattr(auto, "SEED_TRIES", 1)
@@ -353,6 +363,65 @@ def test_traced_arcs_are_sampled_densely_where_the_sphere_map_squeezes_the_surfa
         for f, b in zip(kept.face, kept.bary, strict=True)
     ]
     assert all(i.size for i in at) and (np.diff([i[0] for i in at]) > 0).all()
+
+
+def _noisy(mesh, edges: float, seed: int):
+    from meshfit.mesh import Mesh
+
+    rng = np.random.default_rng(seed)
+    step = edges * mesh.mean_edge_length
+    return Mesh(mesh.vertices + rng.normal(scale=step, size=mesh.vertices.shape), mesh.faces)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_traced_curves_are_the_exact_images_of_their_arcs(seed):
+    # an icosphere with half an edge of noise, turned and scaled: each traced point maps back
+    # onto its arc's great circle, within the arc and in order along it, and consecutive
+    # points lie in one face or two that share an edge (no straight joins across faces)
+    from scipy.spatial.transform import Rotation
+
+    from meshfit.layout.auto import TRACE_GAP_EDGES, _fill_gaps
+    from meshfit.mesh import Mesh
+    from meshfit.shrinkwrap import sphere_map
+
+    noisy = _noisy(icosphere(4), 0.5, seed)
+    turn = Rotation.random(random_state=seed).as_matrix()
+    mesh = Mesh(37.0 * noisy.vertices @ turn.T + [5.0, -2.0, 1.0], noisy.faces)
+    smap = sphere_map(mesh, max_aspect=10.0)
+    rng = np.random.default_rng(seed)
+    arcs = []
+    for _ in range(12):
+        a, b = (v / np.linalg.norm(v) for v in rng.normal(size=(2, 3)))
+        arcs.append((a, b, float(np.arccos(np.clip(a @ b, -1.0, 1.0)))))
+    params = [np.linspace(0.0, 1.0, 9) for _ in arcs]
+    sizes, inner = _fill_gaps(mesh, smap, arcs, params, TRACE_GAP_EDGES)
+    at = 0
+    nbr = mesh.face_neighbors
+    for (a, b, w), n in zip(arcs, sizes, strict=True):
+        ends = smap.locate(np.array([a, b]))
+        pts = inner[np.arange(at, at + n)]
+        at += n
+        face = np.concatenate([ends.face[:1], pts.face, ends.face[1:]])
+        s = smap.inverse(SurfacePoints(face, np.vstack([ends.bary[:1], pts.bary, ends.bary[1:]])))
+        normal = np.cross(a, b) / np.sin(w)
+        np.testing.assert_allclose(s @ normal, 0.0, atol=1e-9)
+        angle = np.arctan2(s @ np.cross(normal, a), s @ a)
+        assert (np.diff(angle) >= -1e-9).all() and angle[-1] <= w + 1e-9
+        same = face[1:] == face[:-1]
+        side = (nbr[face[:-1]] == face[1:, None]).any(axis=1)
+        assert (same | side).all()
+        assert (~same).sum() > 0  # the arcs cross edges: there is something to check
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_noisy_genus_0_scans_keep_the_sphere_route(seed):
+    # a quarter to half an edge of noise: traced straight across edges, spot's curves crossed
+    # on most seeds and the mesh went to the region route (five times the patches)
+    for edges in (0.25, 0.5):
+        report: list = []
+        layout = auto_layout(_noisy(real_mesh("spot"), edges, seed), report=report)
+        assert report[0]["route"] == "sphere"
+        assert layout.n_patches == 60
 
 
 @pytest.mark.slow

@@ -105,8 +105,9 @@ FINE_RELAX_ITERATIONS = 50
 #: is a sliver; 7: meshes of any other topology laid out by :mod:`meshfit.layout.regions`;
 #: 8: a mesh with a protrusion a quad would hold, or whose curves cross, goes there too;
 #: 9: only the relaxed curves that meet another are put back, not the whole network;
-#: 10: points of a carried curve that turn back are dropped before it is densified)
-AUTO_LAYOUT_REVISION = 10
+#: 10: points of a carried curve that turn back are dropped before it is densified;
+#: 11: traced curves are the arcs' exact images, crossing each edge where the arc does)
+AUTO_LAYOUT_REVISION = 11
 #: rounds of putting back relaxed curves that meet another (`_keep_relaxed`)
 UNRELAX_ROUNDS = 8
 #: ``shape=None`` of `auto_layout` shapes base meshes of more than this many triangles. The
@@ -236,14 +237,21 @@ def _trace_all(
 def _fill_gaps(
     mesh: Mesh, smap, arcs: list, params: list, edges: float
 ) -> tuple[list[int], SurfacePoints]:
-    """The images of the arcs ``arcs`` (``(a, b, angle)``) sampled at the parameters
-    ``params`` (one increasing array from 0 to 1 per arc), with mid-parameters added, round
-    after round, wherever the images of two consecutive samples are more than ``edges`` mean
-    edge lengths apart. Where the sphere map squeezes part of the surface (the tip of a
-    protrusion can get a tiny fraction of its share of the sphere), samples evenly spaced on the
-    arc step over it, and the traced curve would cut across it instead of following the
-    arc's image. At most `TRACE_ROUNDS` rounds. Returns the inner samples' count per arc
-    and the inner samples as face points, arc after arc (the ends are the corners)."""
+    """The exact images of the arcs ``arcs`` (``(a, b, angle)``) through the sphere map, from
+    samples at the parameters ``params`` (one increasing array from 0 to 1 per arc).
+
+    Mid-parameters are added, round after round, wherever the images of two consecutive
+    samples are more than ``edges`` mean edge lengths apart, or lie in two faces the arc
+    does not pass between across their shared edge. Where the sphere map squeezes part of
+    the surface (the tip of a protrusion can get a tiny fraction of its share of the
+    sphere), samples evenly spaced on the arc step over it, and the traced curve would cut
+    across it instead of following the arc's image. At most `TRACE_ROUNDS` rounds. Then the
+    point where the arc crosses that edge is put between the two samples
+    (`_edge_crossings`): the map is linear on each face, so the curve is the arc's image
+    exactly, and the images of two arcs that do not cross do not cross (joined straight
+    across the edge, two images that run close together on a noisy surface can). Returns
+    the inner samples' count per arc and the inner samples as face points, arc after arc
+    (the ends are the corners)."""
     gap = edges * mesh.mean_edge_length
     params = [np.asarray(t, dtype=np.float64) for t in params]
 
@@ -257,8 +265,13 @@ def _fill_gaps(
     for _ in range(TRACE_ROUNDS):
         wide = {}
         for k in todo:
+            f = pts[k][0]
             x = mesh.xyz(SurfacePoints(*pts[k]))
             far = np.linalg.norm(np.diff(x, axis=0), axis=1) > gap
+            pair, _, t = _edge_crossings(mesh, smap.sphere, arcs[k], f)
+            across = np.zeros(f.size - 1, dtype=bool)
+            across[pair] = (t >= 0.0) & (t <= 1.0)
+            far |= (f[1:] != f[:-1]) & ~across
             far &= np.diff(params[k]) > TRACE_MIN_STEP
             if far.any():
                 wide[k] = np.flatnonzero(far)
@@ -269,10 +282,48 @@ def _fill_gaps(
             params[k] = np.insert(params[k], w + 1, mids[k])
             pts[k] = (np.insert(pts[k][0], w + 1, face), np.insert(pts[k][1], w + 1, bary, axis=0))
         todo = list(wide)
+    for k, (face, bary) in enumerate(pts):
+        # an arc still through a vertex's fan after the last round crosses at the vertex
+        pair, side, t = _edge_crossings(mesh, smap.sphere, arcs[k], face)
+        t = np.clip(t, 0.0, 1.0)
+        w = np.zeros((pair.size, 3))
+        w[np.arange(pair.size), side] = 1.0 - t
+        w[np.arange(pair.size), (side + 1) % 3] = t
+        pts[k] = (np.insert(face, pair + 1, face[pair]), np.insert(bary, pair + 1, w, axis=0))
     inner = SurfacePoints(
         np.concatenate([f[1:-1] for f, _ in pts]), np.concatenate([b[1:-1] for _, b in pts])
     )
-    return [t.size - 2 for t in params], inner
+    return [len(f) - 2 for f, _ in pts], inner
+
+
+def _edge_crossings(
+    mesh: Mesh, sphere: NDArray[np.float64], arc: tuple, face: NDArray[np.int64]
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
+    """Where the great-circle arc ``arc`` (its two end vectors first) crosses the edge
+    between consecutive faces ``face[i]``, ``face[i + 1]`` of its samples that share one.
+
+    Returns, for each such pair, ``i`` (``pair``), the shared edge's slot in ``face[i]``
+    (``side``: edge ``k`` joins corners ``k`` and ``k + 1``) and the arc's plane's crossing
+    parameter ``t`` along the edge, on the sphere images ``sphere`` of the mesh vertices (a
+    point of a chord maps to the surface point at the same edge parameter). A ``t`` outside
+    [0, 1] means the arc passes between the two faces through a vertex's fan rather than
+    across the edge.
+    """
+    nbr = mesh.face_neighbors
+    f0, f1 = face[:-1], face[1:]
+    shared = nbr[f0] == f1[:, None]
+    pair = np.flatnonzero(shared.any(axis=1))
+    side = np.argmax(shared[pair], axis=1)
+    F = mesh.faces[f0[pair]]
+    rows = np.arange(pair.size)
+    a, b = F[rows, side], F[rows, (side + 1) % 3]
+    n = np.cross(arc[0], arc[1])
+    sa, sb = sphere[a] @ n, sphere[b] @ n
+    den = sa - sb
+    ok = den != 0.0
+    t = np.full(pair.size, 0.5)
+    t[ok] = sa[ok] / den[ok]
+    return pair, side, t
 
 
 def _between_corners(
