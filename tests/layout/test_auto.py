@@ -413,6 +413,27 @@ def test_traced_curves_are_the_exact_images_of_their_arcs(seed):
         assert (~same).sum() > 0  # the arcs cross edges: there is something to check
 
 
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_sphere_route_is_the_same_moved_turned_and_scaled(seed):
+    # spot is mirror-symmetric: two vertices tie as the farthest from its centroid, and the
+    # rounding of a moved copy used to pick the other one (another split of the sphere map,
+    # another layout; its fit's Hausdorff distance went from 0.43% to 0.93%)
+    from scipy.spatial.transform import Rotation
+
+    from meshfit.mesh import Mesh
+    from meshfit.shrinkwrap.sphere import _farthest_vertex
+
+    mesh = real_mesh("spot")
+    turn = Rotation.random(random_state=seed).as_matrix()
+    d = mesh.bbox_diagonal
+    moved = Mesh(3.7 * mesh.vertices @ turn.T + [1e3 * d, -5e2 * d, 1e6 * d * seed], mesh.faces)
+    assert _farthest_vertex(moved) == _farthest_vertex(mesh)
+    got, want = auto_layout(moved), auto_layout(mesh)
+    assert_array_equal(got.corners.face, want.corners.face)
+    # (a million diagonals away the coordinates keep about ten digits of the mesh's size)
+    np.testing.assert_allclose(got.corners.bary, want.corners.bary, atol=1e-6)
+
+
 @pytest.mark.parametrize("seed", [1, 2])
 def test_noisy_genus_0_scans_keep_the_sphere_route(seed):
     # a quarter to half an edge of noise: traced straight across edges, spot's curves crossed

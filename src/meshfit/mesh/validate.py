@@ -192,6 +192,9 @@ def _duplicate_faces(faces: NDArray) -> tuple[NDArray[np.bool_], NDArray[np.bool
 #: the fast test leaves faces within this relative margin of the degenerate-area limit to
 #: :func:`find_problems`, so rounding in the two area formulas cannot tell them apart
 _AREA_MARGIN = 1e-6
+#: an empty repair's message blames 32-bit coordinates whose step at their magnitude is
+#: over this share of the mesh's extent
+QUANTIZED_SHARE = 1e-3
 
 
 def clean_edge_table(
@@ -639,22 +642,55 @@ def _inside_out(vertices: NDArray[np.float64], faces: NDArray[np.int64]) -> NDAr
     return (total < 0)[comp] & ~is_open[comp]
 
 
+def _nothing_left(
+    vertices: NDArray[np.float64],
+    faces: NDArray[np.int64],
+    bad_v: NDArray[np.bool_],
+    flat: NDArray[np.bool_],
+    repeated: NDArray[np.bool_],
+) -> str:
+    """Why the repair kept no face: how many were non-finite, repeated or degenerate, and,
+    where degenerate faces dominate and the coordinates are 32-bit floats whose step at
+    their magnitude is a sizeable share of the mesh's extent (an STL or a float PLY saved
+    far from the origin, as georeferenced scans are), that the file's precision is the
+    cause."""
+    nonfinite = bad_v[faces].any(axis=1)
+    text = (
+        f"no face is left after dropping the degenerate, duplicate and back-to-back faces "
+        f"(of {faces.shape[0]}: {int((flat & ~nonfinite).sum())} degenerate, "
+        f"{int(repeated.sum())} duplicate or back-to-back, {int(nonfinite.sum())} with a "
+        "non-finite vertex)"
+    )
+    good = vertices[np.isfinite(vertices).all(axis=1)]
+    if good.size == 0 or not np.array_equal(good.astype(np.float32).astype(np.float64), good):
+        return text
+    magnitude = float(np.abs(good).max())
+    step = float(np.spacing(np.float32(magnitude)))
+    extent = float(np.linalg.norm(good.max(axis=0) - good.min(axis=0)))
+    if magnitude > 0.0 and step > QUANTIZED_SHARE * extent:
+        share = "more than" if step >= extent else f"{step / extent:.1%} of"
+        text += (
+            f": the coordinates are 32-bit floats of magnitude {magnitude:.3g}, which step by "
+            f"{step:.3g} there, {share} the mesh's extent ({extent:.3g}); save it with 64-bit "
+            "(double) coordinates, or move it near the origin before saving"
+        )
+    return text
+
+
 def _repair_core(vertices: NDArray[np.float64], faces: NDArray[np.int64]):
     """The repair without the findings: (vertices, faces, kept input faces, vertex map,
     vertex parents, flipped output faces, inverted components)."""
     nv = vertices.shape[0]
     bad_v = ~np.isfinite(vertices).all(axis=1)
     drop = bad_v[faces].any(axis=1)
-    drop |= _degenerate_faces(vertices, faces)
+    flat = _degenerate_faces(vertices, faces)
+    drop |= flat
     dup, back = _duplicate_faces(faces)
     drop |= dup | back
     keep = np.flatnonzero(~drop)
     if keep.size == 0:
-        raise errors.EmptyMeshError(
-            "no face is left after dropping the degenerate, duplicate and back-to-back faces",
-            first=(),
-            count=0,
-        )
+        why = _nothing_left(vertices, faces, bad_v, flat, dup | back)
+        raise errors.EmptyMeshError(why, first=(), count=0)
     kept = faces[keep]
     used = np.zeros(nv, dtype=bool)
     used[kept.reshape(-1)] = True

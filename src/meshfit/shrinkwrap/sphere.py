@@ -18,7 +18,7 @@ from scipy import sparse
 from scipy.sparse.linalg import splu
 from scipy.spatial import cKDTree
 
-from meshfit import errors
+from meshfit import errors, tol
 from meshfit._kernels import frozen
 from meshfit._kernels import shrinkwrap as _k
 from meshfit.mesh import Mesh
@@ -285,6 +285,22 @@ _UNTANGLE_ROUNDS = 100
 _ASPECT_ROUNDS = 100
 #: repair rounds of the two-disk split
 _SPLIT_ROUNDS = 200
+#: distances from the centroid within this many units in the last place of the largest
+#: coordinate (on top of ``tol.ON_SURFACE``) tie when the split's seed vertex is chosen
+TIE_ULPS = 4096
+
+
+def _farthest_vertex(mesh: Mesh) -> int:
+    """The vertex farthest from the vertex centroid; of those within rounding of the
+    farthest (a symmetric mesh has exact ties), the first. Rounding is the coordinates'
+    own (``TIE_ULPS`` units in the last place of the largest) plus ``tol.ON_SURFACE`` of the
+    diagonal: moved, turned or scaled, the mesh keeps its seed and so its split."""
+    V = mesh.vertices
+    c = V.mean(axis=0)
+    d = np.linalg.norm(V - c, axis=1)
+    slack = tol.length(mesh, tol.ON_SURFACE, scale="bbox_diagonal")
+    slack += TIE_ULPS * float(np.spacing(np.abs(V).max()))
+    return int(np.flatnonzero(d >= d.max() - slack)[0])
 
 
 def _split_disks(mesh: Mesh) -> NDArray[np.bool_]:
@@ -300,8 +316,7 @@ def _split_disks(mesh: Mesh) -> NDArray[np.bool_]:
     from scipy.sparse.csgraph import connected_components, dijkstra
 
     f = mesh.faces
-    c = mesh.vertices.mean(axis=0)
-    seed = int(np.argmax(np.linalg.norm(mesh.vertices - c, axis=1)))
+    seed = _farthest_vertex(mesh)
     dist = dijkstra(mesh.edge_graph, indices=seed)
     fd = np.median(dist[f], axis=1)  # a face follows the majority of its corners
     order = np.argsort(fd, kind="stable")
