@@ -105,14 +105,17 @@ def test_32_bit_coordinates_far_from_the_origin_are_named(offset):
     # a small part stored as float32 at a georeferenced offset (an STL or a float PLY):
     # its coordinates round onto a grid coarser than the part, every face collapses
     ico = shapes.icosphere(2)
-    v = (1e-3 * ico.vertices + [offset, -offset, 0.5 * offset]).astype(np.float32)
+    shift = np.array([offset, -offset, 0.5 * offset])
+    v = (1e-3 * ico.vertices + shift).astype(np.float32)
     with pytest.raises(errors.EmptyMeshError, match="32-bit floats") as err:
         Mesh.from_arrays(v.astype(np.float64), ico.faces, repair=True)
     assert "64-bit" in str(err.value)
     # the same part near the origin, or in float64 at the offset, is kept whole
     part = 1e-3 * ico.vertices
-    for near in (part.astype(np.float32), part + [offset, -offset, 0.5 * offset]):
-        assert Mesh.from_arrays(np.asarray(near, dtype=np.float64), ico.faces, repair=True).n_faces > 0
+    for near in (part.astype(np.float32), part + shift):
+        assert (
+            Mesh.from_arrays(np.asarray(near, dtype=np.float64), ico.faces, repair=True).n_faces > 0
+        )
 
 
 def test_non_finite_first_vertex_and_count():
