@@ -129,7 +129,7 @@ def _record_region_route(monkeypatch) -> list:
     return calls
 
 
-def _no_crossings(mesh, sphere, arc, face):
+def _no_crossings(mesh, sphere, normal, face):
     # traced curves joined straight between samples (no edge crossing put between them)
     return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0)
 

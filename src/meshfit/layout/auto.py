@@ -253,54 +253,71 @@ def _fill_gaps(
     the inner samples' count per arc and the inner samples as face points, arc after arc
     (the ends are the corners)."""
     gap = edges * mesh.mean_edge_length
-    params = [np.asarray(t, dtype=np.float64) for t in params]
+    ends = np.array([[a, b] for a, b, _ in arcs], dtype=np.float64).reshape(-1, 2, 3)
+    angle = np.array([w for _, _, w in arcs], dtype=np.float64)
+    normal = np.cross(ends[:, 0], ends[:, 1])
+    # all arcs' samples in one sequence: their parameters, arcs, faces and coordinates
+    t = np.concatenate([np.asarray(x, dtype=np.float64) for x in params])
+    owner = np.repeat(np.arange(len(arcs)), [len(x) for x in params])
 
-    def locate(ts: list) -> list:
-        at = smap.locate(np.vstack([_slerp(*arcs[k], t) for k, t in ts]))
-        cut = np.cumsum([t.size for _, t in ts])[:-1]
-        return list(zip(np.split(at.face, cut), np.split(at.bary, cut), strict=True))
+    def locate(t: NDArray[np.float64], arc: NDArray[np.int64]) -> SurfacePoints:
+        return smap.locate(_slerp_rows(ends[arc, 0], ends[arc, 1], angle[arc], t))
 
-    pts = locate(list(enumerate(params)))
-    todo = list(range(len(arcs)))
+    at = locate(t, owner)
+    face, bary = at.face, at.bary
     for _ in range(TRACE_ROUNDS):
-        wide = {}
-        for k in todo:
-            f = pts[k][0]
-            x = mesh.xyz(SurfacePoints(*pts[k]))
-            far = np.linalg.norm(np.diff(x, axis=0), axis=1) > gap
-            pair, _, t = _edge_crossings(mesh, smap.sphere, arcs[k], f)
-            across = np.zeros(f.size - 1, dtype=bool)
-            across[pair] = (t >= 0.0) & (t <= 1.0)
-            far |= (f[1:] != f[:-1]) & ~across
-            far &= np.diff(params[k]) > TRACE_MIN_STEP
-            if far.any():
-                wide[k] = np.flatnonzero(far)
-        if not wide:
+        x = mesh.xyz(SurfacePoints(face, bary))
+        far = np.linalg.norm(np.diff(x, axis=0), axis=1) > gap
+        pair, _, cross = _edge_crossings(mesh, smap.sphere, normal[owner[:-1]], face)
+        across = np.zeros(face.size - 1, dtype=bool)
+        across[pair] = (cross >= 0.0) & (cross <= 1.0)
+        far |= (face[1:] != face[:-1]) & ~across
+        far &= (owner[1:] == owner[:-1]) & (np.diff(t) > TRACE_MIN_STEP)
+        if not far.any():
             break
-        mids = {k: 0.5 * (params[k][w] + params[k][w + 1]) for k, w in wide.items()}
-        for (k, w), (face, bary) in zip(wide.items(), locate(list(mids.items())), strict=True):
-            params[k] = np.insert(params[k], w + 1, mids[k])
-            pts[k] = (np.insert(pts[k][0], w + 1, face), np.insert(pts[k][1], w + 1, bary, axis=0))
-        todo = list(wide)
-    for k, (face, bary) in enumerate(pts):
-        # an arc still through a vertex's fan after the last round crosses at the vertex
-        pair, side, t = _edge_crossings(mesh, smap.sphere, arcs[k], face)
-        t = np.clip(t, 0.0, 1.0)
-        w = np.zeros((pair.size, 3))
-        w[np.arange(pair.size), side] = 1.0 - t
-        w[np.arange(pair.size), (side + 1) % 3] = t
-        pts[k] = (np.insert(face, pair + 1, face[pair]), np.insert(bary, pair + 1, w, axis=0))
-    inner = SurfacePoints(
-        np.concatenate([f[1:-1] for f, _ in pts]), np.concatenate([b[1:-1] for _, b in pts])
-    )
-    return [len(f) - 2 for f, _ in pts], inner
+        w = np.flatnonzero(far)
+        mid = 0.5 * (t[w] + t[w + 1])
+        at = locate(mid, owner[w])
+        t = np.insert(t, w + 1, mid)
+        owner = np.insert(owner, w + 1, owner[w])
+        face = np.insert(face, w + 1, at.face)
+        bary = np.insert(bary, w + 1, at.bary, axis=0)
+    # an arc still through a vertex's fan after the last round crosses at the vertex
+    pair, side, cross = _edge_crossings(mesh, smap.sphere, normal[owner[:-1]], face)
+    inside = owner[pair] == owner[pair + 1]
+    pair, side, cross = pair[inside], side[inside], np.clip(cross[inside], 0.0, 1.0)
+    w = np.zeros((pair.size, 3))
+    w[np.arange(pair.size), side] = 1.0 - cross
+    w[np.arange(pair.size), (side + 1) % 3] = cross
+    owner = np.insert(owner, pair + 1, owner[pair])
+    face = np.insert(face, pair + 1, face[pair])
+    bary = np.insert(bary, pair + 1, w, axis=0)
+    count = np.bincount(owner, minlength=len(arcs))
+    start = np.concatenate([[0], np.cumsum(count)[:-1]])
+    inner = np.ones(owner.size, dtype=bool)
+    inner[start] = False
+    inner[start + count - 1] = False
+    return [int(c) - 2 for c in count], SurfacePoints(face[inner], bary[inner])
+
+
+def _slerp_rows(a, b, w, t):
+    """`_slerp` row by row: the point at parameter ``t[i]`` of the arc from ``a[i]`` to
+    ``b[i]`` of angle ``w[i]`` (the same operations, so the same points)."""
+    out = np.repeat(a, 1, axis=0)
+    on = w >= 1e-12
+    s = np.sin(w[on])
+    wa = np.sin((1.0 - t[on]) * w[on]) / s
+    wb = np.sin(t[on] * w[on]) / s
+    out[on] = wa[:, None] * a[on] + wb[:, None] * b[on]
+    return out
 
 
 def _edge_crossings(
-    mesh: Mesh, sphere: NDArray[np.float64], arc: tuple, face: NDArray[np.int64]
+    mesh: Mesh, sphere: NDArray[np.float64], normal: NDArray[np.float64], face: NDArray[np.int64]
 ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
-    """Where the great-circle arc ``arc`` (its two end vectors first) crosses the edge
-    between consecutive faces ``face[i]``, ``face[i + 1]`` of its samples that share one.
+    """Where great circles cross the edge between consecutive faces ``face[i]``,
+    ``face[i + 1]`` of samples that share one: the circle of pair ``i`` is the plane
+    through the origin with normal ``normal[i]`` (its arc's two ends crossed).
 
     Returns, for each such pair, ``i`` (``pair``), the shared edge's slot in ``face[i]``
     (``side``: edge ``k`` joins corners ``k`` and ``k + 1``) and the arc's plane's crossing
@@ -317,8 +334,9 @@ def _edge_crossings(
     F = mesh.faces[f0[pair]]
     rows = np.arange(pair.size)
     a, b = F[rows, side], F[rows, (side + 1) % 3]
-    n = np.cross(arc[0], arc[1])
-    sa, sb = sphere[a] @ n, sphere[b] @ n
+    n = normal[pair]
+    sa = np.einsum("ij,ij->i", sphere[a], n)
+    sb = np.einsum("ij,ij->i", sphere[b], n)
     den = sa - sb
     ok = den != 0.0
     t = np.full(pair.size, 0.5)
