@@ -19,7 +19,7 @@ from meshfit.shrinkwrap import icosahedron
 from meshfit.types import SurfacePoints
 
 from ..conftest import real_mesh
-from ..shapes import icosphere, plane, torus
+from ..shapes import cube, icosphere, plane, torus
 
 
 def test_quad_network_of_the_icosahedron():
@@ -432,6 +432,23 @@ def test_the_sphere_route_is_the_same_moved_turned_and_scaled(seed):
     assert_array_equal(got.corners.face, want.corners.face)
     # (a million diagonals away the coordinates keep about ten digits of the mesh's size)
     np.testing.assert_allclose(got.corners.bary, want.corners.bary, atol=1e-6)
+
+
+def test_a_symmetric_shape_keeps_its_layout_moved_and_turned():
+    # a rounded cube: its faces tie in graph distance from the split's seed by the dozen,
+    # and the order of tied faces (which side of the two-disk split they fall on) must not
+    # follow the rounding of a turned copy
+    from scipy.spatial.transform import Rotation
+
+    from meshfit.mesh import Mesh
+
+    mesh = cube(rounded=0.2, n=16)
+    turn = Rotation.random(random_state=3).as_matrix()
+    d = mesh.bbox_diagonal
+    moved = Mesh(2.3 * mesh.vertices @ turn.T + [7 * d, -3 * d, 11 * d], mesh.faces)
+    got, want = auto_layout(moved), auto_layout(mesh)
+    assert_array_equal(got.corners.face, want.corners.face)
+    np.testing.assert_allclose(got.corners.bary, want.corners.bary, atol=1e-9)
 
 
 @pytest.mark.parametrize("seed", [1, 2])
