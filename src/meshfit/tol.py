@@ -21,6 +21,9 @@ DEGENERATE_AREA = 1e-14
 #: largest coordinate magnitude a mesh may have (absolute, not relative): squared cross
 #: products of its edges (fourth powers of lengths) stay finite in float64 (1e308)
 MAX_COORDINATE = 1e75
+#: graph distances for choices that must not depend on rounding are counted in whole units
+#: of this, times the mean edge length (`Mesh.quantized_edge_graph`)
+GRAPH_QUANTUM = 1e-6
 #: a point this close to the surface, times bbox_diagonal, is on it
 ON_SURFACE = 1e-9
 #: attraction stops when a step is shorter than this, times the mean edge length

@@ -301,9 +301,9 @@ def _fill_gaps(
 
 
 def _slerp_rows(a, b, w, t):
-    """`_slerp` row by row: the point at parameter ``t[i]`` of the arc from ``a[i]`` to
-    ``b[i]`` of angle ``w[i]`` (the same operations, so the same points)."""
-    out = np.repeat(a, 1, axis=0)
+    """The point at parameter ``t[i]`` of the arc from ``a[i]`` to ``b[i]`` of angle
+    ``w[i]``, row by row (an arc under 1e-12 radians is its start)."""
+    out = np.array(a, dtype=np.float64)
     on = w >= 1e-12
     s = np.sin(w[on])
     wa = np.sin((1.0 - t[on]) * w[on]) / s
@@ -389,10 +389,10 @@ def _triangle_grid(tri: NDArray[np.float64], n: int):
 
 
 def _slerp(a, b, w, t):
-    if w < 1e-12:
-        return np.repeat(a[None], len(t), axis=0)
-    s = np.sin(w)
-    return (np.sin((1.0 - t) * w) / s)[:, None] * a[None] + (np.sin(t * w) / s)[:, None] * b[None]
+    """Points at the parameters ``t`` of the arc from ``a`` to ``b`` of angle ``w``."""
+    t = np.asarray(t, dtype=np.float64)
+    rows = (t.size, 3)
+    return _slerp_rows(np.broadcast_to(a, rows), np.broadcast_to(b, rows), np.full(t.size, w), t)
 
 
 def auto_route(mesh: Mesh, *, patches: int | None = None, crease_angle: float | None = 40.0) -> str:

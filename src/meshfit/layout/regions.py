@@ -64,6 +64,7 @@ from scipy.sparse import csgraph
 from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
+from meshfit import tol
 from meshfit._kernels import geometry as _geometry
 from meshfit._kernels.locate2d import walk_locate
 from meshfit.errors import InputError, LayoutError, MeshfitError
@@ -76,8 +77,6 @@ __all__ = ["CellReport", "crease_corners", "crease_edges", "region_layout"]
 
 #: default patch count
 DEFAULT_PATCHES = 60
-#: resolution of the distances the cells are grown by, mean edge lengths
-QUANTUM = 1e-6
 #: quads per cell on average on a closed surface (a Voronoi cell has about six sides)
 QUADS_PER_CELL = 6
 #: Lloyd steps of the seeds before and after seeds are added
@@ -172,17 +171,6 @@ def _voronoi(graph: sparse.csr_matrix, seeds: NDArray[np.int64]):
     return dist, label
 
 
-def _graph(mesh: Mesh) -> sparse.csr_matrix:
-    """The edge graph with lengths in whole units of `QUANTUM` mean edge lengths: path
-    lengths are then sums of integers, exact, so equal paths tie exactly and every choice
-    made from distances is the same after any rotation, translation or scaling of the
-    mesh (rounding in the coordinates would otherwise break ties one way or the other)."""
-    unit = QUANTUM * mesh.mean_edge_length
-    g = mesh.edge_graph.copy()
-    g.data = np.maximum(np.round(g.data / unit), 1.0)
-    return g
-
-
 def _quantized(values: NDArray[np.float64], unit: float) -> NDArray[np.float64]:
     return np.round(values / unit)
 
@@ -215,7 +203,7 @@ def _initial_seeds(mesh: Mesh, graph, n_cells: int) -> NDArray[np.int64]:
         centre = (mesh.vertices[members] * vareas[members, None]).sum(0) / max(
             vareas[members].sum(), 1e-300
         )
-        unit = (QUANTUM * mesh.mean_edge_length) ** 2
+        unit = tol.length(mesh, tol.GRAPH_QUANTUM) ** 2
         far = _quantized(((mesh.vertices[members] - centre) ** 2).sum(1), unit)
         first = int(members[np.argmax(far)])
         d = csgraph.dijkstra(graph, directed=False, indices=first)
@@ -251,7 +239,7 @@ def _lloyd(mesh: Mesh, graph, seeds: NDArray[np.int64], steps: int, vareas) -> N
         )
         d2 = _quantized(
             ((mesh.vertices - cen[np.maximum(label, 0)]) ** 2).sum(1),
-            (QUANTUM * mesh.mean_edge_length) ** 2,
+            tol.length(mesh, tol.GRAPH_QUANTUM) ** 2,
         )
         d2[~ok] = np.inf
         order = np.lexsort((d2, label))
@@ -325,7 +313,7 @@ def _cells(mesh: Mesh, n_cells: int, max_cells: int):
     seed, and each such seed widens ``max_cells`` by two (a closed component needs at least
     two cells), so that a mesh with many small components is not refused for their count.
     """
-    graph = _graph(mesh)
+    graph = mesh.quantized_edge_graph()
     vareas = _vertex_areas(mesh)
     normals = _cone_normals(mesh, CONE_SMOOTHING) if noisy_folds(mesh) else mesh.vertex_normals
     seeds = _initial_seeds(mesh, graph, n_cells)

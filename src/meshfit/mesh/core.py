@@ -323,6 +323,20 @@ class Mesh:
             shape=(n, n),
         )
 
+    def quantized_edge_graph(self) -> sparse.csr_matrix:
+        """(nv, nv) sparse matrix of edge lengths in whole units of ``tol.GRAPH_QUANTUM``
+        mean edge lengths (at least one), symmetric.
+
+        Path lengths over it are sums of integers, exact: equal paths tie exactly, so every
+        choice made from graph distances (a farthest vertex, an order of faces) is the same
+        after any rotation, translation or scaling of the mesh, where rounding in the
+        coordinates would otherwise break a symmetric mesh's ties one way or the other."""
+        from meshfit import tol
+
+        g = self.edge_graph.copy()
+        g.data = np.maximum(np.round(g.data / tol.length(self, tol.GRAPH_QUANTUM)), 1.0)
+        return g
+
     @cached_property
     def boundary_loops(self) -> list[NDArray[np.int64]]:
         """Boundary loops, each a ``(k,) int64`` vertex array in half-edge order."""

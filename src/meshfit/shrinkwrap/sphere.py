@@ -288,8 +288,6 @@ _SPLIT_ROUNDS = 200
 #: distances from the centroid within this many units in the last place of the largest
 #: coordinate (on top of ``tol.ON_SURFACE``) tie when the split's seed vertex is chosen
 TIE_ULPS = 4096
-#: resolution of the graph distances the two-disk split orders the faces by, mean edges
-SPLIT_QUANTUM = 1e-6
 
 
 def _farthest_vertex(mesh: Mesh) -> int:
@@ -319,11 +317,11 @@ def _split_disks(mesh: Mesh) -> NDArray[np.bool_]:
 
     f = mesh.faces
     seed = _farthest_vertex(mesh)
-    dist = dijkstra(mesh.edge_graph, indices=seed)
+    # exact distances: faces a symmetric mesh puts at one distance keep their index order
+    # whatever rounding moved the mesh
+    dist = dijkstra(mesh.quantized_edge_graph(), indices=seed)
     fd = np.median(dist[f], axis=1)  # a face follows the majority of its corners
-    # distances counted in `SPLIT_QUANTUM` mean edge lengths, so that faces a symmetric
-    # mesh puts at one distance keep their index order whatever rounding moved the mesh
-    order = np.argsort(np.round(fd / (SPLIT_QUANTUM * mesh.mean_edge_length)), kind="stable")
+    order = np.argsort(fd, kind="stable")
     cum = np.cumsum(mesh.face_areas[order])
     in_a = np.zeros(mesh.n_faces, dtype=bool)
     in_a[order[: int(np.searchsorted(cum, 0.5 * cum[-1])) + 1]] = True
