@@ -16,7 +16,7 @@ def _quality(V, tri):
     return 0.0 if s <= 0 else 2.0 * np.sqrt(3.0) * float(np.linalg.norm(_normal(V, tri))) / s
 
 
-def collapse_pass(V, F, alive, max_collapses, max_valence, min_cos, min_quality):
+def collapse_pass(V, F, alive, frozen, max_collapses, max_valence, min_cos, min_quality):
     """Same rules as the kernel, on Python sets and lists; returns (F, alive, count)."""
     F = [list(f) for f in np.asarray(F)]
     alive = list(np.asarray(alive))
@@ -47,7 +47,7 @@ def collapse_pass(V, F, alive, max_collapses, max_valence, min_cos, min_quality)
     for v in order.tolist():
         if done >= max_collapses:
             break
-        if v in locked or not np.isfinite(short[v]) or len(star[v]) > 64:
+        if v in locked or frozen[v] or not np.isfinite(short[v]) or len(star[v]) > 64:
             continue
         nbv = ring(v)
         if len(nbv) < 3:
@@ -60,7 +60,7 @@ def collapse_pass(V, F, alive, max_collapses, max_valence, min_cos, min_quality)
                     seen.append(w)
         cands = sorted(seen, key=lambda w: elen(v, w))
         for u in cands:
-            if u in locked or len(star[u]) > 64:
+            if u in locked or frozen[u] or len(star[u]) > 64:
                 continue
             nbu = ring(u)
             common = sorted(nbv & nbu)

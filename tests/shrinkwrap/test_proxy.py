@@ -24,19 +24,30 @@ def _mesh(name):
 
 
 @pytest.mark.parametrize("name", ["spot", "torus"])
-def test_collapse_pass_matches_oracle(name):
+@pytest.mark.parametrize("share", [0.0, 0.3])
+def test_collapse_pass_matches_oracle(name, share):
     mesh = _mesh(name)
     V = np.ascontiguousarray(mesh.vertices)
     F = np.array(mesh.faces, order="C")
     alive = np.ones(len(F), dtype=bool)
+    frozen = np.random.default_rng(1).random(len(V)) < share
     min_cos = float(np.cos(np.radians(MAX_NORMAL_TURN_DEG)))
     want_F, want_alive, want_n = reference.collapse_pass(
-        V, F.copy(), alive.copy(), 400, MAX_VALENCE, min_cos, MIN_QUALITY
+        V, F.copy(), alive.copy(), frozen, 400, MAX_VALENCE, min_cos, MIN_QUALITY
     )
-    got_n = _k.collapse_pass(V, F, alive, 400, MAX_VALENCE, min_cos, MIN_QUALITY)
+    got_n = _k.collapse_pass(V, F, alive, frozen, 400, MAX_VALENCE, min_cos, MIN_QUALITY)
     assert got_n == want_n > 0
     np.testing.assert_array_equal(alive, want_alive)
     np.testing.assert_array_equal(F[alive], want_F[want_alive])
+    # a frozen vertex neither went nor took a collapse: it is still used, and every edge
+    # between two of them (a piece's rim) is still there
+    assert np.isin(np.flatnonzero(frozen), F[alive]).all()
+
+    def edges(faces):
+        e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), 1)
+        return {tuple(x) for x in e[frozen[e].all(axis=1)]}
+
+    assert edges(mesh.faces) == edges(F[alive])
 
 
 @pytest.mark.parametrize("n", [0, 1, 7, 5000])
@@ -90,3 +101,60 @@ def test_compact_matches_its_oracle(name):
         _k.compact(V, F, alive, kept), reference.compact(V, F, alive, kept), strict=True
     ):
         np.testing.assert_array_equal(got, want)
+
+
+def _store(mesh, tmp_path, brick_faces):
+    from meshfit.mesh.store import write_store
+
+    return write_store(mesh, tmp_path / "store", brick_faces=brick_faces)
+
+
+@pytest.mark.parametrize(
+    ("name", "brick_faces"), [("spot", 400), ("kitten", 2000), ("genus 2", 300)]
+)
+def test_a_proxy_made_brick_by_brick_keeps_topology_and_shape(tmp_path, name, brick_faces):
+    from meshfit.shrinkwrap.proxy import simplify_store
+
+    from ..shapes import tori
+
+    mesh = tori(2) if name == "genus 2" else real_mesh(name)
+    store = _store(mesh, tmp_path, brick_faces)
+    assert store.n_bricks >= 5
+    target = mesh.n_faces // 6
+    res = simplify_store(store, target, workers=2)
+    m = res.mesh
+    assert target - 2 <= m.n_faces <= target + 2
+    assert m.is_closed and m.genus == mesh.genus and m.n_components == 1
+    np.testing.assert_array_equal(m.vertices, mesh.vertices[res.vertex_parent])
+    assert (m.face_areas > 0).all()
+    # as near the input as the proxy made whole (within a third more)
+    whole = simplify_mesh(mesh, target).mesh
+    d = m.closest_points(mesh.vertices).distance
+    d_whole = whole.closest_points(mesh.vertices).distance
+    assert d.max() <= 1.34 * d_whole.max() + 1e-12
+    assert d.mean() <= 1.34 * d_whole.mean()
+
+
+def test_a_proxy_of_an_open_scan_keeps_its_boundary(tmp_path):
+    from meshfit.shrinkwrap.proxy import simplify_store
+
+    mesh = real_mesh("bunny")
+    res = simplify_store(_store(mesh, tmp_path, 3000), mesh.n_faces // 5)
+    m = res.mesh
+    assert m.genus == mesh.genus and m.n_components == mesh.n_components
+    # every boundary edge of the input is one of the proxy's, and no other
+
+    def boundary(faces, parent):
+        e = np.sort(parent[faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)], axis=1)
+        u, c = np.unique(e, axis=0, return_counts=True)
+        return {tuple(x) for x in u[c == 1]}
+
+    assert boundary(m.faces, res.vertex_parent) == boundary(mesh.faces, np.arange(mesh.n_vertices))
+
+
+def test_a_proxy_from_the_store_refuses_bad_targets(tmp_path):
+    from meshfit.shrinkwrap.proxy import simplify_store
+
+    store = _store(torus(12, 8), tmp_path, 50)
+    with pytest.raises(InputError, match="target_faces"):
+        simplify_store(store, 10)

@@ -93,10 +93,12 @@ def _quality(V, a, b, c):
 
 
 @njit(cache=True, nogil=True, fastmath=False)
-def collapse_pass(V, F, alive, max_collapses, max_valence, min_cos, min_quality):
+def collapse_pass(V, F, alive, frozen, max_collapses, max_valence, min_cos, min_quality):
     """One pass of independent half-edge collapses, shortest edges first, in place.
 
-    V (nv, 3) f8; F (nf, 3) i8 and alive (nf,) bool, updated in place. A vertex ``v`` is
+    V (nv, 3) f8; F (nf, 3) i8 and alive (nf,) bool, updated in place; frozen (nv,) bool:
+    vertices that neither go nor take a collapse (a piece's rim, whose stars reach faces
+    the kernel does not see). A vertex ``v`` is
     collapsed into its nearest neighbour ``u`` (then the next nearest, ...) when: the link
     condition holds (``u`` and ``v`` share exactly two neighbours), neither ``u`` nor ``v`` was
     touched by an earlier collapse of the pass (a collapse touches ``v``, ``u`` and the
@@ -138,7 +140,7 @@ def collapse_pass(V, F, alive, max_collapses, max_valence, min_cos, min_quality)
         if done >= max_collapses:
             break
         v = order[oi]
-        if locked[v] or not np.isfinite(short[v]):
+        if locked[v] or frozen[v] or not np.isfinite(short[v]):
             continue
         if indptr[v + 1] - indptr[v] > 64:
             continue
@@ -161,7 +163,7 @@ def collapse_pass(V, F, alive, max_collapses, max_valence, min_cos, min_quality)
             cand[i] = w
         for ci in range(nv_v):
             u = cand[ci]
-            if locked[u] or indptr[u + 1] - indptr[u] > 64:
+            if locked[u] or frozen[u] or indptr[u + 1] - indptr[u] > 64:
                 continue
             nu_u = _neighbors(F, indptr, star, u, nbu)
             # link condition: exactly two common neighbours (the two faces on edge uv)

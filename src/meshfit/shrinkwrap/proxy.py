@@ -4,7 +4,9 @@ collapses.
 The sphere parameterization and the base mesh of a dense scan only need its coarse shape:
 :func:`simplify_mesh` gives a closed mesh of the same genus whose vertices are a subset of
 the input's (a half-edge collapse ``v -> u`` removes ``v`` and keeps ``u`` in place), with
-triangles of bounded valence and shape.
+triangles of bounded valence and shape. :func:`simplify_store` makes the same kind of proxy
+of a mesh too large to hold whole, brick by brick from a
+:class:`~meshfit.mesh.store.MeshStore`.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from meshfit import errors
 from meshfit._kernels import decimate as _k
 from meshfit.mesh import Mesh
 
-__all__ = ["SimplifiedMesh", "simplify_mesh"]
+__all__ = ["MERGE_FACTOR", "SimplifiedMesh", "collapse_to", "simplify_mesh", "simplify_store"]
 
 #: a collapse may turn a surviving face's normal by at most this angle (degrees)
 MAX_NORMAL_TURN_DEG = 60.0
@@ -27,6 +29,9 @@ MAX_VALENCE = 12
 #: a surviving face must keep at least this quality (4 sqrt(3) area / sum of squared edge
 #: lengths; 1 for an equilateral triangle) unless it was already worse
 MIN_QUALITY = 0.15
+#: :func:`simplify_store` simplifies the bricks to about this many times the target's faces
+#: in all (besides their frozen rims) before the last passes over the whole
+MERGE_FACTOR = 8
 #: passes of independent collapses before giving up on the target
 _MAX_PASSES = 200
 
@@ -48,6 +53,44 @@ class SimplifiedMesh:
     mesh: Mesh
     vertex_parent: NDArray[np.int64]
     passes: int
+
+
+def collapse_to(
+    vertices: NDArray[np.float64],
+    faces: NDArray[np.int64],
+    target_faces: int,
+    frozen: NDArray[np.bool_] | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.int64], int]:
+    """Passes of independent half-edge collapses (:func:`simplify_mesh`'s rules) until
+    ``target_faces`` faces remain or no edge can go; ``frozen`` vertices neither go nor take
+    a collapse, so a piece of a larger surface whose rim is frozen keeps its rim and fits
+    back into the rest.
+
+    Returns ``(vertices, faces, kept, passes)``: the remaining vertices (unmoved), the faces
+    on them, each remaining vertex's index in ``vertices`` and the passes run.
+    """
+    V = np.ascontiguousarray(vertices, dtype=np.float64)
+    F = np.array(faces, dtype=np.int64, order="C")
+    alive = np.ones(F.shape[0], dtype=np.bool_)
+    kept = np.arange(V.shape[0], dtype=np.int64)
+    fixed = np.zeros(V.shape[0], dtype=np.bool_) if frozen is None else frozen.astype(np.bool_)
+    n_alive = F.shape[0]
+    min_cos = float(np.cos(np.radians(MAX_NORMAL_TURN_DEG)))
+    passes = 0
+    while n_alive > target_faces and passes < _MAX_PASSES:
+        # every collapse removes two faces
+        want = (n_alive - target_faces + 1) // 2
+        done = _k.collapse_pass(V, F, alive, fixed[kept], want, MAX_VALENCE, min_cos, MIN_QUALITY)
+        passes += 1
+        if done == 0:
+            break
+        n_alive -= 2 * done
+        # drop the removed faces and vertices, keeping both orders (a monotone renumbering):
+        # the next pass sees the same stars and breaks ties the same way, on fewer elements
+        V, F, kept = _k.compact(V, F, alive, kept)
+        alive = np.ones(F.shape[0], dtype=np.bool_)
+    V, F, kept = _k.compact(V, F, alive, kept)
+    return V, F, kept, passes
 
 
 def simplify_mesh(mesh: Mesh, target_faces: int) -> SimplifiedMesh:
@@ -91,25 +134,95 @@ def simplify_mesh(mesh: Mesh, target_faces: int) -> SimplifiedMesh:
         raise errors.TopologyError(
             f"simplify_mesh needs a closed surface; {mesh.name or 'the mesh'} has boundary loops"
         )
-    V = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
-    F = np.array(mesh.faces, dtype=np.int64, order="C")
-    alive = np.ones(F.shape[0], dtype=np.bool_)
-    kept = np.arange(V.shape[0], dtype=np.int64)
-    n_alive = F.shape[0]
-    min_cos = float(np.cos(np.radians(MAX_NORMAL_TURN_DEG)))
-    passes = 0
-    while n_alive > target and passes < _MAX_PASSES:
-        # every collapse removes two faces
-        want = (n_alive - target + 1) // 2
-        done = _k.collapse_pass(V, F, alive, want, MAX_VALENCE, min_cos, MIN_QUALITY)
-        passes += 1
-        if done == 0:
-            break
-        n_alive -= 2 * done
-        # drop the removed faces and vertices, keeping both orders (a monotone renumbering):
-        # the next pass sees the same stars and breaks ties the same way, on fewer elements
-        V, F, kept = _k.compact(V, F, alive, kept)
-        alive = np.ones(F.shape[0], dtype=np.bool_)
-    V, F, kept = _k.compact(V, F, alive, kept)
+    V, F, kept, passes = collapse_to(mesh.vertices, mesh.faces, target)
     coarse = Mesh(V, F, name=f"{mesh.name}_proxy" if mesh.name else "proxy")
     return SimplifiedMesh(coarse, kept, passes)
+
+
+def simplify_store(
+    store,
+    target_faces: int,
+    *,
+    workers: int = 1,
+    progress=None,
+) -> SimplifiedMesh:
+    """:func:`simplify_mesh` of a :class:`~meshfit.mesh.store.MeshStore`, brick by brick.
+
+    A vertex used by faces of two bricks, or on an edge that does not have two faces in
+    its brick, is a brick's rim: it stays, and so does every edge between two such
+    vertices. Every other vertex has its whole star in its brick, so each brick is
+    simplified alone (on ``workers`` threads, one brick's arrays at a time per thread) by
+    the same collapses, the link condition checked on the whole star, to about
+    `MERGE_FACTOR` times ``target_faces`` faces in all; the bricks' results then fit
+    together along their unchanged rims into one mesh of the same topology, which the
+    same passes simplify to ``target_faces`` (the rims go then). Memory: the bricks being
+    simplified, a byte and an int32 per input vertex, and the merged mesh.
+
+    Parameters
+    ----------
+    store : MeshStore
+    target_faces : int
+        At least 20.
+    workers : int
+        Threads simplifying bricks (the kernel releases the GIL).
+    progress : callable(done, total), optional
+        After each brick.
+
+    Returns
+    -------
+    SimplifiedMesh
+        ``vertex_parent`` indexes the store's vertices (the input's).
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        ``target_faces`` below 20, or a store without faces.
+    """
+    from meshfit._threads import map_threads
+
+    target = int(target_faces)
+    if target < 20:
+        raise errors.InputError(f"target_faces must be at least 20, got {target_faces}")
+    if store.n_faces == 0:
+        raise errors.InputError(f"{store.folder}: the store has no faces")
+    nb = store.n_bricks
+    first = np.full(store.n_vertices, -1, dtype=np.int32)
+    shared = np.zeros(store.n_vertices, dtype=np.bool_)
+    for b in range(nb):
+        used = np.unique(store.brick(b))
+        seen = first[used] >= 0
+        shared[used[seen]] = True
+        first[used[~seen]] = b
+    del first
+    share = min(1.0, MERGE_FACTOR * target / store.n_faces)
+
+    def one(b: int) -> NDArray[np.int64]:
+        faces = store.brick(b)
+        used, local = np.unique(faces, return_inverse=True)
+        local = local.reshape(-1, 3)
+        frozen = shared[used] | _rim(local, used.size)
+        want = max(1, int(np.ceil(share * faces.shape[0])))
+        _, F, kept, _ = collapse_to(store.vertices[used], local, want, frozen)
+        return used[kept][F]
+
+    cost = np.diff(store.brick_start).tolist()
+    parts = map_threads(one, list(range(nb)), workers, cost=cost, progress=progress)
+    merged = np.concatenate(parts)
+    del parts
+    used, local = np.unique(merged, return_inverse=True)
+    local = local.reshape(-1, 3)
+    V, F, kept, passes = collapse_to(store.vertices[used], local, target, _rim(local, used.size))
+    name = store.folder.name
+    return SimplifiedMesh(Mesh(V, F, name=f"{name}_proxy"), used[kept], passes)
+
+
+def _rim(faces: NDArray[np.int64], n_vertices: int) -> NDArray[np.bool_]:
+    """Vertices on an edge that does not have exactly two of ``faces``."""
+    e = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    key = e[:, 0] * n_vertices + e[:, 1]
+    uniq, count = np.unique(key, return_counts=True)
+    odd = uniq[count != 2]
+    out = np.zeros(n_vertices, dtype=np.bool_)
+    out[odd // n_vertices] = True
+    out[odd % n_vertices] = True
+    return out

@@ -1,0 +1,483 @@
+"""A mesh on disk in spatial bricks: the input of the out-of-core preparation.
+
+A scan of tens of millions of triangles need not be held whole in one process to be laid
+out: :func:`write_store` reads the file a chunk of faces at a time into memory-mapped
+``.npy`` arrays and orders the faces into *bricks*, runs of faces whose centroids lie in
+one range of a Morton (Z-order) curve through a grid over the bounding box, so each brick is
+a compact piece of the surface. A process then works brick by brick
+(:meth:`MeshStore.brick`), holding one brick's faces and vertices at a time, and the pages
+of the arrays it is not reading belong to the page cache, not to the process.
+
+A binary PLY whose faces are all triangles (every scanner's and every meshing tool's large
+output) is read in place by memory mapping, never whole; any other file is read by
+:func:`meshfit.mesh.io.read_mesh_arrays` first (in memory) and then bricked the same way.
+The store checks what a chunk can tell (finite coordinates, indices in range) and drops
+faces that repeat a vertex; it does not weld vertices or repair the connectivity, which
+need the whole mesh.
+
+Layout of a store folder: ``store.json`` (format, version, counts, bounding box, bricks),
+``vertices.npy`` (nv, 3) float64 in the input's order, ``faces.npy`` (nf, 3) int64 in brick
+order, ``input_face.npy`` (nf,) int64, each stored face's index in the input, and
+``brick_start.npy`` (n_bricks + 1,) int64, where each brick's faces start.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from meshfit import errors
+from meshfit._jsonio import read_json_file
+
+__all__ = [
+    "BRICK_FACES",
+    "CHUNK_FACES",
+    "STORE_FORMAT",
+    "STORE_VERSION",
+    "MeshStore",
+    "open_store",
+    "write_store",
+]
+
+#: the format name and version written to and checked in ``store.json``
+STORE_FORMAT = "meshfit-mesh-store"
+STORE_VERSION = 1
+#: default faces per brick: a brick and its derived arrays take some tens of MiB
+BRICK_FACES = 1 << 18
+#: faces read, checked and placed per step of :func:`write_store`
+CHUNK_FACES = 1 << 20
+#: bits per axis of the Morton grid whose cells the bricks are made of (2**18 cells: a
+#: brick is a run of whole cells, so a cell should hold far fewer faces than a brick)
+MORTON_BITS = 6
+
+#: ``progress(done, total)`` after each chunk of a pass
+Progress = Callable[[int, int], None]
+
+
+@dataclass(frozen=True, eq=False)
+class MeshStore:
+    """A bricked, memory-mapped mesh (:func:`write_store`, :func:`open_store`).
+
+    Attributes
+    ----------
+    folder : Path
+    vertices : (nv, 3) float64, memory-mapped, read-only
+    faces : (nf, 3) int64, memory-mapped, read-only
+        In brick order.
+    input_face : (nf,) int64, memory-mapped, read-only
+        Index in the input file of each stored face.
+    brick_start : (n_bricks + 1,) int64
+        Brick ``b`` is ``faces[brick_start[b]:brick_start[b + 1]]``.
+    bbox : (2, 3) float64
+        Lowest and highest corner of the vertices.
+    dropped_faces : int
+        Input faces that repeat a vertex (not stored).
+    """
+
+    folder: Path
+    vertices: NDArray[np.float64]
+    faces: NDArray[np.int64]
+    input_face: NDArray[np.int64]
+    brick_start: NDArray[np.int64]
+    bbox: NDArray[np.float64]
+    dropped_faces: int
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.vertices.shape[0])
+
+    @property
+    def n_faces(self) -> int:
+        return int(self.faces.shape[0])
+
+    @property
+    def n_bricks(self) -> int:
+        return int(self.brick_start.size - 1)
+
+    def brick(self, b: int) -> NDArray[np.int64]:
+        """The faces of brick ``b`` (global vertex indices), read into memory."""
+        if not 0 <= b < self.n_bricks:
+            raise errors.InputError(f"brick {b} out of range (the store has {self.n_bricks})")
+        return np.array(self.faces[self.brick_start[b] : self.brick_start[b + 1]])
+
+
+def open_store(folder: str | os.PathLike) -> MeshStore:
+    """The store written by :func:`write_store` in ``folder``, its arrays memory-mapped.
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        Not a store, another format or version, or arrays that disagree with ``store.json``.
+    """
+    root = Path(folder)
+    meta_path = root / "store.json"
+    if not meta_path.is_file():
+        raise errors.InputError(f"{root}: not a mesh store (no store.json)")
+    meta = read_json_file(meta_path, error=errors.InputError)
+    if not isinstance(meta, dict) or meta.get("format") != STORE_FORMAT:
+        raise errors.InputError(f"{meta_path}: not a {STORE_FORMAT} file")
+    if meta.get("version") != STORE_VERSION:
+        raise errors.InputError(
+            f"{meta_path}: store version {meta.get('version')!r}; this meshfit reads "
+            f"version {STORE_VERSION}"
+        )
+    try:
+        nv, nf, nb = (int(meta[k]) for k in ("n_vertices", "n_faces", "n_bricks"))
+        bbox = np.array(meta["bbox"], dtype=np.float64).reshape(2, 3)
+        dropped = int(meta["dropped_faces"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise errors.InputError(f"{meta_path}: missing or malformed field ({exc})") from None
+
+    def load(name: str, shape: tuple[int, ...], dtype) -> NDArray:
+        try:
+            a = np.load(root / name, mmap_mode="r", allow_pickle=False)
+        except (OSError, ValueError) as exc:
+            raise errors.InputError(f"{root / name}: cannot read ({exc})") from None
+        if a.shape != shape or a.dtype != np.dtype(dtype):
+            raise errors.InputError(
+                f"{root / name}: {a.dtype}{list(a.shape)} where store.json says "
+                f"{np.dtype(dtype)}{list(shape)}"
+            )
+        return a
+
+    if min(nv, nf, nb) < 0:
+        raise errors.InputError(f"{meta_path}: negative counts")
+    vertices = load("vertices.npy", (nv, 3), np.float64)
+    faces = load("faces.npy", (nf, 3), np.int64)
+    input_face = load("input_face.npy", (nf,), np.int64)
+    start = np.array(load("brick_start.npy", (nb + 1,), np.int64))
+    if start[0] != 0 or start[-1] != nf or (np.diff(start) < 0).any():
+        raise errors.InputError(f"{root / 'brick_start.npy'}: not the starts of {nf} faces")
+    return MeshStore(root, vertices, faces, input_face, start, bbox, dropped)
+
+
+# ----------------------------------------------------------------------------- sources
+
+
+class _Source:
+    """Vertices and faces of an input, readable a chunk at a time."""
+
+    n_vertices: int
+    n_faces: int
+
+    def vertex_chunk(self, a: int, b: int) -> NDArray[np.float64]:
+        raise NotImplementedError
+
+    def face_chunk(self, a: int, b: int) -> NDArray[np.int64]:
+        raise NotImplementedError
+
+
+class _Arrays(_Source):
+    def __init__(self, vertices: NDArray, faces: NDArray) -> None:
+        self.v, self.f = vertices, faces
+        self.n_vertices, self.n_faces = int(vertices.shape[0]), int(faces.shape[0])
+
+    def vertex_chunk(self, a: int, b: int) -> NDArray[np.float64]:
+        return np.asarray(self.v[a:b], dtype=np.float64)
+
+    def face_chunk(self, a: int, b: int) -> NDArray[np.int64]:
+        return np.asarray(self.f[a:b], dtype=np.int64)
+
+
+class _PlyInPlace(_Source):
+    """A binary PLY read through memory maps of its vertex and face rows (rows of fixed
+    size: every face a triangle, checked chunk by chunk)."""
+
+    def __init__(self, path: Path, vrows: NDArray, frows: NDArray, index: str) -> None:
+        self.path, self.vrows, self.frows, self.index = path, vrows, frows, index
+        self.n_vertices, self.n_faces = int(vrows.shape[0]), int(frows.shape[0])
+
+    def vertex_chunk(self, a: int, b: int) -> NDArray[np.float64]:
+        r = self.vrows[a:b]
+        return np.stack([r[c].astype(np.float64) for c in "xyz"], axis=1)
+
+    def face_chunk(self, a: int, b: int) -> NDArray[np.int64]:
+        r = self.frows[a:b]
+        bad = np.flatnonzero(r["n"] != 3)
+        if bad.size:
+            raise _NotTriangles
+        return r[self.index].astype(np.int64)
+
+
+class _NotTriangles(Exception):
+    """A face row of a PLY read in place is not a triangle: read the file another way."""
+
+
+def _ply_in_place(path: Path) -> _PlyInPlace | None:
+    """The in-place reader of a binary PLY whose elements have rows of fixed size once its
+    faces are taken as triangles (one list property, the vertex indices), else None."""
+    from meshfit.mesh.io import _PLY_NUMPY, _ply_header
+
+    header = _ply_header(path)
+    if header is None or header.fmt not in ("binary_little_endian", "binary_big_endian"):
+        return None
+    order = "<" if header.fmt == "binary_little_endian" else ">"
+    pos = header.length
+    size = path.stat().st_size
+    vrows = frows = None
+    index = ""
+    for name, count, props in header.elements:
+        fields: list[tuple] = []
+        for pname, typ, ct in props:
+            if typ not in _PLY_NUMPY or (ct is not None and ct not in _PLY_NUMPY):
+                return None
+            if ct is None:
+                fields.append((pname, order + _PLY_NUMPY[typ]))
+            elif name == "face" and pname in ("vertex_indices", "vertex_index") and not index:
+                index = pname
+                fields += [("n", order + _PLY_NUMPY[ct]), (pname, order + _PLY_NUMPY[typ], 3)]
+            else:
+                return None  # a list of unknown length: rows of other sizes
+        if len({f[0] for f in fields}) != len(fields):
+            return None
+        dt = np.dtype(fields)
+        end = pos + count * dt.itemsize
+        if end > size:
+            return None  # (the reader names where a truncated file ends)
+        if count and name in ("vertex", "face"):
+            rows = np.memmap(path, dtype=dt, mode="r", offset=pos, shape=(count,))
+            if name == "vertex":
+                vrows = rows
+            else:
+                frows = rows
+        pos = end
+    if vrows is None or frows is None or not index:
+        return None
+    if not all(c in (vrows.dtype.names or ()) for c in "xyz"):
+        return None
+    if frows.dtype[index].base.kind not in "iu":
+        return None
+    return _PlyInPlace(path, vrows, frows, index)
+
+
+def _open_source(source) -> tuple[_Source, str]:
+    """A chunked reader of ``source`` (a mesh file, a Mesh or ``(vertices, faces)``) and
+    how it is read."""
+    from meshfit.mesh.core import Mesh
+
+    if isinstance(source, Mesh):
+        return _Arrays(source.vertices, source.faces), "arrays"
+    if isinstance(source, tuple) and len(source) == 2:
+        v, f = (np.asarray(x) for x in source)
+        if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3:
+            raise errors.InputError(
+                f"vertices must be (n, 3) and faces (m, 3), got {v.shape} and {f.shape}"
+            )
+        if f.size and f.dtype.kind not in "iu":
+            raise errors.InputError(f"faces must be integers, got {f.dtype}")
+        return _Arrays(v, f), "arrays"
+    if not isinstance(source, (str, os.PathLike)):
+        raise errors.InputError(
+            f"source must be a mesh file's path, a Mesh or (vertices, faces), got "
+            f"{type(source).__name__}"
+        )
+    path = Path(source)
+    if path.suffix.lower() == ".ply" and path.is_file():
+        src = _ply_in_place(path)
+        if src is not None:
+            return src, "memory-mapped"
+    return _read_whole(path), "read whole"
+
+
+def _read_whole(path: Path) -> _Arrays:
+    from meshfit.mesh.io import read_mesh_arrays
+
+    raw = read_mesh_arrays(path)
+    return _Arrays(raw.vertices, raw.faces)
+
+
+# ----------------------------------------------------------------------------- writing
+
+
+def _chunks(n: int, step: int) -> Iterator[tuple[int, int]]:
+    for a in range(0, n, step):
+        yield a, min(a + step, n)
+
+
+def _morton(cells: NDArray[np.int64], bits: int) -> NDArray[np.int64]:
+    """Z-order codes of integer grid cells (n, 3), ``bits`` bits per axis."""
+    code = np.zeros(cells.shape[0], dtype=np.int64)
+    for k in range(bits):
+        for axis in range(3):
+            code |= ((cells[:, axis] >> k) & 1) << (3 * k + axis)
+    return code
+
+
+def write_store(
+    source,
+    folder: str | os.PathLike,
+    *,
+    brick_faces: int = BRICK_FACES,
+    chunk_faces: int = CHUNK_FACES,
+    progress: Progress | None = None,
+) -> MeshStore:
+    """Write ``source`` as a bricked, memory-mapped store in the new folder ``folder``.
+
+    Four passes over the input, a chunk at a time: the vertices (checked finite, bounding
+    box), the faces (indices checked, faces repeating a vertex dropped, each face's Morton
+    cell counted), the brick cuts (runs of cells of about ``brick_faces`` faces), and the
+    faces again, each written at its brick's next free row. Memory: one chunk and the cell
+    counts, besides the pages of the files being read and written.
+
+    Parameters
+    ----------
+    source : path, Mesh or (vertices, faces)
+        A mesh file (a binary PLY of triangles is memory-mapped, any other format read
+        whole by :func:`meshfit.mesh.io.read_mesh_arrays`) or arrays.
+    folder : path
+        Must not exist, or be an empty folder; written through a temporary sibling folder
+        renamed at the end, so a failed write leaves nothing.
+    brick_faces, chunk_faces : int
+        Faces per brick (about: a brick is whole Morton cells) and per read.
+    progress : callable(done, total), optional
+        Called after each chunk of the face passes.
+
+    Returns
+    -------
+    MeshStore
+
+    Raises
+    ------
+    meshfit.errors.MeshFileError
+        The file is unreadable, or a vertex coordinate is not finite or a face's index out
+        of range (named by vertex or face number).
+    meshfit.errors.InputError
+        ``folder`` is a non-empty folder or a file, or the input is ``folder`` itself.
+    """
+    if int(brick_faces) < 1 or int(chunk_faces) < 1:
+        raise errors.InputError(
+            f"brick_faces and chunk_faces must be >= 1, got {brick_faces}, {chunk_faces}"
+        )
+    root = Path(folder)
+    if root.exists() and (not root.is_dir() or any(root.iterdir())):
+        raise errors.InputError(f"{root}: exists and is not an empty folder")
+    if isinstance(source, (str, os.PathLike)) and Path(source).resolve() == root.resolve():
+        raise errors.InputError(f"{root}: the store cannot replace its own input")
+    src, how = _open_source(source)
+    if isinstance(src, _PlyInPlace):
+        try:
+            return _write(src, root, how, int(brick_faces), int(chunk_faces), progress)
+        except _NotTriangles:
+            src, how = _read_whole(src.path), "read whole"
+    return _write(src, root, how, int(brick_faces), int(chunk_faces), progress)
+
+
+def _write(src: _Source, root: Path, how: str, brick_faces: int, step: int, progress) -> MeshStore:
+    nv, nf = src.n_vertices, src.n_faces
+    root.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{root.name}.", dir=root.parent))
+    try:
+        total = 3 * nf + nv
+        done = 0
+        # 1. vertices: copied as float64, checked finite, bounding box
+        V = np.lib.format.open_memmap(tmp / "vertices.npy", "w+", np.float64, (nv, 3))
+        lo = np.full(3, np.inf)
+        hi = np.full(3, -np.inf)
+        for a, b in _chunks(nv, step):
+            x = src.vertex_chunk(a, b)
+            bad = ~np.isfinite(x).all(axis=1)
+            if bad.any():
+                raise errors.MeshFileError(
+                    f"vertex {a + int(np.argmax(bad))} has a coordinate that is not finite"
+                )
+            V[a:b] = x
+            if b > a:
+                lo = np.minimum(lo, x.min(axis=0))
+                hi = np.maximum(hi, x.max(axis=0))
+            done += b - a
+            if progress is not None:
+                progress(done, total)
+        V.flush()
+        if nv == 0:
+            lo = hi = np.zeros(3)
+        bits = MORTON_BITS
+        extent = hi - lo
+        # (a flat mesh: one cell across its thickness)
+        scale = np.where(extent > 0, (1 << bits) / np.where(extent > 0, extent, 1.0), 0.0)
+
+        def cells(f: NDArray[np.int64]) -> NDArray[np.int64]:
+            c = V[f.reshape(-1)].reshape(-1, 3, 3).mean(axis=1)
+            q = np.clip(((c - lo) * scale).astype(np.int64), 0, (1 << bits) - 1)
+            return _morton(q, bits)
+
+        def kept(a: int, b: int) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
+            f = src.face_chunk(a, b)
+            out = (f < 0) | (f >= nv)
+            if out.any():
+                r = int(np.argmax(out.any(axis=1)))
+                raise errors.MeshFileError(
+                    f"face {a + r} refers to vertex {int(f[r][out[r]][0])}; the mesh has {nv}"
+                )
+            ok = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])
+            return f, ok
+
+        # 2. faces: checked, counted per Morton cell
+        count = np.zeros(1 << (3 * bits), dtype=np.int64)
+        n_kept = 0
+        for a, b in _chunks(nf, step):
+            f, ok = kept(a, b)
+            count += np.bincount(cells(f[ok]), minlength=count.size)
+            n_kept += int(ok.sum())
+            done += b - a
+            if progress is not None:
+                progress(done, total)
+        # 3. bricks: runs of whole cells, cut where the running count passes a multiple of
+        # brick_faces
+        run = np.cumsum(count)
+        ends = np.searchsorted(run, np.arange(brick_faces, n_kept, brick_faces), "left")
+        cut_cells = np.unique(np.concatenate([[0], ends + 1]))
+        cut_cells = cut_cells[cut_cells < count.size]
+        per_brick = np.add.reduceat(count, cut_cells) if n_kept else np.zeros(0, np.int64)
+        keep = per_brick > 0
+        cut_cells, per_brick = cut_cells[keep], per_brick[keep]
+        start = np.concatenate([[0], np.cumsum(per_brick)]).astype(np.int64)
+        # 4. faces again, each at its brick's next free row (chunk order within a brick)
+        F = np.lib.format.open_memmap(tmp / "faces.npy", "w+", np.int64, (n_kept, 3))
+        face_in = np.lib.format.open_memmap(tmp / "input_face.npy", "w+", np.int64, (n_kept,))
+        cursor = start[:-1].copy()
+        for a, b in _chunks(nf, step):
+            f, ok = kept(a, b)
+            idx = np.flatnonzero(ok)
+            f = f[ok]
+            brick = np.searchsorted(cut_cells, cells(f), "right") - 1
+            order = np.argsort(brick, kind="stable")
+            brick = brick[order]
+            first = np.searchsorted(brick, np.arange(cut_cells.size), "left")
+            n_in = np.bincount(brick, minlength=cut_cells.size)
+            rows = cursor[brick] + (np.arange(brick.size) - first[brick])
+            F[rows] = f[order]
+            face_in[rows] = a + idx[order]
+            cursor += n_in
+            done += 2 * (b - a)
+            if progress is not None:
+                progress(done, total)
+        F.flush()
+        face_in.flush()
+        np.save(tmp / "brick_start.npy", start)
+        meta = {
+            "format": STORE_FORMAT,
+            "version": STORE_VERSION,
+            "n_vertices": nv,
+            "n_faces": n_kept,
+            "n_bricks": int(start.size - 1),
+            "bbox": [lo.tolist(), hi.tolist()],
+            "morton_bits": bits,
+            "dropped_faces": nf - n_kept,
+            "read": how,
+        }
+        (tmp / "store.json").write_text(json.dumps(meta, indent=1))
+        if root.exists():
+            root.rmdir()  # (empty: checked above)
+        tmp.rename(root)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return open_store(root)
