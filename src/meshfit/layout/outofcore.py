@@ -1,0 +1,338 @@
+"""A mesh store's faces sorted into the patches of a layout made on its proxy.
+
+The out-of-core preparation lays a dense scan out on a coarse proxy
+(:func:`meshfit.shrinkwrap.proxy.simplify_store`), cuts the proxy into its patches, and
+then needs each patch's share of the full mesh without ever holding the full mesh:
+:func:`assign_faces` streams the store's bricks, gives each face the patch of the point of
+the cut proxy nearest its centroid (its *core* patch), and adds it to the *halo* of every
+other patch whose boundary passes within ``halo`` of that centroid. Near a patch boundary
+the proxy and the scan differ by up to the proxy's deviation, so the nearest proxy point
+may lie across the boundary from where the scan's own curve will run; the halo holds
+every face a patch's cut along its carried curves can need. The result is a
+:class:`PatchStore`: each patch's faces (core, then halo) as one run of a memory-mapped
+array, which a worker reads alone.
+
+Layout of a patch store folder: ``patches.json`` (format, version, counts, the halo
+width), ``faces.npy`` (n, 3) int64 (vertex indices of the mesh store), ``store_face.npy``
+(n,) int64 (face of the mesh store), ``core.npy`` (n,) bool and ``patch_start.npy``
+(n_patches + 1,) int64.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from meshfit import errors
+from meshfit._jsonio import read_json_file
+from meshfit.mesh import Mesh
+
+__all__ = [
+    "HALO_EDGES",
+    "PATCHES_FORMAT",
+    "PATCHES_VERSION",
+    "PatchPiece",
+    "PatchStore",
+    "assign_faces",
+    "open_patch_store",
+]
+
+PATCHES_FORMAT = "meshfit-patch-store"
+PATCHES_VERSION = 1
+#: default halo width in mean edge lengths of the proxy (`_proxy_edge`)
+HALO_EDGES = 1.5
+#: boundary samples per halo width along each patch boundary
+_SAMPLES_PER_HALO = 3
+#: boundary samples searched per face centroid for its halo patches
+_NEAREST = 48
+#: centroids searched at once
+_QUERY_CHUNK = 1 << 15
+
+
+@dataclass(frozen=True, eq=False)
+class PatchPiece:
+    """One patch's faces of a mesh store (:meth:`PatchStore.piece`).
+
+    Attributes
+    ----------
+    mesh : Mesh
+        The faces as a mesh of their own (core and halo).
+    vertex_ids : (nv,) int64
+        Vertex of the mesh store of each vertex of ``mesh``.
+    store_face : (nf,) int64
+        Face of the mesh store of each face of ``mesh``.
+    core : (nf,) bool
+        Whether the face's nearest proxy point is in this patch (else it is halo).
+    """
+
+    mesh: Mesh
+    vertex_ids: NDArray[np.int64]
+    store_face: NDArray[np.int64]
+    core: NDArray[np.bool_]
+
+
+@dataclass(frozen=True, eq=False)
+class PatchStore:
+    """Faces of a mesh store by patch (:func:`assign_faces`, :func:`open_patch_store`).
+
+    Attributes
+    ----------
+    folder : Path
+    faces, store_face, core : memory-mapped, read-only
+        All patches' faces, patch by patch (see the module).
+    patch_start : (n_patches + 1,) int64
+    halo : float
+        The halo width, model units.
+    """
+
+    folder: Path
+    faces: NDArray[np.int64]
+    store_face: NDArray[np.int64]
+    core: NDArray[np.bool_]
+    patch_start: NDArray[np.int64]
+    halo: float
+
+    @property
+    def n_patches(self) -> int:
+        return int(self.patch_start.size - 1)
+
+    def piece(self, p: int, vertices: NDArray[np.float64]) -> PatchPiece:
+        """Patch ``p``'s faces as a mesh, its vertices read from ``vertices`` (the mesh
+        store's, memory-mapped)."""
+        if not 0 <= p < self.n_patches:
+            raise errors.InputError(f"patch {p} out of range ({self.n_patches} patches)")
+        a, b = self.patch_start[p], self.patch_start[p + 1]
+        faces = np.array(self.faces[a:b])
+        used, local = np.unique(faces, return_inverse=True)
+        mesh = Mesh(np.array(vertices[used]), local.reshape(-1, 3), name=f"patch{p}")
+        return PatchPiece(mesh, used, np.array(self.store_face[a:b]), np.array(self.core[a:b]))
+
+
+def open_patch_store(folder: str | os.PathLike) -> PatchStore:
+    """The patch store written by :func:`assign_faces` in ``folder``.
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        Not a patch store, another version, or arrays that disagree with ``patches.json``.
+    """
+    root = Path(folder)
+    meta_path = root / "patches.json"
+    if not meta_path.is_file():
+        raise errors.InputError(f"{root}: not a patch store (no patches.json)")
+    meta = read_json_file(meta_path, error=errors.InputError)
+    if not isinstance(meta, dict) or meta.get("format") != PATCHES_FORMAT:
+        raise errors.InputError(f"{meta_path}: not a {PATCHES_FORMAT} file")
+    if meta.get("version") != PATCHES_VERSION:
+        raise errors.InputError(
+            f"{meta_path}: patch store version {meta.get('version')!r}; this meshfit reads "
+            f"version {PATCHES_VERSION}"
+        )
+    try:
+        n, n_patches, halo = int(meta["n_rows"]), int(meta["n_patches"]), float(meta["halo"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise errors.InputError(f"{meta_path}: missing or malformed field ({exc})") from None
+
+    def load(name: str, shape: tuple[int, ...], dtype) -> NDArray:
+        try:
+            a = np.load(root / name, mmap_mode="r", allow_pickle=False)
+        except (OSError, ValueError) as exc:
+            raise errors.InputError(f"{root / name}: cannot read ({exc})") from None
+        if a.shape != shape or a.dtype != np.dtype(dtype):
+            raise errors.InputError(
+                f"{root / name}: {a.dtype}{list(a.shape)} where patches.json says "
+                f"{np.dtype(dtype)}{list(shape)}"
+            )
+        return a
+
+    if min(n, n_patches) < 0:
+        raise errors.InputError(f"{meta_path}: negative counts")
+    faces = load("faces.npy", (n, 3), np.int64)
+    store_face = load("store_face.npy", (n,), np.int64)
+    core = load("core.npy", (n,), np.bool_)
+    start = np.array(load("patch_start.npy", (n_patches + 1,), np.int64))
+    if start[0] != 0 or start[-1] != n or (np.diff(start) < 0).any():
+        raise errors.InputError(f"{root / 'patch_start.npy'}: not the starts of {n} rows")
+    return PatchStore(root, faces, store_face, core, start, halo)
+
+
+def _boundary_samples(
+    patches: Sequence, spacing: float
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Points along every patch's boundary loop, at most ``spacing`` apart, and the patch of
+    each (a curve shared by two patches is sampled for both)."""
+    pts, lab = [], []
+    for p in patches:
+        loop = np.concatenate([s[:-1] for s in p.sides])
+        x = p.mesh.vertices[loop]
+        y = np.roll(x, -1, axis=0)
+        n = np.maximum(1, np.ceil(np.linalg.norm(y - x, axis=1) / spacing).astype(np.int64))
+        t = (np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)) / np.repeat(n, n)
+        seg = np.repeat(np.arange(len(x)), n)
+        pts.append(x[seg] + t[:, None] * (y[seg] - x[seg]))
+        lab.append(np.full(int(n.sum()), p.index, dtype=np.int64))
+    return np.concatenate(pts), np.concatenate(lab)
+
+
+def _proxy_edge(patches: Sequence) -> float:
+    """Side of the equilateral triangle of the uncut proxy's mean face area (the cut's
+    slivers would shorten a mean of the patches' own edges)."""
+    area = sum(float(p.mesh.face_areas.sum()) for p in patches)
+    n = np.unique(np.concatenate([p.face_parent for p in patches])).size
+    return float(np.sqrt(4.0 * area / (np.sqrt(3.0) * max(n, 1))))
+
+
+def _halo_pairs(tree, sample_patch, c, core, width: float, n_patches: int) -> NDArray[np.int64]:
+    """(face, patch) rows, faces as indices into ``c``: each centroid with boundary samples
+    of another patch than its ``core`` one within ``width``, and those patches, sorted.
+
+    The `_NEAREST` nearest samples of each centroid are searched, and all samples within
+    ``width`` of the few centroids whose `_NEAREST` are all that near (by a corner where
+    many patches meet)."""
+    if width <= 0 or not len(c):
+        return np.zeros((0, 2), dtype=np.int64)
+    d, _ = tree.query(c, k=1, distance_upper_bound=width)
+    close = np.flatnonzero(d <= width)
+    keys = []
+    for a in range(0, close.size, _QUERY_CHUNK):
+        i = close[a : a + _QUERY_CHUNK]
+        d, j = tree.query(c[i], k=_NEAREST, distance_upper_bound=width)
+        ok = np.isfinite(d)
+        lab = sample_patch[np.where(ok, j, 0)]
+        ok &= lab != core[i][:, None]
+        keys.append(i[:, None].repeat(_NEAREST, 1)[ok] * n_patches + lab[ok])
+        full = np.flatnonzero(np.isfinite(d[:, -1]))  # (more samples within: all of them)
+        if full.size:
+            near = tree.query_ball_point(c[i[full]], width)
+            f = np.repeat(i[full], [len(x) for x in near])
+            lab = sample_patch[np.fromiter((j for x in near for j in x), np.int64, f.size)]
+            keep = lab != core[f]
+            keys.append(f[keep] * n_patches + lab[keep])
+    key = np.unique(np.concatenate(keys)) if keys else np.zeros(0, np.int64)
+    return np.stack([key // n_patches, key % n_patches], axis=1)
+
+
+def assign_faces(
+    store,
+    patches: Sequence,
+    folder: str | os.PathLike,
+    *,
+    halo: float | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> PatchStore:
+    """Sort the faces of a mesh store into the patches of its proxy: a patch store.
+
+    Parameters
+    ----------
+    store : meshfit.mesh.store.MeshStore
+    patches : sequence of Patch
+        The proxy cut along its layout (:func:`meshfit.layout.extract_patches`), in the
+        layout's patch order.
+    folder : path
+        A new (or empty) folder; written through a temporary sibling renamed at the end.
+    halo : float, optional
+        Model units; default `HALO_EDGES` times the side of an equilateral triangle of the
+        proxy's mean face area (a proxy's faces are far larger than the scan's, so this
+        covers a scan face cut by a curve and the proxy's deviation from the scan).
+    progress : callable(done, total), optional
+        After each brick of each of the two passes.
+
+    Returns
+    -------
+    PatchStore
+        Every store face is the core face of exactly one patch; a face whose centroid lies
+        within ``halo`` of another patch's boundary is in that patch's halo too.
+    """
+    root = Path(folder)
+    if root.exists() and (not root.is_dir() or any(root.iterdir())):
+        raise errors.InputError(f"{root}: exists and is not an empty folder")
+    if not patches:
+        raise errors.InputError("no patches to sort the faces into")
+    n_patches = len(patches)
+    if [p.index for p in patches] != list(range(n_patches)):
+        raise errors.InputError("the patches must be the layout's, in its order")
+    offsets = np.cumsum([0] + [p.mesh.n_vertices for p in patches])
+    soup = Mesh(
+        np.concatenate([p.mesh.vertices for p in patches]),
+        np.concatenate([p.mesh.faces + o for p, o in zip(patches, offsets, strict=False)]),
+        name="cut proxy",
+    )
+    soup_patch = np.repeat(np.arange(n_patches), [p.mesh.n_faces for p in patches])
+    width = float(HALO_EDGES * _proxy_edge(patches) if halo is None else halo)
+    if not np.isfinite(width) or width < 0:
+        raise errors.InputError(f"halo must be a length >= 0, got {halo!r}")
+    samples, sample_patch = _boundary_samples(patches, max(width, 1e-300) / _SAMPLES_PER_HALO)
+    tree = cKDTree(samples)
+    nb = store.n_bricks
+    root.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{root.name}.", dir=root.parent))
+    try:
+        # 1. per brick: each face's core patch and its halo patches, as (face, patch, core)
+        # rows kept in the scratch folder; rows per patch counted
+        count = np.zeros(n_patches, dtype=np.int64)
+        for b in range(nb):
+            a = int(store.brick_start[b])
+            f = store.brick(b)
+            c = np.asarray(store.vertices)[f.reshape(-1)].reshape(-1, 3, 3).mean(axis=1)
+            core = soup_patch[soup.closest_points(c).points.face]
+            face = np.arange(a, a + f.shape[0], dtype=np.int64)
+            pair = _halo_pairs(tree, sample_patch, c, core, width, n_patches) + np.array([a, 0])
+            rows_f = np.concatenate([face, pair[:, 0]])
+            rows_p = np.concatenate([core, pair[:, 1]])
+            rows_c = np.concatenate([np.ones(face.size, bool), np.zeros(len(pair), bool)])
+            np.save(tmp / f"rows_{b}.npy", np.stack([rows_f, rows_p, rows_c], axis=1))
+            count += np.bincount(rows_p, minlength=n_patches)
+            if progress is not None:
+                progress(b + 1, 2 * nb)
+        # 2. the rows placed patch by patch: core rows first (every brick's), then halo
+        total = int(count.sum())
+        start = np.concatenate([[0], np.cumsum(count)]).astype(np.int64)
+        out_f = np.lib.format.open_memmap(tmp / "faces.npy", "w+", np.int64, (total, 3))
+        out_s = np.lib.format.open_memmap(tmp / "store_face.npy", "w+", np.int64, (total,))
+        out_c = np.lib.format.open_memmap(tmp / "core.npy", "w+", np.bool_, (total,))
+        cursor = start[:-1].copy()
+        for want_core in (True, False):
+            for b in range(nb):
+                rows = np.load(tmp / f"rows_{b}.npy")
+                rows = rows[rows[:, 2].astype(bool) == want_core]
+                order = np.argsort(rows[:, 1], kind="stable")
+                rows = rows[order]
+                p = rows[:, 1]
+                first = np.searchsorted(p, np.arange(n_patches), "left")
+                at = cursor[p] + (np.arange(p.size) - first[p])
+                out_f[at] = store.faces[rows[:, 0]]
+                out_s[at] = rows[:, 0]
+                out_c[at] = want_core
+                cursor += np.bincount(p, minlength=n_patches)
+                if not want_core:
+                    (tmp / f"rows_{b}.npy").unlink()
+                    if progress is not None:
+                        progress(nb + b + 1, 2 * nb)
+        for a in (out_f, out_s, out_c):
+            a.flush()
+        np.save(tmp / "patch_start.npy", start)
+        meta = {
+            "format": PATCHES_FORMAT,
+            "version": PATCHES_VERSION,
+            "n_rows": total,
+            "n_patches": n_patches,
+            "halo": width,
+            "core_rows": int(store.n_faces),
+        }
+        (tmp / "patches.json").write_text(json.dumps(meta, indent=1))
+        if root.exists():
+            root.rmdir()
+        tmp.rename(root)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return open_patch_store(root)

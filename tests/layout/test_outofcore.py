@@ -1,0 +1,115 @@
+"""A mesh store's faces sorted into the patches of a layout (meshfit.layout.outofcore)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from meshfit.errors import InputError
+from meshfit.layout import extract_patches
+from meshfit.layout.auto import auto_layout
+from meshfit.layout.outofcore import _boundary_samples, assign_faces, open_patch_store
+from meshfit.mesh.store import write_store
+from meshfit.shrinkwrap.proxy import simplify_store
+
+from ..conftest import real_mesh
+from ..shapes import tori
+
+
+@pytest.fixture(scope="module")
+def spot_cut(tmp_path_factory):
+    """spot in a store of several bricks, laid out and cut as it is (the proxy is the mesh)."""
+    mesh = real_mesh("spot")
+    store = write_store(mesh, tmp_path_factory.mktemp("s") / "store", brick_faces=800)
+    patches = extract_patches(mesh, auto_layout(mesh))
+    return mesh, store, patches
+
+
+def test_each_face_is_core_once_and_its_pieces_are_in_reach(spot_cut, tmp_path):
+    mesh, store, patches = spot_cut
+    ps = assign_faces(store, patches, tmp_path / "p")
+    n = ps.n_patches
+    assert n == len(patches) and ps.halo > 0
+    core_of = np.full(store.n_faces, -1)
+    rows = {f: set() for f in range(store.n_faces)}
+    for p in range(n):
+        a, b = ps.patch_start[p], ps.patch_start[p + 1]
+        sf, core = ps.store_face[a:b], ps.core[a:b]
+        # core rows first, then halo rows
+        assert not (np.diff(core.astype(int)) > 0).any()
+        assert (core_of[sf[core]] == -1).all()
+        core_of[sf[core]] = p
+        for f in sf:
+            rows[int(f)].add(p)
+        piece = ps.piece(p, store.vertices)
+        np.testing.assert_array_equal(piece.vertex_ids[piece.mesh.faces], store.faces[sf])
+    assert (core_of >= 0).all()
+    # a face the layout's curves cut lies in pieces of several patches: its core patch is
+    # one of them, and every one of them has it (core or halo)
+    pieces = {}
+    input_face = np.asarray(store.input_face)
+    stored = np.empty(mesh.n_faces, dtype=np.int64)
+    stored[input_face] = np.arange(store.n_faces)
+    for p in patches:
+        for f in np.unique(p.face_parent):
+            pieces.setdefault(int(stored[f]), set()).add(p.index)
+    cut = [f for f, s in pieces.items() if len(s) > 1]
+    assert len(cut) > 100
+    for f, s in pieces.items():
+        assert core_of[f] in s
+        assert s <= rows[f], f
+
+
+def test_the_halo_search_matches_a_brute_force_search(spot_cut, tmp_path):
+    mesh, store, patches = spot_cut
+    width = 2.5 * mesh.mean_edge_length  # wide: many centroids by corners meet 48 samples
+    ps = assign_faces(store, patches, tmp_path / "p", halo=width)
+    samples, label = _boundary_samples(patches, width / 3)
+    got = {}
+    for p in range(ps.n_patches):
+        a, b = ps.patch_start[p], ps.patch_start[p + 1]
+        for f, c in zip(ps.store_face[a:b], ps.core[a:b], strict=True):
+            if not c:
+                got.setdefault(int(f), set()).add(p)
+    core = np.empty(store.n_faces, dtype=np.int64)
+    for p in range(ps.n_patches):
+        a, b = ps.patch_start[p], ps.patch_start[p + 1]
+        core[ps.store_face[a:b][ps.core[a:b]]] = p
+    c = np.asarray(store.vertices)[np.asarray(store.faces)].mean(axis=1)
+    rng = np.random.default_rng(0)
+    for f in rng.choice(store.n_faces, 1500, replace=False):
+        d = np.linalg.norm(samples - c[f], axis=1)
+        want = set(label[d <= width].tolist()) - {int(core[f])}
+        assert got.get(int(f), set()) == want, f
+
+
+def test_a_proxy_layout_sorts_a_scan_of_any_genus(tmp_path):
+    mesh = tori(2)
+    store = write_store(mesh, tmp_path / "s", brick_faces=1500)
+    proxy = simplify_store(store, mesh.n_faces // 4).mesh
+    patches = extract_patches(proxy, auto_layout(proxy))
+    ps = assign_faces(store, patches, tmp_path / "p")
+    assert ps.n_patches == len(patches)
+    assert int(ps.core.sum()) == store.n_faces
+    # a patch's core faces of the scan cover about its area on the proxy
+    for p in patches:
+        piece = ps.piece(p.index, store.vertices)
+        area = piece.mesh.face_areas[piece.core].sum()
+        assert abs(area - p.mesh.face_areas.sum()) < 0.25 * p.mesh.face_areas.sum()
+    reopened = open_patch_store(tmp_path / "p")
+    np.testing.assert_array_equal(reopened.faces, ps.faces)
+
+
+def test_bad_calls_are_refused(spot_cut, tmp_path):
+    _, store, patches = spot_cut
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "x").write_text("keep")
+    with pytest.raises(InputError, match="not an empty folder"):
+        assign_faces(store, patches, tmp_path / "full")
+    with pytest.raises(InputError, match="in its order"):
+        assign_faces(store, patches[::-1], tmp_path / "p")
+    with pytest.raises(InputError, match="halo"):
+        assign_faces(store, patches, tmp_path / "p", halo=-1.0)
+    assert not (tmp_path / "p").exists()
+    with pytest.raises(InputError, match="not a patch store"):
+        open_patch_store(tmp_path)
