@@ -317,8 +317,8 @@ def assign_faces(
                     (tmp / f"rows_{b}.npy").unlink()
                     if progress is not None:
                         progress(nb + b + 1, 2 * nb)
-        for a in (out_f, out_s, out_c):
-            a.flush()
+        for arr in (out_f, out_s, out_c):
+            arr.flush()
         np.save(tmp / "patch_start.npy", start)
         meta = {
             "format": PATCHES_FORMAT,
