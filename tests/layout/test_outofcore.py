@@ -75,11 +75,13 @@ def test_the_halo_search_matches_a_brute_force_search(spot_cut, tmp_path):
     for p in range(ps.n_patches):
         a, b = ps.patch_start[p], ps.patch_start[p + 1]
         core[ps.store_face[a:b][ps.core[a:b]]] = p
-    c = np.asarray(store.vertices)[np.asarray(store.faces)].mean(axis=1)
+    x = np.asarray(store.vertices)[np.asarray(store.faces)]
+    c = x.mean(axis=1)
+    reach = width + np.linalg.norm(x - c[:, None], axis=2).max(axis=1)
     rng = np.random.default_rng(0)
     for f in rng.choice(store.n_faces, 1500, replace=False):
         d = np.linalg.norm(samples - c[f], axis=1)
-        want = set(label[d <= width].tolist()) - {int(core[f])}
+        want = set(label[d <= reach[f]].tolist()) - {int(core[f])}
         assert got.get(int(f), set()) == want, f
 
 
@@ -113,3 +115,85 @@ def test_bad_calls_are_refused(spot_cut, tmp_path):
     assert not (tmp_path / "p").exists()
     with pytest.raises(InputError, match="not a patch store"):
         open_patch_store(tmp_path)
+
+
+def _cut_all(store, ps, layout, proxy):
+    from meshfit.layout.outofcore import carry_network, cut_patch
+
+    net = carry_network(store, ps, proxy, layout)
+    return [cut_patch(store, ps, layout, net, p) for p in range(layout.n_patches)]
+
+
+def test_cut_from_the_store_is_the_cut_in_memory(spot_cut, tmp_path):
+    # with the mesh as its own proxy, the carried curves are the layout's: each patch cut
+    # from its piece is the patch cut from the whole mesh (the same faces of the input, the
+    # same area to round-off, the same corners)
+    mesh, store, patches = spot_cut
+    layout = auto_layout(mesh)
+    ps = assign_faces(store, patches, tmp_path / "p")
+    got = _cut_all(store, ps, layout, mesh)
+    input_face = np.asarray(store.input_face)
+    for want, q in zip(patches, got, strict=True):
+        assert q.index == want.index
+        assert set(input_face[q.face_parent].tolist()) == set(want.face_parent.tolist())
+        np.testing.assert_allclose(q.mesh.face_areas.sum(), want.mesh.face_areas.sum(), rtol=1e-9)
+        np.testing.assert_allclose(
+            q.mesh.vertices[q.corners], want.mesh.vertices[want.corners], atol=1e-12
+        )
+        for s in range(4):
+            length = [np.linalg.norm(np.diff(m.vertices[m_s], axis=0), axis=1).sum()
+                      for m, m_s in ((q.mesh, q.sides[s]), (want.mesh, want.sides[s]))]  # fmt: skip
+            np.testing.assert_allclose(length[0], length[1], rtol=1e-9)
+
+
+def _covers_once(mesh, store, got):
+    """Every input face is covered by the patches' pieces of it exactly once (by area)."""
+    input_face = np.asarray(store.input_face)
+    cover = np.zeros(mesh.n_faces)
+    for q in got:
+        assert q.mesh.n_components == 1 and len(q.mesh.boundary_loops) == 1
+        assert q.mesh.euler_characteristic == 1
+        np.add.at(cover, input_face[q.face_parent], q.mesh.face_areas)
+    np.testing.assert_allclose(cover, mesh.face_areas, rtol=1e-6)
+
+
+@pytest.mark.parametrize("name", ["genus 2", "nefertiti"])
+def test_a_scan_is_cut_along_its_proxy_layout(tmp_path, name):
+    from meshfit.layout.auto import LayoutOptions
+
+    if name == "genus 2":
+        mesh, brick, share, opts = tori(2), 1500, 4, LayoutOptions()
+    else:
+        # (a proxy's creases are not the scan's: the sphere route, as the scan takes)
+        mesh, brick, share, opts = real_mesh(name), 20_000, 8, LayoutOptions(crease_angle=None)
+    store = write_store(mesh, tmp_path / "s", brick_faces=brick)
+    proxy = simplify_store(store, mesh.n_faces // share).mesh
+    layout = auto_layout(proxy, opts)
+    ps = assign_faces(store, extract_patches(proxy, layout), tmp_path / "p")
+    got = _cut_all(store, ps, layout, proxy)
+    _covers_once(mesh, store, got)
+    # the two sides of a curve are cut along the same line of the scan (a side may hold
+    # points of the other's straight stretches as vertices of its own)
+    for k in range(len(layout.curves)):
+        on = [
+            (p, s)
+            for p in range(layout.n_patches)
+            for s in range(4)
+            if layout.patch_curves[p, s] == k
+        ]
+        if len(on) == 2:
+            (p, s), (q, t) = on
+            a = got[p].mesh.vertices[got[p].sides[s]]
+            b = got[q].mesh.vertices[got[q].sides[t]][::-1]
+            np.testing.assert_array_equal(a[[0, -1]], b[[0, -1]])
+            gap = 1e-9 * mesh.bbox_diagonal
+            assert _off(a, b).max() <= gap and _off(b, a).max() <= gap
+
+
+def _off(x, line):
+    """Distance of each point of ``x`` from the polyline ``line``."""
+    a, b = line[:-1], line[1:]
+    ab = b - a
+    t = np.einsum("pkj,kj->pk", x[:, None] - a[None], ab) / np.maximum((ab * ab).sum(1), 1e-300)
+    foot = a[None] + np.clip(t, 0, 1)[..., None] * ab[None]
+    return np.linalg.norm(x[:, None] - foot, axis=2).min(axis=1)

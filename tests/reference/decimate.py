@@ -16,7 +16,9 @@ def _quality(V, tri):
     return 0.0 if s <= 0 else 2.0 * np.sqrt(3.0) * float(np.linalg.norm(_normal(V, tri))) / s
 
 
-def collapse_pass(V, F, alive, frozen, max_collapses, max_valence, min_cos, min_quality):
+def collapse_pass(
+    V, F, alive, frozen, max_collapses, max_valence, min_cos, min_quality, max_sq=np.inf
+):
     """Same rules as the kernel, on Python sets and lists; returns (F, alive, count)."""
     F = [list(f) for f in np.asarray(F)]
     alive = list(np.asarray(alive))
@@ -47,6 +49,8 @@ def collapse_pass(V, F, alive, frozen, max_collapses, max_valence, min_cos, min_
     for v in order.tolist():
         if done >= max_collapses:
             break
+        if short[v] > max_sq:
+            break
         if v in locked or frozen[v] or not np.isfinite(short[v]) or len(star[v]) > 64:
             continue
         nbv = ring(v)
@@ -60,11 +64,13 @@ def collapse_pass(V, F, alive, frozen, max_collapses, max_valence, min_cos, min_
                     seen.append(w)
         cands = sorted(seen, key=lambda w: elen(v, w))
         for u in cands:
-            if u in locked or frozen[u] or len(star[u]) > 64:
+            if u in locked or len(star[u]) > 64:
                 continue
             nbu = ring(u)
             common = sorted(nbv & nbu)
             if len(common) != 2:
+                continue
+            if frozen[u] and any(frozen[w] and w != u and w not in common for w in nbv):
                 continue
             if len(nbu) + len(nbv) - 4 > max_valence:
                 continue

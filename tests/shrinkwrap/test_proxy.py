@@ -24,23 +24,25 @@ def _mesh(name):
 
 
 @pytest.mark.parametrize("name", ["spot", "torus"])
-@pytest.mark.parametrize("share", [0.0, 0.3])
-def test_collapse_pass_matches_oracle(name, share):
+@pytest.mark.parametrize(("share", "longest"), [(0.0, np.inf), (0.3, np.inf), (0.0, 0.9)])
+def test_collapse_pass_matches_oracle(name, share, longest):
     mesh = _mesh(name)
     V = np.ascontiguousarray(mesh.vertices)
     F = np.array(mesh.faces, order="C")
     alive = np.ones(len(F), dtype=bool)
     frozen = np.random.default_rng(1).random(len(V)) < share
     min_cos = float(np.cos(np.radians(MAX_NORMAL_TURN_DEG)))
+    # (a cap at 0.9 mean edges: a pass stops among the edges it would take)
+    max_sq = (longest * mesh.mean_edge_length) ** 2
     want_F, want_alive, want_n = reference.collapse_pass(
-        V, F.copy(), alive.copy(), frozen, 400, MAX_VALENCE, min_cos, MIN_QUALITY
+        V, F.copy(), alive.copy(), frozen, 400, MAX_VALENCE, min_cos, MIN_QUALITY, max_sq
     )
-    got_n = _k.collapse_pass(V, F, alive, frozen, 400, MAX_VALENCE, min_cos, MIN_QUALITY)
+    got_n = _k.collapse_pass(V, F, alive, frozen, 400, max_sq, MAX_VALENCE, min_cos, MIN_QUALITY)
     assert got_n == want_n > 0
     np.testing.assert_array_equal(alive, want_alive)
     np.testing.assert_array_equal(F[alive], want_F[want_alive])
-    # a frozen vertex neither went nor took a collapse: it is still used, and every edge
-    # between two of them (a piece's rim) is still there
+    # a frozen vertex never went: it is still used, and every edge between two of them (a
+    # piece's rim) is still there
     assert np.isin(np.flatnonzero(frozen), F[alive]).all()
 
     def edges(faces):

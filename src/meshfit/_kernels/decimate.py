@@ -93,12 +93,14 @@ def _quality(V, a, b, c):
 
 
 @njit(cache=True, nogil=True, fastmath=False)
-def collapse_pass(V, F, alive, frozen, max_collapses, max_valence, min_cos, min_quality):
+def collapse_pass(V, F, alive, frozen, max_collapses, max_sq, max_valence, min_cos, min_quality):
     """One pass of independent half-edge collapses, shortest edges first, in place.
 
     V (nv, 3) f8; F (nf, 3) i8 and alive (nf,) bool, updated in place; frozen (nv,) bool:
-    vertices that neither go nor take a collapse (a piece's rim, whose stars reach faces
-    the kernel does not see). A vertex ``v`` is
+    vertices that never go (a piece's rim, whose stars reach faces the kernel does not see)
+    and take a collapse only from a vertex none of whose other frozen neighbours is off the
+    collapsed edge's two faces (an edge between two frozen vertices may be unseen); max_sq:
+    only vertices whose shortest edge's squared length is at most this go. A vertex ``v`` is
     collapsed into its nearest neighbour ``u`` (then the next nearest, ...) when: the link
     condition holds (``u`` and ``v`` share exactly two neighbours), neither ``u`` nor ``v`` was
     touched by an earlier collapse of the pass (a collapse touches ``v``, ``u`` and the
@@ -140,6 +142,8 @@ def collapse_pass(V, F, alive, frozen, max_collapses, max_valence, min_cos, min_
         if done >= max_collapses:
             break
         v = order[oi]
+        if short[v] > max_sq:
+            break
         if locked[v] or frozen[v] or not np.isfinite(short[v]):
             continue
         if indptr[v + 1] - indptr[v] > 64:
@@ -163,7 +167,7 @@ def collapse_pass(V, F, alive, frozen, max_collapses, max_valence, min_cos, min_
             cand[i] = w
         for ci in range(nv_v):
             u = cand[ci]
-            if locked[u] or frozen[u] or indptr[u + 1] - indptr[u] > 64:
+            if locked[u] or indptr[u + 1] - indptr[u] > 64:
                 continue
             nu_u = _neighbors(F, indptr, star, u, nbu)
             # link condition: exactly two common neighbours (the two faces on edge uv)
@@ -180,6 +184,17 @@ def collapse_pass(V, F, alive, frozen, max_collapses, max_valence, min_cos, min_
                         common += 1
             if common != 2:
                 continue
+            if frozen[u]:
+                # u's star reaches faces not seen here: an edge from u to a frozen
+                # neighbour of v may be among them, unless that neighbour is opposite
+                far = False
+                for i in range(nv_v):
+                    w = nbv[i]
+                    if frozen[w] and w != u and w != o0 and w != o1:
+                        far = True
+                        break
+                if far:
+                    continue
             if nu_u + nv_v - 4 > max_valence:
                 continue
             # the opposite vertices lose one neighbour each

@@ -43,7 +43,7 @@ from meshfit.mesh.locate import barycentric
 from meshfit.surface.cut import NetworkCutArrays, network_cut_arrays
 from meshfit.types import SurfaceCurve, SurfacePoints
 
-__all__ = ["check_layout_topology", "extract_patches", "patch_bulges"]
+__all__ = ["check_layout_topology", "extract_patch_within", "extract_patches", "patch_bulges"]
 
 
 @dataclass
@@ -542,3 +542,70 @@ def _snap_to_sides(sub: Mesh, sides, edge_face, x: NDArray[np.float64]):
     bary[k] = 1.0 - t
     bary[(k + 1) % 3] = t
     return s, f, bary, d
+
+
+def extract_patch_within(
+    mesh: Mesh, layout: Layout, patch: int, *, scale: tuple[float, float] | None = None
+) -> Patch:
+    """Patch ``patch`` of ``layout`` cut from ``mesh``, a piece of a larger surface that
+    holds the patch and more (a patch store's piece: the patch's faces and a halo round
+    them).
+
+    The mesh is cut along all the layout's curves as :func:`extract_patches` cuts it; of the
+    regions, the one that is a disk bounded by the patch's four sides, in their order and
+    directions, is the patch. The others (the halo, which reaches the piece's own boundary)
+    are left. ``scale`` (mean edge length, diagonal) sets the cut's tolerances, as in
+    :func:`meshfit.surface.cut.network_cut_arrays`: the whole surface's, so that the
+    pieces of two patches are cut alike along the curve they share.
+
+    Raises
+    ------
+    meshfit.errors.LayoutError
+        No region, or more than one, is bounded by the patch's sides.
+    """
+    check_layout(mesh, layout)
+    try:
+        res = network_cut_arrays(
+            mesh, list(layout.curves), layout.corners, layout.curve_ends, scale=scale
+        )
+    except CutError as exc:
+        raise LayoutError(str(exc)) from None
+    copy_of = res.copy_of
+    n_ref = int(max([copy_of.max(initial=0), *(p.max(initial=0) for p in res.curve_vertices)])) + 1
+    along = _Along(res.curve_vertices, n_ref)
+    is_corner = np.zeros(n_ref, dtype=np.bool_)
+    is_corner[res.corners] = True
+    by_set = {frozenset(layout.patch_curves[patch].tolist()): [patch]}
+    n_comp, labels = vertex_face_components(res.faces, res.vertices.shape[0])
+    order = np.argsort(labels, kind="stable")
+    starts = np.searchsorted(labels[order], np.arange(n_comp + 1))
+    found: list[_Region] = []
+    for c in range(n_comp):
+        faces = order[starts[c] : starts[c + 1]]
+        got = _piece(mesh, res, faces, c)
+        if isinstance(got, MeshfitError):
+            continue  # (a halo region need not be a clean mesh)
+        sub, used, chi = got
+        loops = sub.boundary_loops
+        if len(loops) != 1 or chi != 1:
+            continue
+        boundary = used[loops[0]]
+        ref = copy_of[boundary]
+        curve, rev = along.lookup(ref)
+        if (curve < 0).any():
+            continue
+        pos = np.flatnonzero(is_corner[ref]).tolist()
+        match = _match(layout, by_set, [(int(curve[k]), bool(rev[k])) for k in pos])
+        if match is None:
+            continue
+        _, rot = match
+        start = pos[rot]
+        loop = np.roll(boundary, -start)
+        cpos = [(pos[(rot + s) % 4] - start) % boundary.size for s in range(4)]
+        found.append(_Region(patch, faces, loop, cpos, sub, used))
+    if len(found) != 1:
+        raise LayoutError(
+            f"patch {patch}: {len(found)} regions of the piece are bounded by its four sides "
+            "(one was wanted)"
+        )
+    return _build_patch(mesh, layout, res, found[0])

@@ -35,6 +35,7 @@ from scipy.spatial import cKDTree
 from meshfit import errors
 from meshfit._jsonio import read_json_file
 from meshfit.mesh import Mesh
+from meshfit.types import SurfaceCurve, SurfacePoints
 
 __all__ = [
     "HALO_EDGES",
@@ -67,7 +68,8 @@ class PatchPiece:
     mesh : Mesh
         The faces as a mesh of their own (core and halo).
     vertex_ids : (nv,) int64
-        Vertex of the mesh store of each vertex of ``mesh``.
+        Vertex of the mesh store of each vertex of ``mesh`` (a vertex where the piece
+        pinches has a copy per fan).
     store_face : (nf,) int64
         Face of the mesh store of each face of ``mesh``.
     core : (nf,) bool
@@ -92,6 +94,9 @@ class PatchStore:
     patch_start : (n_patches + 1,) int64
     halo : float
         The halo width, model units.
+    scale : (float, float)
+        The whole scan's mean edge length and bounding-box diagonal: the tolerances of
+        every piece's cut.
     """
 
     folder: Path
@@ -100,6 +105,7 @@ class PatchStore:
     core: NDArray[np.bool_]
     patch_start: NDArray[np.int64]
     halo: float
+    scale: tuple[float, float]
 
     @property
     def n_patches(self) -> int:
@@ -111,10 +117,20 @@ class PatchStore:
         if not 0 <= p < self.n_patches:
             raise errors.InputError(f"patch {p} out of range ({self.n_patches} patches)")
         a, b = self.patch_start[p], self.patch_start[p + 1]
-        faces = np.array(self.faces[a:b])
-        used, local = np.unique(faces, return_inverse=True)
-        mesh = Mesh(np.array(vertices[used]), local.reshape(-1, 3), name=f"patch{p}")
-        return PatchPiece(mesh, used, np.array(self.store_face[a:b]), np.array(self.core[a:b]))
+        mesh, ids = _piece_mesh(vertices, np.array(self.faces[a:b]), f"patch{p}")
+        return PatchPiece(mesh, ids, np.array(self.store_face[a:b]), np.array(self.core[a:b]))
+
+
+def _piece_mesh(vertices, faces: NDArray[np.int64], name: str) -> tuple[Mesh, NDArray[np.int64]]:
+    """Store faces (store vertex indices) as a mesh of their own, and the store vertex of each
+    of its vertices. A piece of a manifold surface can pinch where two of its fans meet at
+    one vertex: such a vertex gets a copy per fan (so an id may repeat)."""
+    from meshfit.mesh.validate import _split_fans
+
+    used, local = np.unique(faces, return_inverse=True)
+    local, parent = _split_fans(local.reshape(-1, 3).astype(np.int64), used.size)
+    ids = used[parent]
+    return Mesh(np.array(vertices[ids]), local, name=name), ids
 
 
 def open_patch_store(folder: str | os.PathLike) -> PatchStore:
@@ -139,6 +155,7 @@ def open_patch_store(folder: str | os.PathLike) -> PatchStore:
         )
     try:
         n, n_patches, halo = int(meta["n_rows"]), int(meta["n_patches"]), float(meta["halo"])
+        scale = (float(meta["scale"][0]), float(meta["scale"][1]))
     except (KeyError, TypeError, ValueError) as exc:
         raise errors.InputError(f"{meta_path}: missing or malformed field ({exc})") from None
 
@@ -162,7 +179,7 @@ def open_patch_store(folder: str | os.PathLike) -> PatchStore:
     start = np.array(load("patch_start.npy", (n_patches + 1,), np.int64))
     if start[0] != 0 or start[-1] != n or (np.diff(start) < 0).any():
         raise errors.InputError(f"{root / 'patch_start.npy'}: not the starts of {n} rows")
-    return PatchStore(root, faces, store_face, core, start, halo)
+    return PatchStore(root, faces, store_face, core, start, halo, scale)
 
 
 def _boundary_samples(
@@ -191,28 +208,30 @@ def _proxy_edge(patches: Sequence) -> float:
     return float(np.sqrt(4.0 * area / (np.sqrt(3.0) * max(n, 1))))
 
 
-def _halo_pairs(tree, sample_patch, c, core, width: float, n_patches: int) -> NDArray[np.int64]:
-    """(face, patch) rows, faces as indices into ``c``: each centroid with boundary samples
-    of another patch than its ``core`` one within ``width``, and those patches, sorted.
+def _halo_pairs(tree, sample_patch, c, reach, core, n_patches: int) -> NDArray[np.int64]:
+    """(face, patch) rows, faces as indices into ``c``: each face with boundary samples of
+    another patch than its ``core`` one within ``reach`` of its centroid, and those patches,
+    sorted.
 
     The `_NEAREST` nearest samples of each centroid are searched, and all samples within
-    ``width`` of the few centroids whose `_NEAREST` are all that near (by a corner where
-    many patches meet)."""
-    if width <= 0 or not len(c):
+    reach of the few centroids whose `_NEAREST` are all that near (by a corner where many
+    patches meet)."""
+    if not len(c) or reach.max() <= 0:
         return np.zeros((0, 2), dtype=np.int64)
-    d, _ = tree.query(c, k=1, distance_upper_bound=width)
-    close = np.flatnonzero(d <= width)
+    d, _ = tree.query(c, k=1, distance_upper_bound=float(reach.max()))
+    close = np.flatnonzero(d <= reach)
     keys = []
     for a in range(0, close.size, _QUERY_CHUNK):
         i = close[a : a + _QUERY_CHUNK]
-        d, j = tree.query(c[i], k=_NEAREST, distance_upper_bound=width)
-        ok = np.isfinite(d)
+        r = reach[i]
+        d, j = tree.query(c[i], k=_NEAREST, distance_upper_bound=float(r.max()))
+        ok = d <= r[:, None]
         lab = sample_patch[np.where(ok, j, 0)]
         ok &= lab != core[i][:, None]
         keys.append(i[:, None].repeat(_NEAREST, 1)[ok] * n_patches + lab[ok])
-        full = np.flatnonzero(np.isfinite(d[:, -1]))  # (more samples within: all of them)
+        full = np.flatnonzero(d[:, -1] <= r)  # (more samples within: all of them)
         if full.size:
-            near = tree.query_ball_point(c[i[full]], width)
+            near = tree.query_ball_point(c[i[full]], r[full])
             f = np.repeat(i[full], [len(x) for x in near])
             lab = sample_patch[np.fromiter((j for x in near for j in x), np.int64, f.size)]
             keep = lab != core[f]
@@ -249,8 +268,9 @@ def assign_faces(
     Returns
     -------
     PatchStore
-        Every store face is the core face of exactly one patch; a face whose centroid lies
-        within ``halo`` of another patch's boundary is in that patch's halo too.
+        Every store face is the core face of exactly one patch; a face that comes within
+        ``halo`` of another patch's boundary (its centroid within ``halo`` plus the face's
+        reach from its centroid to its farthest corner) is in that patch's halo too.
     """
     root = Path(folder)
     if root.exists() and (not root.is_dir() or any(root.iterdir())):
@@ -279,13 +299,18 @@ def assign_faces(
         # 1. per brick: each face's core patch and its halo patches, as (face, patch, core)
         # rows kept in the scratch folder; rows per patch counted
         count = np.zeros(n_patches, dtype=np.int64)
+        edge_sum = 0.0
         for b in range(nb):
             a = int(store.brick_start[b])
             f = store.brick(b)
-            c = np.asarray(store.vertices)[f.reshape(-1)].reshape(-1, 3, 3).mean(axis=1)
+            x = np.asarray(store.vertices)[f.reshape(-1)].reshape(-1, 3, 3)
+            c = x.mean(axis=1)
             core = soup_patch[soup.closest_points(c).points.face]
+            # a face reaches as far as its farthest corner from its centroid
+            reach = width + np.sqrt(((x - c[:, None]) ** 2).sum(axis=2).max(axis=1))
+            edge_sum += float(np.linalg.norm(x - np.roll(x, -1, axis=1), axis=2).sum())
             face = np.arange(a, a + f.shape[0], dtype=np.int64)
-            pair = _halo_pairs(tree, sample_patch, c, core, width, n_patches) + np.array([a, 0])
+            pair = _halo_pairs(tree, sample_patch, c, reach, core, n_patches) + np.array([a, 0])
             rows_f = np.concatenate([face, pair[:, 0]])
             rows_p = np.concatenate([core, pair[:, 1]])
             rows_c = np.concatenate([np.ones(face.size, bool), np.zeros(len(pair), bool)])
@@ -327,6 +352,11 @@ def assign_faces(
             "n_patches": n_patches,
             "halo": width,
             "core_rows": int(store.n_faces),
+            # (each edge of a closed surface is on two faces: the mean over its edges)
+            "scale": [
+                edge_sum / max(3 * store.n_faces, 1),
+                float(np.linalg.norm(store.bbox[1] - store.bbox[0])),
+            ],
         }
         (tmp / "patches.json").write_text(json.dumps(meta, indent=1))
         if root.exists():
@@ -336,3 +366,158 @@ def assign_faces(
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return open_patch_store(root)
+
+
+# ----------------------------------------------------------------------------- the cut
+
+
+@dataclass(frozen=True, eq=False)
+class CarriedNetwork:
+    """A proxy layout's corners and curves carried to the scan of a mesh store, as points
+    of the store's faces (:func:`carry_network`): each curve once, so the two patches it
+    bounds cut the scan along the same points.
+
+    Attributes
+    ----------
+    corners : SurfacePoints
+        Faces are store faces.
+    curves : list of SurfaceCurve
+        Faces are store faces; curve ``i`` from corner ``layout.curve_ends[i, 0]``.
+    """
+
+    corners: SurfacePoints
+    curves: list[SurfaceCurve]
+
+
+def _union(pstore: PatchStore, patches: Sequence[int], vertices) -> PatchPiece:
+    """The faces of several patches' pieces together, each once, as one piece."""
+    rows = np.concatenate(
+        [np.arange(pstore.patch_start[p], pstore.patch_start[p + 1]) for p in patches]
+    )
+    sf, first = np.unique(np.asarray(pstore.store_face)[rows], return_index=True)
+    mesh, ids = _piece_mesh(vertices, np.asarray(pstore.faces)[rows[first]], "piece")
+    return PatchPiece(mesh, ids, sf, np.asarray(pstore.core)[rows[first]])
+
+
+def _to_local(piece: PatchPiece, points: SurfacePoints, what: str) -> SurfacePoints:
+    """Store-face points as points of ``piece`` (LayoutError where a face is not in it)."""
+    order = np.argsort(piece.store_face, kind="stable")
+    at = np.searchsorted(piece.store_face, points.face, sorter=order)
+    at = np.minimum(at, order.size - 1)
+    local = order[at]
+    missing = piece.store_face[local] != points.face
+    if missing.any():
+        raise errors.LayoutError(
+            f"{what} passes through store face {int(points.face[np.argmax(missing)])}, "
+            "outside the patch's piece: the halo is narrower than the proxy's distance from "
+            "the scan (a larger halo, or a finer proxy)"
+        )
+    return SurfacePoints(local, points.bary)
+
+
+def _to_store(piece: PatchPiece, points: SurfacePoints) -> SurfacePoints:
+    return SurfacePoints(piece.store_face[points.face], points.bary)
+
+
+def _resampled(x: NDArray[np.float64], spacing: float) -> NDArray[np.float64]:
+    """The polyline ``x`` with points inserted so that none is more than ``spacing`` from
+    the next (its own points kept)."""
+    seg = np.diff(x, axis=0)
+    n = np.maximum(1, np.ceil(np.linalg.norm(seg, axis=1) / spacing).astype(np.int64))
+    t = (np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)) / np.repeat(n, n)
+    i = np.repeat(np.arange(len(seg)), n)
+    return np.concatenate([x[i] + t[:, None] * seg[i], x[-1:]])
+
+
+def carry_network(store, pstore: PatchStore, proxy: Mesh, layout) -> CarriedNetwork:
+    """Carry the corners and curves of ``layout`` (made on ``proxy``) to the scan, each
+    curve on the pieces of the (one or two) patches it bounds: the proxy's polyline sampled
+    at half the scan's edge length, the samples moved to their closest points of the scan
+    (so two curves that leave a corner close together stay apart, as the projection of a
+    nearby surface onto the scan does not fold), points where the carried curve turns back
+    dropped, and the rest joined on the scan's surface (as the in-memory proxy layout
+    carries its curves, :mod:`meshfit.layout.auto`). A worker needs one or two pieces at a
+    time."""
+    from meshfit.curves.base import densify_curves
+    from meshfit.layout.auto import _between_corners, _without_reversals
+
+    pc = np.asarray(layout.patch_curves)
+    ends = np.asarray(layout.curve_ends)
+    corner_patch = np.full(layout.corners.face.size, -1, dtype=np.int64)
+    for p in range(pc.shape[0]):
+        for c in ends[pc[p]].reshape(-1):
+            if corner_patch[c] < 0:
+                corner_patch[c] = p
+    if (corner_patch < 0).any():
+        raise errors.LayoutError(f"corner {int(np.argmin(corner_patch))} is on no patch")
+    x = proxy.xyz(layout.corners)
+    face = np.empty(x.shape[0], dtype=np.int64)
+    bary = np.empty((x.shape[0], 3))
+    for p in np.unique(corner_patch):
+        piece = pstore.piece(int(p), store.vertices)
+        sel = np.flatnonzero(corner_patch == p)
+        got = _to_store(piece, piece.mesh.closest_points(x[sel]).points)
+        face[sel], bary[sel] = got.face, got.bary
+    corners = SurfacePoints(face, bary)
+    curves = []
+    for k, curve in enumerate(layout.curves):
+        sides = np.unique(np.flatnonzero((pc == k).any(axis=1)))
+        piece = _union(pstore, sides.tolist(), store.vertices)
+        xs = _resampled(proxy.xyz(curve.points), 0.5 * piece.mesh.mean_edge_length)
+        moved = piece.mesh.closest_points(xs[1:-1]).points
+        a, b = ends[k]
+        local = _to_local(piece, corners[np.array([a, b])], f"curve {k}'s corners")
+        (c,) = _between_corners(moved, [len(xs) - 2], local, np.array([[0, 1]]), curve.kind)
+        (c,) = densify_curves(piece.mesh, [_without_reversals(piece.mesh, c)])
+        curves.append(SurfaceCurve(_to_store(piece, c.points), c.closed, c.kind))
+    return CarriedNetwork(corners, curves)
+
+
+def cut_patch(store, pstore: PatchStore, layout, network: CarriedNetwork, p: int):
+    """Patch ``p`` of the scan: its piece cut along its four carried sides
+    (:func:`meshfit.layout.extract.extract_patch_within`), its ``face_parent`` and
+    ``vertex_source`` in store faces.
+
+    Returns
+    -------
+    Patch
+    """
+    from meshfit.layout.extract import extract_patch_within
+    from meshfit.layout.layout import layout_from_curves
+    from meshfit.layout.patch import Patch
+
+    piece = pstore.piece(p, store.vertices)
+    sides = np.asarray(layout.patch_curves[p])
+    rev = np.asarray(layout.patch_reversed[p])
+    ends = np.asarray(layout.curve_ends)[sides]
+    ids, local_ends = np.unique(ends, return_inverse=True)
+    corners = _to_local(piece, network.corners[ids], f"patch {p}'s corners")
+    curves: list[SurfaceCurve | SurfacePoints] = [
+        SurfaceCurve(
+            _to_local(piece, network.curves[k].points, f"curve {k}"),
+            False,
+            network.curves[k].kind,
+        )
+        for k in sides.tolist()
+    ]
+    creases = None if layout.creases is None else np.asarray(layout.creases)[sides]
+    one = layout_from_curves(
+        piece.mesh,
+        corners,
+        curves,
+        local_ends.reshape(-1, 2),
+        [[(s, bool(rev[s])) for s in range(4)]],
+        creases=creases,
+    )
+    cut = extract_patch_within(piece.mesh, one, 0, scale=pstore.scale)
+    src = cut.vertex_source
+    return Patch(
+        p,
+        cut.mesh,
+        cut.corners,
+        cut.sides,
+        piece.store_face[cut.face_parent],
+        SurfacePoints(piece.store_face[src.face], src.bary),
+        (),
+        (),
+    )

@@ -60,11 +60,13 @@ def collapse_to(
     faces: NDArray[np.int64],
     target_faces: int,
     frozen: NDArray[np.bool_] | None = None,
+    max_length: float = np.inf,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.int64], int]:
     """Passes of independent half-edge collapses (:func:`simplify_mesh`'s rules) until
     ``target_faces`` faces remain or no edge can go; ``frozen`` vertices neither go nor take
     a collapse, so a piece of a larger surface whose rim is frozen keeps its rim and fits
-    back into the rest.
+    back into the rest; a vertex goes only while its shortest edge is at most
+    ``max_length``.
 
     Returns ``(vertices, faces, kept, passes)``: the remaining vertices (unmoved), the faces
     on them, each remaining vertex's index in ``vertices`` and the passes run.
@@ -76,11 +78,14 @@ def collapse_to(
     fixed = np.zeros(V.shape[0], dtype=np.bool_) if frozen is None else frozen.astype(np.bool_)
     n_alive = F.shape[0]
     min_cos = float(np.cos(np.radians(MAX_NORMAL_TURN_DEG)))
+    max_sq = float(max_length) ** 2
     passes = 0
     while n_alive > target_faces and passes < _MAX_PASSES:
         # every collapse removes two faces
         want = (n_alive - target_faces + 1) // 2
-        done = _k.collapse_pass(V, F, alive, fixed[kept], want, MAX_VALENCE, min_cos, MIN_QUALITY)
+        done = _k.collapse_pass(
+            V, F, alive, fixed[kept], want, max_sq, MAX_VALENCE, min_cos, MIN_QUALITY
+        )
         passes += 1
         if done == 0:
             break
@@ -152,10 +157,13 @@ def simplify_store(
     its brick, is a brick's rim: it stays, and so does every edge between two such
     vertices. Every other vertex has its whole star in its brick, so each brick is
     simplified alone (on ``workers`` threads, one brick's arrays at a time per thread) by
-    the same collapses, the link condition checked on the whole star, to about
-    `MERGE_FACTOR` times ``target_faces`` faces in all; the bricks' results then fit
-    together along their unchanged rims into one mesh of the same topology, which the
-    same passes simplify to ``target_faces`` (the rims go then). Memory: the bricks being
+    the same collapses, the link condition checked on the whole star, of edges up to the
+    side of an equilateral triangle of `MERGE_FACTOR` times ``target_faces`` faces of the
+    surface's area: shortest first, as the whole would be simplified, and no further, so
+    the bricks' insides stay as fine as the mesh would be at that count while their rims
+    keep the input's edges. The bricks' results then fit together along their unchanged
+    rims into one mesh of the same topology, which the same passes simplify to
+    ``target_faces`` (its shortest edges, the rims', first). Memory: the bricks being
     simplified, a byte and an int32 per input vertex, and the merged mesh.
 
     Parameters
@@ -188,21 +196,27 @@ def simplify_store(
     nb = store.n_bricks
     first = np.full(store.n_vertices, -1, dtype=np.int32)
     shared = np.zeros(store.n_vertices, dtype=np.bool_)
+    area = 0.0
     for b in range(nb):
-        used = np.unique(store.brick(b))
+        faces = store.brick(b)
+        used = np.unique(faces)
         seen = first[used] >= 0
         shared[used[seen]] = True
         first[used[~seen]] = b
+        x = np.asarray(store.vertices)[faces.reshape(-1)].reshape(-1, 3, 3)
+        area += 0.5 * float(
+            np.linalg.norm(np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), axis=1).sum()
+        )
     del first
-    share = min(1.0, MERGE_FACTOR * target / store.n_faces)
+    # the side of an equilateral triangle of the merged mesh's mean area
+    longest = float(np.sqrt(4.0 * area / (np.sqrt(3.0) * MERGE_FACTOR * target)))
 
     def one(b: int) -> NDArray[np.int64]:
         faces = store.brick(b)
         used, local = np.unique(faces, return_inverse=True)
         local = local.reshape(-1, 3)
         frozen = shared[used] | _rim(local, used.size)
-        want = max(1, int(np.ceil(share * faces.shape[0])))
-        _, F, kept, _ = collapse_to(store.vertices[used], local, want, frozen)
+        _, F, kept, _ = collapse_to(store.vertices[used], local, 0, frozen, longest)
         return used[kept][F]
 
     cost = np.diff(store.brick_start).tolist()

@@ -142,15 +142,16 @@ class _Cutter:
     editable loads it and its neighbours.
     """
 
-    def __init__(self, mesh: Mesh, n_points: int = 0):
+    def __init__(self, mesh: Mesh, n_points: int = 0, scale: tuple[float, float] | None = None):
         self.mesh = mesh
         self.V0 = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
         self.F0 = np.ascontiguousarray(mesh.faces, dtype=np.int64)
         self.FN = np.ascontiguousarray(mesh.face_neighbors, dtype=np.int64)
         self.nv0 = mesh.n_vertices
         self.nf0 = mesh.n_faces
-        self.snap = tol.length(mesh, tol.CUT_SNAP)
-        self.min_area = tol.CUT_MIN_AREA * mesh.bbox_diagonal**2
+        edge, diag = (mesh.mean_edge_length, mesh.bbox_diagonal) if scale is None else scale
+        self.snap = tol.CUT_SNAP * edge
+        self.min_area = tol.CUT_MIN_AREA * diag**2
         self.vf_indptr, self.vf_faces = mesh.vertex_faces
         self.VFI = np.ascontiguousarray(self.vf_indptr, dtype=np.int64)
         self.VFF = np.ascontiguousarray(self.vf_faces, dtype=np.int64)
@@ -633,6 +634,7 @@ def network_cut_arrays(
     ends: NDArray[np.int64],
     *,
     split: bool = True,
+    scale: tuple[float, float] | None = None,
 ) -> NetworkCutArrays:
     """:func:`cut_mesh_network` without building the cut mesh: its arrays, unchecked.
 
@@ -647,6 +649,10 @@ def network_cut_arrays(
     ends : (nk, 2) int64
     split : bool, keyword-only
         As for :func:`cut_mesh_network`.
+    scale : (float, float), keyword-only, optional
+        The mean edge length and the bounding-box diagonal the tolerances are relative to
+        (default the mesh's own): pieces of one surface cut with the whole surface's
+        scale snap alike.
 
     Returns
     -------
@@ -665,7 +671,9 @@ def network_cut_arrays(
     # the mesh's own vertices as face points, made on a thread while the curves go in
     with _no_gc(), ThreadPoolExecutor(max_workers=1) as pool:
         base = pool.submit(vertex_points, mesh, np.arange(mesh.n_vertices))
-        cutter, corner_v, paths, _ = _network_paths(mesh, curves, corners, ends, strict=True)
+        cutter, corner_v, paths, _ = _network_paths(
+            mesh, curves, corners, ends, strict=True, scale=scale
+        )
         _check_meetings(paths, corner_v)
         cutter.cut = _cut_edges(paths, False)
         vertices, faces, face_parent, src, parent, colors = _refined(cutter, mesh, base.result())
@@ -717,8 +725,9 @@ def _insert_corners(cutter: _Cutter, corners: SurfacePoints, merge: float):
     return corner_v, corner_cp
 
 
-def _network_paths(mesh: Mesh, curves, corners, ends, *, strict: bool):
-    """The corners inserted into a cutter and every curve cut in as a vertex path.
+def _network_paths(mesh: Mesh, curves, corners, ends, *, strict: bool, scale=None):
+    """The corners inserted into a cutter and every curve cut in as a vertex path (the
+    tolerances scaled by ``scale``, as in :func:`network_cut_arrays`).
 
     Returns ``(cutter, corner_v, paths, failed)``: ``failed`` holds the curves that could
     not be cut in (their paths are placeholders); with ``strict`` the first such curve
@@ -734,9 +743,9 @@ def _network_paths(mesh: Mesh, curves, corners, ends, *, strict: bool):
         raise InputError(f"curve {i}: corner index out of range 0..{nc - 1}: {ends[i].tolist()}")
     failed: set[int] = set()
     n_points = sum(len(c.points if isinstance(c, SurfaceCurve) else c) for c in curves)
-    cutter = _Cutter(mesh, n_points)
+    cutter = _Cutter(mesh, n_points, scale)
     cutter.route_fans = True
-    merge = tol.length(mesh, tol.CUT_CORNER_MERGE)
+    merge = tol.CUT_CORNER_MERGE * (mesh.mean_edge_length if scale is None else scale[0])
     corner_v, corner_cp = _insert_corners(cutter, corners, merge)
     raw: list[list[int]] = []
     for i, curve in enumerate(curves):
