@@ -21,6 +21,7 @@ width), ``faces.npy`` (n, 3) int64 (vertex indices of the mesh store), ``store_f
 from __future__ import annotations
 
 import json
+import math
 import os
 import shutil
 import tempfile
@@ -34,6 +35,7 @@ from scipy.spatial import cKDTree
 
 from meshfit import errors
 from meshfit._jsonio import read_json_file
+from meshfit._threads import map_threads, n_workers
 from meshfit.mesh import Mesh
 from meshfit.types import SurfaceCurve, SurfacePoints
 
@@ -186,7 +188,9 @@ def _boundary_samples(
     patches: Sequence, spacing: float
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Points along every patch's boundary loop, at most ``spacing`` apart, and the patch of
-    each (a curve shared by two patches is sampled for both)."""
+    each (a curve shared by two patches is sampled for both); of a patch's samples in one
+    cell of a grid of ``spacing / 2``, the first (a cut proxy's boundary crowds its
+    vertices by the corners, and a search near them would meet hundreds)."""
     pts, lab = [], []
     for p in patches:
         loop = np.concatenate([s[:-1] for s in p.sides])
@@ -195,8 +199,12 @@ def _boundary_samples(
         n = np.maximum(1, np.ceil(np.linalg.norm(y - x, axis=1) / spacing).astype(np.int64))
         t = (np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)) / np.repeat(n, n)
         seg = np.repeat(np.arange(len(x)), n)
-        pts.append(x[seg] + t[:, None] * (y[seg] - x[seg]))
-        lab.append(np.full(int(n.sum()), p.index, dtype=np.int64))
+        q = x[seg] + t[:, None] * (y[seg] - x[seg])
+        cell = np.floor(q / (0.5 * spacing)).astype(np.int64)
+        _, first = np.unique(cell, axis=0, return_index=True)
+        first.sort()
+        pts.append(q[first])
+        lab.append(np.full(first.size, p.index, dtype=np.int64))
     return np.concatenate(pts), np.concatenate(lab)
 
 
@@ -246,6 +254,7 @@ def assign_faces(
     folder: str | os.PathLike,
     *,
     halo: float | None = None,
+    workers: int | None = 1,
     progress: Callable[[int, int], None] | None = None,
 ) -> PatchStore:
     """Sort the faces of a mesh store into the patches of its proxy: a patch store.
@@ -262,6 +271,8 @@ def assign_faces(
         Model units; default `HALO_EDGES` times the side of an equilateral triangle of the
         proxy's mean face area (a proxy's faces are far larger than the scan's, so this
         covers a scan face cut by a curve and the proxy's deviation from the scan).
+    workers : int or None
+        Threads sorting the bricks (None: one per core); the store is the same for any.
     progress : callable(done, total), optional
         After each brick of each of the two passes.
 
@@ -270,7 +281,11 @@ def assign_faces(
     PatchStore
         Every store face is the core face of exactly one patch; a face that comes within
         ``halo`` of another patch's boundary (its centroid within ``halo`` plus the face's
-        reach from its centroid to its farthest corner) is in that patch's halo too.
+        reach from its centroid to its farthest corner) is in that patch's halo too. So
+        is a face whose proxy piece comes within ``halo`` plus one proxy edge plus the
+        piece's own reach of it: each piece's halo patches are found once and a scan face
+        near the proxy takes its piece's (those of a face whose reach and distance from
+        the proxy add up to more than a proxy edge are searched for that face alone).
     """
     root = Path(folder)
     if root.exists() and (not root.is_dir() or any(root.iterdir())):
@@ -292,32 +307,57 @@ def assign_faces(
         raise errors.InputError(f"halo must be a length >= 0, got {halo!r}")
     samples, sample_patch = _boundary_samples(patches, max(width, 1e-300) / _SAMPLES_PER_HALO)
     tree = cKDTree(samples)
+    # each proxy piece's halo patches, wide enough for any scan face near it whose reach
+    # and distance from the proxy add up to at most `margin` (the others are searched
+    # face by face)
+    margin = width / HALO_EDGES if halo is None else max(width, _proxy_edge(patches))
+    sx = soup.vertices[soup.faces]
+    sc = sx.mean(axis=1)
+    s_reach = width + margin + np.sqrt(((sx - sc[:, None]) ** 2).sum(axis=2).max(axis=1))
+    s_pairs = _halo_pairs(tree, sample_patch, sc, s_reach, soup_patch, n_patches)
+    s_ptr = np.searchsorted(s_pairs[:, 0], np.arange(soup.n_faces + 1))
     nb = store.n_bricks
     root.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{root.name}.", dir=root.parent))
     try:
         # 1. per brick: each face's core patch and its halo patches, as (face, patch, core)
         # rows kept in the scratch folder; rows per patch counted
-        count = np.zeros(n_patches, dtype=np.int64)
-        edge_sum = 0.0
-        for b in range(nb):
+        def rows_of(b: int) -> tuple[NDArray[np.int64], float]:
             a = int(store.brick_start[b])
             f = store.brick(b)
             x = np.asarray(store.vertices)[f.reshape(-1)].reshape(-1, 3, 3)
             c = x.mean(axis=1)
-            core = soup_patch[soup.closest_points(c).points.face]
+            near = soup.closest_points(c)
+            piece = near.points.face
+            core = soup_patch[piece]
             # a face reaches as far as its farthest corner from its centroid
-            reach = width + np.sqrt(((x - c[:, None]) ** 2).sum(axis=2).max(axis=1))
-            edge_sum += float(np.linalg.norm(x - np.roll(x, -1, axis=1), axis=2).sum())
+            own = np.sqrt(((x - c[:, None]) ** 2).sum(axis=2).max(axis=1))
+            edges = float(np.linalg.norm(x - np.roll(x, -1, axis=1), axis=2).sum())
             face = np.arange(a, a + f.shape[0], dtype=np.int64)
-            pair = _halo_pairs(tree, sample_patch, c, reach, core, n_patches) + np.array([a, 0])
+            # the halo patches of the face's proxy piece, which hold every patch the face
+            # comes within ``width`` of when own + distance <= margin (triangle inequality);
+            # the rest searched on their own
+            inside = own + near.distance <= margin
+            i = np.flatnonzero(inside)
+            k = s_ptr[piece[i] + 1] - s_ptr[piece[i]]
+            at = np.repeat(s_ptr[piece[i]], k) + (
+                np.arange(int(k.sum())) - np.repeat(np.cumsum(k) - k, k)
+            )
+            mine = np.stack([np.repeat(i, k), s_pairs[at, 1]], axis=1)
+            o = np.flatnonzero(~inside)
+            rest = _halo_pairs(tree, sample_patch, c[o], width + own[o], core[o], n_patches)
+            rest[:, 0] = o[rest[:, 0]]
+            pair = np.concatenate([mine, rest]) + np.array([a, 0])
             rows_f = np.concatenate([face, pair[:, 0]])
             rows_p = np.concatenate([core, pair[:, 1]])
             rows_c = np.concatenate([np.ones(face.size, bool), np.zeros(len(pair), bool)])
             np.save(tmp / f"rows_{b}.npy", np.stack([rows_f, rows_p, rows_c], axis=1))
-            count += np.bincount(rows_p, minlength=n_patches)
-            if progress is not None:
-                progress(b + 1, 2 * nb)
+            return np.bincount(rows_p, minlength=n_patches), edges
+
+        tick = None if progress is None else (lambda k, _: progress(k, 2 * nb))
+        out = map_threads(rows_of, list(range(nb)), n_workers(workers), progress=tick)
+        count = np.sum([r[0] for r in out], axis=0).astype(np.int64)
+        edge_sum = math.fsum(r[1] for r in out)
         # 2. the rows placed patch by patch: core rows first (every brick's), then halo
         total = int(count.sum())
         start = np.concatenate([[0], np.cumsum(count)]).astype(np.int64)
@@ -487,8 +527,13 @@ def cut_patch(store, pstore: PatchStore, layout, network: CarriedNetwork, p: int
     from meshfit.layout.patch import Patch
 
     piece = pstore.piece(p, store.vertices)
-    sides = np.asarray(layout.patch_curves[p])
+    # the sides' curves go in in the layout's order, as the whole mesh's cut takes them
+    # (where two curves meet, the second is cut into the first's split faces)
+    order = np.argsort(layout.patch_curves[p], kind="stable")
+    sides = np.asarray(layout.patch_curves[p])[order]
     rev = np.asarray(layout.patch_reversed[p])
+    slot = np.empty(4, dtype=np.int64)
+    slot[order] = np.arange(4)
     ends = np.asarray(layout.curve_ends)[sides]
     ids, local_ends = np.unique(ends, return_inverse=True)
     corners = _to_local(piece, network.corners[ids], f"patch {p}'s corners")
@@ -506,7 +551,7 @@ def cut_patch(store, pstore: PatchStore, layout, network: CarriedNetwork, p: int
         corners,
         curves,
         local_ends.reshape(-1, 2),
-        [[(s, bool(rev[s])) for s in range(4)]],
+        [[(int(slot[s]), bool(rev[s])) for s in range(4)]],
         creases=creases,
     )
     cut = extract_patch_within(piece.mesh, one, 0, scale=pstore.scale)

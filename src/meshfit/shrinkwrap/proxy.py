@@ -31,7 +31,7 @@ MAX_VALENCE = 12
 MIN_QUALITY = 0.15
 #: :func:`simplify_store` simplifies the bricks to about this many times the target's faces
 #: in all (besides their frozen rims) before the last passes over the whole
-MERGE_FACTOR = 8
+MERGE_FACTOR = 40
 #: passes of independent collapses before giving up on the target
 _MAX_PASSES = 200
 
