@@ -1,6 +1,7 @@
-"""Benchmark: a dense scan's layout proxy made out of core against the same in memory.
+"""Benchmark: a dense scan prepared out of core against the same in memory.
 
-Usage: ``python benchmarks/prep.py [--sizes 1m,4m,17m] [--repeats 1] [--workers 2]``
+Usage: ``python benchmarks/prep.py [--what proxy|prepare] [--sizes 1m,4m,17m] [--repeats 1]
+[--workers 2]``
 
 igea (269K triangles) refined by 1-to-4 midpoint subdivision at run time (``1m`` 1.07M,
 ``4m`` 4.3M, ``17m`` 17.2M triangles) and written once as a binary PLY, as a scanner would
@@ -11,6 +12,12 @@ deliver it. Each side runs in a fresh process, from the file to the layout's pro
   ``simplify_mesh``;
 - ``out_of_core``: ``write_store`` (the file memory-mapped, bricked into ``.npy`` files)
   then ``simplify_store`` on ``--workers`` threads.
+
+With ``--what prepare`` each side goes on to the patch submeshes the spring meshes start
+from: ``in_memory`` adds the automatic layout (which makes its own proxy) and
+``extract_patches``; ``out_of_core`` is ``meshfit.pipeline.prepare.prepare_out_of_core``
+(store, proxy, layout, faces sorted into patches, curves carried, every patch cut and
+written to its file).
 
 Figures: wall time, peak resident memory of the process (sampled every 20 ms; the store's
 pages a process has mapped count while they are resident), and the proxy's faces, genus and
@@ -50,6 +57,35 @@ def make_input(size: str, folder: Path) -> Path:
     path = folder / f"igea_{size}.ply"
     save_mesh(Mesh(v, f, name=f"igea_{size}"), path)
     return path
+
+
+def run_prepare(side: str, path: Path, scratch: Path, workers: int) -> dict:
+    """One side, from ``path`` to the patch submeshes."""
+    with PeakMemory() as mem:
+        t0 = time.perf_counter()
+        if side == "in_memory":
+            from meshfit.layout import extract_patches
+            from meshfit.layout.auto import auto_layout
+            from meshfit.mesh import load_mesh
+
+            mesh = load_mesh(path, repair=True)
+            layout = auto_layout(mesh)
+            patches = extract_patches(mesh, layout, workers=workers)
+            n, steps, rows = len(patches), {}, 1.0
+            del patches
+        else:
+            from meshfit.pipeline.prepare import prepare_out_of_core
+
+            res = prepare_out_of_core(path, scratch / "prep", workers=workers)
+            n = len(res.patch_files)
+            steps = {k: round(v, 3) for k, v in res.seconds.items()}
+            rows = res.patch_store.faces.shape[0] / res.store.n_faces
+        seconds = time.perf_counter() - t0
+    out = {"seconds": round(seconds, 3), "peak_rss_mib": round(mem.peak / 2**20, 1), "patches": n}
+    if steps:
+        out["seconds_per_step"] = steps
+        out["patch_store_rows_per_face"] = round(rows, 3)
+    return out
 
 
 def run_one(side: str, path: Path, scratch: Path, workers: int) -> dict:
@@ -110,12 +146,14 @@ def main() -> None:
     ap.add_argument("--sizes", default="1m,4m", help="of 1m, 4m, 17m (default: %(default)s)")
     ap.add_argument("--repeats", type=int, default=1)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--what", default="proxy", choices=("proxy", "prepare"))
     ap.add_argument("--one", nargs=3, default=None, help=argparse.SUPPRESS)
     ap.add_argument("--distances", nargs=2, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one:
         side, path, scratch = args.one
-        print(json.dumps(run_one(side, Path(path), Path(scratch), args.workers)))
+        run = run_prepare if args.what == "prepare" else run_one
+        print(json.dumps(run(side, Path(path), Path(scratch), args.workers)))
         return
     if args.distances:
         print(json.dumps(distances(Path(args.distances[0]), Path(args.distances[1]))))
@@ -134,8 +172,9 @@ def main() -> None:
                     scratch = Path(tmp) / side
                     scratch.mkdir()
                     r = _fresh("--one", side, str(path), str(scratch), "--workers",
-                               str(args.workers))  # fmt: skip
-                    r.update(_fresh("--distances", str(path), str(scratch)))
+                               str(args.workers), "--what", args.what)  # fmt: skip
+                    if args.what == "proxy":
+                        r.update(_fresh("--distances", str(path), str(scratch)))
                     runs[side].append(r)
                     shutil.rmtree(scratch)
             row = {}
@@ -155,6 +194,7 @@ def main() -> None:
         print(size, json.dumps(row), flush=True)
     out = {
         "benchmark": "prep",
+        "what": args.what,
         "cores": os.cpu_count(),
         "workers": args.workers,
         "runs": max(1, args.repeats),
@@ -165,7 +205,8 @@ def main() -> None:
         "vertices to the proxy as shares of the diagonal",
         "sizes": results,
     }
-    write_result("prep" if sizes == ["1m", "4m"] else "_".join(["prep", *sizes]), out)
+    stem = "prep" if args.what == "proxy" else "prep_patches"
+    write_result(stem if sizes == ["1m", "4m"] else "_".join([stem, *sizes]), out)
 
 
 #: input faces per size (igea's 268,686 times 4 per step)

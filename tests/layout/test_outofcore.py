@@ -80,7 +80,7 @@ def test_the_halo_holds_every_face_a_brute_force_search_finds(spot_cut, tmp_path
     reach = width + np.linalg.norm(x - c[:, None], axis=2).max(axis=1)
     # (a face takes its proxy piece's halo patches: those within the halo, a proxy edge
     # and the piece's reach of the piece)
-    bound = width + 4 * max(width, _proxy_edge(patches))
+    bound = width + 4 * _proxy_edge(patches)
     rng = np.random.default_rng(0)
     for f in rng.choice(store.n_faces, 1500, replace=False):
         d = np.linalg.norm(samples - c[f], axis=1)

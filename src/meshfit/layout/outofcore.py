@@ -52,7 +52,10 @@ __all__ = [
 PATCHES_FORMAT = "meshfit-patch-store"
 PATCHES_VERSION = 1
 #: default halo width in mean edge lengths of the proxy (`_proxy_edge`)
-HALO_EDGES = 1.5
+HALO_EDGES = 1.0
+#: a scan face whose reach and distance from the proxy add up to at most this share of a
+#: proxy edge takes the halo patches of its proxy piece (`assign_faces`)
+PIECE_MARGIN = 0.5
 #: boundary samples per halo width along each patch boundary
 _SAMPLES_PER_HALO = 3
 #: boundary samples searched per face centroid for its halo patches
@@ -282,10 +285,10 @@ def assign_faces(
         Every store face is the core face of exactly one patch; a face that comes within
         ``halo`` of another patch's boundary (its centroid within ``halo`` plus the face's
         reach from its centroid to its farthest corner) is in that patch's halo too. So
-        is a face whose proxy piece comes within ``halo`` plus one proxy edge plus the
-        piece's own reach of it: each piece's halo patches are found once and a scan face
-        near the proxy takes its piece's (those of a face whose reach and distance from
-        the proxy add up to more than a proxy edge are searched for that face alone).
+        is a face whose proxy piece comes within ``halo`` plus `PIECE_MARGIN` proxy edges
+        plus the piece's own reach of it: each piece's halo patches are found once and a
+        scan face near the proxy takes its piece's (those of a face whose reach and
+        distance from the proxy add up to more are searched for that face alone).
     """
     root = Path(folder)
     if root.exists() and (not root.is_dir() or any(root.iterdir())):
@@ -310,7 +313,7 @@ def assign_faces(
     # each proxy piece's halo patches, wide enough for any scan face near it whose reach
     # and distance from the proxy add up to at most `margin` (the others are searched
     # face by face)
-    margin = width / HALO_EDGES if halo is None else max(width, _proxy_edge(patches))
+    margin = PIECE_MARGIN * _proxy_edge(patches)
     sx = soup.vertices[soup.faces]
     sc = sx.mean(axis=1)
     s_reach = width + margin + np.sqrt(((sx - sc[:, None]) ** 2).sum(axis=2).max(axis=1))
@@ -429,16 +432,6 @@ class CarriedNetwork:
     curves: list[SurfaceCurve]
 
 
-def _union(pstore: PatchStore, patches: Sequence[int], vertices) -> PatchPiece:
-    """The faces of several patches' pieces together, each once, as one piece."""
-    rows = np.concatenate(
-        [np.arange(pstore.patch_start[p], pstore.patch_start[p + 1]) for p in patches]
-    )
-    sf, first = np.unique(np.asarray(pstore.store_face)[rows], return_index=True)
-    mesh, ids = _piece_mesh(vertices, np.asarray(pstore.faces)[rows[first]], "piece")
-    return PatchPiece(mesh, ids, sf, np.asarray(pstore.core)[rows[first]])
-
-
 def _to_local(piece: PatchPiece, points: SurfacePoints, what: str) -> SurfacePoints:
     """Store-face points as points of ``piece`` (LayoutError where a face is not in it)."""
     order = np.argsort(piece.store_face, kind="stable")
@@ -471,13 +464,12 @@ def _resampled(x: NDArray[np.float64], spacing: float) -> NDArray[np.float64]:
 
 def carry_network(store, pstore: PatchStore, proxy: Mesh, layout) -> CarriedNetwork:
     """Carry the corners and curves of ``layout`` (made on ``proxy``) to the scan, each
-    curve on the pieces of the (one or two) patches it bounds: the proxy's polyline sampled
+    curve once, on the piece of the first patch it bounds: the proxy's polyline sampled
     at half the scan's edge length, the samples moved to their closest points of the scan
     (so two curves that leave a corner close together stay apart, as the projection of a
     nearby surface onto the scan does not fold), points where the carried curve turns back
     dropped, and the rest joined on the scan's surface (as the in-memory proxy layout
-    carries its curves, :mod:`meshfit.layout.auto`). A worker needs one or two pieces at a
-    time."""
+    carries its curves, :mod:`meshfit.layout.auto`). One piece at a time is in memory."""
     from meshfit.curves.base import densify_curves
     from meshfit.layout.auto import _between_corners, _without_reversals
 
@@ -499,18 +491,26 @@ def carry_network(store, pstore: PatchStore, proxy: Mesh, layout) -> CarriedNetw
         got = _to_store(piece, piece.mesh.closest_points(x[sel]).points)
         face[sel], bary[sel] = got.face, got.bary
     corners = SurfacePoints(face, bary)
-    curves = []
-    for k, curve in enumerate(layout.curves):
-        sides = np.unique(np.flatnonzero((pc == k).any(axis=1)))
-        piece = _union(pstore, sides.tolist(), store.vertices)
-        xs = _resampled(proxy.xyz(curve.points), 0.5 * piece.mesh.mean_edge_length)
-        moved = piece.mesh.closest_points(xs[1:-1]).points
-        a, b = ends[k]
-        local = _to_local(piece, corners[np.array([a, b])], f"curve {k}'s corners")
-        (c,) = _between_corners(moved, [len(xs) - 2], local, np.array([[0, 1]]), curve.kind)
-        (c,) = densify_curves(piece.mesh, [_without_reversals(piece.mesh, c)])
-        curves.append(SurfaceCurve(_to_store(piece, c.points), c.closed, c.kind))
-    return CarriedNetwork(corners, curves)
+    # each curve on the piece of the first patch it bounds (its halo holds the scan along
+    # the curve), a piece read once for all the curves it carries
+    owner = np.full(len(layout.curves), -1, dtype=np.int64)
+    for p in range(pc.shape[0] - 1, -1, -1):
+        owner[pc[p]] = p
+    if (owner < 0).any():
+        raise errors.LayoutError(f"curve {int(np.argmin(owner))} bounds no patch")
+    curves: list[SurfaceCurve | None] = [None] * len(layout.curves)
+    for p in np.unique(owner).tolist():
+        piece = pstore.piece(p, store.vertices)
+        spacing = 0.5 * piece.mesh.mean_edge_length
+        for k in np.flatnonzero(owner == p).tolist():
+            curve = layout.curves[k]
+            xs = _resampled(proxy.xyz(curve.points), spacing)
+            moved = piece.mesh.closest_points(xs[1:-1]).points
+            local = _to_local(piece, corners[ends[k]], f"curve {k}'s corners")
+            (c,) = _between_corners(moved, [len(xs) - 2], local, np.array([[0, 1]]), curve.kind)
+            (c,) = densify_curves(piece.mesh, [_without_reversals(piece.mesh, c)])
+            curves[k] = SurfaceCurve(_to_store(piece, c.points), c.closed, c.kind)
+    return CarriedNetwork(corners, [c for c in curves if c is not None])
 
 
 def cut_patch(store, pstore: PatchStore, layout, network: CarriedNetwork, p: int):
