@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from meshfit import errors
+from meshfit import errors, tol
 from meshfit._jsonio import read_json_file
 from meshfit._threads import map_threads, n_workers
 from meshfit.mesh import Mesh
@@ -462,6 +462,70 @@ def _resampled(x: NDArray[np.float64], spacing: float) -> NDArray[np.float64]:
     return np.concatenate([x[i] + t[:, None] * seg[i], x[-1:]])
 
 
+#: a carried curve keeps no sample nearer its corner than where it is this many times the
+#: proxy's distance from the scan (at least a scan edge) away from the nearest other curve
+#: leaving that corner (`_clearances`); none where the proxy lies on the scan
+CORNER_CLEARANCE = 2.0
+
+
+def _walk_out(
+    mesh: Mesh, corner: SurfacePoints, target: NDArray[np.float64], spacing: float, clear: float
+) -> SurfacePoints:
+    """Points of the straight surface walk from ``corner`` toward ``target``, ``spacing``
+    apart (each the end of a walk of its own length from the corner, so all lie on one
+    straight line of the unfolded surface), without the corner and the last; none when
+    ``clear`` is 0."""
+    from meshfit.surface.walk import walk_points
+
+    v = target - mesh.xyz(corner)[0]
+    m = int(np.ceil(float(np.linalg.norm(v)) / spacing))
+    if clear <= 0 or m < 2:
+        return SurfacePoints(np.zeros(0, np.int64), np.zeros((0, 3)))
+    t = np.arange(1, m) / m
+    start = SurfacePoints(np.repeat(corner.face, t.size), np.repeat(corner.bary, t.size, 0))
+    return walk_points(mesh, start, t[:, None] * v).end
+
+
+def _clearances(proxy: Mesh, layout) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Per curve and end: ``1 / (2 sin(t / 2))`` for the angle ``t`` at which the nearest
+    other curve leaves the same corner (0 for none), and a third of the curve's chord.
+
+    Two curves leaving a corner at an angle ``t`` are ``2 r sin(t / 2)`` apart at distance
+    ``r``; where that is less than about the proxy's distance ``d`` from the scan, the
+    closest points of both may fall on one scan vertex (a convex scan maps a region of
+    space of about that size onto a vertex, and one scan face may hold both) and the curves
+    touch. Within `CORNER_CLEARANCE` ``max(d, scan edge)`` times the first figure of the
+    corner (at most the second), the samples are dropped and the curve walks straight out
+    of the corner instead."""
+    ends = np.asarray(layout.curve_ends)
+    n = ends.shape[0]
+    direction = np.zeros((n, 2, 3))
+    chord = np.zeros(n)
+    for k, curve in enumerate(layout.curves):
+        x = proxy.xyz(curve.points)
+        chord[k] = float(np.linalg.norm(x[-1] - x[0]))
+        for e, (a, y) in enumerate(((x[0], x), (x[-1], x[::-1]))):
+            d = np.linalg.norm(y - a, axis=1)
+            # the direction to the first point a proxy edge out (or the far end)
+            far = np.flatnonzero(d >= min(proxy.mean_edge_length, d.max()))
+            v = y[far[0]] - a
+            direction[k, e] = v / max(float(np.linalg.norm(v)), 1e-300)
+    out = np.zeros((n, 2))
+    cap = np.repeat(chord[:, None] / 3.0, 2, axis=1)
+    for k in range(n):
+        for e in range(2):
+            c = ends[k, e]
+            others = [
+                (j, f) for j in range(n) for f in range(2) if ends[j, f] == c and (j, f) != (k, e)
+            ]
+            if not others:
+                continue
+            cos = max(float(direction[k, e] @ direction[j, f]) for j, f in others)
+            half = 0.5 * np.arccos(np.clip(cos, -1.0, 1.0))
+            out[k, e] = 1.0 / max(2.0 * np.sin(half), 1e-12)
+    return out, cap
+
+
 def carry_network(store, pstore: PatchStore, proxy: Mesh, layout) -> CarriedNetwork:
     """Carry the corners and curves of ``layout`` (made on ``proxy``) to the scan, each
     curve once, on the piece of the first patch it bounds: the proxy's polyline sampled
@@ -471,7 +535,7 @@ def carry_network(store, pstore: PatchStore, proxy: Mesh, layout) -> CarriedNetw
     dropped, and the rest joined on the scan's surface (as the in-memory proxy layout
     carries its curves, :mod:`meshfit.layout.auto`). One piece at a time is in memory."""
     from meshfit.curves.base import densify_curves
-    from meshfit.layout.auto import _between_corners, _without_reversals
+    from meshfit.layout.auto import _without_reversals
 
     pc = np.asarray(layout.patch_curves)
     ends = np.asarray(layout.curve_ends)
@@ -499,15 +563,43 @@ def carry_network(store, pstore: PatchStore, proxy: Mesh, layout) -> CarriedNetw
     if (owner < 0).any():
         raise errors.LayoutError(f"curve {int(np.argmin(owner))} bounds no patch")
     curves: list[SurfaceCurve | None] = [None] * len(layout.curves)
+    edge = float(pstore.scale[0])
+    exact = tol.ON_SURFACE * float(pstore.scale[1])  # (a proxy that is the scan there)
+    spread, cap = _clearances(proxy, layout)
     for p in np.unique(owner).tolist():
         piece = pstore.piece(p, store.vertices)
-        spacing = 0.5 * piece.mesh.mean_edge_length
+        spacing = 0.5 * edge
         for k in np.flatnonzero(owner == p).tolist():
             curve = layout.curves[k]
             xs = _resampled(proxy.xyz(curve.points), spacing)
-            moved = piece.mesh.closest_points(xs[1:-1]).points
+            # samples by a corner dropped: the curve walks straight out of the corner to
+            # the first sample kept (two such walks from one corner part at once)
+            near = piece.mesh.closest_points(xs)
+            from_a = np.linalg.norm(xs - xs[0], axis=1)
+            from_b = np.linalg.norm(xs - xs[-1], axis=1)
+            off_a = near.distance[from_a <= cap[k, 0]].max(initial=0.0)
+            off_b = near.distance[from_b <= cap[k, 1]].max(initial=0.0)
+            clear = tuple(
+                0.0
+                if off <= exact
+                else min(CORNER_CLEARANCE * max(off, edge) * spread[k, e], cap[k, e])
+                for e, off in enumerate((off_a, off_b))
+            )
+            keep = (from_a > clear[0]) & (from_b > clear[1])
+            keep[0] = keep[-1] = False
+            if not keep.any():
+                keep[len(xs) // 2] = True
+            mid = xs[keep]
             local = _to_local(piece, corners[ends[k]], f"curve {k}'s corners")
-            (c,) = _between_corners(moved, [len(xs) - 2], local, np.array([[0, 1]]), curve.kind)
+            moved = near.points[np.flatnonzero(keep)]
+            a_out = _walk_out(piece.mesh, local[np.array([0])], mid[0], spacing, clear[0])
+            b_out = _walk_out(piece.mesh, local[np.array([1])], mid[-1], spacing, clear[1])
+            pts = SurfacePoints.concatenate(
+                [local[np.array([0])], a_out, moved, b_out[::-1], local[np.array([1])]]
+            )
+            same = (pts.face[1:] == pts.face[:-1]) & (pts.bary[1:] == pts.bary[:-1]).all(axis=1)
+            pts = pts[np.flatnonzero(np.concatenate([[True], ~same]))]
+            c = SurfaceCurve(pts, False, curve.kind)
             (c,) = densify_curves(piece.mesh, [_without_reversals(piece.mesh, c)])
             curves[k] = SurfaceCurve(_to_store(piece, c.points), c.closed, c.kind)
     return CarriedNetwork(corners, [c for c in curves if c is not None])
