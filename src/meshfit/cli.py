@@ -32,6 +32,7 @@ _COMMAND_MODULES: tuple[str, ...] = (
     "meshfit.shrinkwrap.cli",
     "meshfit.springs.cli",
     "meshfit.fit_cli",
+    "meshfit.pipeline.prepare",
     "meshfit.ui.cli",
 )
 
@@ -215,6 +216,7 @@ COMPILING = {
     "layout": "fit",
     "springs": "fit",
     "fit": "fit",
+    "prepare": "fit",
     "rebuild": "fit",
     "wrap": "wrap",
     "stream": "wrap",

@@ -130,11 +130,14 @@ def prepare_out_of_core(
     seconds["store"] = time.perf_counter() - t
     t = time.perf_counter()
     target = int(PROXY_FACES if proxy_faces is None else proxy_faces)
-    proxy = simplify_store(store, min(target, store.n_faces), workers=threads).mesh
+    proxy = simplify_store(
+        store, min(target, store.n_faces), workers=threads, progress=step("proxy")
+    ).mesh
     seconds["proxy"] = time.perf_counter() - t
     t = time.perf_counter()
     layout = auto_layout(proxy, opts)
     cut_proxy = extract_patches(proxy, layout, workers=threads)
+    step("layout")(1, 1)
     seconds["layout"] = time.perf_counter() - t
     t = time.perf_counter()
     pstore = assign_faces(
@@ -144,6 +147,7 @@ def prepare_out_of_core(
     seconds["assign"] = time.perf_counter() - t
     t = time.perf_counter()
     network = carry_network(store, pstore, proxy, layout)
+    step("carry")(1, 1)
     seconds["carry"] = time.perf_counter() - t
     t = time.perf_counter()
     (root / "cut").mkdir()
@@ -162,3 +166,76 @@ def prepare_out_of_core(
     )
     seconds["cut"] = time.perf_counter() - t
     return Prepared(root, store, proxy, layout, pstore, network, files, seconds)
+
+
+def add_commands(sub) -> None:
+    """Add ``meshfit prepare MESH --out FOLDER`` to the CLI's sub-parsers."""
+    from meshfit._cliargs import own_inputs
+
+    p = sub.add_parser(
+        "prepare",
+        help="cut a scan too large to hold whole into patch files, out of core",
+        description=(
+            "Read the mesh into a bricked, memory-mapped store (a binary PLY of triangles is "
+            "never read whole), simplify a proxy from it brick by brick, lay the proxy out, "
+            "sort the scan's faces into its patches and cut each patch from the scan along "
+            "the layout's curves carried over, one patch at a time. The folder then holds "
+            "mesh/ (the store), patches/ (the faces by patch) and cut/patch-<p>.npz (what "
+            "the spring-mesh tasks read)."
+        ),
+    )
+    p.add_argument("mesh", help="mesh file (a binary .ply of triangles streams)")
+    p.add_argument("--out", required=True, help="new or empty output folder")
+    p.add_argument(
+        "--proxy-faces",
+        type=int,
+        default=None,
+        metavar="N",
+        help="faces of the proxy the layout is made on (default: as the fit's)",
+    )
+    p.add_argument("--workers", type=int, default=None, help="threads (default: one per core)")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    own_inputs(p, ("mesh",), ("out",))
+    p.set_defaults(func=cmd_prepare)
+
+
+def cmd_prepare(args) -> int:
+    """``meshfit prepare``: the summary of :func:`prepare_out_of_core`."""
+    import resource
+    import sys
+
+    from meshfit._cliout import print_json, print_table
+    from meshfit._progress import stage_progress
+
+    if args.proxy_faces is not None and args.proxy_faces < 20:
+        raise errors.InputError(f"--proxy-faces must be >= 20, got {args.proxy_faces}")
+    mesh = Path(args.mesh)
+    if not mesh.is_file():
+        raise errors.MeshFileError(f"{mesh}: no such file")
+    with stage_progress(quiet=args.json) as show:
+        res = prepare_out_of_core(
+            mesh,
+            args.out,
+            proxy_faces=args.proxy_faces,
+            workers=args.workers,
+            progress=show,
+        )
+    rows = int(res.patch_store.faces.shape[0])
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # (KiB on Linux)
+    out = {
+        "mesh": str(mesh),
+        "folder": str(res.folder),
+        "faces": res.store.n_faces,
+        "dropped_faces": res.store.dropped_faces,
+        "bricks": res.store.n_bricks,
+        "proxy_faces": int(res.proxy.n_faces),
+        "patches": len(res.patch_files),
+        "patch_rows_per_face": round(rows / max(res.store.n_faces, 1), 3),
+        "seconds": {k: round(v, 3) for k, v in res.seconds.items()},
+        "peak_rss_mib": round(peak if sys.platform != "darwin" else peak / 1024, 1),
+    }
+    if args.json:
+        print_json(out)
+    else:
+        print_table(f"prepared {mesh.name}", out)
+    return 0
