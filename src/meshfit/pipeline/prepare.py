@@ -26,8 +26,15 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from meshfit import errors
+
+if TYPE_CHECKING:
+    from meshfit.layout import Layout
+    from meshfit.layout.outofcore import CarriedNetwork, PatchStore
+    from meshfit.mesh import Mesh
+    from meshfit.mesh.store import MeshStore
 
 __all__ = ["Prepared", "prepare_out_of_core"]
 
@@ -58,11 +65,11 @@ class Prepared:
     """
 
     folder: Path
-    store: object
-    proxy: object
-    layout: object
-    patch_store: object
-    network: object
+    store: MeshStore
+    proxy: Mesh
+    layout: Layout
+    patch_store: PatchStore
+    network: CarriedNetwork
     patch_files: list[Path]
     seconds: dict[str, float]
 
