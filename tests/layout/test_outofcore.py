@@ -91,23 +91,6 @@ def test_the_halo_holds_every_face_a_brute_force_search_finds(spot_cut, tmp_path
             assert d[label == q].min() <= bound
 
 
-def test_a_proxy_layout_sorts_a_scan_of_any_genus(tmp_path):
-    mesh = tori(2)
-    store = write_store(mesh, tmp_path / "s", brick_faces=1500)
-    proxy = simplify_store(store, mesh.n_faces // 4).mesh
-    patches = extract_patches(proxy, auto_layout(proxy))
-    ps = assign_faces(store, patches, tmp_path / "p")
-    assert ps.n_patches == len(patches)
-    assert int(ps.core.sum()) == store.n_faces
-    # a patch's core faces of the scan cover about its area on the proxy
-    for p in patches:
-        piece = ps.piece(p.index, store.vertices)
-        area = piece.mesh.face_areas[piece.core].sum()
-        assert abs(area - p.mesh.face_areas.sum()) < 0.25 * p.mesh.face_areas.sum()
-    reopened = open_patch_store(tmp_path / "p")
-    np.testing.assert_array_equal(reopened.faces, ps.faces)
-
-
 def test_bad_calls_are_refused(spot_cut, tmp_path):
     _, store, patches = spot_cut
     (tmp_path / "full").mkdir()
@@ -189,7 +172,15 @@ def test_a_scan_is_cut_along_its_proxy_layout(tmp_path, name):
     store = write_store(mesh, tmp_path / "s", brick_faces=brick)
     proxy = simplify_store(store, mesh.n_faces // share).mesh
     layout = auto_layout(proxy, opts)
-    ps = assign_faces(store, extract_patches(proxy, layout), tmp_path / "p")
+    cut_proxy = extract_patches(proxy, layout)
+    ps = assign_faces(store, cut_proxy, tmp_path / "p")
+    assert ps.n_patches == len(cut_proxy) and int(ps.core.sum()) == store.n_faces
+    # a patch's core faces of the scan cover about its area on the proxy
+    for p in cut_proxy:
+        piece = ps.piece(p.index, store.vertices)
+        area = piece.mesh.face_areas[piece.core].sum()
+        assert abs(area - p.mesh.face_areas.sum()) < 0.25 * p.mesh.face_areas.sum()
+    np.testing.assert_array_equal(open_patch_store(tmp_path / "p").faces, ps.faces)
     got = _cut_all(store, ps, layout, proxy)
     _covers_once(mesh, store, got)
     # the two sides of a curve are cut along the same line of the scan (a side may hold
