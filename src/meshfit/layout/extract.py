@@ -116,15 +116,16 @@ def _piece(
     return sub, used, chi
 
 
-def _compute_partition(
-    mesh: Mesh,
-    layout: Layout,
-    progress: Callable[[int, int], None] | None,
-    workers: int | None,
-) -> tuple[NetworkCutArrays, list[_Region], int]:
+def _cut_regions(mesh: Mesh, layout: Layout, scale: tuple[float, float] | None):
+    """The mesh cut along the layout's curves (tolerances scaled by ``scale``, see
+    :func:`meshfit.surface.cut.network_cut_arrays`) and its regions: ``(cut, along,
+    is_corner, n_regions, order, starts)``, region ``c``'s faces of the cut mesh being
+    ``order[starts[c]:starts[c + 1]]``, ascending."""
     check_layout(mesh, layout)
     try:
-        res = network_cut_arrays(mesh, list(layout.curves), layout.corners, layout.curve_ends)
+        res = network_cut_arrays(
+            mesh, list(layout.curves), layout.corners, layout.curve_ends, scale=scale
+        )
     except CutError as exc:
         raise LayoutError(str(exc)) from None
     copy_of = res.copy_of
@@ -133,13 +134,22 @@ def _compute_partition(
     along = _Along(res.curve_vertices, n_ref)
     is_corner = np.zeros(n_ref, dtype=np.bool_)
     is_corner[res.corners] = True
-
     # the regions: faces joined through shared vertices (the split leaves one fan of faces
     # around every vertex, so these are the edge-connected pieces), numbered by first face
     n_comp, labels = vertex_face_components(res.faces, res.vertices.shape[0])
-    # faces by component, ascending within each: component c's are order[starts[c]:starts[c+1]]
     order = np.argsort(labels, kind="stable")
     starts = np.searchsorted(labels[order], np.arange(n_comp + 1))
+    return res, along, is_corner, n_comp, order, starts
+
+
+def _compute_partition(
+    mesh: Mesh,
+    layout: Layout,
+    progress: Callable[[int, int], None] | None,
+    workers: int | None,
+) -> tuple[NetworkCutArrays, list[_Region], int]:
+    res, along, is_corner, n_comp, order, starts = _cut_regions(mesh, layout, None)
+    copy_of = res.copy_of
     first_face = order[starts[:-1]]
     # each region checked as a mesh of its own (the pieces make up the cut mesh) and its
     # boundary loops traced, on threads (the numpy work and the kernels release the GIL)
@@ -558,27 +568,33 @@ def extract_patch_within(
     :func:`meshfit.surface.cut.network_cut_arrays`: the whole surface's, so that the
     pieces of two patches are cut alike along the curve they share.
 
+    Parameters
+    ----------
+    mesh : Mesh
+        The piece (the layout was made for it).
+    layout : Layout
+    patch : int
+    scale : (float, float), keyword-only, optional
+        Mean edge length and bounding-box diagonal, model units.
+
+    Returns
+    -------
+    Patch
+        As :func:`extract_patches` gives it, of ``mesh``.
+
     Raises
     ------
     meshfit.errors.LayoutError
         No region, or more than one, is bounded by the patch's sides.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 1.3, fig. 1.2 (polygonal patches bounded by the painted
+       curves), sec. 5.3 (each patch resampled on its own).
     """
-    check_layout(mesh, layout)
-    try:
-        res = network_cut_arrays(
-            mesh, list(layout.curves), layout.corners, layout.curve_ends, scale=scale
-        )
-    except CutError as exc:
-        raise LayoutError(str(exc)) from None
+    res, along, is_corner, n_comp, order, starts = _cut_regions(mesh, layout, scale)
     copy_of = res.copy_of
-    n_ref = int(max([copy_of.max(initial=0), *(p.max(initial=0) for p in res.curve_vertices)])) + 1
-    along = _Along(res.curve_vertices, n_ref)
-    is_corner = np.zeros(n_ref, dtype=np.bool_)
-    is_corner[res.corners] = True
     by_set = {frozenset(layout.patch_curves[patch].tolist()): [patch]}
-    n_comp, labels = vertex_face_components(res.faces, res.vertices.shape[0])
-    order = np.argsort(labels, kind="stable")
-    starts = np.searchsorted(labels[order], np.arange(n_comp + 1))
     found: list[_Region] = []
     for c in range(n_comp):
         faces = order[starts[c] : starts[c + 1]]

@@ -23,8 +23,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import shutil
-import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,9 +32,9 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from meshfit import errors, tol
-from meshfit._jsonio import read_json_file
 from meshfit._threads import map_threads, n_workers
 from meshfit.mesh import Mesh
+from meshfit.mesh.store import check_new_folder, load_array, read_meta, writing_folder
 from meshfit.types import SurfaceCurve, SurfacePoints
 
 __all__ = [
@@ -147,17 +145,9 @@ def open_patch_store(folder: str | os.PathLike) -> PatchStore:
         Not a patch store, another version, or arrays that disagree with ``patches.json``.
     """
     root = Path(folder)
-    meta_path = root / "patches.json"
-    if not meta_path.is_file():
-        raise errors.InputError(f"{root}: not a patch store (no patches.json)")
-    meta = read_json_file(meta_path, error=errors.InputError)
-    if not isinstance(meta, dict) or meta.get("format") != PATCHES_FORMAT:
-        raise errors.InputError(f"{meta_path}: not a {PATCHES_FORMAT} file")
-    if meta.get("version") != PATCHES_VERSION:
-        raise errors.InputError(
-            f"{meta_path}: patch store version {meta.get('version')!r}; this meshfit reads "
-            f"version {PATCHES_VERSION}"
-        )
+    meta_path, meta = read_meta(
+        root, "patches.json", PATCHES_FORMAT, PATCHES_VERSION, "patch store"
+    )
     try:
         n, n_patches, halo = int(meta["n_rows"]), int(meta["n_patches"]), float(meta["halo"])
         scale = (float(meta["scale"][0]), float(meta["scale"][1]))
@@ -165,16 +155,7 @@ def open_patch_store(folder: str | os.PathLike) -> PatchStore:
         raise errors.InputError(f"{meta_path}: missing or malformed field ({exc})") from None
 
     def load(name: str, shape: tuple[int, ...], dtype) -> NDArray:
-        try:
-            a = np.load(root / name, mmap_mode="r", allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise errors.InputError(f"{root / name}: cannot read ({exc})") from None
-        if a.shape != shape or a.dtype != np.dtype(dtype):
-            raise errors.InputError(
-                f"{root / name}: {a.dtype}{list(a.shape)} where patches.json says "
-                f"{np.dtype(dtype)}{list(shape)}"
-            )
-        return a
+        return load_array(root, name, shape, dtype, "patches.json")
 
     if min(n, n_patches) < 0:
         raise errors.InputError(f"{meta_path}: negative counts")
@@ -291,8 +272,7 @@ def assign_faces(
         distance from the proxy add up to more are searched for that face alone).
     """
     root = Path(folder)
-    if root.exists() and (not root.is_dir() or any(root.iterdir())):
-        raise errors.InputError(f"{root}: exists and is not an empty folder")
+    check_new_folder(root)
     if not patches:
         raise errors.InputError("no patches to sort the faces into")
     n_patches = len(patches)
@@ -320,9 +300,7 @@ def assign_faces(
     s_pairs = _halo_pairs(tree, sample_patch, sc, s_reach, soup_patch, n_patches)
     s_ptr = np.searchsorted(s_pairs[:, 0], np.arange(soup.n_faces + 1))
     nb = store.n_bricks
-    root.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{root.name}.", dir=root.parent))
-    try:
+    with writing_folder(root) as tmp:
         # 1. per brick: each face's core patch and its halo patches, as (face, patch, core)
         # rows kept in the scratch folder; rows per patch counted
         def rows_of(b: int) -> tuple[NDArray[np.int64], float]:
@@ -402,12 +380,6 @@ def assign_faces(
             ],
         }
         (tmp / "patches.json").write_text(json.dumps(meta, indent=1))
-        if root.exists():
-            root.rmdir()
-        tmp.rename(root)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return open_patch_store(root)
 
 
@@ -510,20 +482,21 @@ def _clearances(proxy: Mesh, layout) -> tuple[NDArray[np.float64], NDArray[np.fl
             far = np.flatnonzero(d >= min(proxy.mean_edge_length, d.max()))
             v = y[far[0]] - a
             direction[k, e] = v / max(float(np.linalg.norm(v)), 1e-300)
-    out = np.zeros((n, 2))
+    out = np.zeros(2 * n)
     cap = np.repeat(chord[:, None] / 3.0, 2, axis=1)
-    for k in range(n):
-        for e in range(2):
-            c = ends[k, e]
-            others = [
-                (j, f) for j in range(n) for f in range(2) if ends[j, f] == c and (j, f) != (k, e)
-            ]
-            if not others:
-                continue
-            cos = max(float(direction[k, e] @ direction[j, f]) for j, f in others)
-            half = 0.5 * np.arccos(np.clip(cos, -1.0, 1.0))
-            out[k, e] = 1.0 / max(2.0 * np.sin(half), 1e-12)
-    return out, cap
+    # the curve ends at each corner together: the largest cosine to another end there
+    flat_dir = direction.reshape(-1, 3)
+    at = ends.reshape(-1)
+    order = np.argsort(at, kind="stable")
+    bounds = np.flatnonzero(np.diff(at[order])) + 1
+    for group in np.split(order, bounds):
+        if group.size < 2:
+            continue
+        cos = flat_dir[group] @ flat_dir[group].T
+        np.fill_diagonal(cos, -np.inf)
+        half = 0.5 * np.arccos(np.clip(cos.max(axis=1), -1.0, 1.0))
+        out[group] = 1.0 / np.maximum(2.0 * np.sin(half), 1e-12)
+    return out.reshape(n, 2), cap
 
 
 def carry_network(store, pstore: PatchStore, proxy: Mesh, layout) -> CarriedNetwork:
@@ -533,7 +506,26 @@ def carry_network(store, pstore: PatchStore, proxy: Mesh, layout) -> CarriedNetw
     (so two curves that leave a corner close together stay apart, as the projection of a
     nearby surface onto the scan does not fold), points where the carried curve turns back
     dropped, and the rest joined on the scan's surface (as the in-memory proxy layout
-    carries its curves, :mod:`meshfit.layout.auto`). One piece at a time is in memory."""
+    carries its curves, :mod:`meshfit.layout.auto`). One piece at a time is in memory.
+
+    Parameters
+    ----------
+    store : MeshStore
+    pstore : PatchStore
+        The store's faces sorted into the layout's patches (:func:`assign_faces`).
+    proxy : Mesh
+    layout : Layout
+        Made on ``proxy``.
+
+    Returns
+    -------
+    CarriedNetwork
+
+    Raises
+    ------
+    meshfit.errors.LayoutError
+        A curve or corner on no patch, or a carried curve outside its patch's piece.
+    """
     from meshfit.curves.base import densify_curves
     from meshfit.layout.auto import _without_reversals
 
@@ -610,9 +602,30 @@ def cut_patch(store, pstore: PatchStore, layout, network: CarriedNetwork, p: int
     (:func:`meshfit.layout.extract.extract_patch_within`), its ``face_parent`` and
     ``vertex_source`` in store faces.
 
+    Parameters
+    ----------
+    store : MeshStore
+    pstore : PatchStore
+    layout : Layout
+        The proxy's.
+    network : CarriedNetwork
+        ``layout`` carried to the scan (:func:`carry_network`).
+    p : int
+
     Returns
     -------
     Patch
+        Its mesh a submesh of the piece (vertices in model units).
+
+    Raises
+    ------
+    meshfit.errors.LayoutError
+        A side that leaves the piece, or sides that cross or touch away from the corners.
+
+    References
+    ----------
+    .. [1] Krishnamurthy 2000, sec. 5.3 (each patch resampled on its own), sec. 8.1.3
+       (patches sharing boundary curves and corners).
     """
     from meshfit.layout.extract import extract_patch_within
     from meshfit.layout.layout import layout_from_curves

@@ -28,6 +28,7 @@ import os
 import shutil
 import tempfile
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -60,6 +61,61 @@ MORTON_BITS = 6
 
 #: ``progress(done, total)`` after each chunk of a pass
 Progress = Callable[[int, int], None]
+
+
+def check_new_folder(root: Path) -> None:
+    """InputError unless ``root`` is missing or an empty folder (a store never writes over
+    anything)."""
+    if root.exists() and (not root.is_dir() or any(root.iterdir())):
+        raise errors.InputError(f"{root}: exists and is not an empty folder")
+
+
+@contextmanager
+def writing_folder(root: Path) -> Iterator[Path]:
+    """A temporary sibling of the new folder ``root`` to write into, renamed to ``root``
+    when the block ends, removed when it raises: a failed write leaves nothing."""
+    check_new_folder(root)
+    root.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{root.name}.", dir=root.parent))
+    try:
+        yield tmp
+        if root.exists():
+            root.rmdir()  # (empty: checked above)
+        tmp.rename(root)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
+def read_meta(root: Path, name: str, fmt: str, version: int, what: str) -> tuple[Path, dict]:
+    """The versioned JSON ``name`` of a folder of arrays: its path and content, checked to be
+    format ``fmt``, version ``version`` (InputError naming the file otherwise)."""
+    path = root / name
+    if not path.is_file():
+        raise errors.InputError(f"{root}: not a {what} (no {name})")
+    meta = read_json_file(path, error=errors.InputError)
+    if not isinstance(meta, dict) or meta.get("format") != fmt:
+        raise errors.InputError(f"{path}: not a {fmt} file")
+    if meta.get("version") != version:
+        raise errors.InputError(
+            f"{path}: {what} version {meta.get('version')!r}; this meshfit reads version {version}"
+        )
+    return path, meta
+
+
+def load_array(root: Path, name: str, shape: tuple[int, ...], dtype, meta_name: str) -> NDArray:
+    """``root / name`` memory-mapped read-only, checked to have ``shape`` and ``dtype`` as
+    ``meta_name`` says (InputError naming the file otherwise)."""
+    try:
+        a = np.load(root / name, mmap_mode="r", allow_pickle=False)
+    except (OSError, ValueError) as exc:
+        raise errors.InputError(f"{root / name}: cannot read ({exc})") from None
+    if a.shape != shape or a.dtype != np.dtype(dtype):
+        raise errors.InputError(
+            f"{root / name}: {a.dtype}{list(a.shape)} where {meta_name} says "
+            f"{np.dtype(dtype)}{list(shape)}"
+        )
+    return a
 
 
 @dataclass(frozen=True, eq=False)
@@ -118,17 +174,7 @@ def open_store(folder: str | os.PathLike) -> MeshStore:
         Not a store, another format or version, or arrays that disagree with ``store.json``.
     """
     root = Path(folder)
-    meta_path = root / "store.json"
-    if not meta_path.is_file():
-        raise errors.InputError(f"{root}: not a mesh store (no store.json)")
-    meta = read_json_file(meta_path, error=errors.InputError)
-    if not isinstance(meta, dict) or meta.get("format") != STORE_FORMAT:
-        raise errors.InputError(f"{meta_path}: not a {STORE_FORMAT} file")
-    if meta.get("version") != STORE_VERSION:
-        raise errors.InputError(
-            f"{meta_path}: store version {meta.get('version')!r}; this meshfit reads "
-            f"version {STORE_VERSION}"
-        )
+    meta_path, meta = read_meta(root, "store.json", STORE_FORMAT, STORE_VERSION, "mesh store")
     try:
         nv, nf, nb = (int(meta[k]) for k in ("n_vertices", "n_faces", "n_bricks"))
         bbox = np.array(meta["bbox"], dtype=np.float64).reshape(2, 3)
@@ -137,16 +183,7 @@ def open_store(folder: str | os.PathLike) -> MeshStore:
         raise errors.InputError(f"{meta_path}: missing or malformed field ({exc})") from None
 
     def load(name: str, shape: tuple[int, ...], dtype) -> NDArray:
-        try:
-            a = np.load(root / name, mmap_mode="r", allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise errors.InputError(f"{root / name}: cannot read ({exc})") from None
-        if a.shape != shape or a.dtype != np.dtype(dtype):
-            raise errors.InputError(
-                f"{root / name}: {a.dtype}{list(a.shape)} where store.json says "
-                f"{np.dtype(dtype)}{list(shape)}"
-            )
-        return a
+        return load_array(root, name, shape, dtype, "store.json")
 
     if min(nv, nf, nb) < 0:
         raise errors.InputError(f"{meta_path}: negative counts")
@@ -201,8 +238,7 @@ class _PlyInPlace(_Source):
 
     def face_chunk(self, a: int, b: int) -> NDArray[np.int64]:
         r = self.frows[a:b]
-        bad = np.flatnonzero(r["n"] != 3)
-        if bad.size:
+        if (r["n"] != 3).any():
             raise _NotTriangles
         return r[self.index].astype(np.int64)
 
@@ -357,8 +393,7 @@ def write_store(
             f"brick_faces and chunk_faces must be >= 1, got {brick_faces}, {chunk_faces}"
         )
     root = Path(folder)
-    if root.exists() and (not root.is_dir() or any(root.iterdir())):
-        raise errors.InputError(f"{root}: exists and is not an empty folder")
+    check_new_folder(root)
     if isinstance(source, (str, os.PathLike)) and Path(source).resolve() == root.resolve():
         raise errors.InputError(f"{root}: the store cannot replace its own input")
     src, how = _open_source(source)
@@ -372,9 +407,7 @@ def write_store(
 
 def _write(src: _Source, root: Path, how: str, brick_faces: int, step: int, progress) -> MeshStore:
     nv, nf = src.n_vertices, src.n_faces
-    root.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{root.name}.", dir=root.parent))
-    try:
+    with writing_folder(root) as tmp:
         total = 3 * nf + nv
         done = 0
         # 1. vertices: copied as float64, checked finite, bounding box
@@ -474,10 +507,4 @@ def _write(src: _Source, root: Path, how: str, brick_faces: int, step: int, prog
             "read": how,
         }
         (tmp / "store.json").write_text(json.dumps(meta, indent=1))
-        if root.exists():
-            root.rmdir()  # (empty: checked above)
-        tmp.rename(root)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return open_store(root)

@@ -113,14 +113,13 @@ def prepare_out_of_core(
     from meshfit.layout.auto import PROXY_FACES, LayoutOptions, auto_layout
     from meshfit.layout.extract import extract_patches
     from meshfit.layout.outofcore import assign_faces, carry_network, cut_patch
-    from meshfit.mesh.store import write_store
+    from meshfit.mesh.store import check_new_folder, write_store
     from meshfit.pipeline.cluster import _patch_arrays
     from meshfit.pipeline.store import save_npz
     from meshfit.shrinkwrap.proxy import simplify_store
 
     root = Path(folder)
-    if root.exists() and (not root.is_dir() or any(root.iterdir())):
-        raise errors.InputError(f"{root}: exists and is not an empty folder")
+    check_new_folder(root)
     opts = layout_options or replace(LayoutOptions(), crease_angle=None)
     threads = n_workers(workers)
     seconds: dict[str, float] = {}
@@ -208,10 +207,8 @@ def add_commands(sub) -> None:
 
 def cmd_prepare(args) -> int:
     """``meshfit prepare``: the summary of :func:`prepare_out_of_core`."""
-    import resource
-    import sys
-
     from meshfit._cliout import print_json, print_table
+    from meshfit._malloc import peak_rss
     from meshfit._progress import stage_progress
 
     if args.proxy_faces is not None and args.proxy_faces < 20:
@@ -228,7 +225,7 @@ def cmd_prepare(args) -> int:
             progress=show,
         )
     rows = int(res.patch_store.faces.shape[0])
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # (KiB on Linux)
+    peak = peak_rss()
     out = {
         "mesh": str(mesh),
         "folder": str(res.folder),
@@ -239,7 +236,7 @@ def cmd_prepare(args) -> int:
         "patches": len(res.patch_files),
         "patch_rows_per_face": round(rows / max(res.store.n_faces, 1), 3),
         "seconds": {k: round(v, 3) for k, v in res.seconds.items()},
-        "peak_rss_mib": round(peak if sys.platform != "darwin" else peak / 1024, 1),
+        "peak_rss_mib": None if peak is None else round(peak / 2**20, 1),
     }
     if args.json:
         print_json(out)
