@@ -99,15 +99,32 @@ def _short_summary(summary: dict) -> dict:
 
 def cmd_fit(args: argparse.Namespace) -> int:
     """Fit B-spline patches with displacement maps to one mesh."""
-    from meshfit._cliout import EXIT_OK, print_json, print_table
-    from meshfit.pipeline import fit
+
+    from meshfit.pipeline.prepare import is_prepared
 
     options = _options(args)
+    if is_prepared(args.mesh):  # a folder of ``meshfit prepare``: fitted out of core
+        layout = args.layout not in (None, "auto")
+        if layout or args.fill_holes:
+            flag = "--layout" if layout else "--fill-holes"
+            raise InputError(
+                f"{flag} does not apply to a prepared folder (its layout and holes were "
+                "settled when it was prepared)"
+            )
+        return _cmd_fit_on(args, options, args.mesh)
     mesh = load_cli_mesh(args.mesh, args.repair)
     if args.fill_holes and not mesh.is_closed:
         from meshfit.shrinkwrap import fill_holes
 
         mesh = fill_holes(mesh)
+    return _cmd_fit_on(args, options, mesh)
+
+
+def _cmd_fit_on(args: argparse.Namespace, options, mesh) -> int:
+    """The rest of ``meshfit fit`` on a loaded mesh or a prepared folder's path."""
+    from meshfit._cliout import EXIT_OK, print_json, print_table
+    from meshfit.pipeline import fit
+
     out = Path(args.out) if args.out else Path(Path(args.mesh).stem + "-fit")
     cluster = _cluster(args)
     with stage_progress(quiet=args.json) as prog:
@@ -392,7 +409,8 @@ def add_commands(sub) -> None:
     p.add_argument(
         "mesh",
         nargs="+",
-        help="mesh file (.ply .obj .stl .off .glb .gltf); or spring-mesh .npz grids",
+        help="mesh file (.ply .obj .stl .off .glb .gltf), a folder of meshfit prepare (fitted "
+        "out of core), or spring-mesh .npz grids",
     )
     p.add_argument("--out", default=None, help="output folder (default: <mesh name>-fit)")
     _common(p)

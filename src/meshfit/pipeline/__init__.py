@@ -7,8 +7,9 @@ exports and rebuilds from edited maps. The package holds one idea per module:
 :mod:`.options` (what the user chooses, grouped by stage), :mod:`.runner` (content keys,
 cache, progress), :mod:`.stages` (the stage objects), :mod:`.measure` (errors against the
 input), :mod:`.notes`, :mod:`.springs` (the per-patch task), :mod:`.cluster` (the per-patch
-work of one fit as Dask tasks), :mod:`.outputs` (exports and the manifest), :mod:`.result`
-and :mod:`.rebuild`. Continuity lives in :mod:`meshfit.stitch`.
+work of one fit as Dask tasks), :mod:`.prepare` and :mod:`.prepared_stages` (a scan too
+large to hold whole, prepared and fitted out of core), :mod:`.outputs` (exports and the
+manifest), :mod:`.result` and :mod:`.rebuild`. Continuity lives in :mod:`meshfit.stitch`.
 
 Stitching
 ---------
@@ -32,6 +33,7 @@ from meshfit.pipeline.options import (
     OutputOptions,
     SplineOptions,
 )
+from meshfit.pipeline.prepare import Prepared, open_prepared, prepare_out_of_core
 from meshfit.pipeline.result import FitResult, PatchFit, load_fit
 from meshfit.pipeline.run import fit
 from meshfit.pipeline.springs import patch_payload, spring_patch, spring_task
@@ -49,12 +51,15 @@ __all__ = [
     "MapOptions",
     "OutputOptions",
     "PatchFit",
+    "Prepared",
     "SplineOptions",
     "SpringOptions",
     "fit",
     "load_fit",
     "mesh_hash",
+    "open_prepared",
     "patch_payload",
+    "prepare_out_of_core",
     "spring_patch",
     "spring_task",
 ]

@@ -62,6 +62,7 @@ __all__ = [
     "PatchTasks",
     "map_file_task",
     "patch_tasks",
+    "piece_map_task",
     "resolve_cluster",
     "spring_file_task",
     "warm_task",
@@ -317,6 +318,19 @@ class PatchTasks:
             progress,
         )
 
+    def spring_files(
+        self,
+        paths: Sequence[Path],
+        options,
+        cost: Sequence[float],
+        progress: Callable[[int, int], None],
+    ) -> list:
+        """Each patch's ``(grid, info)`` from patch files already written (a prepared scan's
+        ``cut/patch-<p>.npz``), one task per file."""
+        self._readable(Path(paths[0]))
+        items = [(spring_file_task, str(path), options) for path in paths]
+        return self._run("springs", items, cost, progress)
+
     def maps(
         self,
         mesh,
@@ -325,16 +339,22 @@ class PatchTasks:
         shapes: Sequence[tuple[int, int]],
         kind: str,
         progress: Callable[[int, int], None],
+        prepared: Path | None = None,
     ) -> list:
         """Each patch's displacement map and its texels' bounds
         (:func:`meshfit.pipeline.stages.patch_displacement`),
         one task per patch reading the patch's ``map-<p>.npz`` (and the scan, where the map is
-        finer than the spring grid)."""
+        finer than the spring grid: ``mesh``, written once for the tasks, or with
+        ``prepared``, the folder of a prepared scan, the patch's piece of it, which the task
+        reads from the stores there)."""
         from meshfit.displacement import DisplacementMap
 
         folder = self.folder()
         finer = [tuple(sh) != tuple(g.shape[:2]) for g, sh in zip(grids, shapes, strict=True)]
-        scan = _write_scan(mesh, folder / "scan") if any(finer) else None
+        if prepared is not None:
+            scan = None
+        else:
+            scan = _write_scan(mesh, folder / "scan") if any(finer) else None
         items = []
         for p, (s, g, sh) in enumerate(zip(surfaces, grids, shapes, strict=True)):
             path = save_npz(
@@ -347,7 +367,11 @@ class PatchTasks:
                     "shape": np.asarray(sh, dtype=np.int64),
                 },
             )
-            items.append((map_file_task, str(path), kind, str(scan) if finer[p] else None))
+            if prepared is not None:
+                piece = (str(prepared), p) if finer[p] else None
+                items.append((piece_map_task, str(path), kind, piece))
+            else:
+                items.append((map_file_task, str(path), kind, str(scan) if finer[p] else None))
         self._readable(Path(items[0][1]))
         res = self._run("displacement", items, [sh[0] * sh[1] for sh in shapes], progress)
         return [(DisplacementMap(v, kind), b) for v, b in res]
@@ -498,6 +522,33 @@ def map_file_task(
     mesh = None if scan is None else _scan(scan)
     dmap, bounds = patch_displacement(mesh, surface, z["grid"], shape, kind)
     return dmap.values, bounds
+
+
+def piece_map_task(
+    path: str, kind: str, piece: tuple[str, int] | None
+) -> tuple[NDArray[np.float64], NDArray[np.float32]]:
+    """Task body: as :func:`map_file_task`, the scan searched being ``piece = (folder, p)``:
+    patch ``p``'s piece (its faces and their halo) of the prepared scan in ``folder``
+    (:func:`meshfit.pipeline.prepare.prepare_out_of_core`), read from its stores."""
+    from meshfit.bspline import BSplineSurface
+    from meshfit.pipeline.stages import patch_displacement
+
+    z = load_npz(Path(path))
+    surface = BSplineSurface(z["control_points"], z["knots_u"], z["knots_v"])
+    shape = (int(z["shape"][0]), int(z["shape"][1]))
+    mesh = None if piece is None else piece_mesh(Path(piece[0]), int(piece[1]))
+    dmap, bounds = patch_displacement(mesh, surface, z["grid"], shape, kind)
+    return dmap.values, bounds
+
+
+def piece_mesh(folder: Path, p: int):
+    """Patch ``p``'s piece of the prepared scan in ``folder``: a :class:`Mesh` of its core
+    and halo faces (:meth:`meshfit.layout.outofcore.PatchStore.piece`)."""
+    from meshfit.layout.outofcore import open_patch_store
+    from meshfit.mesh.store import open_store
+
+    store = open_store(folder / "mesh")
+    return open_patch_store(folder / "patches").piece(p, store.vertices).mesh
 
 
 #: the scan's arrays in its folder, each an ``.npy`` file: the mesh, its face normals and the

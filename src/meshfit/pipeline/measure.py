@@ -47,19 +47,20 @@ def error_figures(
     input and each input vertex's distance to the reconstruction (``known``, ``order``: see
     `surface_distance`)."""
     a, b = surface_distance(mesh, V, F, tree, known, order)
-    diag = mesh.bbox_diagonal
-    both = np.concatenate([a, b])
-    return (
-        {
-            "rms": float(np.sqrt(np.mean(both**2)) / diag),
-            "hausdorff": float(both.max() / diag),
-            "mean": float(both.mean() / diag),
-            "to_input_max": float(a.max() / diag),
-            "from_input_max": float(b.max() / diag),
-        },
-        a,
-        b,
-    )
+    return figures(a, b, mesh.bbox_diagonal), a, b
+
+
+def figures(to_input: NDArray, from_input: NDArray, diag: float) -> dict[str, float]:
+    """The error figures of two-sided distances (reconstruction vertices to the input, input
+    vertices to the reconstruction) over the diagonal ``diag``."""
+    both = np.concatenate([to_input, from_input])
+    return {
+        "rms": float(np.sqrt(np.mean(both**2)) / diag),
+        "hausdorff": float(both.max() / diag),
+        "mean": float(both.mean() / diag),
+        "to_input_max": float(to_input.max() / diag),
+        "from_input_max": float(from_input.max() / diag),
+    }
 
 
 def texel_grids(surfaces: list, shapes: list[tuple[int, ...]]) -> list[NDArray[np.float64]]:

@@ -36,7 +36,18 @@ if TYPE_CHECKING:
     from meshfit.mesh import Mesh
     from meshfit.mesh.store import MeshStore
 
-__all__ = ["Prepared", "prepare_out_of_core"]
+__all__ = [
+    "PREPARED_FORMAT",
+    "PREPARED_VERSION",
+    "Prepared",
+    "open_prepared",
+    "prepare_out_of_core",
+]
+
+#: the versioned JSON that marks a finished preparation (written last)
+PREPARED_FORMAT = "meshfit-prepared"
+PREPARED_VERSION = 1
+PREPARED_META = "prepared.json"
 
 
 @dataclass(frozen=True, eq=False)
@@ -62,6 +73,11 @@ class Prepared:
         are the store's.
     seconds : dict
         Wall time of each step.
+    name : str
+        The source's file name ("" for arrays).
+    sha256 : str
+        SHA-256 of the store's vertex and face arrays, as
+        :func:`meshfit.pipeline.store.mesh_hash` takes a mesh's (the fit's content key).
     """
 
     folder: Path
@@ -72,6 +88,21 @@ class Prepared:
     network: CarriedNetwork
     patch_files: list[Path]
     seconds: dict[str, float]
+    name: str = ""
+    sha256: str = ""
+
+    @property
+    def bbox_diagonal(self) -> float:
+        """The scan's bounding-box diagonal (of the store's vertices)."""
+        import numpy as np
+
+        return float(np.linalg.norm(self.store.bbox[1] - self.store.bbox[0]))
+
+    def corner_xyz(self):
+        """The layout's corners on the scan: ``(n_corners, 3) float64``."""
+        c = self.network.corners
+        x = self.store.vertices[self.store.faces[c.face]]
+        return (x * c.bary[:, :, None]).sum(axis=1)
 
 
 def prepare_out_of_core(
@@ -171,7 +202,129 @@ def prepare_out_of_core(
         progress=step("cut"),
     )
     seconds["cut"] = time.perf_counter() - t
-    return Prepared(root, store, proxy, layout, pstore, network, files, seconds)
+    name = Path(source).name if isinstance(source, (str, os.PathLike)) else ""
+    name = name or str(getattr(source, "name", "") or "")
+    res = Prepared(
+        root, store, proxy, layout, pstore, network, files, seconds, name, _store_hash(store)
+    )
+    _save(res)
+    return res
+
+
+def _store_hash(store) -> str:
+    """SHA-256 of the store's vertex and face arrays, read a chunk at a time."""
+    import hashlib
+
+    import numpy as np
+
+    from meshfit.mesh.store import CHUNK_FACES
+
+    h = hashlib.sha256()
+    for a in (store.vertices, store.faces):
+        for i in range(0, a.shape[0], CHUNK_FACES):
+            h.update(np.ascontiguousarray(a[i : i + CHUNK_FACES], dtype=a.dtype.newbyteorder("<")))
+    return h.hexdigest()
+
+
+def _save(res: Prepared) -> None:
+    """What a fit reads besides the stores and the patch files: the proxy, its layout, the
+    carried network, and last ``prepared.json`` (whose presence marks a finished
+    preparation)."""
+    import numpy as np
+
+    from meshfit.layout import save_layout
+    from meshfit.pipeline.store import save_npz, write_json
+
+    root = res.folder
+    save_npz(root / "proxy.npz", {"vertices": res.proxy.vertices, "faces": res.proxy.faces})
+    save_layout(res.layout, root / "layout.json", mesh=res.proxy)
+    net = {"corner_face": res.network.corners.face, "corner_bary": res.network.corners.bary}
+    for k, c in enumerate(res.network.curves):
+        net[f"curve_face_{k}"] = c.points.face
+        net[f"curve_bary_{k}"] = c.points.bary
+        net[f"curve_kind_{k}"] = np.array([c.kind])
+    save_npz(root / "network.npz", net)
+    write_json(
+        root / PREPARED_META,
+        {
+            "format": PREPARED_FORMAT,
+            "version": PREPARED_VERSION,
+            "name": res.name,
+            "sha256": res.sha256,
+            "faces": res.store.n_faces,
+            "vertices": res.store.n_vertices,
+            "patches": len(res.patch_files),
+            "curves": len(res.network.curves),
+            "proxy_faces": int(res.proxy.n_faces),
+            "seconds": {k: round(v, 3) for k, v in res.seconds.items()},
+        },
+    )
+
+
+def is_prepared(path) -> bool:
+    """Whether ``path`` is a folder :func:`prepare_out_of_core` finished."""
+    return isinstance(path, (str, os.PathLike)) and (Path(path) / PREPARED_META).is_file()
+
+
+def open_prepared(folder: str | os.PathLike) -> Prepared:
+    """The preparation in ``folder`` (:func:`prepare_out_of_core`), its arrays memory-mapped.
+
+    Raises
+    ------
+    meshfit.errors.InputError
+        Not a finished preparation, another format or version, or files that disagree with
+        ``prepared.json``.
+    """
+    import numpy as np
+
+    from meshfit.layout import load_layout
+    from meshfit.layout.outofcore import CarriedNetwork, open_patch_store
+    from meshfit.mesh import Mesh
+    from meshfit.mesh.store import open_store, read_meta
+    from meshfit.pipeline.store import load_npz
+    from meshfit.types import SurfaceCurve, SurfacePoints
+
+    root = Path(folder)
+    meta_path, meta = read_meta(
+        root, PREPARED_META, PREPARED_FORMAT, PREPARED_VERSION, "prepared scan folder"
+    )
+    try:
+        n, n_curves = int(meta["patches"]), int(meta["curves"])
+        name, sha = str(meta["name"]), str(meta["sha256"])
+        seconds = {str(k): float(v) for k, v in dict(meta["seconds"]).items()}
+    except (KeyError, TypeError, ValueError) as exc:
+        raise errors.InputError(f"{meta_path}: missing or malformed field ({exc})") from None
+    store = open_store(root / "mesh")
+    pstore = open_patch_store(root / "patches")
+    try:
+        z = load_npz(root / "proxy.npz")
+        proxy = Mesh(z["vertices"], z["faces"], name=f"{name} proxy")
+        layout = load_layout(root / "layout.json", proxy, check_topology=False)
+        z = load_npz(root / "network.npz")
+        corners = SurfacePoints(z["corner_face"], z["corner_bary"])
+        curves = [
+            SurfaceCurve(
+                SurfacePoints(z[f"curve_face_{k}"], z[f"curve_bary_{k}"]),
+                False,
+                str(z[f"curve_kind_{k}"][0]),
+            )
+            for k in range(n_curves)
+        ]
+    except (KeyError, OSError, ValueError) as exc:
+        raise errors.InputError(f"{root}: a damaged preparation ({exc})") from None
+    files = [root / "cut" / f"patch-{p}.npz" for p in range(n)]
+    missing = [f for f in files if not f.is_file()]
+    if missing:
+        raise errors.InputError(f"{missing[0]}: missing from the prepared folder")
+    if layout.n_patches != n or pstore.n_patches != n or len(layout.curves) != n_curves:
+        raise errors.InputError(f"{meta_path}: the layout and the patch store disagree with it")
+    for pts in (corners, *(c.points for c in curves)):
+        if pts.face.size and (pts.face.min() < 0 or pts.face.max() >= store.n_faces):
+            raise errors.InputError(f"{root / 'network.npz'}: a face index out of range")
+    if corners.face.size != np.asarray(layout.corners.face).size:
+        raise errors.InputError(f"{root / 'network.npz'}: not the layout's corners")
+    network = CarriedNetwork(corners, curves)
+    return Prepared(root, store, proxy, layout, pstore, network, files, seconds, name, sha)
 
 
 def add_commands(sub) -> None:

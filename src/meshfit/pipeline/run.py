@@ -51,9 +51,11 @@ def fit(
 
     Parameters
     ----------
-    mesh : Mesh or path
+    mesh : Mesh, path or Prepared
         The input; a path is loaded with :func:`meshfit.load_mesh` (harmless defects
-        repaired, with a note).
+        repaired, with a note). A folder of :func:`meshfit.pipeline.prepare_out_of_core`
+        (``meshfit prepare``), or its result, is fitted out of core with the layout it was
+        prepared with (:mod:`meshfit.pipeline.prepared_stages`).
     layout : Layout, path or ``"auto"``
         The patch layout: an object, a layout file, or the automatic layout (default), which
         takes any topology.
@@ -96,6 +98,10 @@ def fit(
        (B-spline fitting), ch. 7 (displacement maps), sec. 8.1 (continuity).
     """
     options = options or FitOptions()
+    from meshfit.pipeline.prepare import is_prepared, open_prepared
+
+    if is_prepared(mesh):
+        mesh = open_prepared(mesh)  # (a bad folder is refused before any work)
     if patch_map is not None:
         if cluster is not None and not (isinstance(cluster, str) and cluster == "auto"):
             raise InputError("give patch_map or cluster, not both")
@@ -132,15 +138,24 @@ def _fit(
     patch_map,
     cluster,
 ):
+    from meshfit.pipeline.prepare import Prepared
+
     t_all = time.perf_counter()
     ctx = Context(options, n_workers(options.workers), progress)
     ctx["input"] = mesh
+    prepared = isinstance(mesh, Prepared)
+    if prepared:
+        from meshfit.pipeline.prepared_stages import prepared_stages
+
+        stages = prepared_stages(layout, patch_map, folder)  # (refuses another layout)
     listed = {} if folder is None else read_manifest(folder)  # what the last run wrote
     if folder is not None:  # before any work: the input is never overwritten
         if isinstance(mesh, (str, os.PathLike)):
             name: str | None = Path(mesh).name
         else:
             name = getattr(mesh, "name", None)
+        if prepared:
+            _refuse_inside(folder, mesh.folder)
         refuse_foreign(folder, planned_files(output_stem(name), options.formats))
     cache = None if folder is None else folder / CACHE
     runner = Runner(cache, resume)
@@ -149,10 +164,17 @@ def _fit(
     # a cluster asked for is reached (or started, on a thread) before any work
     ctx.tasks = None if auto else patch_tasks(cluster, 0, cache)
     try:
-        runner.run([Validate(automatic, None if automatic else _fingerprint(layout))], ctx)
+        if prepared:
+            from meshfit.pipeline.prepared_stages import ValidatePrepared, report_note
+
+            runner.run([ValidatePrepared()], ctx)
+            ctx.notes.append(report_note(ctx))
+        else:
+            runner.run([Validate(automatic, None if automatic else _fingerprint(layout))], ctx)
+            stages = fit_stages(layout, patch_map, folder)
         if auto:
-            ctx.tasks = patch_tasks(cluster, ctx["mesh"].n_faces, cache)
-        runner.run(fit_stages(layout, patch_map, folder), ctx)
+            ctx.tasks = patch_tasks(cluster, ctx["mesh_info"]["faces"], cache)
+        runner.run(stages, ctx)
         workers_peak = None if ctx.tasks is None else ctx.tasks.workers_peak_rss()
     finally:
         if ctx.tasks is not None:
@@ -162,7 +184,12 @@ def _fit(
     summary = _summary(ctx)
     if folder is not None and options.report:
         ctx["summary"] = summary
-        runner.run([Report(folder)], ctx)
+        if prepared:
+            from meshfit.pipeline.prepared_stages import ReportPrepared
+
+            runner.run([ReportPrepared(folder)], ctx)
+        else:
+            runner.run([Report(folder)], ctx)
         summary["outputs"]["report"] = ["report.html"]
     summary["stages"] = ctx.info
     summary["seconds_total"] = round(time.perf_counter() - t_all, 4)
@@ -178,6 +205,14 @@ def _fit(
         images = ctx["report"]["images"] if options.report else []
         _manifest(folder, result.summary, images, listed)
     return result
+
+
+def _refuse_inside(out: Path, prepared: Path) -> None:
+    """InputError where the output folder is the prepared folder or inside it (a fit never
+    writes among the files it reads)."""
+    a, b = out.resolve(), prepared.resolve()
+    if a == b or b in a.parents:
+        raise InputError(f"{out}: the output folder is inside the prepared folder {prepared}")
 
 
 def _fingerprint(layout: Any) -> str | None:
@@ -208,7 +243,7 @@ def _memory(workers_peak: int | None) -> dict[str, int | None]:
 
 
 def _summary(ctx: Context) -> dict[str, Any]:
-    mesh, diag = ctx["mesh"], ctx["diag"]
+    info, diag = ctx["mesh_info"], ctx["diag"]
     lay, maps, errors = ctx["layout"], ctx["maps"], ctx["errors"]
     n = int(lay.n_patches)
     per_patch = errors.get("displaced_from_input_max_per_patch", [None] * n)
@@ -231,9 +266,7 @@ def _summary(ctx: Context) -> dict[str, Any]:
         "meshfit_fit": PIPELINE_FORMAT,
         "version": __version__,
         "mesh": {
-            "name": mesh.name,
-            "vertices": int(mesh.n_vertices),
-            "faces": int(mesh.n_faces),
+            **info,
             "bbox_diagonal": diag,
             "sha256": ctx["mesh_hash"],
             **({"remeshed": ctx["remesh"]} if "remesh" in ctx else {}),
@@ -270,7 +303,7 @@ def _result(ctx: Context, summary: dict[str, Any]) -> FitResult:
         ctx["network"],
         summary,
         ctx.options,
-        mesh=ctx["mesh"],
+        mesh=ctx.values.get("mesh"),
         face_patch=ctx["face_patch"],
         spline_distance=ctx["spline_distance"],
     )

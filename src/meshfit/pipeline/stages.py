@@ -59,7 +59,7 @@ class Validate(Stage):
 
     name = "validate"
     inputs = ("input",)
-    outputs = ("mesh", "diag", "mesh_hash")
+    outputs = ("mesh", "mesh_info", "diag", "mesh_hash")
     suffix = None
 
     def __init__(self, automatic: bool = True, fingerprint: str | None = None) -> None:
@@ -85,10 +85,17 @@ class Validate(Stage):
         if self.automatic or self.fingerprint is not None:
             mesh = _even(ctx, mesh, None if self.automatic else self.fingerprint)
         ctx["mesh"] = mesh
+        ctx["mesh_info"] = mesh_info(mesh.name, mesh.n_vertices, mesh.n_faces)
         ctx["diag"] = float(mesh.bbox_diagonal)
         pool = ThreadPoolExecutor(max_workers=1)  # hashlib releases the GIL
         ctx["mesh_hash"] = pool.submit(mesh_hash, mesh)
         pool.shutdown(wait=False)
+
+
+def mesh_info(name: str, n_vertices: int, n_faces: int) -> dict[str, Any]:
+    """What the summary, the exports' file names and the cluster's choice read of the
+    input: its name and counts (the out-of-core fit has no whole mesh to ask)."""
+    return {"name": name, "vertices": int(n_vertices), "faces": int(n_faces)}
 
 
 def _even(ctx: Context, mesh: Mesh, fingerprint: str | None) -> Mesh:
@@ -135,7 +142,7 @@ class Layout(Stage):
 
     name = "layout"
     inputs = ("mesh", "mesh_hash")
-    outputs = ("layout",)
+    outputs = ("layout", "corner_xyz")
     suffix = ".json"
 
     def __init__(self, layout: Any) -> None:
@@ -184,6 +191,7 @@ class Layout(Stage):
 
     def run(self, ctx: Context) -> None:
         ctx["layout"] = self.make()
+        ctx["corner_xyz"] = ctx["mesh"].xyz(ctx["layout"].corners)
         _check_classes(ctx)  # (before the spring meshes, not after them)
 
     def save(self, ctx: Context, path: Path) -> None:
@@ -195,6 +203,7 @@ class Layout(Stage):
         from meshfit.layout import load_layout
 
         ctx["layout"] = load_layout(path, ctx["mesh"], check_topology=False)
+        ctx["corner_xyz"] = ctx["mesh"].xyz(ctx["layout"].corners)
         return True
 
     def facts(self, ctx: Context) -> dict[str, Any]:
@@ -446,7 +455,7 @@ class Fit(Stage):
     boundaries pinned (C0), then G1 across the smooth boundaries (:mod:`meshfit.stitch`)."""
 
     name = "fit"
-    inputs = ("layout", "grids", "mesh")
+    inputs = ("layout", "grids", "corner_xyz")
     outputs = ("network", "controls", "control_classes", "surfaces", "fit_info")
     after = ("springs",)
 
@@ -466,7 +475,7 @@ class Fit(Stage):
         grids, counts, diag = ctx["grids"], ctx["controls"], ctx["diag"]
         lay = ctx["layout"]
         o = ctx.options.spline
-        pins = boundary_pins(lay, ctx["mesh"].xyz(lay.corners), grids, counts, o.smoothing)
+        pins = boundary_pins(lay, ctx["corner_xyz"], grids, counts, o.smoothing)
         normal_errors = o.normal_errors
 
         def fit(p: int):
@@ -864,13 +873,14 @@ class Exports(Stage):
     def run(self, ctx: Context) -> None:
         from meshfit.pipeline.outputs import output_stem, write_exports
 
-        _release_mesh_memory(ctx["mesh"], keep=(), search=False)
+        if "mesh" in ctx:
+            _release_mesh_memory(ctx["mesh"], keep=(), search=False)
         ctx["outputs"] = write_exports(
             self.out,
             ctx["surfaces"],
             ctx["maps"],
             ctx.options.outputs.formats,
-            stem=output_stem(ctx["mesh"].name),
+            stem=output_stem(ctx["mesh_info"]["name"]),
             network=ctx["network"],
             units=ctx.options.outputs.units,
             up_axis=ctx.options.outputs.up_axis,
