@@ -135,6 +135,66 @@ def run_one(size: str, processes: int, patches: int) -> dict:
     }
 
 
+def run_prepared(size: str, patches: int) -> dict:
+    """igea refined to ``size``, written as a binary PLY before the clock starts, then
+    prepared out of core (``prepare_out_of_core``, the proxy's layout asked for ``patches``)
+    and fitted from the prepared folder on the threads of this process."""
+    from dataclasses import replace
+
+    from meshfit._malloc import tune_malloc
+    from meshfit.layout.auto import LayoutOptions
+    from meshfit.mesh import Mesh, load_mesh, save_mesh
+
+    tune_malloc()
+    import pxr.Gf
+    import pxr.Sdf
+    import pxr.Usd
+    import pxr.UsdGeom
+    import pxr.Vt  # noqa: F401
+
+    from meshfit.pipeline import FitOptions, fit, prepare_out_of_core
+
+    mesh = load_mesh(mesh_path("igea"))
+    v, f = mesh.vertices, mesh.faces
+    for _ in range(SIZES[size]):
+        v, f = midpoint_subdivide(v, f)
+    opts = FitOptions(formats=("usd", "exr"), report=False)
+    layout = replace(LayoutOptions(), patches=patches, crease_angle=None)
+    load = os.getloadavg()[0]
+    with tempfile.TemporaryDirectory() as tmp:
+        ply = os.path.join(tmp, f"igea_{size}.ply")
+        save_mesh(Mesh(v, f, name=f"igea_{size}"), ply)
+        n_faces = int(f.shape[0])
+        del mesh, v, f
+        with PeakMemory() as mem:
+            t0 = time.perf_counter()
+            prep = prepare_out_of_core(ply, os.path.join(tmp, "prep"), layout_options=layout)
+            t1 = time.perf_counter()
+            s = fit(prep, options=opts, out=os.path.join(tmp, "fit")).summary
+            seconds = time.perf_counter() - t0
+    return {
+        "faces": n_faces,
+        "patches": s["patches_total"],
+        "seconds_total": round(seconds, 3),
+        "seconds_prepare": round(t1 - t0, 3),
+        "seconds_prepare_steps": {k: round(v, 3) for k, v in prep.seconds.items()},
+        "seconds_per_stage": {k: v["seconds"] for k, v in s["stages"].items()},
+        "seconds_tasks_stages": round(
+            s["stages"]["springs"]["seconds"] + s["stages"]["displacement"]["seconds"], 3
+        ),
+        "peak_rss_mib": round(mem.peak / 2**20, 1),
+        "peak_rss_one_child_mib": round(mem.child_peak / 2**20, 1),
+        "peak_rss_stage": "prepare"
+        if mem.peak_at <= t1 - t0
+        else _stage_at(s["stages"], mem.peak_at - (t1 - t0)),
+        "displaced_rms": s["errors"]["displaced"]["rms"],
+        "displaced_hausdorff": s["errors"]["displaced"]["hausdorff"],
+        "folded_cells": int(sum(p["folded"] for p in s["patches"])),
+        "patch_tasks": False,
+        "load_average_at_start": round(load, 2),
+    }
+
+
 def _stage_at(stages: dict, seconds: float) -> str:
     """The stage running ``seconds`` after the fit started (stages run one after another,
     in the summary's order; the fit's set-up counts as the first stage's, and ``after`` is
@@ -147,7 +207,7 @@ def _stage_at(stages: dict, seconds: float) -> str:
     return "after"
 
 
-def _fresh(size: str, processes: int, patches: int) -> dict:
+def _fresh(size: str, processes: int, patches: int, mode: str = "") -> dict:
     run = subprocess.run(
         [
             sys.executable,
@@ -158,6 +218,7 @@ def _fresh(size: str, processes: int, patches: int) -> dict:
             str(processes),
             "--patches",
             str(patches),
+            *(["--prepared"] if mode == "prepared" else []),
         ],
         capture_output=True,
         text=True,
@@ -206,26 +267,37 @@ def main() -> None:
         "memory of the threads run and more)",
     )
     ap.add_argument("--one", default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--prepared", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one:
-        print(json.dumps(run_one(args.one, args.processes, args.patches)))
+        if args.prepared:
+            print(json.dumps(run_prepared(args.one, args.patches)))
+        else:
+            print(json.dumps(run_one(args.one, args.processes, args.patches)))
         return
     sizes = [s.strip() for s in args.sizes.split(",") if s.strip()]
     unknown = [s for s in sizes if s not in SIZES]
     if unknown:
         sys.exit(f"unknown sizes {unknown}: choose among {list(SIZES)}")
-    modes = [m for m in ("threads", "cluster") if m in args.modes.split(",")]
+    modes = [m for m in ("threads", "cluster", "prepared") if m in args.modes.split(",")]
     if not modes:
-        sys.exit(f"--modes {args.modes!r}: choose threads, cluster or both")
+        sys.exit(f"--modes {args.modes!r}: choose among threads, cluster and prepared")
     results: dict[str, dict] = {}
     for size in sizes:
         runs: dict[str, list[dict]] = {m: [] for m in modes}
         for _ in range(max(1, args.repeats)):  # alternating, so both meet the same load
             for m in modes:
-                runs[m].append(_fresh(size, 0 if m == "threads" else args.processes, args.patches))
+                procs = args.processes if m == "cluster" else 0
+                runs[m].append(_fresh(size, procs, args.patches, m))
         row = {k: _median(v) for k, v in runs.items()}
-        if len(modes) == 2:
+        if "threads" in row and "cluster" in row:
             _compare(row)
+        if "threads" in row and "prepared" in row:
+            t, o = row["threads"], row["prepared"]
+            row["prepared_over_threads_seconds"] = round(
+                o["seconds_total"] / t["seconds_total"], 3
+            )
+            row["prepared_over_threads_peak_rss"] = round(o["peak_rss_mib"] / t["peak_rss_mib"], 3)
         results[size] = row
         print(size, json.dumps(row), flush=True)
     out = {

@@ -499,14 +499,17 @@ def _clearances(proxy: Mesh, layout) -> tuple[NDArray[np.float64], NDArray[np.fl
     return out.reshape(n, 2), cap
 
 
-def carry_network(store, pstore: PatchStore, proxy: Mesh, layout) -> CarriedNetwork:
+def carry_network(
+    store, pstore: PatchStore, proxy: Mesh, layout, relax_iterations: int | None = None
+) -> CarriedNetwork:
     """Carry the corners and curves of ``layout`` (made on ``proxy``) to the scan, each
     curve once, on the piece of the first patch it bounds: the proxy's polyline sampled
     at half the scan's edge length, the samples moved to their closest points of the scan
     (so two curves that leave a corner close together stay apart, as the projection of a
     nearby surface onto the scan does not fold), points where the carried curve turns back
-    dropped, and the rest joined on the scan's surface (as the in-memory proxy layout
-    carries its curves, :mod:`meshfit.layout.auto`). One piece at a time is in memory.
+    dropped, the rest joined on the scan's surface and relaxed there as snakes with fixed
+    ends (as the in-memory proxy layout carries its curves, :mod:`meshfit.layout.auto`).
+    One piece at a time is in memory.
 
     Parameters
     ----------
@@ -516,6 +519,9 @@ def carry_network(store, pstore: PatchStore, proxy: Mesh, layout) -> CarriedNetw
     proxy : Mesh
     layout : Layout
         Made on ``proxy``.
+    relax_iterations : int, optional
+        Snake iterations of each carried curve on the scan (default
+        :data:`meshfit.layout.auto.FINE_RELAX_ITERATIONS`; 0: none).
 
     Returns
     -------
@@ -527,7 +533,10 @@ def carry_network(store, pstore: PatchStore, proxy: Mesh, layout) -> CarriedNetw
         A curve or corner on no patch, or a carried curve outside its patch's piece.
     """
     from meshfit.curves.base import densify_curves
-    from meshfit.layout.auto import _without_reversals
+    from meshfit.layout.auto import FINE_RELAX_ITERATIONS, _relax_all, _without_reversals
+
+    if relax_iterations is None:
+        relax_iterations = FINE_RELAX_ITERATIONS
 
     pc = np.asarray(layout.patch_curves)
     ends = np.asarray(layout.curve_ends)
@@ -541,14 +550,9 @@ def carry_network(store, pstore: PatchStore, proxy: Mesh, layout) -> CarriedNetw
     x = proxy.xyz(layout.corners)
     face = np.empty(x.shape[0], dtype=np.int64)
     bary = np.empty((x.shape[0], 3))
-    for p in np.unique(corner_patch):
-        piece = pstore.piece(int(p), store.vertices)
-        sel = np.flatnonzero(corner_patch == p)
-        got = _to_store(piece, piece.mesh.closest_points(x[sel]).points)
-        face[sel], bary[sel] = got.face, got.bary
-    corners = SurfacePoints(face, bary)
     # each curve on the piece of the first patch it bounds (its halo holds the scan along
-    # the curve), a piece read once for all the curves it carries
+    # the curve), a piece read once for all the corners and curves it carries; a curve's
+    # corners are corners of its patch, so they are placed by then
     owner = np.full(len(layout.curves), -1, dtype=np.int64)
     for p in range(pc.shape[0] - 1, -1, -1):
         owner[pc[p]] = p
@@ -558,9 +562,14 @@ def carry_network(store, pstore: PatchStore, proxy: Mesh, layout) -> CarriedNetw
     edge = float(pstore.scale[0])
     exact = tol.ON_SURFACE * float(pstore.scale[1])  # (a proxy that is the scan there)
     spread, cap = _clearances(proxy, layout)
-    for p in np.unique(owner).tolist():
+    for p in np.union1d(corner_patch, owner).tolist():
         piece = pstore.piece(p, store.vertices)
+        sel = np.flatnonzero(corner_patch == p)
+        if sel.size:
+            got = _to_store(piece, piece.mesh.closest_points(x[sel]).points)
+            face[sel], bary[sel] = got.face, got.bary
         spacing = 0.5 * edge
+        carried: dict[int, SurfaceCurve] = {}
         for k in np.flatnonzero(owner == p).tolist():
             curve = layout.curves[k]
             xs = _resampled(proxy.xyz(curve.points), spacing)
@@ -582,7 +591,8 @@ def carry_network(store, pstore: PatchStore, proxy: Mesh, layout) -> CarriedNetw
             if not keep.any():
                 keep[len(xs) // 2] = True
             mid = xs[keep]
-            local = _to_local(piece, corners[ends[k]], f"curve {k}'s corners")
+            ends_k = SurfacePoints(face[ends[k]], bary[ends[k]])
+            local = _to_local(piece, ends_k, f"curve {k}'s corners")
             moved = near.points[np.flatnonzero(keep)]
             a_out = _walk_out(piece.mesh, local[np.array([0])], mid[0], spacing, clear[0])
             b_out = _walk_out(piece.mesh, local[np.array([1])], mid[-1], spacing, clear[1])
@@ -593,8 +603,16 @@ def carry_network(store, pstore: PatchStore, proxy: Mesh, layout) -> CarriedNetw
             pts = pts[np.flatnonzero(np.concatenate([[True], ~same]))]
             c = SurfaceCurve(pts, False, curve.kind)
             (c,) = densify_curves(piece.mesh, [_without_reversals(piece.mesh, c)])
+            carried[k] = c
+        if relax_iterations > 0 and carried:
+            # the local correction on the scan that the in-memory proxy route makes
+            # (:data:`meshfit.layout.auto.FINE_RELAX_ITERATIONS`), ends fixed
+            ks = list(carried)
+            relaxed = _relax_all(piece.mesh, [carried[k] for k in ks], relax_iterations)
+            carried = dict(zip(ks, relaxed, strict=True))
+        for k, c in carried.items():
             curves[k] = SurfaceCurve(_to_store(piece, c.points), c.closed, c.kind)
-    return CarriedNetwork(corners, [c for c in curves if c is not None])
+    return CarriedNetwork(SurfacePoints(face, bary), [c for c in curves if c is not None])
 
 
 def cut_patch(store, pstore: PatchStore, layout, network: CarriedNetwork, p: int):

@@ -32,6 +32,7 @@ from meshfit import tol
 from meshfit.errors import InputError
 from meshfit.pipeline import measure
 from meshfit.pipeline.runner import Context, Stage
+from meshfit.pipeline.store import write_json
 from meshfit.pipeline.stages import (
     Displacement,
     Errors,
@@ -83,7 +84,7 @@ class LayoutPrepared(Stage):
     name = "layout"
     inputs = ("prepared", "mesh_hash")
     outputs = ("layout", "corner_xyz")
-    suffix = None
+    suffix = ".json"  # (a record: the layout is read from the folder either way)
 
     def extra(self, ctx: Context) -> Any:
         from meshfit.layout import layout_to_json
@@ -96,6 +97,13 @@ class LayoutPrepared(Stage):
         ctx["layout"] = prep.layout
         ctx["corner_xyz"] = prep.corner_xyz()
         _check_classes(ctx)
+
+    def save(self, ctx: Context, path: Path) -> None:
+        write_json(path, {"patches": int(ctx["layout"].n_patches)})
+
+    def load(self, ctx: Context, path: Path) -> bool:
+        self.run(ctx)
+        return True
 
     def facts(self, ctx: Context) -> dict[str, Any]:
         prep = ctx["prepared"]
@@ -113,12 +121,19 @@ class CutPrepared(Stage):
     inputs = ("prepared", "layout")
     outputs = ("patch_files", "face_patch")
     after = ("layout",)
-    suffix = None
+    suffix = ".json"  # (a record: the files are the folder's either way)
 
     def run(self, ctx: Context) -> None:
         prep = ctx["prepared"]
         ctx["patch_files"] = list(prep.patch_files)
         ctx.lazy("face_patch", lambda: face_patch(prep))
+
+    def save(self, ctx: Context, path: Path) -> None:
+        write_json(path, {"patch_files": [p.name for p in ctx["patch_files"]]})
+
+    def load(self, ctx: Context, path: Path) -> bool:
+        self.run(ctx)
+        return True
 
 
 def face_patch(prep) -> NDArray[np.int64]:
