@@ -294,9 +294,7 @@ def main() -> None:
             _compare(row)
         if "threads" in row and "prepared" in row:
             t, o = row["threads"], row["prepared"]
-            row["prepared_over_threads_seconds"] = round(
-                o["seconds_total"] / t["seconds_total"], 3
-            )
+            row["prepared_over_threads_seconds"] = round(o["seconds_total"] / t["seconds_total"], 3)
             row["prepared_over_threads_peak_rss"] = round(o["peak_rss_mib"] / t["peak_rss_mib"], 3)
         results[size] = row
         print(size, json.dumps(row), flush=True)

@@ -64,7 +64,7 @@ def test_the_errors_are_the_whole_scans(prepared):
 
 
 def test_every_input_face_has_its_patch(prepared):
-    mesh, prep, result = prepared
+    mesh, _, result = prepared
     fp = result.face_patch
     assert fp.shape == (mesh.n_faces,) and fp.min() >= 0 and fp.max() == len(result.patches) - 1
     assert set(fp.tolist()) == set(range(len(result.patches)))

@@ -32,7 +32,6 @@ from meshfit import tol
 from meshfit.errors import InputError
 from meshfit.pipeline import measure
 from meshfit.pipeline.runner import Context, Stage
-from meshfit.pipeline.store import write_json
 from meshfit.pipeline.stages import (
     Displacement,
     Errors,
@@ -48,6 +47,7 @@ from meshfit.pipeline.stages import (
 from meshfit.pipeline.stages import (
     Fit as FitStage,
 )
+from meshfit.pipeline.store import write_json
 
 __all__ = ["ValidatePrepared", "prepared_stages"]
 
