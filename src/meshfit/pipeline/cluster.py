@@ -355,7 +355,7 @@ class PatchTasks:
             scan = None
         else:
             scan = _write_scan(mesh, folder / "scan") if any(finer) else None
-        items = []
+        items: list[tuple[Any, ...]] = []
         for p, (s, g, sh) in enumerate(zip(surfaces, grids, shapes, strict=True)):
             path = save_npz(
                 folder / f"map-{p}.npz",

@@ -222,7 +222,8 @@ def _store_hash(store) -> str:
     h = hashlib.sha256()
     for a in (store.vertices, store.faces):
         for i in range(0, a.shape[0], CHUNK_FACES):
-            h.update(np.ascontiguousarray(a[i : i + CHUNK_FACES], dtype=a.dtype.newbyteorder("<")))
+            chunk = np.ascontiguousarray(a[i : i + CHUNK_FACES], dtype=a.dtype.newbyteorder("<"))
+            h.update(chunk.tobytes())
     return h.hexdigest()
 
 
@@ -302,11 +303,14 @@ def open_prepared(folder: str | os.PathLike) -> Prepared:
         layout = load_layout(root / "layout.json", proxy, check_topology=False)
         z = load_npz(root / "network.npz")
         corners = SurfacePoints(z["corner_face"], z["corner_bary"])
+        kinds = [str(z[f"curve_kind_{k}"][0]) for k in range(n_curves)]
+        if not set(kinds) <= {"boundary", "feature"}:
+            raise ValueError("a curve kind other than boundary or feature")
         curves = [
             SurfaceCurve(
                 SurfacePoints(z[f"curve_face_{k}"], z[f"curve_bary_{k}"]),
                 False,
-                str(z[f"curve_kind_{k}"][0]),
+                "feature" if kinds[k] == "feature" else "boundary",
             )
             for k in range(n_curves)
         ]

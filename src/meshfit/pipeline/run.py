@@ -28,6 +28,7 @@ from meshfit.pipeline.outputs import (
     remove_stale,
     write_manifest,
 )
+from meshfit.pipeline.prepare import Prepared
 from meshfit.pipeline.result import FIT_FILES, FitResult, PatchFit
 from meshfit.pipeline.runner import Context, Progress, Runner
 from meshfit.pipeline.stages import STAGES, Report, Validate, fit_stages
@@ -37,7 +38,7 @@ __all__ = ["fit"]
 
 
 def fit(
-    mesh: Mesh | str | os.PathLike,
+    mesh: Mesh | str | os.PathLike | Prepared,
     layout: Any = "auto",
     *,
     options: FitOptions | None = None,
@@ -100,7 +101,7 @@ def fit(
     options = options or FitOptions()
     from meshfit.pipeline.prepare import is_prepared, open_prepared
 
-    if is_prepared(mesh):
+    if isinstance(mesh, (str, os.PathLike)) and is_prepared(mesh):
         mesh = open_prepared(mesh)  # (a bad folder is refused before any work)
     if patch_map is not None:
         if cluster is not None and not (isinstance(cluster, str) and cluster == "auto"):
@@ -138,8 +139,6 @@ def _fit(
     patch_map,
     cluster,
 ):
-    from meshfit.pipeline.prepare import Prepared
-
     t_all = time.perf_counter()
     ctx = Context(options, n_workers(options.workers), progress)
     ctx["input"] = mesh
