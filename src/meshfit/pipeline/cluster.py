@@ -542,18 +542,38 @@ def piece_map_task(
 
 
 def piece_mesh(folder: Path, p: int):
-    """Patch ``p``'s piece of the prepared scan in ``folder``: a :class:`Mesh` of its core
-    and halo faces (:meth:`meshfit.layout.outofcore.PatchStore.piece`)."""
+    """Patch ``p``'s piece of the prepared scan in ``folder`` (its core and halo faces,
+    :class:`meshfit.layout.outofcore.PatchStore`) as a mesh to search: closest points,
+    face normals. Not checked again, nor split where it pinches (a search needs neither;
+    checking builds an edge table, twice the time of the search tree)."""
     from meshfit.layout.outofcore import open_patch_store
     from meshfit.mesh.store import open_store
 
     store = open_store(folder / "mesh")
-    return open_patch_store(folder / "patches").piece(p, store.vertices).mesh
+    pstore = open_patch_store(folder / "patches")
+    if not 0 <= p < pstore.n_patches:
+        raise InputError(f"patch {p} out of range ({pstore.n_patches} patches)")
+    faces = np.array(pstore.faces[pstore.patch_start[p] : pstore.patch_start[p + 1]])
+    used, local = np.unique(faces, return_inverse=True)
+    V = np.array(store.vertices[used])
+    return _unchecked_mesh(V, np.ascontiguousarray(local.reshape(-1, 3), dtype=np.int64))
 
 
-#: the scan's arrays in its folder, each an ``.npy`` file: the mesh, its face normals and the
-#: fields of its search tree (:class:`meshfit.mesh.locate.TriangleTree`)
-_SCAN_FIELDS = ("vertices", "faces", "face_normals")
+def _unchecked_mesh(vertices: NDArray, faces: NDArray, **derived: Any):
+    """A :class:`Mesh` over arrays the caller vouches for (a checked scan's, or a part of
+    one), with ``derived`` values (search tree, face normals) already known: its fields set
+    as :meth:`Mesh.with_name` shares a checked mesh's, without the check."""
+    from meshfit.mesh import Mesh
+
+    fields: dict[str, Any] = {"vertices": vertices, "faces": faces}
+    fields |= {"vertex_colors": None, "name": "", "repairs": None, **derived}
+    for a in (vertices, faces):
+        if isinstance(a, np.ndarray) and a.flags.writeable:
+            a.flags.writeable = False
+    mesh = object.__new__(Mesh)
+    for k, v in fields.items():
+        object.__setattr__(mesh, k, v)
+    return mesh
 
 
 def _write_scan(mesh, folder: Path) -> Path:
@@ -586,7 +606,6 @@ def _scan(folder: str):
     the whole scan in every worker): its fields are set as :meth:`Mesh.with_name` shares a
     checked mesh's.
     """
-    from meshfit.mesh import Mesh
     from meshfit.mesh.locate import TriangleTree
 
     with _SCANS_LOCK:
@@ -597,12 +616,10 @@ def _scan(folder: str):
         def read(name: str) -> NDArray:
             return np.asarray(np.load(base / f"{name}.npy", mmap_mode="r"))
 
-        fields: dict[str, Any] = {k: read(k) for k in _SCAN_FIELDS}
-        fields["triangle_tree"] = TriangleTree(*(read(f"tree_{k}") for k in TriangleTree._fields))
-        fields |= {"vertex_colors": None, "name": "", "repairs": None}
-        mesh = object.__new__(Mesh)
-        for k, v in fields.items():
-            object.__setattr__(mesh, k, v)
+        tree = TriangleTree(*(read(f"tree_{k}") for k in TriangleTree._fields))
+        mesh = _unchecked_mesh(
+            read("vertices"), read("faces"), face_normals=read("face_normals"), triangle_tree=tree
+        )
         _SCANS.clear()  # one fit's scan at a time
         _SCANS[folder] = mesh
         return mesh
