@@ -17,8 +17,8 @@ from meshfit.pipeline.prepared_stages import face_patch
 
 from .shapes import tori
 
-#: native maps: every texel is a spring-grid point (the matched maps are checked on their own)
-NATIVE = FitOptions(map_shapes="native", report=False)
+#: the fit's defaults (matched maps: a map finer than its spring grid searches the pieces)
+OPTIONS = FitOptions(report=False)
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +30,7 @@ def prepared(tmp_path_factory):
     path = root / "genus2.ply"
     save_mesh(mesh, path)
     prep = prepare_out_of_core(path, root / "prep", proxy_faces=mesh.n_faces // 4, workers=2)
-    result = fit(root / "prep", options=NATIVE)
+    result = fit(root / "prep", options=OPTIONS)
     return mesh, prep, result
 
 
@@ -80,7 +80,7 @@ def test_the_fit_is_a_good_one(prepared):
     proxy_folds = [p["folded"] for p in on_proxy.summary["patches"]]
     assert all(a == 0 or a <= b for a, b in zip(folds, proxy_folds, strict=True))
     # and the displaced surface is as near the scan as the in-memory fit's
-    s, mem = result.summary["errors"], fit(mesh, options=NATIVE).summary["errors"]
+    s, mem = result.summary["errors"], fit(mesh, options=OPTIONS).summary["errors"]
     for k in ("rms", "hausdorff"):
         assert s["displaced"][k] <= 1.5 * mem["displaced"][k], k
     s = result.summary
@@ -107,10 +107,8 @@ def test_a_finer_map_takes_its_points_from_the_pieces_as_from_the_whole(prepared
 def test_the_tasks_give_the_threads_bytes(prepared):
     # springs and maps (matched: searched in the pieces) as tasks of a LocalCluster: the same
     # bytes as on the threads of one process
-    _, prep, _ = prepared
-    opts = FitOptions(report=False)
-    a = fit(prep.folder, options=opts, cluster=None)
-    b = fit(prep.folder, options=opts, cluster=2)
+    _, prep, a = prepared
+    b = fit(prep.folder, options=OPTIONS, cluster=2)
     for x, y in zip(a.patches, b.patches, strict=True):
         np.testing.assert_array_equal(x.spring, y.spring)
         np.testing.assert_array_equal(x.displacement.values, y.displacement.values)
