@@ -113,7 +113,7 @@ def test_the_tasks_give_the_threads_bytes(prepared):
         np.testing.assert_array_equal(x.spring, y.spring)
         np.testing.assert_array_equal(x.displacement.values, y.displacement.values)
     assert a.summary["errors"] == b.summary["errors"]
-    assert b.summary["stages"]["springs"]["patch_tasks"]
+    assert all(b.summary["stages"][k]["patch_tasks"] for k in ("springs", "displacement", "errors"))
 
 
 def test_meshfit_fit_on_a_prepared_folder(prepared, tmp_path, capsys):

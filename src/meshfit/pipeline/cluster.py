@@ -22,7 +22,9 @@ What stays on the client, and why:
   its neighbour's grid), so that direction does not split by patch; and the other direction
   seeds each search with the previous query's triangle in a block of queries taken from
   all patches in one order, so a search split by patch may report another of two triangles
-  at the same distance.
+  at the same distance. (A prepared scan's fit, :mod:`meshfit.pipeline.prepared_stages`,
+  searches each patch's texels in its own piece of the scan anyway: those searches run as
+  tasks, :func:`texel_task`; the scan's vertices are searched on the client.)
 
 A map at a finer resolution than its spring grid (matched map shapes) moves each texel to
 its closest point on the whole scan (:func:`meshfit.displacement.refine_on_scan`): the
@@ -65,6 +67,7 @@ __all__ = [
     "piece_map_task",
     "resolve_cluster",
     "spring_file_task",
+    "texel_task",
     "warm_task",
 ]
 
@@ -376,6 +379,27 @@ class PatchTasks:
         res = self._run("displacement", items, [sh[0] * sh[1] for sh in shapes], progress)
         return [(DisplacementMap(v, kind), b) for v, b in res]
 
+    def texel_errors(
+        self,
+        prepared: Path,
+        spline: Sequence[NDArray[np.float64]],
+        displaced: Sequence[NDArray[np.float64]],
+        bounds: Sequence[NDArray[np.float32]],
+        near: float,
+        progress: Callable[[int, int], None],
+    ) -> list:
+        """Each patch's texels' distances to the prepared scan in ``prepared``
+        (:func:`meshfit.pipeline.prepared_stages.texel_distances`), one task per patch
+        reading its ``texels-<p>.npz`` and its piece of the scan."""
+        folder = self.folder()
+        items: list[tuple[Any, ...]] = []
+        for p, (s, d, b) in enumerate(zip(spline, displaced, bounds, strict=True)):
+            path = save_npz(folder / f"texels-{p}.npz", {"spline": s, "displaced": d, "bounds": b})
+            items.append((texel_task, str(path), str(prepared), p, float(near)))
+        self._readable(Path(items[0][1]))
+        cost = [float(np.prod(s.shape[:2])) for s in spline]
+        return self._run("errors", items, cost, progress)
+
     def _run(self, stage: str, items: list, cost: Sequence[float], progress) -> list:
         """Submit one task per item ``(fn, *args)``, the costliest first; the results in
         order, ``progress(done, total)`` after each."""
@@ -461,6 +485,7 @@ def warm_task() -> None:
     """Task body run once on each worker as the fit reaches the cluster: imports the modules
     the tasks run."""
     import meshfit.displacement
+    import meshfit.pipeline.prepared_stages
     import meshfit.pipeline.springs
     import meshfit.pipeline.stages  # noqa: F401
 
@@ -539,6 +564,15 @@ def piece_map_task(
     mesh = None if piece is None else piece_mesh(Path(piece[0]), int(piece[1]))
     dmap, bounds = patch_displacement(mesh, surface, z["grid"], shape, kind)
     return dmap.values, bounds
+
+
+def texel_task(path: str, prepared: str, p: int, near: float):
+    """Task body: :func:`meshfit.pipeline.prepared_stages.texel_distances` of the texels in
+    the ``.npz`` at ``path`` (written by :meth:`PatchTasks.texel_errors`)."""
+    from meshfit.pipeline.prepared_stages import texel_distances
+
+    z = load_npz(Path(path))
+    return texel_distances(Path(prepared), p, z["spline"], z["displaced"], z["bounds"], near)
 
 
 def piece_mesh(folder: Path, p: int):

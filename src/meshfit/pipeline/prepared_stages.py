@@ -217,6 +217,12 @@ class ErrorsPrepared(Errors):
 
     inputs = ("prepared", "displaced", "spline_grids", "map_bounds", "face_patch")
 
+    def __init__(self) -> None:
+        self.tasks = False  # whether the texels were searched as tasks
+
+    def facts(self, ctx: Context) -> dict[str, Any]:
+        return {"patch_tasks": self.tasks}
+
     def run(self, ctx: Context) -> None:
         prep, diag = ctx["prepared"], ctx["diag"]
         displaced, spline = ctx["displaced"], ctx["spline_grids"]
@@ -224,21 +230,17 @@ class ErrorsPrepared(Errors):
         n = len(displaced)
         near = tol.KNOWN_DISTANCE * diag
         bounds = ctx["map_bounds"]
-
-        def texels(p: int):
-            from meshfit.pipeline.cluster import piece_mesh
-
-            mesh = piece_mesh(prep.folder, p)
-            s = mesh.closest_points(spline[p].reshape(-1, 3)).distance
-            known = bounds[p].reshape(-1).astype(np.float64)
-            d = known.copy()
-            far = np.flatnonzero(~(known <= near))
-            if far.size:
-                d[far] = mesh.closest_points(displaced[p].reshape(-1, 3)[far]).distance
-            return s, d
-
         cost = [float(h * w) for h, w in shapes]
-        res = ctx.map(texels, list(range(n)), "errors", cost)
+        if ctx.tasks is not None:
+            tick = lambda d, k: ctx.tick(self.name, d, k)  # noqa: E731
+            res = ctx.tasks.texel_errors(prep.folder, spline, displaced, bounds, near, tick)
+            self.tasks = True
+        else:
+
+            def one(p: int):
+                return texel_distances(prep.folder, p, spline[p], displaced[p], bounds[p], near)
+
+            res = ctx.map(one, list(range(n)), "errors", cost)
         spline_to_input = np.concatenate([s for s, _ in res])
         disp_to_input = np.concatenate([d for _, d in res])
         del res
@@ -259,6 +261,23 @@ class ErrorsPrepared(Errors):
         }
         ctx["spline_distance"] = spline_to_input
         ctx["displaced_distance"] = disp_from
+
+
+def texel_distances(folder: Path, p: int, spline, displaced, bounds, near: float):
+    """Patch ``p``'s texels' distances to the prepared scan in ``folder``, searched in its
+    piece: every spline texel's (``spline (h, w, 3)``), and every displaced texel's
+    (``displaced (h, w, 3)``) whose bound (``bounds (h, w)``) is not within ``near``, the
+    bound standing for the rest (:func:`meshfit.pipeline.stages.texel_bounds`)."""
+    from meshfit.pipeline.cluster import piece_mesh
+
+    mesh = piece_mesh(Path(folder), p)
+    s = mesh.closest_points(np.asarray(spline).reshape(-1, 3)).distance
+    known = np.asarray(bounds).reshape(-1).astype(np.float64)
+    d = known.copy()
+    far = np.flatnonzero(~(known <= near))
+    if far.size:
+        d[far] = mesh.closest_points(np.asarray(displaced).reshape(-1, 3)[far]).distance
+    return s, d
 
 
 def _used_vertices(store) -> NDArray[np.bool_]:
