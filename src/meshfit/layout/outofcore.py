@@ -533,7 +533,12 @@ def carry_network(
         A curve or corner on no patch, or a carried curve outside its patch's piece.
     """
     from meshfit.curves.base import densify_curves
-    from meshfit.layout.auto import FINE_RELAX_ITERATIONS, _relax_all, _without_reversals
+    from meshfit.layout.auto import (
+        FINE_RELAX_ITERATIONS,
+        _relax_all,
+        _without_reversals,
+        forward_points,
+    )
 
     if relax_iterations is None:
         relax_iterations = FINE_RELAX_ITERATIONS
@@ -587,6 +592,11 @@ def carry_network(
                 for e, off in enumerate((off_a, off_b))
             )
             keep = (from_a > clear[0]) & (from_b > clear[1])
+            # where the proxy's own polyline turns back (a zigzag the proxy's relaxation
+            # left, too small for the proxy's grids to fold on), its samples go
+            forward = np.zeros(len(xs), dtype=bool)
+            forward[forward_points(xs)] = True
+            keep &= forward
             keep[0] = keep[-1] = False
             if not keep.any():
                 keep[len(xs) // 2] = True
