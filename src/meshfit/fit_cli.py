@@ -98,8 +98,7 @@ def _short_summary(summary: dict) -> dict:
 
 
 def cmd_fit(args: argparse.Namespace) -> int:
-    """Fit B-spline patches with displacement maps to one mesh."""
-
+    """Fit B-spline patches with displacement maps to one mesh (or a prepared folder)."""
     from meshfit.pipeline.prepare import is_prepared
 
     options = _options(args)

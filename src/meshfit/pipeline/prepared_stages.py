@@ -76,6 +76,11 @@ class ValidatePrepared(Stage):
         ctx["mesh_info"] = mesh_info(prep.name, prep.store.n_vertices, prep.store.n_faces)
         ctx["diag"] = prep.bbox_diagonal
         ctx["mesh_hash"] = prep.sha256
+        ctx.notes.append(
+            f"fitted out of core from the prepared folder {prep.folder}; the report's layout "
+            f"and error views are drawn on the proxy ({prep.proxy.n_faces:,} faces) the layout "
+            "was made on, the figures are measured on the whole scan"
+        )
 
 
 class LayoutPrepared(Stage):
@@ -326,34 +331,19 @@ def _per_patch_max(store, face_patch, value, n: int) -> list[float | None]:
 
 
 class ReportPrepared(Report):
-    """The report drawn on the preparation's proxy, the layout's patches coloured on it;
-    the figures are the whole scan's."""
+    """The report drawn on the preparation's proxy, the layout's patches coloured on it
+    (the report measures the proxy's vertices itself); the figures are the whole scan's."""
 
     inputs = ("prepared", "layout", "surfaces", "maps", "summary")
 
-    def run(self, ctx: Context) -> None:
-        from meshfit.report import ReportInputs, write_report
-
+    def shown(self, ctx: Context) -> dict[str, Any]:
         prep = ctx["prepared"]
-        shown = ReportInputs(
-            mesh=prep.proxy,
-            grids=ctx["grids"],
-            surfaces=ctx["surfaces"],
-            maps=ctx["maps"],
-            displaced=lambda: ctx["displaced"],
-            summary=ctx["summary"],
-            face_patch=proxy_face_patch(prep),
-            spline=lambda: ctx["spline_grids"],
-            spline_distance=None,
-            displaced_distance=None,
-        )
-        ctx["report"] = write_report(
-            self.out,
-            shown,
-            image_size=ctx.options.outputs.image_size,
-            render_images=not self.images_ok,
-            blender_python=self.blender,
-        )
+        return {
+            "mesh": prep.proxy,
+            "face_patch": proxy_face_patch(prep),
+            "spline_distance": None,
+            "displaced_distance": None,
+        }
 
 
 def proxy_face_patch(prep) -> NDArray[np.int64]:
@@ -386,13 +376,3 @@ def prepared_stages(layout: Any, patch_map=None, out: Path | None = None) -> lis
     if out is not None:
         stages.append(Exports(out))
     return stages
-
-
-def report_note(ctx: Context) -> str:
-    """The note a prepared scan's report adds: what its views are drawn on."""
-    prep = ctx["prepared"]
-    return (
-        f"fitted out of core from the prepared folder {prep.folder}; the report's layout and "
-        f"error views are drawn on the proxy ({prep.proxy.n_faces:,} faces) the layout was "
-        "made on, the figures are measured on the whole scan"
-    )

@@ -30,7 +30,7 @@ from meshfit.pipeline.outputs import (
 )
 from meshfit.pipeline.prepare import Prepared
 from meshfit.pipeline.result import FIT_FILES, FitResult, PatchFit
-from meshfit.pipeline.runner import Context, Progress, Runner
+from meshfit.pipeline.runner import Context, Progress, Runner, Stage
 from meshfit.pipeline.stages import STAGES, Report, Validate, fit_stages
 from meshfit.pipeline.store import PIPELINE_FORMAT, write_json
 
@@ -142,11 +142,22 @@ def _fit(
     t_all = time.perf_counter()
     ctx = Context(options, n_workers(options.workers), progress)
     ctx["input"] = mesh
+    automatic = layout is None or (isinstance(layout, str) and layout == "auto")
     prepared = isinstance(mesh, Prepared)
+    validate: Stage
+    report: type[Report]
     if prepared:
-        from meshfit.pipeline.prepared_stages import prepared_stages
+        from meshfit.pipeline.prepared_stages import (
+            ReportPrepared,
+            ValidatePrepared,
+            prepared_stages,
+        )
 
+        validate, report = ValidatePrepared(), ReportPrepared
         stages = prepared_stages(layout, patch_map, folder)  # (refuses another layout)
+    else:
+        validate = Validate(automatic, None if automatic else _fingerprint(layout))
+        stages, report = fit_stages(layout, patch_map, folder), Report
     listed = {} if folder is None else read_manifest(folder)  # what the last run wrote
     if folder is not None:  # before any work: the input is never overwritten
         if isinstance(mesh, (str, os.PathLike)):
@@ -158,19 +169,11 @@ def _fit(
         refuse_foreign(folder, planned_files(output_stem(name), options.formats))
     cache = None if folder is None else folder / CACHE
     runner = Runner(cache, resume)
-    automatic = layout is None or (isinstance(layout, str) and layout == "auto")
     auto = isinstance(cluster, str) and cluster == "auto"  # (decided by the mesh's size)
     # a cluster asked for is reached (or started, on a thread) before any work
     ctx.tasks = None if auto else patch_tasks(cluster, 0, cache)
     try:
-        if prepared:
-            from meshfit.pipeline.prepared_stages import ValidatePrepared, report_note
-
-            runner.run([ValidatePrepared()], ctx)
-            ctx.notes.append(report_note(ctx))
-        else:
-            runner.run([Validate(automatic, None if automatic else _fingerprint(layout))], ctx)
-            stages = fit_stages(layout, patch_map, folder)
+        runner.run([validate], ctx)
         if auto:
             ctx.tasks = patch_tasks(cluster, ctx["mesh_info"]["faces"], cache)
         runner.run(stages, ctx)
@@ -183,12 +186,7 @@ def _fit(
     summary = _summary(ctx)
     if folder is not None and options.report:
         ctx["summary"] = summary
-        if prepared:
-            from meshfit.pipeline.prepared_stages import ReportPrepared
-
-            runner.run([ReportPrepared(folder)], ctx)
-        else:
-            runner.run([Report(folder)], ctx)
+        runner.run([report(folder)], ctx)
         summary["outputs"]["report"] = ["report.html"]
     summary["stages"] = ctx.info
     summary["seconds_total"] = round(time.perf_counter() - t_all, 4)

@@ -939,20 +939,27 @@ class Report(Stage):
             self.run(ctx)
         return self.images_ok
 
+    def shown(self, ctx: Context) -> dict[str, Any]:
+        """What the report draws the fit on: the mesh, each face's patch and the distances
+        of the mesh's vertices and the spline's texels (the error searches')."""
+        return {
+            "mesh": ctx["mesh"],
+            "face_patch": ctx["face_patch"],
+            "spline_distance": ctx["spline_distance"],
+            "displaced_distance": ctx["displaced_distance"],
+        }
+
     def run(self, ctx: Context) -> None:
         from meshfit.report import ReportInputs, write_report
 
         shown = ReportInputs(
-            mesh=ctx["mesh"],
             grids=ctx["grids"],
             surfaces=ctx["surfaces"],
             maps=ctx["maps"],
             displaced=lambda: ctx["displaced"],
             summary=ctx["summary"],
-            face_patch=ctx["face_patch"],
             spline=lambda: ctx["spline_grids"],
-            spline_distance=ctx["spline_distance"],
-            displaced_distance=ctx["displaced_distance"],
+            **self.shown(ctx),
         )
         ctx["report"] = write_report(
             self.out,
