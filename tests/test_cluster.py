@@ -94,10 +94,11 @@ def test_tasks_give_the_same_fit(on_threads, client, tmp_path):
     _same_fit(want, got)
     assert _files(tmp_path) == _files(ref)  # every file the same bytes (the stage cache too)
     stages = got.summary["stages"]
-    assert stages["springs"]["patch_tasks"] and stages["displacement"]["patch_tasks"]
-    assert not want.summary["stages"]["springs"]["patch_tasks"]
+    per_patch = ("springs", "fit", "displacement", "errors")
+    assert all(stages[k]["patch_tasks"] for k in per_patch)
+    assert not any(want.summary["stages"][k]["patch_tasks"] for k in per_patch)
     # progress ticks once per finished task, up to every patch
-    for stage in ("springs", "displacement"):
+    for stage in per_patch:
         done = [d for s, d, n in ticks if s == stage and n == 24]
         assert done == list(range(25)), stage
     assert not (tmp_path / CACHE / cl.SCRATCH).exists()  # the scratch folder is gone

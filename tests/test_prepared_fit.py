@@ -105,15 +105,16 @@ def test_a_finer_map_takes_its_points_from_the_pieces_as_from_the_whole(prepared
 
 
 def test_the_tasks_give_the_threads_bytes(prepared):
-    # springs and maps (matched: searched in the pieces) as tasks of a LocalCluster: the same
-    # bytes as on the threads of one process
+    # springs, splines, maps (matched: searched in the pieces) and texels as tasks of a
+    # LocalCluster: the same bytes as on the threads of one process
     _, prep, a = prepared
     b = fit(prep.folder, options=OPTIONS, cluster=2)
     for x, y in zip(a.patches, b.patches, strict=True):
         np.testing.assert_array_equal(x.spring, y.spring)
         np.testing.assert_array_equal(x.displacement.values, y.displacement.values)
     assert a.summary["errors"] == b.summary["errors"]
-    assert all(b.summary["stages"][k]["patch_tasks"] for k in ("springs", "displacement", "errors"))
+    stages = ("springs", "fit", "displacement", "errors")
+    assert all(b.summary["stages"][k]["patch_tasks"] for k in stages)
 
 
 def test_meshfit_fit_on_a_prepared_folder(prepared, tmp_path, capsys):

@@ -1,11 +1,13 @@
-"""The per-patch work of one fit as Dask tasks: spring meshes and displacement maps.
+"""The per-patch work of one fit as Dask tasks: spring meshes, spline fits and displacement
+maps.
 
-:func:`meshfit.fit` with ``cluster`` runs each patch's spring mesh and displacement map as a
-task on dask.distributed workers: a LocalCluster of worker processes on 127.0.0.1, or a
-running scheduler. Task inputs are passed by reference: the client writes each task's inputs
-once to a scratch folder of ``.npz`` files (``tasks/`` in the fit's stage cache with an
-output folder, else a temporary folder; removed when the fit ends) and a task receives that
-file's path and small options, never a pickled mesh. Results come back as arrays.
+:func:`meshfit.fit` with ``cluster`` runs each patch's spring mesh, spline fit and
+displacement map as a task on dask.distributed workers: a LocalCluster of worker processes
+on 127.0.0.1, or a running scheduler. Task inputs are passed by reference: the client writes
+each task's inputs once to a scratch folder of ``.npz`` files (``tasks/`` in the fit's stage
+cache with an output folder, else a temporary folder; removed when the fit ends) and a task
+receives that file's path and small options, never a pickled mesh. Results come back as
+arrays.
 
 A worker lost mid-run (killed, or past its memory limit) has its tasks run again elsewhere,
 up to ``retries`` extra times. A task reads only its own files and computes the same bytes
@@ -14,8 +16,9 @@ on every attempt, so the fit is the same bytes as a run without a lost worker.
 What stays on the client, and why:
 
 - the layout and the cut: graph work over the whole mesh;
-- the B-spline fit: cheap, and each patch's boundary is pinned to curves fitted to its
-  neighbours' spring meshes (:func:`meshfit.stitch.layout.boundary_pins`);
+- the boundary curves that pin the patches' splines, fitted to the spring meshes of the
+  patches on each curve (:func:`meshfit.stitch.layout.boundary_pins`; a task gets its
+  patch's pinned rows), and the G1 stitch, which couples neighbouring patches;
 - stitching, the exports and the report: they read every patch at once;
 - the error searches (:mod:`meshfit.pipeline.measure`): each input vertex's distance is to
   the nearest point of all patches' grids together (a vertex by a seam may be nearest to
@@ -62,10 +65,12 @@ __all__ = [
     "RETRIES",
     "ClusterOptions",
     "PatchTasks",
+    "fit_file_task",
     "map_file_task",
     "patch_tasks",
     "piece_map_task",
     "resolve_cluster",
+    "scan_errors_task",
     "spring_file_task",
     "texel_task",
     "warm_task",
@@ -334,6 +339,32 @@ class PatchTasks:
         items = [(spring_file_task, str(path), options) for path in paths]
         return self._run("springs", items, cost, progress)
 
+    def fits(
+        self,
+        grids: Sequence[NDArray[np.float64]],
+        controls: Sequence[tuple[int, int]],
+        pins: Sequence[dict[str, NDArray[np.float64]]],
+        options,
+        diag: float,
+        progress: Callable[[int, int], None],
+    ) -> list:
+        """Each patch's spline and fit figures (:func:`meshfit.pipeline.stages.patch_fit`),
+        one task per patch reading its ``fit-<p>.npz`` (its spring grid, control counts and
+        pinned boundary rows)."""
+        from meshfit.bspline import BSplineSurface
+
+        folder = self.folder()
+        paths = []
+        for p, (g, c, pin) in enumerate(zip(grids, controls, pins, strict=True)):
+            arrays = {"grid": g, "controls": np.asarray(c, dtype=np.int64)}
+            arrays |= {f"pin_{side}": row for side, row in pin.items()}
+            paths.append(save_npz(folder / f"fit-{p}.npz", arrays))
+        self._readable(paths[0])
+        items = [(fit_file_task, str(path), options, float(diag)) for path in paths]
+        cost = [float(np.prod(c)) for c in controls]
+        res = self._run("fit", items, cost, progress)
+        return [(BSplineSurface(c, ku, kv), info) for (c, ku, kv), info in res]
+
     def maps(
         self,
         mesh,
@@ -388,15 +419,56 @@ class PatchTasks:
         near: float,
         progress: Callable[[int, int], None],
     ) -> list:
-        """Each patch's texels' distances to the prepared scan in ``prepared``
-        (:func:`meshfit.pipeline.prepared_stages.texel_distances`), one task per patch
-        reading its ``texels-<p>.npz`` and its piece of the scan."""
+        """Each patch's :func:`meshfit.pipeline.prepared_stages.patch_errors` against the
+        prepared scan in ``prepared``, one task per patch reading its piece of the scan and
+        the ``texels-<q>.npz`` of its patch and of the neighbours its search needs."""
+        from meshfit.pipeline.measure import grid_boxes
+
         folder = self.folder()
-        items: list[tuple[Any, ...]] = []
-        for p, (s, d, b) in enumerate(zip(spline, displaced, bounds, strict=True)):
-            path = save_npz(folder / f"texels-{p}.npz", {"spline": s, "displaced": d, "bounds": b})
-            items.append((texel_task, str(path), str(prepared), p, float(near)))
-        self._readable(Path(items[0][1]))
+        boxes = np.stack([grid_boxes(list(spline)), grid_boxes(list(displaced))])
+        paths = [
+            save_npz(folder / f"texels-{p}.npz", {"spline": s, "displaced": d, "bounds": b})
+            for p, (s, d, b) in enumerate(zip(spline, displaced, bounds, strict=True))
+        ]
+        self._readable(paths[0])
+        items = [
+            (texel_task, str(path), str(prepared), p, boxes, float(near))
+            for p, path in enumerate(paths)
+        ]
+        cost = [float(np.prod(s.shape[:2])) for s in spline]
+        return self._run("errors", items, cost, progress)
+
+    def errors(
+        self,
+        mesh,
+        owner: NDArray[np.int64],
+        spline: Sequence[NDArray[np.float64]],
+        displaced: Sequence[NDArray[np.float64]],
+        bounds: Sequence[NDArray[np.float32]],
+        near: float,
+        progress: Callable[[int, int], None],
+    ) -> list:
+        """Each patch's :func:`scan_errors_task`: its texels' distances to ``mesh`` and those
+        of the scan's vertices whose ``owner`` it is to the soup of all grids; one task per
+        patch reading its ``texels-<p>.npz``, the neighbours' its search needs, and the scan
+        (written once for the tasks, as for the maps)."""
+        from meshfit.pipeline.measure import grid_boxes
+
+        folder = self.folder()
+        scan = _write_scan(mesh, folder / "scan")
+        boxes = np.stack([grid_boxes(list(spline)), grid_boxes(list(displaced))])
+        share = np.argsort(owner, kind="stable")
+        cut = np.cumsum(np.bincount(owner, minlength=len(spline)))[:-1]
+        paths = []
+        for p, ids in enumerate(np.split(share, cut)):
+            arrays: dict[str, NDArray] = {"spline": spline[p], "displaced": displaced[p]}
+            arrays |= {"bounds": bounds[p], "vertices": ids}
+            paths.append(save_npz(folder / f"texels-{p}.npz", arrays))
+        self._readable(paths[0])
+        items = [
+            (scan_errors_task, str(path), str(scan), p, boxes, float(near))
+            for p, path in enumerate(paths)
+        ]
         cost = [float(np.prod(s.shape[:2])) for s in spline]
         return self._run("errors", items, cost, progress)
 
@@ -484,6 +556,7 @@ class PatchTasks:
 def warm_task() -> None:
     """Task body run once on each worker as the fit reaches the cluster: imports the modules
     the tasks run."""
+    import meshfit.bspline
     import meshfit.displacement
     import meshfit.pipeline.prepared_stages
     import meshfit.pipeline.springs
@@ -531,6 +604,18 @@ def spring_file_task(path: str, options) -> tuple[NDArray[np.float64], dict]:
     return spring_task((payload, options))
 
 
+def fit_file_task(path: str, options, diag: float):
+    """Task body: the spline of the patch in the ``.npz`` at ``path`` (written by
+    :meth:`PatchTasks.fits`) as ``(control_points, knots_u, knots_v)``, and its fit figures."""
+    from meshfit.pipeline.stages import patch_fit
+
+    z = load_npz(Path(path))
+    pins = {k[len("pin_") :]: v for k, v in z.items() if k.startswith("pin_")}
+    controls = (int(z["controls"][0]), int(z["controls"][1]))
+    s, info = patch_fit(z["grid"], controls, pins, options, diag)
+    return (s.control_points, s.knots_u, s.knots_v), info
+
+
 def map_file_task(
     path: str, kind: str, scan: str | None
 ) -> tuple[NDArray[np.float64], NDArray[np.float32]]:
@@ -566,13 +651,57 @@ def piece_map_task(
     return dmap.values, bounds
 
 
-def texel_task(path: str, prepared: str, p: int, near: float):
-    """Task body: :func:`meshfit.pipeline.prepared_stages.texel_distances` of the texels in
-    the ``.npz`` at ``path`` (written by :meth:`PatchTasks.texel_errors`)."""
-    from meshfit.pipeline.prepared_stages import texel_distances
+def texel_task(path: str, prepared: str, p: int, boxes: NDArray[np.float64], near: float):
+    """Task body: :func:`meshfit.pipeline.prepared_stages.patch_errors` of patch ``p``, its
+    texels in the ``.npz`` at ``path`` and every other patch's in the files beside it
+    (written by :meth:`PatchTasks.texel_errors`; a neighbour's grid is read only when the
+    search needs it)."""
+    from meshfit.pipeline.prepared_stages import patch_errors
 
-    z = load_npz(Path(path))
-    return texel_distances(Path(prepared), p, z["spline"], z["displaced"], z["bounds"], near)
+    return patch_errors(Path(prepared), p, _texels_beside(path), boxes, near)
+
+
+def _texels_beside(path: str) -> Callable[[int, str], NDArray]:
+    """``texels(q, kind)``: array ``kind`` of patch ``q``'s ``texels-<q>.npz`` in the folder
+    of ``path`` (read when asked, so a task reads only the neighbours it needs)."""
+    folder = Path(path).parent
+
+    def texels(q: int, kind: str) -> NDArray:
+        with np.load(folder / f"texels-{q}.npz", allow_pickle=False) as z:
+            return z[kind]
+
+    return texels
+
+
+def scan_errors_task(path: str, scan: str, p: int, boxes: NDArray[np.float64], near: float):
+    """Task body: patch ``p``'s error searches of an in-memory fit (:meth:`PatchTasks.errors`)
+    as ``(spline texels to the scan, displaced texels to the scan, the patch's share of the
+    scan's vertices to all spline grids, to all displaced grids)``; a displaced texel whose
+    bound is within ``near`` keeps its bound (as :func:`meshfit.pipeline.measure.
+    surface_distance` does)."""
+    from meshfit.pipeline.measure import nearest_grid_distances
+
+    texels = _texels_beside(path)
+    mesh = _scan(scan)
+    s, _ = triangle_distances_in(mesh, texels(p, "spline"))
+    known = texels(p, "bounds").reshape(-1).astype(np.float64)
+    d = known.copy()
+    far = np.flatnonzero(~(known <= near))
+    if far.size:
+        d[far], _ = triangle_distances_in(mesh, texels(p, "displaced").reshape(-1, 3)[far])
+    X = np.asarray(mesh.vertices[texels(p, "vertices")])
+    vs = nearest_grid_distances(X, p, boxes[0], lambda q: texels(q, "spline"))
+    vd = nearest_grid_distances(X, p, boxes[1], lambda q: texels(q, "displaced"))
+    return s, d, vs, vd
+
+
+def triangle_distances_in(mesh, points: NDArray) -> tuple[NDArray, NDArray]:
+    """:func:`meshfit.mesh.locate.triangle_distances` of ``points`` to ``mesh`` with its
+    own search tree."""
+    from meshfit.mesh.locate import triangle_distances
+
+    X = np.asarray(points).reshape(-1, 3)
+    return triangle_distances(X, mesh.vertices, mesh.faces, tree=mesh.triangle_tree)
 
 
 def piece_mesh(folder: Path, p: int):
@@ -580,6 +709,14 @@ def piece_mesh(folder: Path, p: int):
     :class:`meshfit.layout.outofcore.PatchStore`) as a mesh to search: closest points,
     face normals. Not checked again, nor split where it pinches (a search needs neither;
     checking builds an edge table, twice the time of the search tree)."""
+    V, faces, _, _ = piece_arrays(folder, p)
+    return _unchecked_mesh(V, faces)
+
+
+def piece_arrays(folder: Path, p: int):
+    """Patch ``p``'s piece of the prepared scan in ``folder`` as arrays: its vertices ``(k,
+    3)``, its faces ``(m, 3)`` over them, the store vertex of each vertex ``(k,)`` and
+    whether each face is in the patch's core ``(m,)`` (else in its halo)."""
     from meshfit.layout.outofcore import open_patch_store
     from meshfit.mesh.store import open_store
 
@@ -587,10 +724,10 @@ def piece_mesh(folder: Path, p: int):
     pstore = open_patch_store(folder / "patches")
     if not 0 <= p < pstore.n_patches:
         raise InputError(f"patch {p} out of range ({pstore.n_patches} patches)")
-    faces = np.array(pstore.faces[pstore.patch_start[p] : pstore.patch_start[p + 1]])
-    used, local = np.unique(faces, return_inverse=True)
-    V = np.array(store.vertices[used])
-    return _unchecked_mesh(V, np.ascontiguousarray(local.reshape(-1, 3), dtype=np.int64))
+    a, b = pstore.patch_start[p], pstore.patch_start[p + 1]
+    used, local = np.unique(np.array(pstore.faces[a:b]), return_inverse=True)
+    faces = np.ascontiguousarray(local.reshape(-1, 3), dtype=np.int64)
+    return np.array(store.vertices[used]), faces, used, np.array(pstore.core[a:b])
 
 
 def _unchecked_mesh(vertices: NDArray, faces: NDArray, **derived: Any):

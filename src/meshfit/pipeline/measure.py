@@ -7,6 +7,8 @@ much as a part the fit invents.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -125,3 +127,61 @@ def soup_faces(shapes: list[tuple[int, int]]) -> NDArray[np.int64]:
         t += n
         base += nu * nv
     return F
+
+
+def grid_boxes(grids: list[NDArray[np.float64]]) -> NDArray[np.float64]:
+    """Each grid's bounding box, ``(n, 2, 3)``: its lowest and highest corner."""
+    out = np.empty((len(grids), 2, 3))
+    for q, g in enumerate(grids):
+        pts = g.reshape(-1, 3)
+        out[q, 0], out[q, 1] = pts.min(axis=0), pts.max(axis=0)
+    return out
+
+
+def nearest_grid_distances(
+    points: NDArray[np.float64],
+    p: int,
+    boxes: NDArray[np.float64],
+    grid: Callable[[int], NDArray[np.float64]],
+) -> NDArray[np.float64]:
+    """Each point's distance to the soup of all grids (`soup`), searching only grid ``p``
+    and the grids that may hold a nearer point.
+
+    The distance to grid ``p`` bounds each point's distance from above; another grid can be
+    nearer only where its bounding box (``boxes``, `grid_boxes` of all grids) is nearer than
+    that, so those points alone are searched again in those grids. The minimum is taken
+    over the same triangles as a search of the whole soup, so the distances are equal to
+    it; only grid ``p`` and its neighbours are read (``grid(q)`` gives grid ``q``), which
+    splits the search of a scan's vertices patch by patch.
+    """
+    X = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+    if X.shape[0] == 0:
+        return np.empty(0)
+    own = grid(p)
+    V, F = soup([own])
+    d, _ = triangle_distances(X, V, F, tree=grid_tree(V, F, [own.shape[:2]]))
+    # a box's distance is computed with a rounding of the coordinates' size: boxes within
+    # that much more than a point's bound are searched too, so no nearer grid is missed
+    reach = d + 4.0 * np.spacing(max(np.abs(boxes).max(), np.abs(X).max()))
+    lo, hi = X.min(axis=0), X.max(axis=0)
+    gap = np.linalg.norm(
+        np.maximum(np.maximum(boxes[:, 0] - hi, lo - boxes[:, 1]), 0.0), axis=1
+    )  # from the points' box to each grid's: below every point's own
+    need = np.zeros(X.shape[0], dtype=bool)
+    near: list[int] = []
+    for q in np.flatnonzero(gap < reach.max()):
+        if q == p:
+            continue
+        below = np.maximum(np.maximum(boxes[q, 0] - X, X - boxes[q, 1]), 0.0)
+        hit = np.einsum("ij,ij->i", below, below) < reach * reach
+        if hit.any():
+            need |= hit
+            near.append(int(q))
+    if near:
+        grids = [grid(q) for q in near]
+        V, F = soup(grids)
+        idx = np.flatnonzero(need)
+        tree = grid_tree(V, F, [g.shape[:2] for g in grids])
+        other, _ = triangle_distances(X[idx], V, F, tree=tree)
+        d[idx] = np.minimum(d[idx], other)
+    return d

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from meshfit import tol
 from meshfit._jsonio import read_json_file
 from meshfit._threads import map_threads
 from meshfit.errors import InputError, LayoutError
@@ -452,12 +453,17 @@ def _controls(ctx: Context) -> None:
 
 class Fit(Stage):
     """A cubic B-spline per patch, least-squares fitted to its spring grid with the shared
-    boundaries pinned (C0), then G1 across the smooth boundaries (:mod:`meshfit.stitch`)."""
+    boundaries pinned (C0), then G1 across the smooth boundaries (:mod:`meshfit.stitch`).
+    The per-patch fits run on threads or as tasks; the G1 stitch, which couples the
+    patches, on the client."""
 
     name = "fit"
     inputs = ("layout", "grids", "corner_xyz")
     outputs = ("network", "controls", "control_classes", "surfaces", "fit_info")
     after = ("springs",)
+
+    def __init__(self) -> None:
+        self.tasks = False  # whether the splines were fitted as tasks
 
     def group(self, ctx: Context) -> Any:
         return ctx.options.spline
@@ -467,44 +473,31 @@ class Fit(Stage):
         _controls(ctx)
 
     def run(self, ctx: Context) -> None:
-        from meshfit.bspline import fit_bspline, fit_errors
         from meshfit.stitch import stitch_surfaces
         from meshfit.stitch.layout import boundary_pins
 
         self._network(ctx)
         grids, counts, diag = ctx["grids"], ctx["controls"], ctx["diag"]
-        lay = ctx["layout"]
         o = ctx.options.spline
-        pins = boundary_pins(lay, ctx["corner_xyz"], grids, counts, o.smoothing)
-        normal_errors = o.normal_errors
+        pins = boundary_pins(ctx["layout"], ctx["corner_xyz"], grids, counts, o.smoothing)
+        if ctx.tasks is not None:
+            tick = lambda d, n: ctx.tick(self.name, d, n)  # noqa: E731
+            res = ctx.tasks.fits(grids, counts, pins, o, diag, tick)
+            self.tasks = True
+        else:
 
-        def fit(p: int):
-            t = time.perf_counter()
-            s = fit_bspline(
-                grids[p], controls=counts[p], pin_boundary=pins[p], smoothing=o.smoothing
-            )
-            if normal_errors:
-                e = fit_errors(s, grids[p]).as_dict()
-            else:  # parametric error only (eq. 6.1): the closest-point search is costly
-                nu, nv = grids[p].shape[:2]
-                S = s.evaluate_grid(np.linspace(0.0, 1.0, nu), np.linspace(0.0, 1.0, nv))
-                par = np.linalg.norm(grids[p] - S, axis=2)
-                e = {
-                    "parametric_rms": float(np.sqrt(np.mean(par**2))),
-                    "parametric_max": float(par.max()),
-                }
-            return s, {
-                "controls": list(counts[p]),
-                **{f"fit_{k}": v / diag for k, v in e.items()},
-                "seconds": round(time.perf_counter() - t, 4),
-            }
+            def fit(p: int):
+                return patch_fit(grids[p], counts[p], pins[p], o, diag)
 
-        res = ctx.map(fit, list(range(len(grids))), "fit")
+            res = ctx.map(fit, list(range(len(grids))), "fit")
         surfaces = [s for s, _ in res]
         if any(b.continuity == "G1" for b in ctx["network"].boundaries):
             surfaces = stitch_surfaces(surfaces, ctx["network"])
         ctx["surfaces"] = surfaces
         ctx["fit_info"] = [i for _, i in res]
+
+    def facts(self, ctx: Context) -> dict[str, Any]:
+        return {"patch_tasks": self.tasks}
 
     def save(self, ctx: Context, path: Path) -> None:
         arrays = {f"ctrl_{p}": s.control_points for p, s in enumerate(ctx["surfaces"])}
@@ -520,6 +513,32 @@ class Fit(Stage):
         ctx["surfaces"] = [BSplineSurface(z[f"ctrl_{p}"]) for p in range(n)]
         ctx["fit_info"] = from_bytes(z["info"])
         return True
+
+
+def patch_fit(grid, controls, pins, options, diag: float):
+    """One patch's spline and its fit figures: ``grid (h, w, 3) float64`` least-squares
+    fitted with ``controls (mu, mv)`` control points, its boundary rows pinned to ``pins``
+    (:func:`meshfit.stitch.layout.boundary_pins`), as ``options`` (SplineOptions) ask;
+    lengths in the figures are shares of ``diag``."""
+    from meshfit.bspline import fit_bspline, fit_errors
+
+    t = time.perf_counter()
+    s = fit_bspline(grid, controls=controls, pin_boundary=pins, smoothing=options.smoothing)
+    if options.normal_errors:
+        e = fit_errors(s, grid).as_dict()
+    else:  # parametric error only (eq. 6.1): the closest-point search is costly
+        nu, nv = grid.shape[:2]
+        S = s.evaluate_grid(np.linspace(0.0, 1.0, nu), np.linspace(0.0, 1.0, nv))
+        par = np.linalg.norm(grid - S, axis=2)
+        e = {
+            "parametric_rms": float(np.sqrt(np.mean(par**2))),
+            "parametric_max": float(par.max()),
+        }
+    return s, {
+        "controls": list(controls),
+        **{f"fit_{k}": v / diag for k, v in e.items()},
+        "seconds": round(time.perf_counter() - t, 4),
+    }
 
 
 class Displacement(Stage):
@@ -563,6 +582,8 @@ class Displacement(Stage):
         """With maps at their spring grids' shapes the spline-only surface is known now:
         its errors are measured on a thread while the maps are made and stitched."""
         if ctx.options.maps.shapes != "native" or ctx.saved.get("errors", False):
+            return
+        if ctx.tasks is not None:  # (the errors are tasks too)
             return
         shapes = [g.shape[:2] for g in ctx["grids"]]
         pool = ThreadPoolExecutor(max_workers=1)
@@ -734,6 +755,15 @@ class Stitch(Stage):
         return True
 
 
+def vertex_patch(mesh, face_patch: NDArray[np.int64] | None) -> NDArray[np.int64]:
+    """One patch per vertex of ``mesh``: that of a face using it (``face_patch``; patch 0
+    for a vertex of no labelled face), so the vertices split into shares by patch."""
+    owner = np.zeros(mesh.n_vertices, dtype=np.int64)
+    if face_patch is not None and len(face_patch) == mesh.n_faces:
+        owner[np.asarray(mesh.faces).reshape(-1)] = np.repeat(face_patch, 3)
+    return np.maximum(owner, 0)
+
+
 def _moved_unbounded(before: list, after: list, bounds: list) -> list:
     """The texel bounds of the maps ``after`` stitching: a texel whose values the stitch
     changed, or every texel of a map it resampled, has none (inf); the others keep theirs
@@ -783,9 +813,18 @@ class Errors(Stage):
     def extra(self, ctx: Context) -> Any:
         return ctx["mesh_hash"]
 
+    def __init__(self) -> None:
+        self.tasks = False  # whether the searches ran as tasks
+
+    def facts(self, ctx: Context) -> dict[str, Any]:
+        return {"patch_tasks": self.tasks}
+
     def run(self, ctx: Context) -> None:
         from meshfit._malloc import release_memory
 
+        if ctx.tasks is not None:
+            self._as_tasks(ctx)
+            return
         mesh, diag = ctx["mesh"], ctx["diag"]
         displaced = ctx["displaced"]
         future = _early_future(ctx)
@@ -816,6 +855,39 @@ class Errors(Stage):
         }
         ctx["spline_distance"] = spline_to_input
         ctx["displaced_distance"] = from_input  # (the report's heat map reads it)
+
+    def _as_tasks(self, ctx: Context) -> None:
+        """The same searches patch by patch, as tasks (:meth:`PatchTasks.errors`): each
+        patch's texels in the whole scan, and its share of the scan's vertices (each vertex
+        in one patch's share) in its grid and its neighbours'. The distances are those of
+        :meth:`run`, to the bit: each is a least distance over the same triangles."""
+        mesh, diag = ctx["mesh"], ctx["diag"]
+        spline, displaced = ctx["spline_grids"], ctx["displaced"]
+        n = len(displaced)
+        owner = vertex_patch(mesh, ctx["face_patch"])
+        tick = lambda d, k: ctx.tick(self.name, d, k)  # noqa: E731
+        near = tol.KNOWN_DISTANCE * mesh.bbox_diagonal
+        res = ctx.tasks.errors(mesh, owner, spline, displaced, ctx["map_bounds"], near, tick)
+        self.tasks = True
+        spline_from, disp_from = np.zeros(mesh.n_vertices), np.zeros(mesh.n_vertices)
+        share = np.argsort(owner, kind="stable")
+        cut = np.cumsum(np.bincount(owner, minlength=n))[:-1]
+        for ids, r in zip(np.split(share, cut), res, strict=True):
+            spline_from[ids], disp_from[ids] = r[2], r[3]
+        spline_to = np.concatenate([r[0] for r in res])
+        disp_to = np.concatenate([r[1] for r in res])
+        d = mesh.bbox_diagonal
+        ctx["errors"] = {
+            "spline_only": measure.figures(spline_to, spline_from, d),
+            "displaced": measure.figures(disp_to, disp_from, d),
+            "units": "fraction of the input's bbox diagonal",
+            "displaced_from_input_max_per_patch": [
+                None if v is None else v / diag
+                for v in measure.per_patch_max(mesh, ctx["face_patch"], disp_from, n)
+            ],
+        }
+        ctx["spline_distance"] = spline_to
+        ctx["displaced_distance"] = disp_from
 
     def save(self, ctx: Context, path: Path) -> None:
         save_npz(
