@@ -9,8 +9,9 @@ process holds the scan whole:
 - each spring mesh reads its patch's file (``cut/patch-<p>.npz``), on a thread or as a task;
 - a map finer than its spring grid searches the patch's piece (its faces and a halo of
   about one proxy edge) rather than the whole scan;
-- the errors search each patch's texels in its piece, and the scan vertices of its core
-  in its own grid and its neighbours' (on a thread or as a task);
+- the errors search each patch's texels in its piece; the scan's vertices are searched a
+  chunk at a time in the grids of all patches, or, as tasks, the vertices of each patch's
+  core in its own grid and its neighbours';
 - the report is drawn on the proxy.
 
 A texel's closest point on the scan lies in its patch's piece wherever it is nearer than
@@ -50,6 +51,9 @@ from meshfit.pipeline.stages import (
 from meshfit.pipeline.store import write_json
 
 __all__ = ["ValidatePrepared", "prepared_stages"]
+
+#: scan vertices searched at once in the errors' pass over the store on threads
+VERTEX_CHUNK = 1 << 20
 
 
 class ValidatePrepared(Stage):
@@ -214,9 +218,10 @@ class DisplacementPrepared(Displacement):
 
 class ErrorsPrepared(Errors):
     """As :class:`~meshfit.pipeline.stages.Errors`, patch by patch (:func:`patch_errors`, on
-    threads or as tasks): each patch's texels searched in its piece, the scan vertices of
-    its core in its grid and the neighbours' that may be nearer (the store's vertices no
-    face uses are not counted)."""
+    threads or as tasks): each patch's texels searched in its piece; the scan's vertices a
+    chunk at a time in one tree of all grids, or, as tasks, the vertices of each patch's
+    core in its grid and the neighbours' that may be nearer (the same distances). The
+    store's vertices no face uses are not counted."""
 
     inputs = ("prepared", "displaced", "spline_grids", "map_bounds", "face_patch")
 
@@ -237,24 +242,16 @@ class ErrorsPrepared(Errors):
             res = ctx.tasks.texel_errors(prep.folder, spline, displaced, bounds, near, tick)
             self.tasks = True
         else:
-            boxes = np.stack([measure.grid_boxes(spline), measure.grid_boxes(displaced)])
             grids = {"spline": spline, "displaced": displaced, "bounds": bounds}
 
             def one(p: int):
-                return patch_errors(prep.folder, p, lambda q, k: grids[k][q], boxes, near)
+                return patch_errors(prep.folder, p, lambda q, k: grids[k][q], None, near)
 
             cost = [float(np.prod(g.shape[:2])) for g in spline]
             res = ctx.map(one, list(range(n)), "errors", cost)
         spline_to_input = np.concatenate([r[0] for r in res])
         disp_to_input = np.concatenate([r[1] for r in res])
-        # each scan vertex in the core of one or more patches, its distances the same in each
-        used = np.zeros(prep.store.n_vertices, dtype=bool)
-        spline_from = np.zeros(prep.store.n_vertices)
-        disp_from = np.zeros(prep.store.n_vertices)
-        for _, _, ids, s, d in res:
-            used[ids] = True
-            spline_from[ids] = s
-            disp_from[ids] = d
+        used, spline_from, disp_from = self._from_input(ctx, [r[2:] for r in res])
         del res
         per_patch = _per_patch_max(prep.store, ctx["face_patch"], disp_from, n)
         ctx["errors"] = {
@@ -265,10 +262,30 @@ class ErrorsPrepared(Errors):
                 None if v is None else v / diag for v in per_patch
             ],
             "searched_in": "each patch's texels in its piece of the scan (its faces and a "
-            "halo); each patch's scan vertices in its grid and its neighbours'",
+            "halo); the scan's vertices in every patch's grid",
         }
         ctx["spline_distance"] = spline_to_input
         ctx["displaced_distance"] = disp_from
+
+    def _from_input(self, ctx: Context, shares: list) -> tuple[NDArray, ...]:
+        """Which store vertices a face uses, and their distances to the spline and the
+        displaced grids: from the tasks' ``shares`` (each patch's core vertices, a vertex
+        in several cores with the same distances in each), or on this machine a chunk of
+        vertices at a time in one tree of all grids (faster here than each patch's
+        neighbours' grids)."""
+        prep, displaced = ctx["prepared"], ctx["displaced"]
+        if self.tasks:
+            used = np.zeros(prep.store.n_vertices, dtype=bool)
+            spline_from = np.zeros(prep.store.n_vertices)
+            disp_from = np.zeros(prep.store.n_vertices)
+            for ids, s, d in shares:
+                used[ids] = True
+                spline_from[ids], disp_from[ids] = s, d
+            return used, spline_from, disp_from
+        used = _used_vertices(prep.store)
+        faces = measure.soup_faces([g.shape[:2] for g in displaced])
+        spline_from = _from_scan(prep.store, used, ctx["spline_grids"], faces)
+        return used, spline_from, _from_scan(prep.store, used, displaced, faces)
 
 
 def patch_errors(folder: Path, p: int, texels, boxes, near: float):
@@ -277,13 +294,13 @@ def patch_errors(folder: Path, p: int, texels, boxes, near: float):
 
     ``texels(q, kind)`` gives patch ``q``'s ``"spline"`` or ``"displaced"`` texel grid
     ``(h, w, 3)`` or its texels' ``"bounds"`` ``(h, w)``
-    (:func:`meshfit.pipeline.stages.texel_bounds`); ``boxes (2, n, 2, 3)``: the spline and
-    displaced grids' :func:`meshfit.pipeline.measure.grid_boxes`. Returns the distances
-    to the scan, searched in the piece, of every spline texel and of every displaced texel
-    whose bound is not within ``near`` (the bound standing for the rest); the store
-    vertices of the patch's core faces; and their distances to all spline grids and to all
+    (:func:`meshfit.pipeline.stages.texel_bounds`). Returns the distances to the scan,
+    searched in the piece, of every spline texel and of every displaced texel whose bound is
+    not within ``near`` (the bound standing for the rest). With ``boxes (2, n, 2, 3)``, the
+    spline and displaced grids' :func:`meshfit.pipeline.measure.grid_boxes`, also the store
+    vertices of the patch's core faces and their distances to all spline grids and to all
     displaced grids (:func:`meshfit.pipeline.measure.nearest_grid_distances`: equal to a
-    search of every grid at once).
+    search of every grid at once, reading only the grids near the patch).
     """
     from meshfit.pipeline.cluster import _unchecked_mesh, piece_arrays
 
@@ -296,11 +313,43 @@ def patch_errors(folder: Path, p: int, texels, boxes, near: float):
     if far.size:
         X = np.asarray(texels(p, "displaced")).reshape(-1, 3)[far]
         d[far] = mesh.closest_points(X).distance
+    if boxes is None:
+        return s, d
     mine = np.unique(faces[core])
     X = V[mine]
     vs = measure.nearest_grid_distances(X, p, boxes[0], lambda q: texels(q, "spline"))
     vd = measure.nearest_grid_distances(X, p, boxes[1], lambda q: texels(q, "displaced"))
     return s, d, ids[mine], vs, vd
+
+
+def _used_vertices(store) -> NDArray[np.bool_]:
+    """Which of the store's vertices a face uses, a chunk of faces at a time."""
+    from meshfit.mesh.store import CHUNK_FACES
+
+    used = np.zeros(store.n_vertices, dtype=bool)
+    for a in range(0, store.n_faces, CHUNK_FACES):
+        used[np.asarray(store.faces[a : a + CHUNK_FACES]).reshape(-1)] = True
+    return used
+
+
+def _from_scan(store, used, grids: list, faces) -> NDArray[np.float64]:
+    """Each used store vertex's distance to the soup of ``grids`` (0 for unused ones), a
+    chunk of vertices at a time, each chunk searched in its own Morton order."""
+    from meshfit._malloc import release_memory
+    from meshfit.mesh.locate import grid_tree, query_order, triangle_distances
+
+    V, F = measure.soup(grids, faces)
+    tree = grid_tree(V, F, [g.shape[:2] for g in grids])
+    out = np.zeros(store.n_vertices)
+    for a in range(0, store.n_vertices, VERTEX_CHUNK):
+        b = min(a + VERTEX_CHUNK, store.n_vertices)
+        ids = a + np.flatnonzero(used[a:b])
+        if ids.size:
+            X = np.asarray(store.vertices[ids])
+            out[ids], _ = triangle_distances(X, V, F, tree=tree, qorder=query_order(X))
+    del V, F, tree
+    release_memory()
+    return out
 
 
 def _per_patch_max(store, face_patch, value, n: int) -> list[float | None]:
