@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 from meshfit import tol
 from meshfit._kernels.geometry import label_corner_max
 from meshfit.mesh import Mesh
-from meshfit.mesh.locate import grid_tree, triangle_distances
+from meshfit.mesh.locate import grid_tree, triangle_distances, triangles_within
 from meshfit.springs import grid_triangles
 
 
@@ -148,11 +148,12 @@ def nearest_grid_distances(
     and the grids that may hold a nearer point.
 
     The distance to grid ``p`` bounds each point's distance from above; another grid can be
-    nearer only where its bounding box (``boxes``, `grid_boxes` of all grids) is nearer than
-    that, so those points alone are searched again in those grids. The minimum is taken
-    over the same triangles as a search of the whole soup, so the distances are equal to
-    it; only grid ``p`` and its neighbours are read (``grid(q)`` gives grid ``q``), which
-    splits the search of a scan's vertices patch by patch.
+    nearer only where its bounding box (``boxes``, `grid_boxes` of all grids) is within the
+    largest bound of the points' box, and then only for the points that have one of its
+    triangles within that bound (a yes-or-no search), which alone are searched again. The
+    minimum is taken over the same triangles as a search of the whole soup, so the
+    distances are equal to it; only grid ``p`` and its neighbours are read (``grid(q)``
+    gives grid ``q``), which splits the search of a scan's vertices patch by patch.
     """
     X = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
     if X.shape[0] == 0:
@@ -167,21 +168,14 @@ def nearest_grid_distances(
     gap = np.linalg.norm(
         np.maximum(np.maximum(boxes[:, 0] - hi, lo - boxes[:, 1]), 0.0), axis=1
     )  # from the points' box to each grid's: below every point's own
-    need = np.zeros(X.shape[0], dtype=bool)
-    near: list[int] = []
-    for q in np.flatnonzero(gap < reach.max()):
-        if q == p:
-            continue
-        below = np.maximum(np.maximum(boxes[q, 0] - X, X - boxes[q, 1]), 0.0)
-        hit = np.einsum("ij,ij->i", below, below) < reach * reach
-        if hit.any():
-            need |= hit
-            near.append(int(q))
+    near = [int(q) for q in np.flatnonzero(gap < reach.max()) if q != p]
     if near:
         grids = [grid(q) for q in near]
         V, F = soup(grids)
-        idx = np.flatnonzero(need)
         tree = grid_tree(V, F, [g.shape[:2] for g in grids])
-        other, _ = triangle_distances(X[idx], V, F, tree=tree)
-        d[idx] = np.minimum(d[idx], other)
+        # a yes-or-no search first: most points have no other grid within the largest bound
+        idx = np.flatnonzero(triangles_within(X, V, F, float(reach.max()), tree=tree))
+        if idx.size:
+            other, _ = triangle_distances(X[idx], V, F, tree=tree)
+            d[idx] = np.minimum(d[idx], other)
     return d
