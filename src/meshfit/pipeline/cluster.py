@@ -1,13 +1,13 @@
-"""The per-patch work of one fit as Dask tasks: spring meshes, spline fits and displacement
-maps.
+"""The per-patch work of one fit as Dask tasks: spring meshes, spline fits, displacement
+maps and error searches.
 
-:func:`meshfit.fit` with ``cluster`` runs each patch's spring mesh, spline fit and
-displacement map as a task on dask.distributed workers: a LocalCluster of worker processes
-on 127.0.0.1, or a running scheduler. Task inputs are passed by reference: the client writes
-each task's inputs once to a scratch folder of ``.npz`` files (``tasks/`` in the fit's stage
-cache with an output folder, else a temporary folder; removed when the fit ends) and a task
-receives that file's path and small options, never a pickled mesh. Results come back as
-arrays.
+:func:`meshfit.fit` with ``cluster`` runs each patch's spring mesh, spline fit,
+displacement map and error searches as a task on dask.distributed workers: a LocalCluster
+of worker processes on 127.0.0.1, or a running scheduler. Task inputs are passed by
+reference: the client writes each task's inputs once to a scratch folder of ``.npz`` files
+(``tasks/`` in the fit's stage cache with an output folder, else a temporary folder;
+removed when the fit ends) and a task receives that file's path and small options, never a
+pickled mesh. Results come back as arrays.
 
 A worker lost mid-run (killed, or past its memory limit) has its tasks run again elsewhere,
 up to ``retries`` extra times. A task reads only its own files and computes the same bytes
@@ -19,15 +19,16 @@ What stays on the client, and why:
 - the boundary curves that pin the patches' splines, fitted to the spring meshes of the
   patches on each curve (:func:`meshfit.stitch.layout.boundary_pins`; a task gets its
   patch's pinned rows), and the G1 stitch, which couples neighbouring patches;
-- stitching, the exports and the report: they read every patch at once;
-- the error searches (:mod:`meshfit.pipeline.measure`): each input vertex's distance is to
-  the nearest point of all patches' grids together (a vertex by a seam may be nearest to
-  its neighbour's grid), so that direction does not split by patch; and the other direction
-  seeds each search with the previous query's triangle in a block of queries taken from
-  all patches in one order, so a search split by patch may report another of two triangles
-  at the same distance. (A prepared scan's fit, :mod:`meshfit.pipeline.prepared_stages`,
-  searches each patch's texels in its own piece of the scan anyway: those searches run as
-  tasks, :func:`texel_task`; the scan's vertices are searched on the client.)
+- stitching, the exports and the report: they read every patch at once, as do the error
+  figures, which the client makes from the tasks' distances.
+
+The error searches split by patch without changing a distance (:func:`scan_errors_task`,
+:func:`texel_task`): a texel's distance to the scan is a least distance over the scan's
+triangles whichever task searches it; a scan vertex's distance is to all patches' grids
+together (a vertex by a seam may be nearest its neighbour's), so each vertex is searched in
+its own patch's grid and then only in the neighbours' grids that may be nearer
+(:func:`meshfit.pipeline.measure.nearest_grid_distances`), a task reading those grids
+alone.
 
 A map at a finer resolution than its spring grid (matched map shapes) moves each texel to
 its closest point on the whole scan (:func:`meshfit.displacement.refine_on_scan`): the

@@ -802,7 +802,8 @@ def _spline_grids(ctx: Context) -> list:
 
 
 class Errors(Stage):
-    """Two-sided distances of the spline-only and the displaced surfaces to the input."""
+    """Two-sided distances of the spline-only and the displaced surfaces to the input: on
+    the threads of this process, or as one task per patch (:meth:`_as_tasks`)."""
 
     name = "errors"
     inputs = ("mesh", "displaced", "spline_grids", "map_bounds", "face_patch")
