@@ -79,7 +79,7 @@ def test_split_search_reads_only_the_grids_it_needs():
     measure.nearest_grid_distances(inner, 0, boxes, grid)
     assert 0 in read and not {2, 3} & set(read)
     read.clear()
-    between = inner + [0.0, 0.0, 0.04]
+    between = inner + np.array([0.0, 0.0, 0.04])
     got = measure.nearest_grid_distances(between, 0, boxes, grid)
     assert 2 in read
     np.testing.assert_array_equal(got, _whole(between, grids))
