@@ -665,3 +665,29 @@ def test_curves_carried_from_a_proxy_have_no_spikes():
             far = arc > 3 * h  # over 3 to 20 edges of arc, the chord is at least half of it
             chord = np.linalg.norm(x[j[far]] - x[i], axis=1)
             assert np.all(chord >= 0.5 * arc[far])
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="the sphere route depends on the order of the mesh's faces: spot's proxy (5,794 "
+    "faces) in the store's order has a base quad 0.6515 deep (limit 0.65) and goes to the "
+    "region route (354 patches); its faces shuffled give 0.5446 and keep the sphere route "
+    "(60 patches). The split into two disks is the same; round-off that follows the order "
+    "(the Tutte solve, the cell-area sums) takes the base mesh's equalising elsewhere",
+)
+def test_the_order_of_the_faces_does_not_change_the_layout(tmp_path):
+    from meshfit.mesh import Mesh
+    from meshfit.mesh.store import write_store
+    from meshfit.shrinkwrap.proxy import simplify_store
+
+    store = write_store(real_mesh("spot"), tmp_path / "s")
+    proxy = simplify_store(store, store.n_faces).mesh
+    rng = np.random.default_rng(0)
+    shuffled = Mesh(proxy.vertices, proxy.faces[rng.permutation(proxy.n_faces)])
+    opts = LayoutOptions(crease_angle=None)
+    routes = []
+    for mesh in (proxy, shuffled):
+        report: list = []
+        lay = auto_layout(mesh, opts, report=report)
+        routes.append((report[0]["route"], lay.n_patches))
+    assert routes[0] == routes[1]
