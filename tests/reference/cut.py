@@ -468,14 +468,21 @@ class _Cutter:
 
 
 def _classify(
-    cutter: _Cutter, face: int, bary: NDArray, index: int, matmul: bool = False
+    cutter: _Cutter,
+    face: int,
+    bary: NDArray,
+    index: int,
+    matmul: bool = False,
+    within: float | None = None,
 ) -> _CutPoint:
-    """Snap a face point onto a vertex or an edge of its face when within ``CUT_SNAP``.
+    """Snap a face point onto a vertex or an edge of its face when within ``within``
+    (default ``CUT_SNAP``).
 
     The point is ``b0 p0 + b1 p1 + b2 p2`` summed left to right, as the kernel classifying
     curve points does; ``matmul`` takes numpy's ``b @ pos`` instead, as the library does for
     corners (on some CPUs numpy fuses its multiply-adds, so the two differ in the last bit).
     """
+    snap = cutter.snap if within is None else max(float(within), cutter.snap)
     fv = cutter.face(face)
     b = np.clip(bary, 0.0, None)
     b = b / b.sum()
@@ -486,13 +493,13 @@ def _classify(
         p = tuple(float(b[0] * pos[0][d] + b[1] * pos[1][d] + b[2] * pos[2][d]) for d in range(3))
     dv = [_norm(_sub(p, q)) for q in pos]
     k = int(np.argmin(dv))
-    if dv[k] < cutter.snap:
+    if dv[k] < snap:
         return _vertex_point(cutter, fv[k], index)
     for k in range(3):
         qa, qb = pos[k], pos[(k + 1) % 3]
         e = _sub(qb, qa)
         s = _dot(_sub(p, qa), e) / _dot(e, e)
-        if 0.0 < s < 1.0 and _norm(_sub(p, _lerp(qa, qb, s))) < cutter.snap:
+        if 0.0 < s < 1.0 and _norm(_sub(p, _lerp(qa, qb, s))) < snap:
             return _edge_point(cutter, face, k, s, index)
     return _CutPoint(
         face, (float(b[0]), float(b[1]), float(b[2])), -1, frozenset((face,)), p, index
@@ -895,7 +902,7 @@ def cut_mesh_network(
         point of curve ``i`` are replaced by corners ``ends[i, 0]`` and ``ends[i, 1]``.
     corners : SurfacePoints
         ``nc`` corner points. A corner within ``tol.CUT_CORNER_MERGE`` mean edge lengths of a
-        mesh vertex is moved onto it, and curve points that close to their end corners are
+        mesh vertex is moved onto it (else of an edge, onto the edge), and curve points that close to their end corners are
         dropped (painted curves pass through the vertex nearest a corner pick).
     ends : (nk, 2) int64
         Corner index at the start and end of each curve.
@@ -934,13 +941,8 @@ def cut_mesh_network(
     corner_cp: list[_CutPoint] = []
     corner_v = np.empty(nc, dtype=np.int64)
     for c in range(nc):
-        cp = _classify(cutter, int(corners.face[c]), corners.bary[c], c, matmul=True)
-        if cp.vertex < 0:  # a corner within CUT_CORNER_MERGE of a vertex is that vertex
-            fv = cutter.face(cp.face)
-            dv = [_norm(_sub(cutter.xyz(u), cp.xyz)) for u in fv]
-            k = int(np.argmin(dv))
-            if dv[k] < merge:
-                cp = _vertex_point(cutter, fv[k], c)
+        # a corner within CUT_CORNER_MERGE of a vertex is that vertex, else of an edge, on it
+        cp = _classify(cutter, int(corners.face[c]), corners.bary[c], c, matmul=True, within=merge)
         v = cutter.insert(cp, cp.face)
         if v < cutter.nv0:
             cp = _vertex_point(cutter, v, c)

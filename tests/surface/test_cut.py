@@ -15,6 +15,7 @@ from meshfit.mesh.locate import barycentric
 from meshfit.surface import cut_mesh, greedy_path, path_to_surface_points
 from meshfit.types import SurfaceCurve, SurfacePoints
 from tests.conftest import analytic_mesh, real_mesh
+from tests.shapes import plane
 
 
 # ------------------------------------------------------------------------------ helpers
@@ -452,6 +453,36 @@ def test_network_cut_rejects_meeting_curves():
         cut_mesh_network(mesh, [*curves, curves[0]], layout.corners, np.vstack([ends, ends[:1]]))
     with pytest.raises(InputError, match="corner index out of range"):
         cut_mesh_network(mesh, curves[:1], layout.corners, [[0, 999]])
+
+
+@pytest.mark.parametrize("size", [1.0, 1e3])
+@pytest.mark.parametrize("offset", [0.1, 1e-3, 1e-6, 1e-7])
+def test_two_curves_leaving_a_corner_beside_an_edge_do_not_touch(offset, size):
+    # a corner a hair's breadth inside a face, two curves leaving it at right angles
+    # across the near edge: their crossings would split off triangles below the cut's
+    # least area and merge into one vertex, were the corner not put on the edge
+    from meshfit.curves.base import densify_curves
+    from meshfit.surface.cut import network_meetings
+
+    mesh = plane(8, size=size, jitter=0.0)
+    h = mesh.mean_edge_length
+    V, F = mesh.vertices, mesh.faces
+    a, b, c = F[len(F) // 2]
+    foot = 0.5 * (V[a] + V[b])
+    along = (V[b] - V[a]) / np.linalg.norm(V[b] - V[a])
+    inward = V[c] - foot
+    inward -= (inward @ along) * along
+    inward /= np.linalg.norm(inward)
+    corner = foot + offset * h * inward
+    lines = []
+    for side in (1.0, -1.0):
+        d = np.sqrt(0.5) * (side * along - inward)
+        x = np.array([corner, corner + 0.3 * h * d, corner + 2.5 * h * d])
+        lines.append(SurfaceCurve(mesh.closest_points(x).points))
+    curves = [c.points for c in densify_curves(mesh, lines)]
+    one = np.array([0])
+    corners = SurfacePoints.concatenate([curves[0][one], curves[0][one - 1], curves[1][one - 1]])
+    assert network_meetings(mesh, curves, corners, np.array([[0, 1], [0, 2]])) == set()
 
 
 def test_network_meetings_names_every_curve_at_fault():

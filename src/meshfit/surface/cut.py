@@ -296,8 +296,12 @@ class _Cutter:
         return path.tolist()
 
 
-def _classify(cutter: _Cutter, face: int, bary: NDArray, index: int) -> _CutPoint:
-    """Snap a face point onto a vertex or an edge of its face when within ``CUT_SNAP``."""
+def _classify(
+    cutter: _Cutter, face: int, bary: NDArray, index: int, within: float | None = None
+) -> _CutPoint:
+    """Snap a face point onto a vertex or an edge of its face when within ``within``
+    (default the cutter's ``CUT_SNAP``)."""
+    snap = cutter.snap if within is None else max(float(within), cutter.snap)
     fv = cutter.face(face)
     b = np.clip(bary, 0.0, None)
     b = b / b.sum()
@@ -305,13 +309,13 @@ def _classify(cutter: _Cutter, face: int, bary: NDArray, index: int) -> _CutPoin
     p = tuple(float(x) for x in b @ np.asarray(pos))
     dv = [_norm(_sub(p, q)) for q in pos]
     k = int(np.argmin(dv))
-    if dv[k] < cutter.snap:
+    if dv[k] < snap:
         return _vertex_point(cutter, fv[k], index)
     for k in range(3):
         qa, qb = pos[k], pos[(k + 1) % 3]
         e = _sub(qb, qa)
         s = _dot(_sub(p, qa), e) / _dot(e, e)
-        if 0.0 < s < 1.0 and _norm(_sub(p, _lerp(qa, qb, s))) < cutter.snap:
+        if 0.0 < s < 1.0 and _norm(_sub(p, _lerp(qa, qb, s))) < snap:
             return _edge_point(cutter, face, k, s, index)
     return _CutPoint(
         face, (float(b[0]), float(b[1]), float(b[2])), -1, frozenset((face,)), p, index
@@ -598,8 +602,9 @@ def cut_mesh_network(
         point of curve ``i`` are replaced by corners ``ends[i, 0]`` and ``ends[i, 1]``.
     corners : SurfacePoints
         ``nc`` corner points. A corner within ``tol.CUT_CORNER_MERGE`` mean edge lengths of a
-        mesh vertex is moved onto it, and curve points that close to their end corners are
-        dropped (painted curves pass through the vertex nearest a corner pick).
+        mesh vertex is moved onto it (else of an edge, onto the edge), and curve points that
+        close to their end corners are dropped (painted curves pass through the vertex
+        nearest a corner pick).
     ends : (nk, 2) int64
         Corner index at the start and end of each curve.
     split : bool, keyword-only
@@ -699,18 +704,15 @@ def network_cut_arrays(
 
 def _insert_corners(cutter: _Cutter, corners: SurfacePoints, merge: float):
     """Insert the corners into ``cutter`` (one within ``merge`` of a mesh vertex is that
-    vertex); their cutter vertices and cut points."""
+    vertex, one that near an edge is on the edge); their cutter vertices and cut points."""
     nc = len(corners)
     corner_cp: list[_CutPoint] = []
     corner_v = np.empty(nc, dtype=np.int64)
     for c in range(nc):
-        cp = _classify(cutter, int(corners.face[c]), corners.bary[c], c)
-        if cp.vertex < 0:  # a corner within CUT_CORNER_MERGE of a vertex is that vertex
-            fv = cutter.face(cp.face)
-            dv = [_norm(_sub(cutter.xyz(u), cp.xyz)) for u in fv]
-            k = int(np.argmin(dv))
-            if dv[k] < merge:
-                cp = _vertex_point(cutter, fv[k], c)
+        # a corner within CUT_CORNER_MERGE of a vertex is that vertex, and one that near an
+        # edge is on the edge: curves leaving it across the edge would otherwise cross it
+        # next to each other, splitting off triangles below the cut's least area
+        cp = _classify(cutter, int(corners.face[c]), corners.bary[c], c, within=merge)
         v = cutter.insert(cp, cp.face)
         if v < cutter.nv0:
             cp = _vertex_point(cutter, v, c)
