@@ -117,3 +117,29 @@ def compact(V, F, alive, kept):
     remap = np.full(len(V), -1, dtype=np.int64)
     remap[used] = np.arange(used.size)
     return V[used], remap[F], kept[used]
+
+
+def face_cells(V, F, lo, scale, bits):
+    """Morton codes of the faces' centroid cells, with numpy: centroids, cells, bits."""
+    c = V[F.reshape(-1)].reshape(-1, 3, 3).mean(axis=1)
+    q = np.clip(((c - lo) * scale).astype(np.int64), 0, (1 << bits) - 1)
+    code = np.zeros(len(F), dtype=np.int64)
+    for k in range(bits):
+        for axis in range(3):
+            code |= ((q[:, axis] >> k) & 1) << (3 * k + axis)
+    return code
+
+
+def survey_bricks(V, bricks, n_vertices):
+    """Per brick in turn: vertices used by an earlier brick are shared; each brick's area."""
+    first = np.full(n_vertices, -1)
+    shared = np.zeros(n_vertices, dtype=bool)
+    areas = []
+    for b, faces in enumerate(bricks):
+        used = np.unique(faces)
+        seen = first[used] >= 0
+        shared[used[seen]] = True
+        first[used[~seen]] = b
+        x = V[faces]
+        areas.append(0.5 * np.linalg.norm(np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), axis=1).sum())
+    return shared, np.array(areas)

@@ -137,6 +137,51 @@ def test_a_proxy_made_brick_by_brick_keeps_topology_and_shape(tmp_path, name, br
     assert d.mean() <= 1.34 * d_whole.mean()
 
 
+@pytest.mark.parametrize(("name", "brick_faces"), [("kitten", 2000), ("genus 2", 300)])
+def test_a_mesh_simplified_by_bricks_is_its_store_simplified(tmp_path, name, brick_faces):
+    # the same Morton bricks in memory as in the store, so the same collapses
+    from meshfit.shrinkwrap.proxy import simplify_store
+
+    from ..shapes import tori
+
+    mesh = tori(2) if name == "genus 2" else real_mesh(name)
+    target = mesh.n_faces // 6
+    got = simplify_mesh(mesh, target, workers=2, bricks=True, brick_faces=brick_faces)
+    want = simplify_store(_store(mesh, tmp_path, brick_faces), target)
+    np.testing.assert_array_equal(got.vertex_parent, want.vertex_parent)
+    np.testing.assert_array_equal(got.mesh.faces, want.mesh.faces)
+    assert got.mesh.genus == mesh.genus and got.mesh.is_closed
+    with pytest.raises(InputError, match="brick_faces"):
+        simplify_mesh(mesh, target, bricks=True, brick_faces=0)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_brick_kernels_match_their_oracles(seed):
+    from meshfit.mesh.store import MORTON_BITS
+
+    mesh = real_mesh("kitten")
+    rng = np.random.default_rng(seed)
+    # a random rigid placement, and a flat box axis (one cell across it)
+    V = mesh.vertices @ np.linalg.qr(rng.normal(size=(3, 3)))[0] + rng.normal(size=3)
+    F = np.ascontiguousarray(mesh.faces)
+    lo, hi = V.min(axis=0), V.max(axis=0)
+    scale = (1 << MORTON_BITS) / (hi - lo)
+    scale[seed] = 0.0
+    codes = _k.face_cells(V, F, lo, scale, MORTON_BITS)
+    np.testing.assert_array_equal(codes, reference.face_cells(V, F, lo, scale, MORTON_BITS))
+    n_cells = 1 << (3 * MORTON_BITS)
+    order, count = _k.cell_order(codes, n_cells)
+    np.testing.assert_array_equal(order, np.argsort(codes, kind="stable"))
+    np.testing.assert_array_equal(count, np.bincount(codes, minlength=n_cells))
+    bricks = np.array_split(F[order], 7)
+    first = np.full(len(V), -1, dtype=np.int32)
+    shared = np.zeros(len(V), dtype=bool)
+    areas = [_k.survey_brick(V, b, i, first, shared) for i, b in enumerate(bricks)]
+    want_shared, want_areas = reference.survey_bricks(V, bricks, len(V))
+    np.testing.assert_array_equal(shared, want_shared)
+    np.testing.assert_allclose(areas, want_areas, rtol=1e-12)
+
+
 def test_a_proxy_of_an_open_scan_keeps_its_boundary(tmp_path):
     from meshfit.shrinkwrap.proxy import simplify_store
 

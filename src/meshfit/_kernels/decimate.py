@@ -284,3 +284,62 @@ def compact(V, F, alive, kept):
                 F2[m, k] = remap[F[f, k]]
             m += 1
     return V2, F2, kept2
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def face_cells(V, F, lo, scale, bits):
+    """The Morton code of the grid cell holding each face's centroid: the centroid's
+    offset from ``lo`` times ``scale`` (per axis), truncated and clipped to ``2**bits``
+    cells per axis, the axes' bits interleaved (x lowest). One pass, no temporaries: the
+    bricks of a scan of tens of millions of faces."""
+    n = F.shape[0]
+    top = (1 << bits) - 1
+    out = np.empty(n, dtype=np.int64)
+    for f in range(n):
+        code = 0
+        for d in range(3):
+            c = (V[F[f, 0], d] + V[F[f, 1], d] + V[F[f, 2], d]) / 3.0
+            q = int((c - lo[d]) * scale[d])
+            q = min(max(q, 0), top)
+            for k in range(bits):
+                code |= ((q >> k) & 1) << (3 * k + d)
+        out[f] = code
+    return out
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def cell_order(codes, n_cells):
+    """``(np.argsort(codes, kind="stable"), np.bincount(codes, minlength=n_cells))`` of
+    codes in ``[0, n_cells)``, by one counting sort."""
+    count = np.zeros(n_cells, dtype=np.int64)
+    for c in codes:
+        count[c] += 1
+    at = np.empty(n_cells, dtype=np.int64)
+    s = 0
+    for c in range(n_cells):
+        at[c] = s
+        s += count[c]
+    order = np.empty(codes.shape[0], dtype=np.int64)
+    for i in range(codes.shape[0]):
+        c = codes[i]
+        order[at[c]] = i
+        at[c] += 1
+    return order, count
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def survey_brick(V, faces, b, first, shared):
+    """Brick ``b``'s faces seen after those of bricks ``0..b-1``: a vertex first used here
+    gets ``first = b``, one first used by another brick becomes ``shared``; returns the
+    faces' area."""
+    area = 0.0
+    for f in range(faces.shape[0]):
+        for k in range(3):
+            v = faces[f, k]
+            if first[v] < 0:
+                first[v] = b
+            elif first[v] != b:
+                shared[v] = True
+        nx, ny, nz = _cross(V, faces[f, 0], faces[f, 1], faces[f, 2])
+        area += 0.5 * np.sqrt(nx * nx + ny * ny + nz * nz)
+    return area

@@ -674,6 +674,7 @@ def _layout_on_proxy(
     carried network cuts ``mesh`` into disks."""
     from concurrent.futures import ThreadPoolExecutor
 
+    from meshfit._threads import n_workers
     from meshfit.layout.extract import check_layout_topology
     from meshfit.shrinkwrap import sphere_map
     from meshfit.shrinkwrap.proxy import simplify_mesh
@@ -685,7 +686,7 @@ def _layout_on_proxy(
     with ThreadPoolExecutor(max_workers=1) as pool:
         one_sphere = pool.submit(_one_sphere, mesh)
         ready = pool.submit(_prepare_fine, mesh)
-        coarse = simplify_mesh(mesh, int(proxy_faces)).mesh
+        coarse = simplify_mesh(mesh, int(proxy_faces), workers=n_workers(None)).mesh
         if not one_sphere.result():
             raise _topology_error(mesh)
         c_smap = sphere_map(coarse, max_aspect=sphere_max_aspect)

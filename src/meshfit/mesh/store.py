@@ -44,6 +44,8 @@ __all__ = [
     "STORE_FORMAT",
     "STORE_VERSION",
     "MeshStore",
+    "brick_cuts",
+    "morton_cells",
     "open_store",
     "write_store",
 ]
@@ -347,6 +349,39 @@ def _morton(cells: NDArray[np.int64], bits: int) -> NDArray[np.int64]:
     return code
 
 
+def morton_cells(
+    vertices: NDArray[np.float64], faces: NDArray[np.int64], lo, hi, bits: int = MORTON_BITS
+) -> NDArray[np.int64]:
+    """The Morton code of the grid cell (``2**bits`` per axis over the box ``lo``, ``hi``)
+    holding each face's centroid; a flat box is one cell across its thickness."""
+    from meshfit._kernels.decimate import face_cells
+
+    lo = np.asarray(lo, dtype=np.float64)
+    extent = np.asarray(hi, dtype=np.float64) - lo
+    scale = np.where(extent > 0, (1 << bits) / np.where(extent > 0, extent, 1.0), 0.0)
+    V = np.ascontiguousarray(vertices, dtype=np.float64)
+    F = np.ascontiguousarray(faces, dtype=np.int64)
+    return face_cells(V, F, lo, scale, int(bits))
+
+
+def brick_cuts(
+    count: NDArray[np.int64], brick_faces: int
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Bricks as runs of whole Morton cells, given the faces per cell ``count``: a brick
+    ends at the cell where the running count passes a multiple of ``brick_faces``, and no
+    brick is empty. Returns each brick's first cell and the bricks' first faces (in cell
+    order) with the total last."""
+    n = int(count.sum())
+    run = np.cumsum(count)
+    ends = np.searchsorted(run, np.arange(brick_faces, n, brick_faces), "left")
+    cut_cells = np.unique(np.concatenate([[0], ends + 1]))
+    cut_cells = cut_cells[cut_cells < count.size]
+    per_brick = np.add.reduceat(count, cut_cells) if n else np.zeros(0, np.int64)
+    keep = per_brick > 0
+    cut_cells, per_brick = cut_cells[keep], per_brick[keep]
+    return cut_cells, np.concatenate([[0], np.cumsum(per_brick)]).astype(np.int64)
+
+
 def write_store(
     source,
     folder: str | os.PathLike,
@@ -432,14 +467,9 @@ def _write(src: _Source, root: Path, how: str, brick_faces: int, step: int, prog
         if nv == 0:
             lo = hi = np.zeros(3)
         bits = MORTON_BITS
-        extent = hi - lo
-        # (a flat mesh: one cell across its thickness)
-        scale = np.where(extent > 0, (1 << bits) / np.where(extent > 0, extent, 1.0), 0.0)
 
         def cells(f: NDArray[np.int64]) -> NDArray[np.int64]:
-            c = V[f.reshape(-1)].reshape(-1, 3, 3).mean(axis=1)
-            q = np.clip(((c - lo) * scale).astype(np.int64), 0, (1 << bits) - 1)
-            return _morton(q, bits)
+            return morton_cells(V, f, lo, hi, bits)
 
         def kept(a: int, b: int) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
             f = src.face_chunk(a, b)
@@ -462,16 +492,8 @@ def _write(src: _Source, root: Path, how: str, brick_faces: int, step: int, prog
             done += b - a
             if progress is not None:
                 progress(done, total)
-        # 3. bricks: runs of whole cells, cut where the running count passes a multiple of
-        # brick_faces
-        run = np.cumsum(count)
-        ends = np.searchsorted(run, np.arange(brick_faces, n_kept, brick_faces), "left")
-        cut_cells = np.unique(np.concatenate([[0], ends + 1]))
-        cut_cells = cut_cells[cut_cells < count.size]
-        per_brick = np.add.reduceat(count, cut_cells) if n_kept else np.zeros(0, np.int64)
-        keep = per_brick > 0
-        cut_cells, per_brick = cut_cells[keep], per_brick[keep]
-        start = np.concatenate([[0], np.cumsum(per_brick)]).astype(np.int64)
+        # 3. bricks: runs of whole cells
+        cut_cells, start = brick_cuts(count, brick_faces)
         # 4. faces again, each at its brick's next free row (chunk order within a brick)
         F = np.lib.format.open_memmap(tmp / "faces.npy", "w+", np.int64, (n_kept, 3))
         face_in = np.lib.format.open_memmap(tmp / "input_face.npy", "w+", np.int64, (n_kept,))

@@ -20,7 +20,7 @@ from meshfit import errors
 from meshfit._kernels import decimate as _k
 from meshfit.mesh import Mesh
 
-__all__ = ["MERGE_FACTOR", "SimplifiedMesh", "collapse_to", "simplify_mesh", "simplify_store"]
+__all__ = ["BRICKS_ABOVE", "MERGE_FACTOR", "SimplifiedMesh", "collapse_to", "simplify_mesh", "simplify_store"]
 
 #: a collapse may turn a surviving face's normal by at most this angle (degrees)
 MAX_NORMAL_TURN_DEG = 60.0
@@ -32,6 +32,9 @@ MIN_QUALITY = 0.15
 #: :func:`simplify_store` simplifies the bricks to about this many times the target's faces
 #: in all (besides their frozen rims) before the last passes over the whole
 MERGE_FACTOR = 40
+#: :func:`simplify_mesh` goes brick by brick above this many times ``MERGE_FACTOR`` times
+#: the target's faces
+BRICKS_ABOVE = 4
 #: passes of independent collapses before giving up on the target
 _MAX_PASSES = 200
 
@@ -98,7 +101,14 @@ def collapse_to(
     return V, F, kept, passes
 
 
-def simplify_mesh(mesh: Mesh, target_faces: int) -> SimplifiedMesh:
+def simplify_mesh(
+    mesh: Mesh,
+    target_faces: int,
+    *,
+    workers: int = 1,
+    bricks: bool | None = None,
+    brick_faces: int | None = None,
+) -> SimplifiedMesh:
     """Simplify a closed manifold mesh to about ``target_faces`` faces, same topology.
 
     Each pass collapses an independent set of edges, shortest first (half-edge collapses:
@@ -114,6 +124,15 @@ def simplify_mesh(mesh: Mesh, target_faces: int) -> SimplifiedMesh:
     target_faces : int
         Wanted face count (at least 20); the result has at most a few faces fewer, or more
         when the constraints stop the collapses first.
+    workers : int, keyword-only
+        Threads simplifying bricks (default 1).
+    bricks : bool, keyword-only, optional
+        Simplify Morton bricks first, as :func:`simplify_store` does (the same result as
+        the store of ``mesh`` with the same bricks); their passes stay in cache and run on
+        ``workers`` threads. Default: for a mesh of more than `BRICKS_ABOVE` times
+        ``MERGE_FACTOR * target_faces`` faces, where the bricks remove most of the faces.
+    brick_faces : int, keyword-only, optional
+        Faces per brick (about), default :data:`meshfit.mesh.store.BRICK_FACES`.
 
     Returns
     -------
@@ -122,7 +141,7 @@ def simplify_mesh(mesh: Mesh, target_faces: int) -> SimplifiedMesh:
     Raises
     ------
     meshfit.errors.InputError
-        ``target_faces`` below 20.
+        ``target_faces`` below 20, ``brick_faces`` below 1.
     meshfit.errors.TopologyError
         The mesh has boundary loops.
 
@@ -139,9 +158,33 @@ def simplify_mesh(mesh: Mesh, target_faces: int) -> SimplifiedMesh:
         raise errors.TopologyError(
             f"simplify_mesh needs a closed surface; {mesh.name or 'the mesh'} has boundary loops"
         )
-    V, F, kept, passes = collapse_to(mesh.vertices, mesh.faces, target)
+    if brick_faces is not None and int(brick_faces) < 1:
+        raise errors.InputError(f"brick_faces must be at least 1, got {brick_faces}")
+    if bricks is None:
+        bricks = mesh.n_faces > BRICKS_ABOVE * MERGE_FACTOR * target
+    if bricks:
+        V, F, kept, passes = _mesh_bricks(mesh, target, workers, brick_faces)
+    else:
+        V, F, kept, passes = collapse_to(mesh.vertices, mesh.faces, target)
     coarse = Mesh(V, F, name=f"{mesh.name}_proxy" if mesh.name else "proxy")
     return SimplifiedMesh(coarse, kept, passes)
+
+
+def _mesh_bricks(mesh: Mesh, target: int, workers: int, brick_faces: int | None):
+    """:func:`_by_bricks` of ``mesh``'s faces sorted into Morton bricks as
+    :func:`meshfit.mesh.store.write_store` sorts them."""
+    from meshfit.mesh.store import BRICK_FACES, MORTON_BITS, brick_cuts, morton_cells
+
+    V, F = mesh.vertices, mesh.faces
+    codes = morton_cells(V, F, V.min(axis=0), V.max(axis=0))
+    count = np.bincount(codes, minlength=1 << (3 * MORTON_BITS))
+    cut, start = brick_cuts(count, BRICK_FACES if brick_faces is None else int(brick_faces))
+    # each brick's faces in input order, as the store holds them
+    order, _ = _k.cell_order(np.searchsorted(cut, codes, "right") - 1, cut.size)
+    del codes
+    sorted_faces = F[order]
+    del order
+    return _by_bricks(V, lambda b: sorted_faces[start[b] : start[b + 1]], start, target, workers)
 
 
 def simplify_store(
@@ -186,48 +229,58 @@ def simplify_store(
     meshfit.errors.InputError
         ``target_faces`` below 20, or a store without faces.
     """
-    from meshfit._threads import map_threads
-
     target = int(target_faces)
     if target < 20:
         raise errors.InputError(f"target_faces must be at least 20, got {target_faces}")
     if store.n_faces == 0:
         raise errors.InputError(f"{store.folder}: the store has no faces")
-    nb = store.n_bricks
-    first = np.full(store.n_vertices, -1, dtype=np.int32)
-    shared = np.zeros(store.n_vertices, dtype=np.bool_)
+    V, F, kept, passes = _by_bricks(
+        store.vertices, store.brick, store.brick_start, target, workers, progress
+    )
+    return SimplifiedMesh(Mesh(V, F, name=f"{store.folder.name}_proxy"), kept, passes)
+
+
+def _by_bricks(
+    vertices: NDArray[np.float64],
+    brick,
+    brick_start: NDArray[np.int64],
+    target: int,
+    workers: int,
+    progress=None,
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.int64], int]:
+    """:func:`collapse_to` ``target`` of the faces ``brick(b)`` (``b`` below
+    ``len(brick_start) - 1``, the bricks' first faces with the total last) on ``vertices``,
+    brick by brick as :func:`simplify_store` says; ``kept`` indexes ``vertices``."""
+    from meshfit._threads import map_threads
+
+    nb = brick_start.size - 1
+    first = np.full(vertices.shape[0], -1, dtype=np.int32)
+    shared = np.zeros(vertices.shape[0], dtype=np.bool_)
+    whole = np.asarray(vertices)
     area = 0.0
     for b in range(nb):
-        faces = store.brick(b)
-        used = np.unique(faces)
-        seen = first[used] >= 0
-        shared[used[seen]] = True
-        first[used[~seen]] = b
-        x = np.asarray(store.vertices)[faces.reshape(-1)].reshape(-1, 3, 3)
-        area += 0.5 * float(
-            np.linalg.norm(np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), axis=1).sum()
-        )
+        faces = np.ascontiguousarray(brick(b), dtype=np.int64)
+        area += _k.survey_brick(whole, faces, b, first, shared)
     del first
     # the side of an equilateral triangle of the merged mesh's mean area
     longest = float(np.sqrt(4.0 * area / (np.sqrt(3.0) * MERGE_FACTOR * target)))
 
     def one(b: int) -> NDArray[np.int64]:
-        faces = store.brick(b)
+        faces = brick(b)
         used, local = np.unique(faces, return_inverse=True)
         local = local.reshape(-1, 3)
         frozen = shared[used] | _rim(local, used.size)
-        _, F, kept, _ = collapse_to(store.vertices[used], local, 0, frozen, longest)
+        _, F, kept, _ = collapse_to(vertices[used], local, 0, frozen, longest)
         return used[kept][F]
 
-    cost = np.diff(store.brick_start).tolist()
+    cost = np.diff(brick_start).tolist()
     parts = map_threads(one, list(range(nb)), workers, cost=cost, progress=progress)
     merged = np.concatenate(parts)
     del parts
     used, local = np.unique(merged, return_inverse=True)
     local = local.reshape(-1, 3)
-    V, F, kept, passes = collapse_to(store.vertices[used], local, target, _rim(local, used.size))
-    name = store.folder.name
-    return SimplifiedMesh(Mesh(V, F, name=f"{name}_proxy"), used[kept], passes)
+    V, F, kept, passes = collapse_to(vertices[used], local, target, _rim(local, used.size))
+    return V, F, used[kept], passes
 
 
 def _rim(faces: NDArray[np.int64], n_vertices: int) -> NDArray[np.bool_]:
