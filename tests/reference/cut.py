@@ -902,8 +902,9 @@ def cut_mesh_network(
         point of curve ``i`` are replaced by corners ``ends[i, 0]`` and ``ends[i, 1]``.
     corners : SurfacePoints
         ``nc`` corner points. A corner within ``tol.CUT_CORNER_MERGE`` mean edge lengths of a
-        mesh vertex is moved onto it (else of an edge, onto the edge), and curve points that close to their end corners are
-        dropped (painted curves pass through the vertex nearest a corner pick).
+        mesh vertex is moved onto it (else of an edge, onto the edge), and curve points that
+        close to their end corners are dropped (painted curves pass through the vertex
+        nearest a corner pick).
     ends : (nk, 2) int64
         Corner index at the start and end of each curve.
     split : bool, keyword-only

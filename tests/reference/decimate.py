@@ -141,5 +141,7 @@ def survey_bricks(V, bricks, n_vertices):
         shared[used[seen]] = True
         first[used[~seen]] = b
         x = V[faces]
-        areas.append(0.5 * np.linalg.norm(np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), axis=1).sum())
+        areas.append(
+            0.5 * np.linalg.norm(np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), axis=1).sum()
+        )
     return shared, np.array(areas)

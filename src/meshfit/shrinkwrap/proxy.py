@@ -20,7 +20,14 @@ from meshfit import errors
 from meshfit._kernels import decimate as _k
 from meshfit.mesh import Mesh
 
-__all__ = ["BRICKS_ABOVE", "MERGE_FACTOR", "SimplifiedMesh", "collapse_to", "simplify_mesh", "simplify_store"]
+__all__ = [
+    "BRICKS_ABOVE",
+    "MERGE_FACTOR",
+    "SimplifiedMesh",
+    "collapse_to",
+    "simplify_mesh",
+    "simplify_store",
+]
 
 #: a collapse may turn a surviving face's normal by at most this angle (degrees)
 MAX_NORMAL_TURN_DEG = 60.0
