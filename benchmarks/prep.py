@@ -1,7 +1,7 @@
 """Benchmark: a dense scan prepared out of core against the same in memory.
 
-Usage: ``python benchmarks/prep.py [--what proxy|prepare] [--sizes 1m,4m,17m] [--repeats 1]
-[--workers 2]``
+Usage: ``python benchmarks/prep.py [--what proxy|prepare|simplify] [--sizes 1m,4m,17m]
+[--repeats 1] [--workers 2]``
 
 igea (269K triangles) refined by 1-to-4 midpoint subdivision at run time (``1m`` 1.07M,
 ``4m`` 4.3M, ``17m`` 17.2M triangles) and written once as a binary PLY, as a scanner would
@@ -18,6 +18,11 @@ from: ``in_memory`` adds the automatic layout (which makes its own proxy) and
 ``extract_patches``; ``out_of_core`` is ``meshfit.pipeline.prepare.prepare_out_of_core``
 (store, proxy, layout, faces sorted into patches, curves carried, every patch cut and
 written to its file).
+
+With ``--what simplify`` only the in-memory simplification is timed, the mesh loaded
+before the clock: ``whole`` (the peer, ``simplify_mesh(..., bricks=False)``, one pass over
+the whole mesh at a time) against ``bricks`` (``bricks=True`` on ``--workers`` threads,
+the store's Morton bricks made in memory).
 
 Figures: wall time, peak resident memory of the process (sampled every 20 ms; the store's
 pages a process has mapped count while they are resident), and the proxy's faces, genus and
@@ -44,6 +49,8 @@ from pipeline import midpoint_subdivide
 from scale import SIZES, PeakMemory
 
 SIDES = ("in_memory", "out_of_core")
+#: the sides of ``--what simplify``, the peer first
+SIMPLIFY_SIDES = ("whole", "bricks")
 
 
 def make_input(size: str, folder: Path) -> Path:
@@ -124,6 +131,29 @@ def run_one(side: str, path: Path, scratch: Path, workers: int) -> dict:
     return out
 
 
+def run_simplify(side: str, path: Path, scratch: Path, workers: int) -> dict:
+    """The in-memory proxy of the mesh at ``path``, whole or by bricks; the clock and the
+    peak start after loading."""
+    from meshfit.layout.auto import PROXY_FACES
+    from meshfit.mesh import load_mesh
+    from meshfit.shrinkwrap.proxy import simplify_mesh
+
+    mesh = load_mesh(path, repair=True)
+    _ = mesh.is_closed  # (checked by both sides: built before the clock)
+    with PeakMemory() as mem:
+        t0 = time.perf_counter()
+        res = simplify_mesh(mesh, PROXY_FACES, workers=workers, bricks=side == "bricks")
+        seconds = time.perf_counter() - t0
+    np.savez(scratch / "proxy.npz", v=res.mesh.vertices, f=res.mesh.faces)
+    return {
+        "seconds": round(seconds, 3),
+        "peak_rss_mib": round(mem.peak / 2**20, 1),
+        "proxy_faces": int(res.mesh.n_faces),
+        "proxy_genus": int(res.mesh.genus),
+        "proxy_closed": bool(res.mesh.is_closed),
+    }
+
+
 def distances(path: Path, scratch: Path) -> dict:
     """Distance from every input vertex to the proxy, share of the diagonal."""
     from meshfit.mesh import Mesh, load_mesh
@@ -146,13 +176,13 @@ def main() -> None:
     ap.add_argument("--sizes", default="1m,4m", help="of 1m, 4m, 17m (default: %(default)s)")
     ap.add_argument("--repeats", type=int, default=1)
     ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--what", default="proxy", choices=("proxy", "prepare"))
+    ap.add_argument("--what", default="proxy", choices=("proxy", "prepare", "simplify"))
     ap.add_argument("--one", nargs=3, default=None, help=argparse.SUPPRESS)
     ap.add_argument("--distances", nargs=2, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one:
         side, path, scratch = args.one
-        run = run_prepare if args.what == "prepare" else run_one
+        run = {"prepare": run_prepare, "simplify": run_simplify}.get(args.what, run_one)
         print(json.dumps(run(side, Path(path), Path(scratch), args.workers)))
         return
     if args.distances:
@@ -166,14 +196,15 @@ def main() -> None:
     for size in sizes:
         with tempfile.TemporaryDirectory() as tmp:
             path = make_input(size, Path(tmp))
-            runs: dict[str, list[dict]] = {s: [] for s in SIDES}
+            sides = SIMPLIFY_SIDES if args.what == "simplify" else SIDES
+            runs: dict[str, list[dict]] = {s: [] for s in sides}
             for _ in range(max(1, args.repeats)):
-                for side in SIDES:
+                for side in sides:
                     scratch = Path(tmp) / side
                     scratch.mkdir()
                     r = _fresh("--one", side, str(path), str(scratch), "--workers",
                                str(args.workers), "--what", args.what)  # fmt: skip
-                    if args.what == "proxy":
+                    if args.what != "prepare":
                         r.update(_fresh("--distances", str(path), str(scratch)))
                     runs[side].append(r)
                     shutil.rmtree(scratch)
@@ -185,11 +216,10 @@ def main() -> None:
                 row[side]["peak_rss_mib"] = max(r["peak_rss_mib"] for r in rs)
             row["input_faces"] = int(SIZES_FACES[size])
             row["file_mib"] = round(path.stat().st_size / 2**20, 1)
-            ooc, mem = row["out_of_core"], row["in_memory"]
-            row["out_of_core_over_in_memory_seconds"] = round(ooc["seconds"] / mem["seconds"], 3)
-            row["out_of_core_over_in_memory_peak_rss"] = round(
-                ooc["peak_rss_mib"] / mem["peak_rss_mib"], 3
-            )
+            peer, other = row[sides[0]], row[sides[1]]
+            ratio = f"{sides[1]}_over_{sides[0]}"
+            row[f"{ratio}_seconds"] = round(other["seconds"] / peer["seconds"], 3)
+            row[f"{ratio}_peak_rss"] = round(other["peak_rss_mib"] / peer["peak_rss_mib"], 3)
         results[size] = row
         print(size, json.dumps(row), flush=True)
     out = {
@@ -205,7 +235,16 @@ def main() -> None:
         "vertices to the proxy as shares of the diagonal",
         "sizes": results,
     }
-    stem = "prep" if args.what == "proxy" else "prep_patches"
+    if args.what == "simplify":
+        out["note"] = (
+            "igea refined by midpoint subdivision, saved as a binary PLY and loaded before the "
+            "clock; the in-memory proxy, each side in a fresh process, alternating; the peer "
+            "simplifies the whole mesh pass by pass, the other by the store's Morton bricks "
+            "on the workers' threads first; peak RSS of the process during the "
+            "simplification; distances from the input's vertices to the proxy as shares of "
+            "the diagonal"
+        )
+    stem = {"proxy": "prep", "prepare": "prep_patches", "simplify": "prep_simplify"}[args.what]
     write_result(stem if sizes == ["1m", "4m"] else "_".join([stem, *sizes]), out)
 
 
