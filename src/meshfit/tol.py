@@ -120,7 +120,7 @@ SHRINKWRAP_RAY_TRUST = 3.0
 SHRINKWRAP_RAY_SLACK = 0.1
 #: in a network cut, curve points this close to their end corner, times the mean edge length,
 #: are that corner (painted curves pass through the vertex nearest a corner pick), and a
-#: corner this close to a mesh vertex or edge is on it
+#: corner this close to a mesh vertex is on it
 CUT_CORNER_MERGE = 1e-3
 #: projection rays start this far behind the point, times the level's mean edge length, so one
 #: ray along the normal finds the surface on either side

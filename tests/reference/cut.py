@@ -473,16 +473,18 @@ def _classify(
     bary: NDArray,
     index: int,
     matmul: bool = False,
-    within: float | None = None,
+    within: tuple[float, float] | None = None,
 ) -> _CutPoint:
     """Snap a face point onto a vertex or an edge of its face when within ``within``
-    (default ``CUT_SNAP``).
+    (distances to a vertex and to an edge; default ``CUT_SNAP`` for both).
 
     The point is ``b0 p0 + b1 p1 + b2 p2`` summed left to right, as the kernel classifying
     curve points does; ``matmul`` takes numpy's ``b @ pos`` instead, as the library does for
     corners (on some CPUs numpy fuses its multiply-adds, so the two differ in the last bit).
     """
-    snap = cutter.snap if within is None else max(float(within), cutter.snap)
+    snap, edge_snap = (
+        (cutter.snap,) * 2 if within is None else (max(w, cutter.snap) for w in within)
+    )
     fv = cutter.face(face)
     b = np.clip(bary, 0.0, None)
     b = b / b.sum()
@@ -499,7 +501,7 @@ def _classify(
         qa, qb = pos[k], pos[(k + 1) % 3]
         e = _sub(qb, qa)
         s = _dot(_sub(p, qa), e) / _dot(e, e)
-        if 0.0 < s < 1.0 and _norm(_sub(p, _lerp(qa, qb, s))) < snap:
+        if 0.0 < s < 1.0 and _norm(_sub(p, _lerp(qa, qb, s))) < edge_snap:
             return _edge_point(cutter, face, k, s, index)
     return _CutPoint(
         face, (float(b[0]), float(b[1]), float(b[2])), -1, frozenset((face,)), p, index
@@ -902,7 +904,8 @@ def cut_mesh_network(
         point of curve ``i`` are replaced by corners ``ends[i, 0]`` and ``ends[i, 1]``.
     corners : SurfacePoints
         ``nc`` corner points. A corner within ``tol.CUT_CORNER_MERGE`` mean edge lengths of a
-        mesh vertex is moved onto it (else of an edge, onto the edge), and curve points that
+        mesh vertex is moved onto it (one nearer an edge than the side of the least
+        triangle, onto the edge), and curve points that
         close to their end corners are dropped (painted curves pass through the vertex
         nearest a corner pick).
     ends : (nk, 2) int64
@@ -942,8 +945,10 @@ def cut_mesh_network(
     corner_cp: list[_CutPoint] = []
     corner_v = np.empty(nc, dtype=np.int64)
     for c in range(nc):
-        # a corner within CUT_CORNER_MERGE of a vertex is that vertex, else of an edge, on it
-        cp = _classify(cutter, int(corners.face[c]), corners.bary[c], c, matmul=True, within=merge)
+        # a corner within CUT_CORNER_MERGE of a vertex is that vertex; one nearer an edge than
+        # the side of the least triangle (at most that), on the edge
+        near = (merge, min(merge, float(np.sqrt(2.0 * cutter.min_area))))
+        cp = _classify(cutter, int(corners.face[c]), corners.bary[c], c, matmul=True, within=near)
         v = cutter.insert(cp, cp.face)
         if v < cutter.nv0:
             cp = _vertex_point(cutter, v, c)

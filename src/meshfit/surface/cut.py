@@ -297,11 +297,17 @@ class _Cutter:
 
 
 def _classify(
-    cutter: _Cutter, face: int, bary: NDArray, index: int, within: float | None = None
+    cutter: _Cutter,
+    face: int,
+    bary: NDArray,
+    index: int,
+    within: tuple[float, float] | None = None,
 ) -> _CutPoint:
     """Snap a face point onto a vertex or an edge of its face when within ``within``
-    (default the cutter's ``CUT_SNAP``)."""
-    snap = cutter.snap if within is None else max(float(within), cutter.snap)
+    (distances to a vertex and to an edge; default the cutter's ``CUT_SNAP`` for both)."""
+    snap, edge_snap = (
+        (cutter.snap,) * 2 if within is None else (max(w, cutter.snap) for w in within)
+    )
     fv = cutter.face(face)
     b = np.clip(bary, 0.0, None)
     b = b / b.sum()
@@ -315,7 +321,7 @@ def _classify(
         qa, qb = pos[k], pos[(k + 1) % 3]
         e = _sub(qb, qa)
         s = _dot(_sub(p, qa), e) / _dot(e, e)
-        if 0.0 < s < 1.0 and _norm(_sub(p, _lerp(qa, qb, s))) < snap:
+        if 0.0 < s < 1.0 and _norm(_sub(p, _lerp(qa, qb, s))) < edge_snap:
             return _edge_point(cutter, face, k, s, index)
     return _CutPoint(
         face, (float(b[0]), float(b[1]), float(b[2])), -1, frozenset((face,)), p, index
@@ -602,9 +608,9 @@ def cut_mesh_network(
         point of curve ``i`` are replaced by corners ``ends[i, 0]`` and ``ends[i, 1]``.
     corners : SurfacePoints
         ``nc`` corner points. A corner within ``tol.CUT_CORNER_MERGE`` mean edge lengths of a
-        mesh vertex is moved onto it (else of an edge, onto the edge), and curve points that
-        close to their end corners are dropped (painted curves pass through the vertex
-        nearest a corner pick).
+        mesh vertex is moved onto it (one nearer an edge than the side of the cut's least
+        triangle, onto the edge), and curve points that close to their end corners are
+        dropped (painted curves pass through the vertex nearest a corner pick).
     ends : (nk, 2) int64
         Corner index at the start and end of each curve.
     split : bool, keyword-only
@@ -704,15 +710,18 @@ def network_cut_arrays(
 
 def _insert_corners(cutter: _Cutter, corners: SurfacePoints, merge: float):
     """Insert the corners into ``cutter`` (one within ``merge`` of a mesh vertex is that
-    vertex, one that near an edge is on the edge); their cutter vertices and cut points."""
+    vertex, one very near an edge is on the edge); their cutter vertices and cut points."""
     nc = len(corners)
     corner_cp: list[_CutPoint] = []
     corner_v = np.empty(nc, dtype=np.int64)
+    # a corner within ``merge`` of a vertex is that vertex; one nearer an edge than the side
+    # of the cut's least triangle is on the edge (curves leaving it across the edge would
+    # cross the edge next to each other and split off triangles below the least area,
+    # which snap one crossing onto the other: the curves would touch), but never farther
+    # than ``merge`` (the least area is a share of the diagonal, not of the edges)
+    near = (merge, min(merge, float(np.sqrt(2.0 * cutter.min_area))))
     for c in range(nc):
-        # a corner within CUT_CORNER_MERGE of a vertex is that vertex, and one that near an
-        # edge is on the edge: curves leaving it across the edge would otherwise cross it
-        # next to each other, splitting off triangles below the cut's least area
-        cp = _classify(cutter, int(corners.face[c]), corners.bary[c], c, within=merge)
+        cp = _classify(cutter, int(corners.face[c]), corners.bary[c], c, within=near)
         v = cutter.insert(cp, cp.face)
         if v < cutter.nv0:
             cp = _vertex_point(cutter, v, c)
