@@ -9,9 +9,10 @@ import pytest
 
 from meshfit.errors import InputError, MeshFileError
 from meshfit.mesh import Mesh, load_mesh, save_mesh
-from meshfit.mesh.store import MORTON_BITS, _morton, open_store, write_store
+from meshfit.mesh.store import MORTON_BITS, open_store, write_store
 
 from ..conftest import real_mesh
+from ..reference.decimate import face_cells
 from ..shapes import torus
 from .test_io import ply_ascii, ply_binary, ply_binary_general
 
@@ -19,9 +20,8 @@ from .test_io import ply_ascii, ply_binary, ply_binary_general
 def _cells(store) -> np.ndarray:
     """Each stored face's Morton cell, as the store computed it."""
     lo, hi = store.bbox
-    c = np.asarray(store.vertices)[np.asarray(store.faces)].mean(axis=1)
-    q = np.clip(((c - lo) * ((1 << MORTON_BITS) / (hi - lo))).astype(np.int64), 0, 63)
-    return _morton(q, MORTON_BITS)
+    V, F = np.asarray(store.vertices), np.asarray(store.faces)
+    return face_cells(V, F, lo, (1 << MORTON_BITS) / (hi - lo), MORTON_BITS)
 
 
 def _same(a, b) -> None:

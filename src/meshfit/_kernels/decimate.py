@@ -309,8 +309,8 @@ def face_cells(V, F, lo, scale, bits):
 
 @njit(cache=True, nogil=True, fastmath=False)
 def cell_order(codes, n_cells):
-    """``(np.argsort(codes, kind="stable"), np.bincount(codes, minlength=n_cells))`` of
-    codes in ``[0, n_cells)``, by one counting sort."""
+    """``np.argsort(codes, kind="stable")`` of codes in ``[0, n_cells)``, by one counting
+    sort."""
     count = np.zeros(n_cells, dtype=np.int64)
     for c in codes:
         count[c] += 1
@@ -324,7 +324,7 @@ def cell_order(codes, n_cells):
         c = codes[i]
         order[at[c]] = i
         at[c] += 1
-    return order, count
+    return order
 
 
 @njit(cache=True, nogil=True, fastmath=False)

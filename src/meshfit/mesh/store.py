@@ -340,20 +340,28 @@ def _chunks(n: int, step: int) -> Iterator[tuple[int, int]]:
         yield a, min(a + step, n)
 
 
-def _morton(cells: NDArray[np.int64], bits: int) -> NDArray[np.int64]:
-    """Z-order codes of integer grid cells (n, 3), ``bits`` bits per axis."""
-    code = np.zeros(cells.shape[0], dtype=np.int64)
-    for k in range(bits):
-        for axis in range(3):
-            code |= ((cells[:, axis] >> k) & 1) << (3 * k + axis)
-    return code
-
-
 def morton_cells(
     vertices: NDArray[np.float64], faces: NDArray[np.int64], lo, hi, bits: int = MORTON_BITS
 ) -> NDArray[np.int64]:
-    """The Morton code of the grid cell (``2**bits`` per axis over the box ``lo``, ``hi``)
-    holding each face's centroid; a flat box is one cell across its thickness."""
+    """The Morton (Z-order) code of the grid cell holding each face's centroid: the order
+    in which :func:`write_store` and the in-memory proxy
+    (:func:`meshfit.shrinkwrap.simplify_mesh`) cut a scan into bricks.
+
+    Parameters
+    ----------
+    vertices : (nv, 3) float64
+    faces : (nf, 3) int64
+        Indices into ``vertices``.
+    lo, hi : (3,) float64
+        The box the grid spans; an axis of zero extent is one cell across (a flat scan).
+    bits : int
+        Cells per axis ``2**bits`` (default `MORTON_BITS`).
+
+    Returns
+    -------
+    (nf,) int64
+        Codes in ``[0, 2**(3 bits))``, the axes' bits interleaved, x lowest.
+    """
     from meshfit._kernels.decimate import face_cells
 
     lo = np.asarray(lo, dtype=np.float64)
@@ -367,10 +375,24 @@ def morton_cells(
 def brick_cuts(
     count: NDArray[np.int64], brick_faces: int
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """Bricks as runs of whole Morton cells, given the faces per cell ``count``: a brick
-    ends at the cell where the running count passes a multiple of ``brick_faces``, and no
-    brick is empty. Returns each brick's first cell and the bricks' first faces (in cell
-    order) with the total last."""
+    """Bricks as runs of whole Morton cells: a brick ends at the cell where the running
+    count of faces passes a multiple of ``brick_faces``, and no brick is empty, so a brick
+    is a compact region of the scan whatever its density.
+
+    Parameters
+    ----------
+    count : (n_cells,) int64
+        Faces per Morton cell (:func:`morton_cells`).
+    brick_faces : int
+        About this many faces per brick (at least 1).
+
+    Returns
+    -------
+    first_cell : (nb,) int64
+        Each brick's first cell, increasing.
+    start : (nb + 1,) int64
+        Each brick's first face in cell order, the total last.
+    """
     n = int(count.sum())
     run = np.cumsum(count)
     ends = np.searchsorted(run, np.arange(brick_faces, n, brick_faces), "left")

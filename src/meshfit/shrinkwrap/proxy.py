@@ -187,7 +187,7 @@ def _mesh_bricks(mesh: Mesh, target: int, workers: int, brick_faces: int | None)
     count = np.bincount(codes, minlength=1 << (3 * MORTON_BITS))
     cut, start = brick_cuts(count, BRICK_FACES if brick_faces is None else int(brick_faces))
     # each brick's faces in input order, as the store holds them
-    order, _ = _k.cell_order(np.searchsorted(cut, codes, "right") - 1, cut.size)
+    order = _k.cell_order(np.searchsorted(cut, codes, "right") - 1, cut.size)
     del codes
     sorted_faces = F[order]
     del order
