@@ -45,7 +45,10 @@ def test_the_errors_are_the_whole_scans(prepared):
     mesh, prep, result = prepared
     whole = _whole(prep)
     disp = [p.displaced() for p in result.patches]
-    spline = measure.texel_grids([p.surface for p in result.patches], [d.shape for d in disp])
+    # (the spline-only surface at its spring grids' parameters, the maps at matched shapes)
+    spline = measure.texel_grids(
+        [p.surface for p in result.patches], [p.spring.shape[:2] for p in result.patches]
+    )
     for key, grids in (("spline_only", spline), ("displaced", disp)):
         V, F = measure.soup(grids)
         tree = grid_tree(V, F, [g.shape[:2] for g in grids])

@@ -283,8 +283,10 @@ class ErrorsPrepared(Errors):
                 spline_from[ids], disp_from[ids] = s, d
             return used, spline_from, disp_from
         used = _used_vertices(prep.store)
+        spline = ctx["spline_grids"]
         faces = measure.soup_faces([g.shape[:2] for g in displaced])
-        spline_from = _from_scan(prep.store, used, ctx["spline_grids"], faces)
+        same = [g.shape[:2] for g in spline] == [g.shape[:2] for g in displaced]
+        spline_from = _from_scan(prep.store, used, spline, faces if same else None)
         return used, spline_from, _from_scan(prep.store, used, displaced, faces)
 
 

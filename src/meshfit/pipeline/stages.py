@@ -579,8 +579,11 @@ class Displacement(Stage):
         return {"patch_tasks": self.tasks}
 
     def _early(self, ctx: Context) -> None:
-        """With maps at their spring grids' shapes the spline-only surface is known now:
-        its errors are measured on a thread while the maps are made and stitched."""
+        """With maps at their spring grids' shapes, the spline-only surface (measured at
+        those grids' parameters, `_spline_grids`) is known now: its errors are measured on a
+        thread while the maps are made and stitched. Not beside matched maps: their finer
+        scan sampling already keeps every core busy, and the two together would raise the
+        peak memory."""
         if ctx.options.maps.shapes != "native" or ctx.saved.get("errors", False):
             return
         if ctx.tasks is not None:  # (the errors are tasks too)
@@ -718,7 +721,7 @@ class Stitch(Stage):
     """The displacement seams closed and every seam measured."""
 
     name = "stitch"
-    inputs = ("layout", "network", "surfaces", "maps", "map_bounds")
+    inputs = ("layout", "network", "surfaces", "grids", "maps", "map_bounds")
     outputs = ("maps", "seams", "displaced", "spline_grids", "map_bounds")
     after = ("displacement",)
 
@@ -780,12 +783,12 @@ def _moved_unbounded(before: list, after: list, bounds: list) -> list:
 
 
 def _early_future(ctx: Context):
-    """The future of the early spline-only errors, where they were started and the maps
-    kept its shapes; else None."""
+    """The future of the early spline-only errors, where they were started for the spring
+    grids of this run; else None."""
     if "early_spline" not in ctx:
         return None
     shapes, future = ctx["early_spline"]
-    return future if shapes == [d.shape[:2] for d in ctx["maps"]] else None
+    return future if shapes == [g.shape[:2] for g in ctx["grids"]] else None
 
 
 def _early_result(ctx: Context):
@@ -795,10 +798,14 @@ def _early_result(ctx: Context):
 
 
 def _spline_grids(ctx: Context) -> list:
+    """Each spline at its spring grid's parameters: the spline-only surface as its errors
+    measure it. Its fit saw the scan at those points alone, and they do not depend on the
+    maps' resolution (matched shapes can hold twice the texels), so neither do its
+    figures, and they are known before the maps are made."""
     done = _early_result(ctx)
     if done is not None:
         return done[0]
-    return measure.texel_grids(ctx["surfaces"], [d.shape for d in ctx["maps"]])
+    return measure.texel_grids(ctx["surfaces"], [g.shape[:2] for g in ctx["grids"]])
 
 
 class Errors(Stage):
@@ -829,11 +836,13 @@ class Errors(Stage):
         mesh, diag = ctx["mesh"], ctx["diag"]
         displaced = ctx["displaced"]
         future = _early_future(ctx)
-        # the input's vertices are searched in both surfaces, whose grids share their shapes
+        # the input's vertices are searched in both surfaces
         order = query_order(mesh.vertices)
         faces = measure.soup_faces([g.shape[:2] for g in displaced])
         if future is None:  # first, so one surface's soup and tree are in memory at a time
-            spline = measure.spline_errors(mesh, ctx["spline_grids"], faces, order)
+            grids = ctx["spline_grids"]
+            same = [g.shape[:2] for g in grids] == [g.shape[:2] for g in displaced]
+            spline = measure.spline_errors(mesh, grids, faces if same else None, order)
             release_memory()
         # (built while the spline-only searches started early may still run on their thread)
         Vd, Fd = measure.soup(displaced, faces)
