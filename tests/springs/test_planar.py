@@ -324,3 +324,59 @@ def test_multigrid_solve_matches_the_direct_solve(which, monkeypatch):
     monkeypatch.setattr(planar, "_MAX_ITER", 0)
     assert planar._gmres(A, rhs, planar._Multigrid(A)) is None
     assert_allclose(planar._solve_interior(mesh, uv, fixed, free), want, rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("which", ["cap", "igea"])
+def test_a_warm_started_solve_reaches_the_same_tolerance_in_fewer_iterations(which, monkeypatch):
+    planar, mesh, uv, fixed, free = _interior(which)
+    A, rhs = planar._interior_system(mesh, uv, fixed, free)
+    mg = planar._Multigrid(A)
+    want = planar._direct_solve(A, rhs)
+    cold = planar._gmres(A, rhs, mg)
+    # a guess near the answer (as a reweighted round starts from the last map)
+    rng = np.random.default_rng(3)
+    guess = want + 1e-6 * rng.standard_normal(want.shape)
+    warm = planar._gmres(A, rhs, mg, guess)
+    assert warm is not None and cold is not None
+    assert_allclose(warm, want, rtol=0, atol=tol.TEST_ATOL)
+    assert np.abs((rhs - A @ warm) / A.diagonal()[:, None]).max() <= planar._SOLVE_TOL
+    assert guess.flags.writeable and not np.shares_memory(warm, guess)  # the guess is kept
+    # iterations counted by the preconditioner's cycles from the top level
+    calls = {"n": 0}
+    cycle = planar._Multigrid.cycle
+
+    def counted(self, b, k=0):
+        calls["n"] += k == 0
+        return cycle(self, b, k)
+
+    monkeypatch.setattr(planar._Multigrid, "cycle", counted)
+    planar._gmres(A, rhs, mg)
+    from_zero, calls["n"] = calls["n"], 0
+    planar._gmres(A, rhs, mg, guess)
+    assert calls["n"] < from_zero
+
+
+def test_the_balanced_map_solves_the_plain_map_once(monkeypatch):
+    from meshfit.springs import planar
+
+    patch = cut_patch(real_mesh("igea"), 1000, 0.02)
+    sides = _sides(patch)
+    clear_map_cache()
+    # the plain map and its balance, computed here without the cache
+    whole = planar._square_map(patch.mesh, sides)
+    _, fixed = planar._boundary(patch.mesh.n_vertices, sides)
+    want = planar._balanced(patch.mesh, whole.uv.copy(), fixed, np.flatnonzero(~fixed))
+    scales = []
+    solve = planar._solve_interior
+
+    def counted(mesh, uv, fixed, free, scale=None, guess=None):
+        scales.append(scale)
+        return solve(mesh, uv, fixed, free, scale, guess)
+
+    monkeypatch.setattr(planar, "_solve_interior", counted)
+    plain = square_map(patch.mesh, sides)
+    balanced = square_map(patch.mesh, sides, balanced=True)
+    assert sum(s is None for s in scales) == 1  # the plain system, solved once for both
+    assert len(scales) >= 2  # and at least one reweighted round
+    assert_allclose(plain.uv, whole.uv, rtol=0, atol=0)
+    assert_allclose(balanced.uv, want, rtol=0, atol=0)

@@ -187,12 +187,13 @@ class _Multigrid:
         return x
 
 
-def _gmres(A, b: NDArray, mg: _Multigrid) -> NDArray | None:
-    """Right-preconditioned restarted GMRES on ``A x = b`` (both columns as one system); None
-    when it does not reach :data:`_SOLVE_TOL` within :data:`_MAX_ITER` iterations."""
+def _gmres(A, b: NDArray, mg: _Multigrid, x0: NDArray | None = None) -> NDArray | None:
+    """Right-preconditioned restarted GMRES on ``A x = b`` (both columns as one system) from
+    ``x0`` (default zero); None when it does not reach :data:`_SOLVE_TOL` within
+    :data:`_MAX_ITER` iterations."""
     ip, ix, d = A.indptr, A.indices, A.data
     m = b.shape[0]
-    x = np.zeros_like(b)
+    x = np.zeros_like(b) if x0 is None else np.array(x0, dtype=np.float64, order="C")
     r = np.empty_like(b)
     zero = np.zeros_like(b)
     Q = np.empty((_RESTART + 1, m, 2))
@@ -239,17 +240,24 @@ def _gmres(A, b: NDArray, mg: _Multigrid) -> NDArray | None:
 
 
 def _solve_interior(
-    mesh: Mesh, uv: NDArray, fixed: NDArray, free: NDArray, scale: NDArray | None = None
+    mesh: Mesh,
+    uv: NDArray,
+    fixed: NDArray,
+    free: NDArray,
+    scale: NDArray | None = None,
+    guess: NDArray | None = None,
 ) -> NDArray:
     """Parameters (m, 2) of the interior vertices ``free``.
 
     A sparse LU solve up to :data:`_DIRECT_MAX` unknowns; above, multigrid-preconditioned
     GMRES to :data:`_SOLVE_TOL` (the map agrees with a direct solve to round-off times the
-    system's conditioning), and the LU solve when that does not converge. ``scale``
-    reweights the equations (see `_interior_system`).
+    system's conditioning), from ``guess`` (m, 2) when given (a map close to the solution:
+    fewer iterations to the same tolerance), and the LU solve when that does not converge.
+    ``scale`` reweights the equations (see `_interior_system`).
     """
     A, rhs = _interior_system(mesh, uv, fixed, free, scale)
-    x = _gmres(A, rhs, _Multigrid(A)) if A.shape[0] > max(_COARSEST, _DIRECT_MAX) else None
+    iterative = A.shape[0] > max(_COARSEST, _DIRECT_MAX)
+    x = _gmres(A, rhs, _Multigrid(A), guess) if iterative else None
     if x is None:
         x = _direct_solve(A, rhs)
     return x
@@ -329,18 +337,34 @@ def square_map(mesh: Mesh, sides: Sides, *, balanced: bool = False) -> PlanarMap
         hit = _MAPS.get(mesh, {}).get(key)
     if hit is not None:
         return PlanarMap(mesh, *hit)
-    pmap = _square_map(mesh, sides, balanced=balanced)
+    if balanced:  # reweighted from the plain map, itself solved once (and kept)
+        plain = square_map(mesh, sides)
+        uv, fixed = _boundary(mesh.n_vertices, sides)
+        free = np.flatnonzero(~fixed)
+        pmap = PlanarMap(mesh, _balanced(mesh, plain.uv.copy(), fixed, free) if free.size else uv)
+    else:
+        pmap = _square_map(mesh, sides)
     with _MAPS_LOCK:
         _MAPS.setdefault(mesh, {})[key] = (pmap.uv, pmap._buckets)
     return pmap
 
 
-def _square_map(
-    mesh: Mesh, sides: Sides, index: NDArray[np.int64] | None = None, *, balanced: bool = False
-) -> PlanarMap:
-    """:func:`square_map` without the cache. ``index`` maps the sides' vertex numbers to
-    ``mesh``'s (a coarse copy of the patch that keeps its boundary vertices)."""
-    n = mesh.n_vertices
+def _square_map(mesh: Mesh, sides: Sides, index: NDArray[np.int64] | None = None) -> PlanarMap:
+    """:func:`square_map` without the cache or the balance. ``index`` maps the sides'
+    vertex numbers to ``mesh``'s (a coarse copy of the patch that keeps its boundary
+    vertices)."""
+    uv, fixed = _boundary(mesh.n_vertices, sides, index)
+    free = np.flatnonzero(~fixed)
+    if free.size:
+        uv[free] = _solve_interior(mesh, uv, fixed, free)
+    return PlanarMap(mesh, uv)
+
+
+def _boundary(
+    n: int, sides: Sides, index: NDArray[np.int64] | None = None
+) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """Parameters ``(n, 2)`` with the sides' vertices on the square's sides by arc length
+    (the others 0), and which vertices those are (``index``: see `_square_map`)."""
     uv = np.zeros((n, 2))
     fixed = np.zeros(n, dtype=bool)
     for name, (axis, const) in {
@@ -355,12 +379,7 @@ def _square_map(
         uv[chain, axis] = t
         uv[chain, 1 - axis] = const
         fixed[chain] = True
-    free = np.flatnonzero(~fixed)
-    if free.size:
-        uv[free] = _solve_interior(mesh, uv, fixed, free)
-        if balanced:
-            uv = _balanced(mesh, uv, fixed, free)
-    return PlanarMap(mesh, uv)
+    return uv, fixed
 
 
 #: most reweighting rounds (each one solve)
@@ -416,7 +435,7 @@ def _balanced(mesh: Mesh, uv: NDArray, fixed: NDArray, free: NDArray) -> NDArray
     for _ in range(STRETCH_ROUNDS):
         scale = scale / sigma
         trial = uv.copy()
-        trial[free] = _solve_interior(mesh, uv, fixed, free, scale)
+        trial[free] = _solve_interior(mesh, uv, fixed, free, scale, guess=uv[free])
         sigma, overall = _vertex_stretch(mesh, trial)
         if not overall < best:
             break
