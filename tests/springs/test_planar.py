@@ -380,3 +380,32 @@ def test_the_balanced_map_solves_the_plain_map_once(monkeypatch):
     assert len(scales) >= 2  # and at least one reweighted round
     assert_allclose(plain.uv, whole.uv, rtol=0, atol=0)
     assert_allclose(balanced.uv, want, rtol=0, atol=0)
+
+
+def test_a_solve_that_stalls_at_the_floor_keeps_its_answer(monkeypatch):
+    planar, mesh, uv, fixed, free = _interior("igea")
+    A, rhs = planar._interior_system(mesh, uv, fixed, free)
+    mg = planar._Multigrid(A)
+    want = planar._direct_solve(A, rhs)
+    # a target below what float64 reaches, and iterations enough to get there: the
+    # restarts stall near round-off
+    monkeypatch.setattr(planar, "_SOLVE_TOL", 1e-30)
+    monkeypatch.setattr(planar, "_MAX_ITER", 1000)
+    restarts = []
+    residual = planar._kp.scaled_residual
+
+    def counted(ip, ix, d, x, b, r):
+        w = residual(ip, ix, d, x, b, r)
+        if b is rhs:
+            restarts.append(w)
+        return w
+
+    monkeypatch.setattr(planar._kp, "scaled_residual", counted)
+    x = planar._gmres(A, rhs, mg)
+    assert x is not None and restarts[-1] <= planar._FLOOR_TOL
+    assert restarts[-1] > 0.5 * restarts[-2]  # it stopped where a restart no longer helped
+    assert len(restarts) < 10  # not the whole budget
+    assert_allclose(x, want, rtol=0, atol=tol.TEST_ATOL)
+    # stalled above the floor: the direct solve answers
+    monkeypatch.setattr(planar, "_FLOOR_TOL", 1e-30)
+    assert planar._gmres(A, rhs, mg) is None

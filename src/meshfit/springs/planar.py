@@ -126,6 +126,10 @@ def _interior_system(
 #: the unit square) is below this; the error is then below this times the largest expected
 #: exit time of a random walk on the weights (which grows with the patch's vertex count)
 _SOLVE_TOL = 1e-14
+#: a restart that no longer halves the residual has met the arithmetic's floor (the
+#: scaled residual of a large system can stall a few times above `_SOLVE_TOL`): the solve
+#: stops there, keeping its answer when the residual is below this, else the direct solve
+_FLOOR_TOL = 1e-12
 #: multigrid levels stop coarsening at this many unknowns (solved densely)
 _COARSEST = 300
 #: strength threshold of the aggregation (``|a_ij| >= theta sqrt(a_ii a_jj)``)
@@ -190,7 +194,8 @@ class _Multigrid:
 def _gmres(A, b: NDArray, mg: _Multigrid, x0: NDArray | None = None) -> NDArray | None:
     """Right-preconditioned restarted GMRES on ``A x = b`` (both columns as one system) from
     ``x0`` (default zero); None when it does not reach :data:`_SOLVE_TOL` within
-    :data:`_MAX_ITER` iterations."""
+    :data:`_MAX_ITER` iterations, or stalls above :data:`_FLOOR_TOL` (an answer that stalls
+    below it is kept)."""
     ip, ix, d = A.indptr, A.indices, A.data
     m = b.shape[0]
     x = np.zeros_like(b) if x0 is None else np.array(x0, dtype=np.float64, order="C")
@@ -201,15 +206,18 @@ def _gmres(A, b: NDArray, mg: _Multigrid, x0: NDArray | None = None) -> NDArray 
     H = np.zeros((_RESTART + 1, _RESTART))
     # the residual's 2-norm at which its scaled entries are likely below the target (checked)
     target = _SOLVE_TOL * float(A.diagonal().min()) * np.sqrt(m)
-    done = 0
+    done, last = 0, np.inf
     while True:
         worst = _kp.scaled_residual(ip, ix, d, x, b, r)
         if not np.isfinite(worst):
             return None
         if worst <= _SOLVE_TOL:
             return x
+        if worst > 0.5 * last:  # stalled
+            return x if worst <= _FLOOR_TOL else None
         if done >= _MAX_ITER:
             return None
+        last = worst
         beta = _kp.norm2(r)
         np.divide(r, beta, out=Q[0])
         H[:] = 0.0
