@@ -464,3 +464,68 @@ def test_spline_network_finds_the_cube_faces():
     assert len(found.boundaries) == len(network.boundaries) == 12
     assert len(found.corners) == 8
     assert sorted(len(c) for c in found.corners) == [3] * 8
+
+
+# --- kernels against their numpy oracles (the same sums in the same order: equal bits)
+
+
+def _random_weld(seed: int):
+    """Grids of random shapes whose nodes are welded at random (some cells' corners
+    together, so triangles drop), with random vertex positions."""
+    rng = np.random.default_rng(seed)
+    shapes = [(int(rng.integers(2, 9)), int(rng.integers(2, 9))) for _ in range(5)]
+    offs = np.concatenate([[0], np.cumsum([h * w for h, w in shapes])]).astype(np.int64)
+    k = int(offs[-1])
+    label = np.arange(k)
+    pairs = rng.integers(0, k, size=(k // 4, 2)).tolist()
+    w = shapes[0][1]
+    pairs += [(0, w), (w + 1, 1)]  # two of the first grid's cells welded shut along an edge
+    for a, b in pairs:  # merge b into a's vertex
+        label[label == label[b]] = label[a]
+    _, vertex_of = np.unique(label, return_inverse=True)
+    vertex_of = vertex_of.astype(np.int64)
+    nv = int(vertex_of.max()) + 1
+    points = rng.standard_normal((k, 3)) * 10.0 ** rng.integers(-3, 4)
+    return shapes, offs, vertex_of, nv, points
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_weld_kernels_match_their_oracles(seed):
+    from meshfit._kernels import weld as kw
+
+    from ..reference import weld as ref
+
+    shapes, offs, vertex_of, nv, points = _random_weld(seed)
+    shp = np.asarray(shapes, dtype=np.int64)
+    V = kw.welded_means(points, vertex_of, nv)
+    assert_array_equal(V, ref.welded_means(points, vertex_of, nv))
+    faces, face_uv, face_patch, m = kw.welded_faces(shp, offs, vertex_of)
+    want = ref.welded_faces(shapes, offs, vertex_of)
+    assert m == len(want[0]) and m < len(faces)  # (some triangles welded shut)
+    for got, w in zip((faces[:m], face_uv[:m], face_patch[:m]), want, strict=True):
+        assert_array_equal(got, w)
+    normals = kw.unit_vertex_normals(kw.node_normal_sums(V, vertex_of, shp, offs), vertex_of, nv)
+    assert_array_equal(normals, ref.vertex_normals(V, vertex_of, shapes, offs))
+
+
+def test_a_welded_network_is_the_oracles():
+    from meshfit.export.weld import _weld_labels
+
+    from ..reference import weld as ref
+
+    surfaces, network = cube_sphere()
+    pm = patch_mesh(surfaces, network=network, shapes=[(5 + p, 9 - p) for p in range(6)])
+    offs = np.concatenate([[0], np.cumsum([h * w for h, w in pm.shapes])]).astype(np.int64)
+    vertex_of = _weld_labels(network, pm.shapes, offs)
+    points = np.concatenate(
+        [
+            s.evaluate_grid(grid_parameters(h), grid_parameters(w)).reshape(-1, 3)
+            for s, (h, w) in zip(surfaces, pm.shapes, strict=True)
+        ]
+    )
+    assert_array_equal(pm.vertices, ref.welded_means(points, vertex_of, len(pm.vertices)))
+    faces, face_uv, face_patch = ref.welded_faces(pm.shapes, offs, vertex_of)
+    assert_array_equal(pm.faces, faces)
+    assert_array_equal(pm.face_uv, face_uv)
+    assert_array_equal(pm.face_patch, face_patch)
+    assert_array_equal(pm.normals, ref.vertex_normals(pm.vertices, vertex_of, pm.shapes, offs))

@@ -19,10 +19,12 @@ from numpy.typing import NDArray
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from meshfit._kernels import frozen
+from meshfit._kernels import weld as _kw
 from meshfit.bspline import BSplineSurface, grid_parameters
 from meshfit.displacement import DisplacementMap, reconstruct
 from meshfit.errors import InputError
-from meshfit.export._common import as_maps, as_shapes, as_surfaces, grid_faces
+from meshfit.export._common import as_maps, as_shapes, as_surfaces
 from meshfit.stitch import Network, network_from_grids, texel_shapes
 from meshfit.stitch.network import MATCH_BUDGET
 from meshfit.types import Side, readonly
@@ -34,9 +36,6 @@ __all__ = ["UDIM_COLUMNS", "UDIM_FIRST", "PatchMesh", "patch_mesh", "spline_netw
 UDIM_COLUMNS = 10
 #: the UDIM number of patch 0's tile; patch ``p`` is tile ``UDIM_FIRST + p``
 UDIM_FIRST = 1001
-
-#: grid nodes per batch of the vertex-normal sums (bounds their temporary arrays)
-_NORMAL_BATCH = 1 << 20
 
 #: vertex grid of a spline's own tessellation when the network is found from the splines
 #: (odd, so a side has a middle sample)
@@ -296,22 +295,15 @@ def _weld(
     )
     vertex_of = _weld_labels(network, grids, offs)
     nv = int(vertex_of.max()) + 1
-    count = np.bincount(vertex_of, minlength=nv).astype(np.float64)
-    vertices = np.stack(
-        [np.bincount(vertex_of, weights=points[:, c], minlength=nv) / count for c in range(3)],
-        axis=1,
+    vertices = _kw.welded_means(points, vertex_of, nv)
+    del points  # (a dense network's largest temporary, before the faces)
+    shp = np.asarray(grids, dtype=np.int64).reshape(-1, 2)
+    faces, face_uv, face_patch, m = _kw.welded_faces(*frozen(shp, offs, vertex_of))
+    if m < len(faces):  # (triangles whose corners welded together were dropped)
+        faces, face_uv, face_patch = faces[:m], face_uv[:m], face_patch[:m]
+    normals = _kw.unit_vertex_normals(
+        _kw.node_normal_sums(*frozen(vertices, vertex_of, shp, offs)), vertex_of, nv
     )
-    del points, count  # (a dense network's largest temporaries, before the faces)
-    cells = {sh: grid_faces(*sh) for sh in set(grids)}
-    face_uv = np.concatenate([cells[sh] + o for sh, o in zip(grids, offs[:-1], strict=True)])
-    face_patch = np.repeat(np.arange(n, dtype=np.int64), [2 * (h - 1) * (w - 1) for h, w in grids])
-    faces = vertex_of[face_uv]
-    keep = (
-        (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])
-    )
-    if not keep.all():
-        faces, face_uv, face_patch = faces[keep], face_uv[keep], face_patch[keep]
-    normals = _vertex_normals(vertices, vertex_of, grids, offs)
     bad = np.flatnonzero(~np.isfinite(normals).all(axis=1))
     if bad.size:  # no face of area round the vertex: the spline's normal at its first node
         first = np.unique(vertex_of, return_index=True)[1]
@@ -367,54 +359,6 @@ def _weld_labels(network: Network, grids, offs: NDArray[np.int64]) -> NDArray[np
         label[nodes] = nodes[first][comp]
     rep = label == np.arange(k)
     return (np.cumsum(rep) - 1)[label]
-
-
-def _vertex_normals(vertices: NDArray, vertex_of: NDArray, grids, offs) -> NDArray[np.float64]:
-    """Area-weighted unit vertex normals (NaN where no face of area meets a vertex).
-
-    The sums run over each patch's grid cells (patches of one shape in batches of about
-    ``_NORMAL_BATCH`` nodes) rather than over a face list: the two triangles of cell
-    ``(i, j)`` are those of :func:`grid_faces`, and a triangle whose corners were welded
-    together has a zero cross product, so the sums are those over ``faces``.
-    """
-    node_sum = np.empty((len(vertex_of), 3))
-    by_shape: dict[tuple[int, int], list[int]] = {}
-    for p, sh in enumerate(grids):
-        by_shape.setdefault(sh, []).append(p)
-    for (h, w), patches in by_shape.items():
-        step = max(1, _NORMAL_BATCH // (h * w))
-        for k in range(0, len(patches), step):
-            start = offs[patches[k : k + step]]
-            nodes = (start[:, None] + np.arange(h * w)).reshape(-1, h, w)
-            P = vertices[vertex_of[nodes]]
-            a, b, c, d = P[:, :-1, :-1], P[:, 1:, :-1], P[:, 1:, 1:], P[:, :-1, 1:]
-            ca = c - a
-            n1 = _cross(b - a, ca)  # triangle (i, j) (i+1, j) (i+1, j+1)
-            n2 = _cross(ca, d - a)  # triangle (i, j) (i+1, j+1) (i, j+1)
-            S = np.zeros_like(P)
-            S[:, :-1, :-1] += n1 + n2
-            S[:, 1:, 1:] += n1 + n2
-            S[:, 1:, :-1] += n1
-            S[:, :-1, 1:] += n2
-            node_sum[nodes.ravel()] = S.reshape(-1, 3)
-    nv = len(vertices)
-    acc = np.stack(
-        [np.bincount(vertex_of, weights=node_sum[:, c], minlength=nv) for c in range(3)], axis=1
-    )
-    del node_sum
-    norm = np.sqrt(np.einsum("ij,ij->i", acc, acc))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        acc /= norm[:, None]  # (in place: the normals are as large as the vertices)
-    acc[~(norm > 0)] = np.nan
-    return acc
-
-
-def _cross(x: NDArray, y: NDArray) -> NDArray:
-    out = np.empty_like(x)
-    out[..., 0] = x[..., 1] * y[..., 2] - x[..., 2] * y[..., 1]
-    out[..., 1] = x[..., 2] * y[..., 0] - x[..., 0] * y[..., 2]
-    out[..., 2] = x[..., 0] * y[..., 1] - x[..., 1] * y[..., 0]
-    return out
 
 
 def _node_normals(surfaces, grids, offs, nodes: NDArray[np.int64]) -> NDArray[np.float64]:
