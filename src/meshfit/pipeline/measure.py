@@ -66,8 +66,9 @@ def figures(to_input: NDArray, from_input: NDArray, diag: float) -> dict[str, fl
 
 
 def texel_grids(surfaces: list, shapes: list[tuple[int, ...]]) -> list[NDArray[np.float64]]:
-    """Each spline at its map's texels (``shapes[p]`` starts with the map's rows and
-    columns), as the displaced grids are laid out."""
+    """Each spline on a regular grid of its parameter square (``shapes[p]`` starts with the
+    grid's rows and columns: its spring grid's for the spline-only surface, its map's for
+    a displaced one), laid out as the displaced grids are."""
     return [
         s.evaluate_grid(np.linspace(0.0, 1.0, sh[0]), np.linspace(0.0, 1.0, sh[1]))
         for s, sh in zip(surfaces, shapes, strict=True)
@@ -85,7 +86,8 @@ def spline_errors(mesh: Mesh, grids: list[NDArray[np.float64]], faces=None, orde
 
 
 def early_spline(mesh: Mesh, surfaces: list, shapes: list[tuple[int, ...]]):
-    """The spline grids at the maps' texels (``shapes``) and `spline_errors` of them."""
+    """The spline grids of ``shapes`` (`texel_grids`: the spring grids') and
+    `spline_errors` of them."""
     grids = texel_grids(surfaces, shapes)
     return (grids, *spline_errors(mesh, grids))
 
