@@ -797,6 +797,10 @@ def _early_result(ctx: Context):
     return None if future is None else future.result()
 
 
+#: where the errors stage samples the spline-only surface (`_spline_grids`), in its key
+SPLINE_SAMPLING = "spring grids"
+
+
 def _spline_grids(ctx: Context) -> list:
     """Each spline at its spring grid's parameters: the spline-only surface as its errors
     measure it. Its fit saw the scan at those points alone, and they do not depend on the
@@ -819,7 +823,9 @@ class Errors(Stage):
     suffix = ".json"
 
     def extra(self, ctx: Context) -> Any:
-        return ctx["mesh_hash"]
+        # (the sampling of the spline-only surface: a stage file measured otherwise, at the
+        # maps' texels, does not stand for this one)
+        return [ctx["mesh_hash"], SPLINE_SAMPLING]
 
     def __init__(self) -> None:
         self.tasks = False  # whether the searches ran as tasks

@@ -347,9 +347,10 @@ def square_map(mesh: Mesh, sides: Sides, *, balanced: bool = False) -> PlanarMap
         return PlanarMap(mesh, *hit)
     if balanced:  # reweighted from the plain map, itself solved once (and kept)
         plain = square_map(mesh, sides)
-        uv, fixed = _boundary(mesh.n_vertices, sides)
+        _, fixed = _boundary(mesh.n_vertices, sides)
         free = np.flatnonzero(~fixed)
-        pmap = PlanarMap(mesh, _balanced(mesh, plain.uv.copy(), fixed, free) if free.size else uv)
+        uv = _balanced(mesh, plain.uv.copy(), fixed, free) if free.size else plain.uv
+        pmap = PlanarMap(mesh, uv)
     else:
         pmap = _square_map(mesh, sides)
     with _MAPS_LOCK:
