@@ -10,6 +10,7 @@ its old form by a caller whose own file did not change.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 from pathlib import Path
@@ -27,6 +28,45 @@ def frozen(*arrays):
         v.flags.writeable = False
         out.append(v)
     return tuple(out)
+
+
+def inner(func):
+    """Decorator of a helper kernel that only other kernels call (``njit``, cached, no GIL,
+    no ``fastmath``).
+
+    Every compiled kernel also gets a wrapper that unboxes Python arguments: code that is
+    generated, optimised and turned into machine code for each signature, and that a helper
+    called only from compiled code never runs (its callers link its code, not its
+    wrapper). A helper declared here is compiled without it, which shortens a first run's
+    compiling; called from Python it raises :class:`TypeError` instead.
+    """
+    from numba.core import config
+
+    if config.DISABLE_JIT:
+        return func
+    disp = _inner_dispatcher()(
+        py_func=func,
+        locals={},
+        targetoptions={"nopython": True, "nogil": True, "no_cpython_wrapper": True},
+    )
+    disp.enable_caching()
+    return disp
+
+
+@functools.cache
+def _inner_dispatcher() -> type:
+    """The dispatcher class of :func:`inner` helpers (made on first use: importing this
+    package does not import numba)."""
+    from numba.core.registry import CPUDispatcher
+
+    class InnerDispatcher(CPUDispatcher):
+        def __call__(self, *args, **kwargs):
+            raise TypeError(
+                f"{self.py_func.__module__}.{self.py_func.__qualname__} is compiled to be "
+                "called from kernels only"
+            )
+
+    return InnerDispatcher
 
 
 #: the file beside the caches holding the digest of the sources they were compiled from

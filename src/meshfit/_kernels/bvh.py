@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from meshfit._kernels import inner
 from meshfit._kernels.walk import _closest_on_face
 
 #: triangles per leaf: smaller leaves cost a few more box tests and a slightly slower build,
@@ -27,7 +28,7 @@ GRID_LEAF_CELLS = 4
 _MORTON_BITS = 21
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _spread(x):
     """The low 21 bits of ``x`` spread to every third bit."""
     x &= 0x1FFFFF
@@ -39,7 +40,7 @@ def _spread(x):
     return x
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _grid(X):
     """Lower corner (3,) of the bounding box of the points ``X (k, 3)`` and the scale (3,)
     that maps the box onto the Morton grid (0 along a flat axis)."""
@@ -56,7 +57,7 @@ def _grid(X):
     return lo, scale
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _morton(x, y, z, lo, scale):
     """Morton code of the point (x, y, z) on the grid of `_grid`."""
     code = 0
@@ -314,7 +315,7 @@ def build_grids(V, F, shapes, tbase, centroid):
     return order, lo, hi, child, start, stop
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _node_box(V, F, ords, lo, hi, child, start, stop, k):
     """Box of node ``k`` from its children's boxes, or from its triangles for a leaf."""
     c = child[k]
@@ -337,7 +338,7 @@ def _node_box(V, F, ords, lo, hi, child, start, stop, k):
             hi[k, d] = max(hi[c, d], hi[c + 1, d])
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _longest_axis(C, s, e):
     """Axis (0, 1, 2) along which rows ``s:e`` of ``C (n, 3)`` spread the most (the first
     on a tie)."""
@@ -356,7 +357,7 @@ def _longest_axis(C, s, e):
     return axis
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _median_split(order, C, s, e, mid):
     """Reorder ``order[s:e]`` (and the rows of ``C``, the centroids in that order, with it)
     so that position ``mid`` holds the median centroid coordinate along the longest axis of
@@ -386,7 +387,7 @@ def _median_split(order, C, s, e, mid):
             break
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _box_sq(lo, hi, k, px, py, pz):
     s = 0.0
     for d in range(3):
@@ -398,7 +399,7 @@ def _box_sq(lo, hi, k, px, py, pz):
     return s
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _segment_t(px, py, pz, ax, ay, az, bx, by, bz):
     """Parameter in [0, 1] of the point of the segment a-b closest to a point (0 when a == b)."""
     ux, uy, uz = bx - ax, by - ay, bz - az
@@ -410,7 +411,7 @@ def _segment_t(px, py, pz, ax, ay, az, bx, by, bz):
     return t
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _segment_sq(px, py, pz, ax, ay, az, bx, by, bz):
     """Squared distance from a point to the segment a-b (a point when a == b)."""
     ux, uy, uz = bx - ax, by - ay, bz - az
@@ -436,7 +437,7 @@ def zero_area(V, F):
     return out
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _triangle_sq(V, F, flat, t, p, bary):
     """Squared distance from ``p`` (3,) to triangle ``t``; ``bary`` (3,) receives the
     barycentrics of the closest point. That point is
@@ -569,7 +570,7 @@ def within(V, F, flat, order, lo, hi, child, start, stop, Q, qorder, r2):
     return out
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _first_within(V, F, flat, order, lo, hi, child, start, stop, p, stack, near_sq, bary, r2):
     """A triangle within squared distance ``r2`` of ``p`` (3,), the nearer subtree searched
     first; -1 when there is none. ``stack``, ``near_sq`` and ``bary`` are scratch."""
@@ -630,7 +631,7 @@ def _nearest(
     return best, best_t
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _push_children(lo, hi, c, px, py, pz, bound, inclusive, stack, near_sq, top):
     """Push children ``c`` and ``c + 1`` of a node onto the search stack with their boxes'
     squared distances to ``(px, py, pz)``, each only if that distance is within ``bound``

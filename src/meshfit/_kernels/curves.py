@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from meshfit._kernels import inner
 from meshfit._kernels.walk import (
     _ATTRACT_SCRATCH,
     BOUNDARY,
@@ -103,12 +104,12 @@ def _representations(F, FN, VF_ptr, VF, face, bary, eps, faces_out, bary_out):
     return n
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _adjacent(FN, f, g):
     return FN[f, 0] == g or FN[f, 1] == g or FN[f, 2] == g
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _max_valence(F, FN, VF_ptr, fa, fb):
     """Largest vertex valence over the faces of the pairs that are not trivially ok."""
     m = 0
@@ -125,7 +126,7 @@ def _max_valence(F, FN, VF_ptr, fa, fb):
     return m
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _best_option(FN, fa_r, na, fb_r, nb):
     """First pair (i, j) on a shared face, else the first on adjacent faces, else (-1, -1)."""
     adj_i = -1
@@ -211,7 +212,7 @@ def rewrite_pairs(F, FN, VF_ptr, VF, pf, pb, qf, qb, eps, via):
 # loops run serially: keep them in step with `walk_points` / `attract_points` there.
 
 
-@njit(cache=True, nogil=True)
+@inner
 def walk_points_serial(V, F, FN, face, bary, step, max_faces, eps_len, bary_eps):
     """Serial `meshfit._kernels.walk.walk_points` (same arguments and results)."""
     n = face.shape[0]
@@ -234,7 +235,7 @@ def walk_points_serial(V, F, FN, face, bary, step, max_faces, eps_len, bary_eps)
     return out_face, out_bary, length, hit, capped
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _dist2(t, x):
     """|t - x|^2 for (3,) arrays, summed in the order of ``np.sum``."""
     d0 = t[0] - x[0]
@@ -288,7 +289,7 @@ def attract_points_serial(
 # ------------------------------------------------------------ subdividing steps of resampling
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _place(s, closed, p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, pt_bary, out_b):
     """Face point at arc length ``s`` (already in range) of a curve given by its pieces.
 
@@ -341,7 +342,7 @@ def _pair_ok(F, FN, VF_ptr, VF, f, ba, g, bb, eps, fa_r, ba_r, fb_r, bb_r):
     return si >= 0
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _faces_valence(F, VF_ptr, faces, m):
     """Largest of ``m`` and the valences of the vertices of ``faces``."""
     for i in range(faces.size):
@@ -353,7 +354,7 @@ def _faces_valence(F, VF_ptr, faces, m):
     return m
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _scratch_for(F, VF_ptr, faces_a, faces_b):
     """`_scratch` sized by the largest valence among the vertices of the given faces (face
     points on these faces only)."""
@@ -428,7 +429,7 @@ def revert_jumps(V, F, FN, VF_ptr, VF, face, bary, gface, gbary, keep, max_gap, 
     return reverts
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _place_part(
     ai, d, j, k, closed, total, p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, pt_bary, out_b
 ):
@@ -526,14 +527,14 @@ def subdivide_steps(
 # ----------------------------------------------------------------- a curve as straight pieces
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _point_in(V, F, f, b, out):
     """Position of barycentrics ``b`` (3,) in face ``f`` into ``out`` (3,)."""
     for d in range(3):
         out[d] = b[0] * V[F[f, 0], d] + b[1] * V[F[f, 1], d] + b[2] * V[F[f, 2], d]
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _norm3(x0, x1, x2):
     return np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
 
@@ -671,7 +672,7 @@ def place_on_pieces(p_face, p_b0, p_b1, p_start, p_len, arc, pt_face, pt_bary, c
 # --------------------------------------------------------- bisecting pairs that break the rule
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _clean_copy(b, out):
     """``out`` = ``b`` (3,) with tiny negatives clamped and renormalised, only when there is
     one (as `meshfit.surface.walk._clean_bary`)."""
@@ -686,7 +687,7 @@ def _clean_copy(b, out):
             out[c] = out[c] / tot
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _grow(face, bary, pair, need):
     if need <= face.size:
         return face, bary, pair

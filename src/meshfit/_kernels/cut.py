@@ -45,6 +45,8 @@ import math
 import numpy as np
 from numba import njit
 
+from meshfit._kernels import inner
+
 # counters in S
 N_TRI = 0
 N_NEW = 1
@@ -112,7 +114,7 @@ def _hash(a, b, mask):
     return h & mask
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _find(H, a, b):
     """Slot of edge (a, b), a < b; -1 when absent."""
     mask = H.shape[0] - 1
@@ -126,7 +128,7 @@ def _find(H, a, b):
         i = (i + 1) & mask
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _slot(S, H, a, b):
     """Slot of edge (a, b), a < b, made (empty) when absent."""
     mask = H.shape[0] - 1
@@ -148,7 +150,7 @@ def _slot(S, H, a, b):
         i = (i + 1) & mask
 
 
-@njit(cache=True, nogil=True)
+@inner
 def edge_slot(H, a, b):
     """Slot of the undirected edge (a, b) in H, -1 when absent."""
     if a < b:
@@ -156,7 +158,7 @@ def edge_slot(H, a, b):
     return _find(H, b, a)
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _copy_rows(src, dst, n):
     """dst[:n] = src[:n] for 2-D arrays of one width, element by element (an array slice
     assignment compiles numba's shape-mismatch error path, with its string formatting,
@@ -212,7 +214,7 @@ def reserve(S, TR, FL, NV, NI, OP0, H, P, n_vertices, n_edges):
 
 
 # ------------------------------------------------------------------------------ lookups
-@njit(cache=True, nogil=True)
+@inner
 def _xyz(V0, NV, v):
     nv0 = V0.shape[0]
     if v >= nv0:
@@ -221,12 +223,12 @@ def _xyz(V0, NV, v):
     return V0[v, 0], V0[v, 1], V0[v, 2]
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _norm(x, y, z):
     return math.sqrt(x * x + y * y + z * z)
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _on_path(V0, NI, OP0, v):
     nv0 = V0.shape[0]
     if v >= nv0:
@@ -234,7 +236,7 @@ def _on_path(V0, NI, OP0, v):
     return OP0[v]
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _set_on_path(V0, NI, OP0, v):
     nv0 = V0.shape[0]
     if v >= nv0:
@@ -243,7 +245,7 @@ def _set_on_path(V0, NI, OP0, v):
         OP0[v] = True
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _bary_in(V0, F0, S, NV, NI, v, g):
     """Barycentric coordinates of vertex ``v`` in original face ``g`` (exact mapping)."""
     f0 = F0[g, 0]
@@ -284,7 +286,7 @@ def _uv(V0, F0, S, NV, NI, v, g):
 
 
 # ------------------------------------------------------------------------ triangulation
-@njit(cache=True, nogil=True)
+@inner
 def _edge_add(S, H, a, b, t):
     if a > b:
         a, b = b, a
@@ -300,7 +302,7 @@ def _edge_add(S, H, a, b, t):
     H[i, _HN] = n + 1
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _edge_remove(H, a, b, t):
     if a > b:
         a, b = b, a
@@ -332,7 +334,7 @@ def _unregister(TR, H, t):
     _edge_remove(H, c, a, t)
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _set_place(P, off, mask, t):
     """Put ``t`` into the first free slot of its probe sequence (CPython's set insertion)."""
     i = t & mask
@@ -395,7 +397,7 @@ def _load(F0, S, TR, FL, H, P, f):
         _face_add(S, FL, P, f, f)
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _ensure(F0, FN, S, TR, FL, H, P, g):
     """Make original face ``g`` and its neighbours editable."""
     if FL[g, 2] & ACTIVE:
@@ -415,7 +417,7 @@ def _new_tri(S, TR, FL, H, P, a, b, c, parent):
     return t
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _new_vertex(V0, S, NV, NI, x, y, z, g, b0, b1, b2):
     i = S[N_NEW]
     S[N_NEW] = i + 1
@@ -430,7 +432,7 @@ def _new_vertex(V0, S, NV, NI, x, y, z, g, b0, b1, b2):
     return V0.shape[0] + i
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _tri_area(V0, NV, TR, t):
     px, py, pz = _xyz(V0, NV, TR[t, 0])
     qx, qy, qz = _xyz(V0, NV, TR[t, 1])
@@ -447,7 +449,7 @@ def _tri_area(V0, NV, TR, t):
     return 0.5 * _norm(c0, c1, c2)
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _split_face(S, TR, FL, H, P, t, x):
     a = TR[t, 0]
     b = TR[t, 1]
@@ -459,7 +461,7 @@ def _split_face(S, TR, FL, H, P, t, x):
     _new_tri(S, TR, FL, H, P, c, a, x, parent)
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _split_edge(S, TR, FL, H, P, a, b, x):
     ka = min(a, b)
     kb = max(a, b)
@@ -493,7 +495,7 @@ def _split_edge(S, TR, FL, H, P, a, b, x):
         H[i, _HSPLIT] = x
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _set_cut(S, H, a, b):
     if a > b:
         a, b = b, a
@@ -501,12 +503,12 @@ def _set_cut(S, H, a, b):
     H[i, _HCUT] = 1
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _may_snap(V0, S, NI, OP0, v):
     return (not _on_path(V0, NI, OP0, v)) or v == S[SNAP_OK]
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _edge_split_ok(V0, S, TR, NV, H, a, b, s, min_area):
     """Whether splitting edge (a, b) at parameter s keeps every piece above min_area."""
     m = s
@@ -521,7 +523,7 @@ def _edge_split_ok(V0, S, TR, NV, H, a, b, s, min_area):
     return True
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _split_edge_at(V0, F0, S, TR, FL, NV, NI, OP0, H, P, a, b, s, g, snap, min_area):
     """Split edge (a, b) at parameter s, or snap to its nearer end (see `_Cutter`)."""
     pax, pay, paz = _xyz(V0, NV, a)
@@ -552,7 +554,7 @@ def _split_edge_at(V0, F0, S, TR, FL, NV, NI, OP0, H, P, a, b, s, g, snap, min_a
 
 
 # ---------------------------------------------------------------------------- insertion
-@njit(cache=True, nogil=True)
+@inner
 def _insert(V0, F0, FN, S, TR, FL, NV, NI, OP0, H, P, snap, min_area, cf, cb, cv, cx, g, tmp):
     """Insert a snapped curve point (face ``cf``, bary ``cb (3,)``, vertex ``cv`` or -1,
     position ``cx (3,)``) into original face ``g`` (which contains it); returns its vertex.
@@ -673,7 +675,7 @@ def _insert(V0, F0, FN, S, TR, FL, NV, NI, OP0, H, P, snap, min_area, cf, cb, cv
     return _split_edge_at(V0, F0, S, TR, FL, NV, NI, OP0, H, P, a, b, edge_s[k], g, snap, min_area)
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _argmin3(x0, x1, x2):
     """Index of the first smallest of three numbers."""
     k = 0
@@ -749,7 +751,7 @@ def _insert_on_edge(
 
 
 # --------------------------------------------------------------------------------- walk
-@njit(cache=True, nogil=True)
+@inner
 def _walk_step(
     V0, F0, S, TR, FL, NV, NI, OP0, H, P, snap, min_area, cur, w, g, Wx, Wy, Wz, uw0, uw1
 ):
@@ -841,7 +843,7 @@ def _walk_step(
     return nxt
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _has_edge(H, a, b):
     i = edge_slot(H, a, b)
     return i >= 0 and H[i, _HN] > 0
@@ -986,7 +988,7 @@ def insert_curve(
     return path[:n_path].copy(), S, TR, FL, NV, NI, OP0, H, P
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _push(a, n, v):
     if n == a.shape[0]:
         b = np.empty(2 * n, dtype=np.int64)
@@ -1157,7 +1159,7 @@ ERR_BRIDGE = 7  # i, j, face of i, face of j
 ERR_COLLAPSE = 8  # points, distinct points
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _vertex_point(V0, F0, VFI, VFF, v):
     f = VFF[VFI[v]]  # the smallest face around v
     b0 = 1.0 if F0[f, 0] == v else 0.0
@@ -1166,7 +1168,7 @@ def _vertex_point(V0, F0, VFI, VFF, v):
     return (KIND_VERTEX, v, f, -1, b0, b1, b2, V0[v, 0], V0[v, 1], V0[v, 2])
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _edge_point(V0, F0, FN, VFI, VFF, snap, face, k, s):
     """The point at parameter s along edge k of ``face`` (snapped to an end when close)."""
     a = F0[face, k]
@@ -1272,7 +1274,7 @@ def classify(V0, F0, FN, VFI, VFF, snap, face, bary):
     return PI, PF
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _put(PI, PF, i, p):
     PI[i, 0] = p[0]
     PI[i, 1] = p[1]
@@ -1286,7 +1288,7 @@ def _put(PI, PF, i, p):
     PF[i, 5] = p[9]
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _get(PI, PF, i):
     return (
         PI[i, 0],
@@ -1302,7 +1304,7 @@ def _get(PI, PF, i):
     )
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _has_face(F0, p, f):
     """Whether original face ``f >= 0`` is one of the point's faces."""
     if p[0] == KIND_VERTEX:
@@ -1311,7 +1313,7 @@ def _has_face(F0, p, f):
     return f == p[2] or (p[3] >= 0 and f == p[3])
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _faces_of(VFI, VFF, p):
     """The point's original faces, ascending."""
     if p[0] == KIND_VERTEX:
@@ -1326,7 +1328,7 @@ def _faces_of(VFI, VFF, p):
     return out
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _same_faces(VFI, VFF, p, q):
     """Whether two points have the same original faces."""
     if p[0] == KIND_FACES and q[0] == KIND_FACES:  # no arrays for the common case
@@ -1341,7 +1343,7 @@ def _same_faces(VFI, VFF, p, q):
     return True
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _same_point(VFI, VFF, snap, p, q):
     """Whether two points are one: the same vertex, or within ``snap`` on the same faces."""
     if p[1] >= 0 or q[1] >= 0:
@@ -1351,7 +1353,7 @@ def _same_point(VFI, VFF, snap, p, q):
     return _norm(p[7] - q[7], p[8] - q[8], p[9] - q[9]) < snap
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _common_face(F0, VFI, VFF, p, q):
     """The original face two points share: the first point's, else the second's, else the
     smallest shared one (-1: none)."""
@@ -1366,7 +1368,7 @@ def _common_face(F0, VFI, VFF, p, q):
     return -1
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _crossing(V0, F0, FN, VFI, VFF, snap, p, f, k, q):
     """Where the straight segment p -> q, unfolded about edge k of face f, crosses that edge."""
     i = F0[f, k]
@@ -1400,14 +1402,14 @@ def _crossing(V0, F0, FN, VFI, VFF, snap, p, f, k, q):
     return _edge_point(V0, F0, FN, VFI, VFF, snap, f, k, s)
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _dist_via(p, x, q):
     return _norm(x[7] - p[7], x[8] - p[8], x[9] - p[9]) + _norm(
         q[7] - x[7], q[8] - x[8], q[9] - x[9]
     )
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _fan_steps(F0, FN, VFI, VFF, p, q, v):
     """Edges ``(f, k)`` around vertex ``v`` between a face of p and a face of q, going round
     ``v`` the way that passes fewer faces (none: an empty array)."""
@@ -1456,7 +1458,7 @@ def _fan_steps(F0, FN, VFI, VFF, p, q, v):
     return best
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _grow_points(PI, PF, n, extra):
     if n + extra <= PI.shape[0]:
         return PI, PF
@@ -1564,7 +1566,7 @@ def bridge_curve(V0, F0, FN, VFI, VFF, snap, route_fans, CI, CF, closed, S):
     return QI[:m].copy(), QF[:m].copy(), seg_g
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _sorted_shared(F0, VFI, VFF, p, fq):
     """The original vertices of both a face of p and a face ``fq`` of q, ascending."""
     fp = _faces_of(VFI, VFF, p)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from meshfit._kernels import inner
 from meshfit._kernels.geometry import _cross
 from meshfit._kernels.topology import faces_around
 
@@ -56,7 +57,7 @@ def stable_order(values):
     return order
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _neighbors(F, indptr, star, v, buf):
     """Distinct neighbours of ``v`` into ``buf``; returns their count."""
     n = 0
@@ -77,7 +78,7 @@ def _neighbors(F, indptr, star, v, buf):
     return n
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _quality(V, a, b, c):
     """``4 sqrt(3) area / (l0^2 + l1^2 + l2^2)``: 1 equilateral, 0 degenerate."""
     nx, ny, nz = _cross(V, a, b, c)

@@ -9,8 +9,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from meshfit._kernels import inner
 
-@njit(cache=True, nogil=True)
+
+@inner
 def _bary(uv, T, t, x, y):
     a0, a1 = uv[T[t, 0], 0], uv[T[t, 0], 1]
     v0x, v0y = uv[T[t, 1], 0] - a0, uv[T[t, 1], 1] - a1

@@ -7,8 +7,10 @@ import heapq
 import numpy as np
 from numba import njit
 
+from meshfit._kernels import inner
 
-@njit(cache=True, nogil=True)
+
+@inner
 def _dist(V, a, b):
     dx = V[a, 0] - V[b, 0]
     dy = V[a, 1] - V[b, 1]

@@ -5,8 +5,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from meshfit._kernels import inner
 
-@njit(cache=True, nogil=True, fastmath=False)
+
+@inner
 def _centre_box(x0, x1, x2, y0, y1, y2, w, h):
     """The pixels of a (h, w) image whose centres (px + 0.5, py + 0.5) lie in a triangle's
     bounding box: ``xmin, xmax, ymin, ymax`` (empty when min > max, as for most triangles
@@ -18,7 +20,7 @@ def _centre_box(x0, x1, x2, y0, y1, y2, w, h):
     return xmin, xmax, ymin, ymax
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _fill(P, color, shade, uv, checker, image, depth):
     """Rasterise one triangle: P (3, 3) screen x, y and depth per corner, color (3, 3),
     shade (3,), uv (3, 2); see `raster`. Inlined into its callers: as a call per triangle,
@@ -74,7 +76,7 @@ def raster(P, color, shade, uv, checker, image, depth):
         _fill(P[t], color[t], shade[t], uv[t], checker, image, depth)
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _light(nx, ny, nz, view, ambient):
     """Head light: ``ambient + (1 - ambient) |n . view|`` for the unit normal along n."""
     norm = max(np.sqrt(nx * nx + ny * ny + nz * nz), 1e-300)

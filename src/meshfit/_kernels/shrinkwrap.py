@@ -16,13 +16,15 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from meshfit._kernels import inner
 
-@njit(cache=True, nogil=True, fastmath=False)
+
+@inner
 def _det3(a0, a1, a2, b0, b1, b2, c0, c1, c2):
     return a0 * (b1 * c2 - b2 * c1) - a1 * (b0 * c2 - b2 * c0) + a2 * (b0 * c1 - b1 * c0)
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _edge_dets(S, F, f, q, out):
     """The three edge determinants of ``q`` in face ``f`` into ``out (3,)``."""
     for k in range(3):
@@ -31,7 +33,7 @@ def _edge_dets(S, F, f, q, out):
         out[k] = _det3(S[a, 0], S[a, 1], S[a, 2], S[b, 0], S[b, 1], S[b, 2], q[0], q[1], q[2])
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _bary_from_dets(e, out):
     """Barycentric coordinates (clipped at 0, normalised) from edge determinants."""
     b0 = max(e[1], 0.0)

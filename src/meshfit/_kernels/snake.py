@@ -10,6 +10,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from meshfit._kernels import inner
+
 
 @njit(cache=True, nogil=True, fastmath=False)
 def positions(V, F, face, bary):
@@ -25,7 +27,7 @@ def positions(V, F, face, bary):
     return out
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _index(i, k, n, closed):
     j = i + k
     if closed:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from meshfit._kernels import inner
 from meshfit._kernels.snake import capped_moves, positions, snake_forces
 from meshfit._kernels.walk import DONE, _copy3, _start_direction, _walk_one
 
@@ -20,7 +21,7 @@ from meshfit._kernels.walk import DONE, _copy3, _start_direction, _walk_one
 HALVINGS = 6
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _put_rows(out, a, rows):
     """out[a : a + len(rows)] = rows for (n, 3) arrays, element by element (an array slice
     assignment compiles numba's shape-mismatch error path into every first run)."""
@@ -77,7 +78,7 @@ def curve_max(values, start):
     return out
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _share_vertex(F, a, b):
     """Faces ``a`` and ``b`` share a vertex (the pair test of `snake.pairs_ok`)."""
     for p in range(3):
@@ -87,7 +88,7 @@ def _share_vertex(F, a, b):
     return False
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _mark_broken(F, ok0, face, mark):
     """Mark both points of every segment that shared a vertex (``ok0``) and no longer does;
     face (m,) i8, ok0 (m - 1,) bool, mark (m,) bool -> number of broken segments."""
@@ -101,7 +102,7 @@ def _mark_broken(F, ok0, face, mark):
     return n
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _walk_from(V, F, FN, f, b, step, out_b, u, max_faces, eps_len, bary_eps):
     """One point of `walk.walk_points`: ``(f, b (3,))`` walked by ``step (3,)``; the new
     barycentrics into ``out_b (3,)``, ``u (3,)`` scratch -> (face, walked length)."""
@@ -115,7 +116,7 @@ def _walk_from(V, F, FN, f, b, step, out_b, u, max_faces, eps_len, bary_eps):
     return g, (total - rest if status != DONE else total)
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _vertex_normals_at(VN, F, face, bary, out):
     """Unit interpolated vertex normals of face points into ``out (m, 3)``, summed and
     normalised in the order of ``einsum("ij,ijk->ik")`` and ``linalg.norm(axis=1)``."""
@@ -133,7 +134,7 @@ def _vertex_normals_at(VN, F, face, bary, out):
         out[i, 2] /= s
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _relax_curve(
     V,
     F,

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from meshfit._kernels import inner
 from meshfit._kernels.geometry import _cross
 from meshfit._kernels.walk import (
     DONE,
@@ -47,7 +48,7 @@ def grid_xyz(V, F, face, bary):
 
 # the per-point helpers of `relax_sweeps` are inlined into it (calls with array arguments
 # cost a noticeable share of the sweeps on a large patch; same grids bit for bit)
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def walk_inside(V, F, FN, f, b, u, total, max_faces, bary_eps, tries, b0, u0):
     """Walk face point (f, b) by ``total`` along unit in-plane ``u``, never onto the boundary.
 
@@ -76,7 +77,7 @@ def walk_inside(V, F, FN, f, b, u, total, max_faces, bary_eps, tries, b0, u0):
     return f, 0.0
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _spring_vector(X, p, q, n0, n1, n2, tangent):
     """Spring vector from grid point ``p`` to its neighbour ``q`` (three scalars); with
     ``tangent`` turned into the plane of unit normal ``(n0, n1, n2)`` keeping its length."""
@@ -98,7 +99,7 @@ def _spring_vector(X, p, q, n0, n1, n2, tangent):
     return d0, d1, d2
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _pair_arc(a0, a1, a2, b0, b1, b2):
     """Arc-length force (eq. 5.1) of the spring vectors ``a`` and ``b`` to the two
     neighbours along one grid line, toward the farther one by the difference of the
@@ -121,7 +122,7 @@ def _pair_arc(a0, a1, a2, b0, b1, b2):
     return f0, f1, f2, la + lb
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _line_springs(X, N, p, a, b, n0, n1, n2, tangent, fold):
     """Spring vectors from grid point ``p`` to its two neighbours ``a`` and ``b`` along one
     grid line (six scalars, `_spring_vector`). With ``fold``, a vector to a neighbour across
@@ -142,7 +143,7 @@ def _line_springs(X, N, p, a, b, n0, n1, n2, tangent, fold):
     return a0, a1, a2, b0, b1, b2
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _away_from(x0, x1, x2, y0, y1, y2):
     """The spring vector ``x`` turned to point away from ``y`` (the other neighbour on the
     grid line), keeping its length; ``x`` itself when ``y`` has no length."""
@@ -208,7 +209,7 @@ def chain_points(arc, ef, ea, eb, positions):
     return face, bary
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _cv(x):
     """Standard deviation over mean of the values ``x (n,)`` (0 for none or a zero mean)."""
     n = x.shape[0]
@@ -350,7 +351,7 @@ def line_spacing(V, F, face, bary, nu, nv, ends_u, ends_v):
     return col, row, np.median(aspect)
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _point_normals(V, F, face):
     """Unit normal of each grid point's face: ``(n, 3)`` float64."""
     N = np.empty((face.shape[0], 3))
@@ -362,7 +363,7 @@ def _point_normals(V, F, face):
     return N
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _tri_facing(X, N, p, q, r):
     """Dot product of triangle (p, q, r)'s normal ``(q - p) x (r - p)`` with the summed
     normals at its corners, and the product of the two vectors' lengths."""
@@ -374,13 +375,13 @@ def _tri_facing(X, N, p, q, r):
     return dot, np.sqrt((cx * cx + cy * cy + cz * cz) * (sx * sx + sy * sy + sz * sz))
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _tri_bad(X, N, p, q, r):
     """1 if triangle (p, q, r) faces against the summed normals at its corners, else 0."""
     return 1 if _tri_facing(X, N, p, q, r)[0] <= 0.0 else 0
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _bad_around(X, N, nu, nv, p):
     """Folded triangles (the `folded_cells` test) in the up to four cells around point p."""
     i = p // nv
@@ -599,7 +600,7 @@ def relax_sweeps(
     return done, worst, rms
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _fold_score(X, N, nu, nv, p, margin):
     """Folded triangles of the up to four cells around point p (the `_bad_around` count) and
     their shortfall: the sum over those triangles of ``max(0, margin - cos)``, ``cos`` the
@@ -761,7 +762,7 @@ def repair_folds(
     return left
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _on_boundary_edge(FN, f, b, eps):
     """Whether face point (f, b) lies on a boundary edge of its face."""
     for k in range(3):
@@ -770,7 +771,7 @@ def _on_boundary_edge(FN, f, b, eps):
     return False
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _greedy_mid(V, indptr, indices, v1, v2, max_steps, path):
     """Mid vertex (by length) of a greedy graph path v1 -> v2, or -1 if the descent sticks;
     ``path`` (max_steps + 1,) i8 is scratch."""
@@ -921,7 +922,7 @@ def folded_cells(V, F, face, bary, nu, nv):
     return _folded_grid(grid_xyz(V, F, face, bary), _point_normals(V, F, face), nu, nv)
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _folded_grid(X, N, nu, nv):
     """`folded_cells` of the grid points ``X`` (nu nv, 3) with unit normals ``N``."""
     out = np.zeros((nu - 1, nv - 1), dtype=np.bool_)
@@ -936,7 +937,7 @@ def _folded_grid(X, N, nu, nv):
     return out
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _shortest_grid_edge(X, rows, cols):
     """Shortest chord between neighbouring points of a (rows, cols) row-major grid ``X``."""
     best = np.inf
@@ -1117,7 +1118,7 @@ def chord_rounds(xyz, arc, pos, fixed, rounds):
 # ------------------------------------------------- untangling in a tangent-plane chart
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _lowest(A, m, x, y):
     """min over the first ``m`` rows of ``A[k, 0] x + A[k, 1] y + A[k, 2]``."""
     out = np.inf
@@ -1175,7 +1176,7 @@ def maxmin_point(A, m, px, py, h):
     return bx, by, best
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _cell_tri(i, j, t, nv):
     """Grid rows of triangle ``t`` (0: a b c, 1: a c d) of cell (i, j), as the fold test
     splits it: a = (i, j), b = (i + 1, j), c = (i + 1, j + 1), d = (i, j + 1)."""
@@ -1186,7 +1187,7 @@ def _cell_tri(i, j, t, nv):
     return a, c, i * nv + j + 1
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _twice_area(Y, p, q, r):
     return (Y[q, 0] - Y[p, 0]) * (Y[r, 1] - Y[p, 1]) - (Y[q, 1] - Y[p, 1]) * (Y[r, 0] - Y[p, 0])
 

@@ -13,6 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from meshfit._kernels import inner
+
 #: probabilities are integers in (0, 2**PROB_BITS)
 PROB_BITS = 15
 #: adaptation rate of a context that has seen 2**(ADAPT - 1) symbols and more
@@ -28,7 +30,7 @@ _MASK32 = (1 << 32) - 1
 SIG_CONTEXTS = 8
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _bitlen(n):
     """Bits of a non-negative integer."""
     b = 0
@@ -38,7 +40,7 @@ def _bitlen(n):
     return b
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _probs(n):
     """Probabilities (even slots, at 1/2) and symbol counts (odd slots) of n contexts."""
     p = np.zeros(2 * n, np.int64)
@@ -46,7 +48,7 @@ def _probs(n):
     return p
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _put(buf, st, byte):
     """Append ``byte`` to ``buf`` (grown by doubling); st[4] is the count written."""
     n = st[4]
@@ -60,7 +62,7 @@ def _put(buf, st, byte):
     return buf
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _shift_low(buf, st):
     """LZMA's ShiftLow: st = [low, range, cache, cache_size, written]."""
     low = st[0]
@@ -79,7 +81,7 @@ def _shift_low(buf, st):
     return buf
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _rate(probs, ctx):
     """The context's probability (of a 0) and adaptation shift, its count advanced: the
     shift starts near Laplace's estimate and settles at ``ADAPT``."""
@@ -91,7 +93,7 @@ def _rate(probs, ctx):
     return probs[2 * ctx], sh
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _adapt(probs, ctx, p, sh, bit):
     """Move the context's probability toward the symbol just coded."""
     if bit == 0:
@@ -100,7 +102,7 @@ def _adapt(probs, ctx, p, sh, bit):
         probs[2 * ctx] = p - (p >> sh)
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _encode_bit(buf, st, probs, ctx, bit):
     """Code one binary symbol with the adaptive probability ``probs[2 ctx]`` (of a 0)."""
     p, sh = _rate(probs, ctx)
@@ -117,7 +119,7 @@ def _encode_bit(buf, st, probs, ctx, bit):
     return buf
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _decode_bit(data, n_avail, st, probs, ctx):
     """Decode one symbol; st = [code, range, position, exhausted]. Sets st[3] when the
     next decision would need a byte past ``n_avail``."""
@@ -183,7 +185,7 @@ def decode_bits(data, n_avail, ctxs, n_ctx):
     return out[:k]
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _sig_context(c, node_level, parents, vsig):
     """Context of the significance decision of coefficient ``c``: its level, component,
     how many of its parents (the vertices of the coarser level it was inserted between,

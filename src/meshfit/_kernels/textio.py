@@ -10,8 +10,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from meshfit._kernels import inner
 
-@njit(cache=True, nogil=True)
+
+@inner
 def _put_int(buf, pos, x):
     """Write the decimal digits of ``x`` (a minus sign first when negative) at ``pos``;
     returns the position after them."""

@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from meshfit._kernels import inner
+
 
 @njit(cache=True, nogil=True)
 def trace_loops(t, h, nv):
@@ -133,7 +135,7 @@ def edge_table(faces, nv):
     return edges, halfedge_edge, edge_count, order, start
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _root(parent, i):
     while parent[i] != i:
         parent[i] = parent[parent[i]]
@@ -141,7 +143,7 @@ def _root(parent, i):
     return i
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _union(parent, a, b):
     """Join the sets of ``a`` and ``b`` under the smaller root."""
     ra = _root(parent, a)
@@ -153,7 +155,7 @@ def _union(parent, a, b):
             parent[ra] = rb
 
 
-@njit(cache=True, nogil=True)
+@inner
 def _labels(parent):
     """``(count, labels)`` of a union-find forest, numbered by each set's smallest node."""
     n = parent.shape[0]

@@ -13,6 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from meshfit._kernels import inner
+
 #: status codes returned by `_walk_one`
 DONE = 0
 BOUNDARY = 1
@@ -23,7 +25,7 @@ FARTHER = 3
 _ATTRACT_SCRATCH = 7
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _copy3(src, dst):
     """dst[:3] = src[:3], element by element (an array slice assignment compiles numba's
     shape-mismatch error path, with its string formatting, into every first run)."""
@@ -32,19 +34,19 @@ def _copy3(src, dst):
     dst[2] = src[2]
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _bary_rate(V, F, f, u, out):
     """Barycentric change per unit length along the in-plane vector ``u`` in face ``f``; (3,)."""
     out[0], out[1], out[2] = _bary_rate3(V, F, f, u)
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _bary_rate3(V, F, f, u):
     """`_bary_rate` as three scalars (no output array)."""
     return _bary_rate_of(V, F, f, u[0], u[1], u[2])
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _bary_rate_of(V, F, f, u0, u1, u2):
     """`_bary_rate` of the in-plane vector ``(u0, u1, u2)``, on scalars."""
     a = F[f, 0]
@@ -75,7 +77,7 @@ def _face_normal(V, F, f, out):
     out[0], out[1], out[2] = _face_normal3(V, F, f)
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _face_normal3(V, F, f):
     """`_face_normal` as three scalars (no output array)."""
     a = F[f, 0]
@@ -119,7 +121,7 @@ def _walk_one(V, F, FN, f, b, u, length, max_faces, bary_eps):
     return _walk_core(V, F, FN, f, b, u, length, max_faces, bary_eps, u, np.inf)
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _walk_core(V, F, FN, f, b, u, length, max_faces, bary_eps, tgt, bound):
     """`_walk_one` that gives up (status FARTHER) at an edge crossing from which the walk
     cannot end within ``bound`` of ``tgt`` (3,): the distance to ``tgt`` there minus the
@@ -267,7 +269,7 @@ def _start_direction(V, F, f, step, u):
     return _in_plane(n0, n1, n2, step, u)
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _in_plane(n0, n1, n2, step, u):
     """Project ``step`` (3,) onto the plane of unit normal ``(n0, n1, n2)``; unit direction
     into ``u``, returns length."""
@@ -310,7 +312,7 @@ def walk_points(V, F, FN, face, bary, step, max_faces, eps_len, bary_eps):
     return out_face, out_bary, length, hit, capped
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _position(V, F, f, b, out):
     for d in range(3):
         out[d] = b[0] * V[F[f, 0], d] + b[1] * V[F[f, 1], d] + b[2] * V[F[f, 2], d]
@@ -344,7 +346,7 @@ def _clip_at_boundary(V, F, FN, f, b, step, bary_eps):
     return clipped
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _dist(t, x):
     """|t - x| for (3,) arrays, summed in the order of ``np.sum``."""
     d0 = t[0] - x[0]
@@ -353,7 +355,7 @@ def _dist(t, x):
     return np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _closest_on_face(V, F, f, p, out):
     """Barycentrics ``out`` (3,) of the point of triangle ``f`` closest to ``p`` (3,).
 
@@ -494,7 +496,7 @@ def _attract_one(V, F, FN, VFp, VF, f, b, tgt, max_iter, max_faces, eps_len, bar
     )
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@inner
 def _attract_one_buf(V, F, FN, VFp, VF, f, b, tgt, max_iter, max_faces, eps_len, bary_eps, buf):
     """`_attract_one` with caller-owned scratch ``buf (_ATTRACT_SCRATCH, 3) f8`` (a serial
     caller allocates it once for all its points)."""
