@@ -69,6 +69,58 @@ def _inner_dispatcher() -> type:
     return InnerDispatcher
 
 
+#: pieces per thread that :func:`split` cuts a range into: a thread that finishes its
+#: pieces early takes others, so uneven pieces do not leave a core idle at the end
+PIECES_PER_THREAD = 4
+
+
+def split(kernel, n: int, *args, min_piece: int = 1) -> None:
+    """Run ``kernel(*args, lo, hi)`` over pieces ``[lo, hi)`` that cover ``range(n)``, on
+    the calling thread and up to ``NUMBA_NUM_THREADS - 1`` worker threads.
+
+    It is the parallel loop of a kernel whose iterations are independent and each write
+    only their own rows of arrays in ``args``: the result is the same however the range is
+    cut and whichever thread runs a piece. A numba ``prange`` does the same inside the
+    kernel, but each such loop is compiled as a separate function with its own scheduler,
+    which costs a first run more compiling than the whole serial kernel. The caller takes
+    pieces too and stops waiting for a worker that has not started, so a call made while
+    the workers are busy (several threads calling at once) still finishes.
+    """
+    import itertools
+
+    from numba import config
+
+    threads = max(1, int(config.NUMBA_NUM_THREADS))
+    pieces = min(threads * PIECES_PER_THREAD, n // max(1, min_piece))
+    if threads == 1 or pieces <= 1:
+        if n > 0:
+            kernel(*args, 0, n)
+        return
+    bounds = [n * i // pieces for i in range(pieces + 1)]
+    counter = itertools.count()  # next() is atomic under the GIL
+
+    def work() -> None:
+        while (i := next(counter)) < pieces:
+            kernel(*args, bounds[i], bounds[i + 1])
+
+    pool = _workers(threads - 1)
+    helpers = [pool.submit(work) for _ in range(min(threads, pieces) - 1)]
+    try:
+        work()
+    finally:
+        for h in helpers:
+            if not h.cancel():
+                h.result()
+
+
+@functools.cache
+def _workers(n: int):
+    """The threads :func:`split` hands pieces to (made on first use, kept)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    return ThreadPoolExecutor(max_workers=n, thread_name_prefix="meshfit-kernels")
+
+
 #: the file beside the caches holding the digest of the sources they were compiled from
 STAMP = "meshfit-kernels.sha256"
 

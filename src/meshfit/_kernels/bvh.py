@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from meshfit._kernels import inner
+from meshfit._kernels import inner, split
 from meshfit._kernels.walk import _closest_on_face
 
 #: triangles per leaf: smaller leaves cost a few more box tests and a slightly slower build,
@@ -481,22 +481,34 @@ _STACK = 2 * 64 + 2
 _BLOCK = 1024
 
 
-@njit(cache=True, nogil=True, parallel=True, fastmath=False)
 def closest_points(V, F, flat, order, lo, hi, child, start, stop, Q, qorder):
     """Closest point of the triangles to each query point ``Q (n, 3)``: (n,) squared
     distance, (n,) triangle, (n, 3) barycentrics of the point on that triangle (each >= 0,
     summing to 1).
 
     The queries are taken in the order ``qorder (n,)`` (a permutation; Morton order keeps
-    consecutive queries near each other). Each search descends the tree from the distance to
-    the previous query's triangle in the same block, which prunes most of the tree when that
-    query was near. Also the kernel of distance-only queries, which drop the barycentrics.
+    consecutive queries near each other), in blocks of `_BLOCK` on several threads. Each
+    search descends the tree from the distance to the previous query's triangle in the same
+    block, which prunes most of the tree when that query was near. Also the kernel of
+    distance-only queries, which drop the barycentrics.
     """
     n = Q.shape[0]
     out = np.empty(n)
     tri = np.empty(n, dtype=np.int64)
     bary_out = np.empty((n, 3))
-    for blk in prange((n + _BLOCK - 1) // _BLOCK):
+    args = (V, F, flat, order, lo, hi, child, start, stop, Q, qorder, out, tri, bary_out)
+    split(closest_blocks, (n + _BLOCK - 1) // _BLOCK, *args)
+    return out, tri, bary_out
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def closest_blocks(
+    V, F, flat, order, lo, hi, child, start, stop, Q, qorder, out, tri, bary_out, b0, b1
+):
+    """`closest_points` of the queries of blocks ``b0`` to ``b1`` (exclusive), written
+    into their rows of ``out``, ``tri`` and ``bary_out``."""
+    n = Q.shape[0]
+    for blk in range(b0, b1):
         stack = np.empty(_STACK, dtype=np.int64)
         near_sq = np.empty(_STACK)
         bary = np.empty(3)
@@ -536,10 +548,8 @@ def closest_points(V, F, flat, order, lo, hi, child, start, stop, Q, qorder):
             bary_out[i, 0] = best[0]
             bary_out[i, 1] = best[1]
             bary_out[i, 2] = best[2]
-    return out, tri, bary_out
 
 
-@njit(cache=True, nogil=True, parallel=True, fastmath=False)
 def within(V, F, flat, order, lo, hi, child, start, stop, Q, qorder, r2):
     """Whether each query point ``Q (n, 3)`` has a triangle within squared distance ``r2``:
     (n,) bool.
@@ -551,7 +561,17 @@ def within(V, F, flat, order, lo, hi, child, start, stop, Q, qorder, r2):
     """
     n = Q.shape[0]
     out = np.zeros(n, dtype=np.bool_)
-    for blk in prange((n + _BLOCK - 1) // _BLOCK):
+    args = (V, F, flat, order, lo, hi, child, start, stop, Q, qorder, float(r2), out)
+    split(within_blocks, (n + _BLOCK - 1) // _BLOCK, *args)
+    return out
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def within_blocks(V, F, flat, order, lo, hi, child, start, stop, Q, qorder, r2, out, b0, b1):
+    """`within` for the queries of blocks ``b0`` to ``b1`` (exclusive), written into their
+    rows of ``out``."""
+    n = Q.shape[0]
+    for blk in range(b0, b1):
         stack = np.empty(_STACK, dtype=np.int64)
         near_sq = np.empty(_STACK)
         bary = np.empty(3)
@@ -567,7 +587,6 @@ def within(V, F, flat, order, lo, hi, child, start, stop, Q, qorder, r2):
             if t >= 0:
                 out[i] = True
                 prev = t
-    return out
 
 
 @inner

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
+
+from meshfit._kernels import split
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -28,15 +30,23 @@ def _sq_dist(V, i, j):
     return d0 * d0 + d1 * d1 + d2 * d2
 
 
-@njit(cache=True, nogil=True, parallel=True)
+#: faces per piece of `face_cross` on threads (fewer: one thread does the whole)
+CROSS_PIECE = 65536
+
+
 def face_cross(V, F):
     """``(p1 - p0) x (p2 - p0)`` per face: (nf, 3) float64, twice the area along the normal,
-    bitwise the numpy expression's (`_cross`)."""
-    nf = F.shape[0]
-    out = np.empty((nf, 3))
-    for f in prange(nf):
-        out[f, 0], out[f, 1], out[f, 2] = _cross(V, F[f, 0], F[f, 1], F[f, 2])
+    bitwise the numpy expression's (`_cross`); pieces of faces on several threads."""
+    out = np.empty((F.shape[0], 3))
+    split(face_cross_range, F.shape[0], V, F, out, min_piece=CROSS_PIECE)
     return out
+
+
+@njit(cache=True, nogil=True)
+def face_cross_range(V, F, out, f0, f1):
+    """`face_cross` of the faces ``f0`` to ``f1`` (exclusive), into their rows of ``out``."""
+    for f in range(f0, f1):
+        out[f, 0], out[f, 1], out[f, 2] = _cross(V, F[f, 0], F[f, 1], F[f, 2])
 
 
 @njit(cache=True, nogil=True)

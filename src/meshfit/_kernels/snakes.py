@@ -10,9 +10,9 @@ walks' sign tests and the pair test decide faces.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
-from meshfit._kernels import inner
+from meshfit._kernels import inner, split
 from meshfit._kernels.snake import capped_moves, positions, snake_forces
 from meshfit._kernels.walk import DONE, _copy3, _start_direction, _walk_one
 
@@ -242,7 +242,6 @@ def _relax_curve(
     return done, halved, reverted
 
 
-@njit(cache=True, nogil=True, parallel=True, fastmath=False)
 def relax_many(
     V,
     F,
@@ -270,13 +269,42 @@ def relax_many(
     forces (w_fair 1, w_curv 0, w_arc 1), tangent moves (``gain``, capped at ``step`` times
     the spacing), walks, the pair guard, then the stopping tests (longest walk and longest
     move over two iterations below ``stop``) -> face (n,) i8, bary (n, 3) f8,
-    stats (k, 3) i8: iterations run, halved walks, reverted points.
+    stats (k, 3) i8: iterations run, halved walks, reverted points. Curves on several
+    threads, each curve's iterations on one.
     """
-    k = start.shape[0] - 1
     out_face = face.copy()
     out_bary = bary.copy()
-    stats = np.zeros((k, 3), dtype=np.int64)
-    for c in prange(k):  # iteration c writes the rows of curve c only
+    stats = np.zeros((start.shape[0] - 1, 3), dtype=np.int64)
+    args = (V, F, FN, VN, start, levels, floor, gain, step, stop, iterations, max_faces)
+    split(relax_range, start.shape[0] - 1, *args, eps_len, bary_eps, out_face, out_bary, stats)
+    return out_face, out_bary, stats
+
+
+@njit(cache=True, nogil=True, fastmath=False)
+def relax_range(
+    V,
+    F,
+    FN,
+    VN,
+    start,
+    levels,
+    floor,
+    gain,
+    step,
+    stop,
+    iterations,
+    max_faces,
+    eps_len,
+    bary_eps,
+    out_face,
+    out_bary,
+    stats,
+    c0,
+    c1,
+):
+    """`relax_many` of curves ``c0`` to ``c1`` (exclusive), in place in their rows of
+    ``out_face`` and ``out_bary``, their ``stats`` rows written."""
+    for c in range(c0, c1):  # iteration c writes the rows of curve c only
         a = start[c]
         b = start[c + 1]
         it, hv, rv = _relax_curve(
@@ -299,4 +327,3 @@ def relax_many(
         stats[c, 0] = it
         stats[c, 1] = hv
         stats[c, 2] = rv
-    return out_face, out_bary, stats

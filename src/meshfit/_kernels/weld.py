@@ -2,14 +2,16 @@
 
 Every sum runs in the order of the numpy expressions it replaces (grid nodes ascending, each
 node's cell terms in one fixed order), so the welded vertices and normals are the same bits
-whichever computes them; only the per-patch work, which writes disjoint ranges, runs in
-parallel. Oracles: ``tests/reference/weld.py``.
+whichever computes them; only the per-patch work, which writes disjoint ranges, runs on
+several threads (`meshfit._kernels.split`). Oracles: ``tests/reference/weld.py``.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
+
+from meshfit._kernels import split
 
 
 @njit(cache=True, nogil=True)
@@ -39,7 +41,6 @@ def _corner(vertices, vertex_of, node, out):
     out[2] = vertices[v, 2]
 
 
-@njit(cache=True, nogil=True, parallel=True)
 def node_normal_sums(vertices, vertex_of, shapes, offs):
     """Per grid node ``(k, 3)``: the area-weighted normals of its grid's triangles at it.
 
@@ -48,11 +49,18 @@ def node_normal_sums(vertices, vertex_of, shapes, offs):
     welded ``vertices``) has the triangles ``a b c`` and ``a c d``, with cross products
     ``n1 = (b - a) x (c - a)`` and ``n2 = (c - a) x (d - a)``. A node sums, in this order,
     ``n1 + n2`` of the cell it is ``a`` of, ``n1 + n2`` of the one it is ``c`` of, ``n1``
-    of the one it is ``b`` of and ``n2`` of the one it is ``d`` of. Patches in parallel.
+    of the one it is ``b`` of and ``n2`` of the one it is ``d`` of. Patches on several threads.
     """
-    k = vertex_of.shape[0]
-    out = np.zeros((k, 3))
-    for p in prange(shapes.shape[0]):
+    out = np.zeros((vertex_of.shape[0], 3))
+    split(node_normal_range, shapes.shape[0], vertices, vertex_of, shapes, offs, out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def node_normal_range(vertices, vertex_of, shapes, offs, out, p0, p1):
+    """`node_normal_sums` of the nodes of patches ``p0`` to ``p1`` (exclusive), into their
+    rows of ``out``."""
+    for p in range(p0, p1):
         h, w, base = shapes[p, 0], shapes[p, 1], offs[p]
         n1 = np.empty((h - 1, w - 1, 3))
         n2 = np.empty((h - 1, w - 1, 3))
@@ -87,7 +95,6 @@ def node_normal_sums(vertices, vertex_of, shapes, offs):
                     if i < h - 1 and j > 0:
                         s += n2[i, j - 1, q]
                     out[node, q] = s
-    return out
 
 
 @njit(cache=True, nogil=True)
@@ -126,16 +133,30 @@ def _put(faces, face_uv, face_patch, t, p, vertex_of, x, y, z):
     return t + 1
 
 
-@njit(cache=True, nogil=True, parallel=True)
 def welded_faces(shapes, offs, vertex_of):
     """The triangles of every patch's grid (per patch, first ``(i,j) (i+1,j) (i+1,j+1)`` of
     every cell, then ``(i,j) (i+1,j+1) (i,j+1)``, cells row-major), without those whose
     corners weld together: their welded vertices ``(m, 3)``, their grid nodes ``(m, 3)``,
     their patch ``(m,)``, and ``m``. The arrays have a row per triangle before the drop;
-    rows from ``m`` on are unused."""
+    rows from ``m`` on are unused. Patches on several threads: first the kept count of
+    each, which places each one's rows, then the rows."""
     n = shapes.shape[0]
     kept = np.zeros(n + 1, dtype=np.int64)
-    for p in prange(n):  # first the kept count of each patch, to place each one's rows
+    split(kept_counts, n, shapes, offs, vertex_of, kept)
+    np.cumsum(kept, out=kept)
+    total = int(2 * ((shapes[:, 0] - 1) * (shapes[:, 1] - 1)).sum())
+    faces = np.empty((total, 3), dtype=np.int64)
+    face_uv = np.empty((total, 3), dtype=np.int64)
+    face_patch = np.empty(total, dtype=np.int64)
+    split(kept_faces, n, shapes, offs, vertex_of, kept, faces, face_uv, face_patch)
+    return faces, face_uv, face_patch, int(kept[n])
+
+
+@njit(cache=True, nogil=True)
+def kept_counts(shapes, offs, vertex_of, kept, p0, p1):
+    """The triangles `welded_faces` keeps of patches ``p0`` to ``p1`` (exclusive), into
+    ``kept[p + 1]``."""
+    for p in range(p0, p1):
         h, w, base = shapes[p, 0], shapes[p, 1], offs[p]
         c = 0
         for i in range(h - 1):
@@ -147,15 +168,13 @@ def welded_faces(shapes, offs, vertex_of):
                 c += (a != b) and (b != cc) and (cc != a)
                 c += (a != cc) and (cc != d) and (d != a)
         kept[p + 1] = c
-    total = 0
-    for p in range(n):
-        h, w = shapes[p, 0], shapes[p, 1]
-        total += 2 * (h - 1) * (w - 1)
-        kept[p + 1] += kept[p]
-    faces = np.empty((total, 3), dtype=np.int64)
-    face_uv = np.empty((total, 3), dtype=np.int64)
-    face_patch = np.empty(total, dtype=np.int64)
-    for p in prange(n):
+
+
+@njit(cache=True, nogil=True)
+def kept_faces(shapes, offs, vertex_of, kept, faces, face_uv, face_patch, p0, p1):
+    """The kept triangles of patches ``p0`` to ``p1`` (exclusive), written from row
+    ``kept[p]`` of the arrays on (``kept`` summed up to each patch)."""
+    for p in range(p0, p1):
         h, w, base = shapes[p, 0], shapes[p, 1], offs[p]
         t = kept[p]
         for i in range(h - 1):
@@ -166,4 +185,3 @@ def welded_faces(shapes, offs, vertex_of):
             for j in range(w - 1):
                 a = base + i * w + j
                 t = _put(faces, face_uv, face_patch, t, p, vertex_of, a, a + w + 1, a + 1)
-    return faces, face_uv, face_patch, kept[n]
