@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import itertools
 import os
 from pathlib import Path
 
@@ -86,8 +87,6 @@ def split(kernel, n: int, *args, min_piece: int = 1) -> None:
     pieces too and stops waiting for a worker that has not started, so a call made while
     the workers are busy (several threads calling at once) still finishes.
     """
-    import itertools
-
     from numba import config
 
     threads = max(1, int(config.NUMBA_NUM_THREADS))

@@ -477,7 +477,7 @@ def _triangle_sq(V, F, flat, t, p, bary):
 #: stack entries per query: median splits halve every node, so the tree is less than 64
 #: levels deep, and each level leaves at most one far child on the stack
 _STACK = 2 * 64 + 2
-#: query points per parallel task (one stack and scratch per task)
+#: query points per block, searched in order on one thread (one stack and scratch per block)
 _BLOCK = 1024
 
 
