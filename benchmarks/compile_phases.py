@@ -118,8 +118,9 @@ def summarise(r: dict, bare: dict) -> dict:
     big = {k: _share(v, total) for k, v in python if v >= 0.01 * total}
     small = sum(v for _, v in python if v < 0.01 * total)
     big["other passes"] = _share(small, total)
-    llvm = {k: _share(v, total) for k, v in r["llvm_in_s"].items() if v >= 0.01 * total}
-    llvm["elsewhere"] = _share(r["llvm_s"] - sum(v["s"] for v in llvm.values()), total)
+    big_llvm = {k: v for k, v in r["llvm_in_s"].items() if v >= 0.01 * total}
+    llvm = {k: _share(v, total) for k, v in big_llvm.items()}
+    llvm["elsewhere"] = _share(r["llvm_s"] - sum(big_llvm.values()), total)
     return {
         "entries": r["entries"],
         "total_s": round(total, 1),
